@@ -1,0 +1,14 @@
+//! The logic behind the `terrafuse` subcommands, kept out of `main.rs` so it can be tested:
+//! batch coordinate conversion in the manner of PROJ's `cct` and the analysis reports.
+
+mod geo;
+mod report;
+
+pub use geo::{BatchReport, GeoOperation, run_batch};
+pub use report::{overview, tissot_report};
+
+/// Formats a float with full precision: the shortest decimal that reads back to the same f64
+/// (like `%.17g`, but without trailing noise), in exponent form for very large or small values.
+pub fn format_f64(value: f64) -> String {
+    format!("{value:?}")
+}

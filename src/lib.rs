@@ -1,0 +1,10 @@
+//! Terrafuse: a planetary terrain workstation on the Ellipsoidal Cube Map (Lambers & Kolb 2012).
+//!
+//! Layers point one way: [`geodesy`] (ellipsoids, f64) → [`ecm`] (cube faces, QSC, quads) →
+//! the command line ([`cli`]). See `ARCHITECTURE.md` for the path data take through them.
+
+#![warn(missing_docs)]
+
+pub mod cli;
+pub mod ecm;
+pub mod geodesy;
