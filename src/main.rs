@@ -84,7 +84,8 @@ fn main() -> ExitCode {
 fn run(args: Args) -> Result<ExitCode> {
     match args.command {
         Command::Overview { landmarks } => {
-            let text = std::fs::read_to_string(&landmarks).with_context(|| format!("cannot read landmark file {}", landmarks.display()))?;
+            let text = std::fs::read_to_string(&landmarks)
+                .with_context(|| format!("cannot read landmark file {}", landmarks.display()))?;
             print!("{}", cli::overview(&text));
             let (table, _) = cli::tissot_report(200, 8);
             print!("\n{table}");
@@ -102,7 +103,8 @@ fn run(args: Args) -> Result<ExitCode> {
             let stderr = io::stderr().lock();
             let report = match input {
                 Some(path) => {
-                    let file = std::fs::File::open(&path).with_context(|| format!("cannot open input file {}", path.display()))?;
+                    let file = std::fs::File::open(&path)
+                        .with_context(|| format!("cannot open input file {}", path.display()))?;
                     cli::run_batch(operation, &ellipsoid, projection, BufReader::new(file), stdout, stderr)?
                 }
                 None => cli::run_batch(operation, &ellipsoid, projection, io::stdin().lock(), stdout, stderr)?,

@@ -100,7 +100,12 @@ fn check_lat(lat_deg: f64) -> Result<(), String> {
     Ok(())
 }
 
-fn convert(operation: GeoOperation, ellipsoid: &Ellipsoid, projection: CubeProjection, line: &str) -> Result<Vec<String>, String> {
+fn convert(
+    operation: GeoOperation,
+    ellipsoid: &Ellipsoid,
+    projection: CubeProjection,
+    line: &str,
+) -> Result<Vec<String>, String> {
     let fields: Vec<&str> = line.split_whitespace().collect();
     match operation {
         GeoOperation::ToFace => {
@@ -110,15 +115,11 @@ fn convert(operation: GeoOperation, ellipsoid: &Ellipsoid, projection: CubeProje
             Ok(vec![p.face.name().to_string(), format_f64(p.x), format_f64(p.y)])
         }
         GeoOperation::FromFace => {
-            let face: Face = fields
-                .first()
-                .ok_or("empty line")?
-                .parse()
-                .map_err(|e: crate::ecm::EcmError| e.to_string())?;
+            let face: Face =
+                fields.first().ok_or("empty line")?.parse().map_err(|e: crate::ecm::EcmError| e.to_string())?;
             let [x, y] = numbers::<2>(&fields[1..])?;
-            let (lat, lon) = projection
-                .geodetic_from_face_point(ellipsoid, FacePoint { face, x, y })
-                .map_err(|e| e.to_string())?;
+            let (lat, lon) =
+                projection.geodetic_from_face_point(ellipsoid, FacePoint { face, x, y }).map_err(|e| e.to_string())?;
             Ok(vec![format_f64(lat.to_degrees()), format_f64(lon.to_degrees())])
         }
         GeoOperation::ToEcef => {
@@ -130,11 +131,7 @@ fn convert(operation: GeoOperation, ellipsoid: &Ellipsoid, projection: CubeProje
         GeoOperation::FromEcef => {
             let [x, y, z] = numbers::<3>(&fields)?;
             let g = geodesy::geodetic_from_ecef(ellipsoid, DVec3::new(x, y, z));
-            Ok(vec![
-                format_f64(g.lat_rad.to_degrees()),
-                format_f64(g.lon_rad.to_degrees()),
-                format_f64(g.height_m),
-            ])
+            Ok(vec![format_f64(g.lat_rad.to_degrees()), format_f64(g.lon_rad.to_degrees()), format_f64(g.height_m)])
         }
     }
 }
@@ -146,7 +143,8 @@ mod tests {
     fn run(op: GeoOperation, text: &str) -> (String, String, BatchReport) {
         let mut out = Vec::new();
         let mut err = Vec::new();
-        let report = run_batch(op, &Ellipsoid::WGS84, CubeProjection::Qsc, text.as_bytes(), &mut out, &mut err).unwrap();
+        let report =
+            run_batch(op, &Ellipsoid::WGS84, CubeProjection::Qsc, text.as_bytes(), &mut out, &mut err).unwrap();
         (String::from_utf8(out).unwrap(), String::from_utf8(err).unwrap(), report)
     }
 

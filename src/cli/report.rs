@@ -23,7 +23,10 @@ pub fn tissot_report(n: usize, level: u8) -> (String, Vec<(DistortionSummary, Di
         .collect();
     let mut out = String::new();
     let _ = writeln!(out, "Distortion by Tissot's indicatrix (paper: Lambers & Kolb 2012, sec. 3)");
-    let _ = writeln!(out, "pointwise: supremum over the sphere ({n}x{n} points per chart); cells: every cell of level {level}");
+    let _ = writeln!(
+        out,
+        "pointwise: supremum over the sphere ({n}x{n} points per chart); cells: every cell of level {level}"
+    );
     let _ = writeln!(
         out,
         "{:<36} {:>9} {:>9} {:>6} {:>11} {:>6} | {:>9} {:>11}",
@@ -81,7 +84,11 @@ pub fn overview(landmarks: &str) -> String {
     let _ = writeln!(out, "Terrafuse {}: the Ellipsoidal Cube Map, in f64.", env!("CARGO_PKG_VERSION"));
     let _ = writeln!(out, "Bodies: {}; {}; {}", Ellipsoid::WGS84, Ellipsoid::MOON, Ellipsoid::MARS);
     let _ = writeln!(out, "\nLandmarks on WGS84 → QSC face and level-12 quad, ECEF, and back:");
-    let _ = writeln!(out, "{:<18} {:>10} {:>11} {:>7}  {:<6} {:>9} {:>9}  {:<22} {:>12}", "name", "lat", "lon", "h (m)", "face", "x", "y", "quad (face/level/x/y)", "roundtrip m");
+    let _ = writeln!(
+        out,
+        "{:<18} {:>10} {:>11} {:>7}  {:<6} {:>9} {:>9}  {:<22} {:>12}",
+        "name", "lat", "lon", "h (m)", "face", "x", "y", "quad (face/level/x/y)", "roundtrip m"
+    );
     let ellipsoid = Ellipsoid::WGS84;
     for line in landmarks.lines().map(str::trim).filter(|l| !l.is_empty() && !l.starts_with('#')) {
         let fields: Vec<&str> = line.split_whitespace().collect();

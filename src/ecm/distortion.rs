@@ -120,10 +120,7 @@ pub fn tissot(map: impl Fn(f64, f64) -> DVec3, u: f64, v: f64, h: f64) -> Tissot
     let areal_scale = du.cross(dv).length();
     let a = (0.5 * (e + g + ((e - g).powi(2) + 4.0 * f * f).sqrt())).sqrt();
     let b = areal_scale / a;
-    Tissot {
-        omega_rad: 2.0 * ((a - b) / (a + b)).clamp(-1.0, 1.0).asin(),
-        areal_scale,
-    }
+    Tissot { omega_rad: 2.0 * ((a - b) / (a + b)).clamp(-1.0, 1.0).asin(), areal_scale }
 }
 
 /// How a system is sampled.
@@ -258,7 +255,14 @@ fn latlon_face_chart(sampling: Sampling) -> Chart {
         Sampling::Pointwise(n) => (grid_points(n), POINT_STEP),
         Sampling::Cells(level) => cell_centres(0.0, 1.0, 1usize << level),
     };
-    Chart { name: "equatorial face", map: Box::new(map), points, step, area_factor: 1.0, square_cells: matches!(sampling, Sampling::Cells(_)) }
+    Chart {
+        name: "equatorial face",
+        map: Box::new(map),
+        points,
+        step,
+        area_factor: 1.0,
+        square_cells: matches!(sampling, Sampling::Cells(_)),
+    }
 }
 
 /// One quarter of Porwal's circular north polar face (the cap above 45°), corners: the pole,
@@ -280,7 +284,8 @@ fn polar_quarter_chart(sampling: Sampling) -> Chart {
         let d0 = glam::DVec2::new(0.0, v * r); // pole → (45°N, 90°)
         let d1 = arc(v * FRAC_PI_4); // (45°N, 0°) → midpoint
         let (p10, p01, p11) = (arc(0.0), arc(FRAC_PI_2), arc(FRAC_PI_4));
-        let q = (1.0 - v) * c0 + v * c1 + (1.0 - u) * d0 + u * d1 - (u * (1.0 - v) * p10 + (1.0 - u) * v * p01 + u * v * p11);
+        let q = (1.0 - v) * c0 + v * c1 + (1.0 - u) * d0 + u * d1
+            - (u * (1.0 - v) * p10 + (1.0 - u) * v * p01 + u * v * p11);
         let rho = q.length();
         let sinc = if rho < 1e-8 { 1.0 - rho * rho / 6.0 } else { rho.sin() / rho };
         DVec3::new(q.x * sinc, q.y * sinc, rho.cos())
@@ -289,13 +294,18 @@ fn polar_quarter_chart(sampling: Sampling) -> Chart {
         Sampling::Pointwise(n) => (grid_points(n), POINT_STEP),
         Sampling::Cells(level) => cell_centres(0.0, 1.0, 1usize << level.saturating_sub(1)),
     };
-    Chart { name: "polar cap quarter", map: Box::new(map), points, step, area_factor: 4.0, square_cells: matches!(sampling, Sampling::Cells(_)) }
+    Chart {
+        name: "polar cap quarter",
+        map: Box::new(map),
+        points,
+        step,
+        area_factor: 4.0,
+        square_cells: matches!(sampling, Sampling::Cells(_)),
+    }
 }
 
 fn grid_points(n: usize) -> Vec<(f64, f64)> {
-    (0..=n)
-        .flat_map(|i| (0..=n).map(move |j| (i as f64 / n as f64, j as f64 / n as f64)))
-        .collect()
+    (0..=n).flat_map(|i| (0..=n).map(move |j| (i as f64 / n as f64, j as f64 / n as f64))).collect()
 }
 
 fn charts(system: GridSystem, sampling: Sampling) -> Vec<Chart> {

@@ -197,10 +197,7 @@ impl FromStr for Face {
         if let Ok(index) = t.parse::<usize>() {
             return Face::from_index(index).ok_or_else(|| EcmError::UnknownFace(text.to_string()));
         }
-        Face::ALL
-            .into_iter()
-            .find(|face| face.name() == t)
-            .ok_or_else(|| EcmError::UnknownFace(text.to_string()))
+        Face::ALL.into_iter().find(|face| face.name() == t).ok_or_else(|| EcmError::UnknownFace(text.to_string()))
     }
 }
 

@@ -38,7 +38,8 @@ pub struct FacePoint {
 
 impl CubeProjection {
     /// All projections, QSC first.
-    pub const ALL: [CubeProjection; 3] = [CubeProjection::Qsc, CubeProjection::Gnomonic, CubeProjection::AdjustedGnomonic];
+    pub const ALL: [CubeProjection; 3] =
+        [CubeProjection::Qsc, CubeProjection::Gnomonic, CubeProjection::AdjustedGnomonic];
 
     /// Name used on the command line: `qsc`, `gnomonic`, `adjusted-gnomonic`.
     pub fn name(self) -> &'static str {
@@ -55,10 +56,9 @@ impl CubeProjection {
         match self {
             CubeProjection::Qsc => qsc_xy_from_local(local),
             CubeProjection::Gnomonic => (local.x / local.z, local.y / local.z),
-            CubeProjection::AdjustedGnomonic => (
-                local.x.atan2(local.z) / FRAC_PI_4,
-                local.y.atan2(local.z) / FRAC_PI_4,
-            ),
+            CubeProjection::AdjustedGnomonic => {
+                (local.x.atan2(local.z) / FRAC_PI_4, local.y.atan2(local.z) / FRAC_PI_4)
+            }
         }
     }
 
@@ -67,15 +67,18 @@ impl CubeProjection {
         match self {
             CubeProjection::Qsc => qsc_local_from_xy(x, y),
             CubeProjection::Gnomonic => DVec3::new(x, y, 1.0).normalize(),
-            CubeProjection::AdjustedGnomonic => DVec3::new((x * FRAC_PI_4).tan(), (y * FRAC_PI_4).tan(), 1.0).normalize(),
+            CubeProjection::AdjustedGnomonic => {
+                DVec3::new((x * FRAC_PI_4).tan(), (y * FRAC_PI_4).tan(), 1.0).normalize()
+            }
         }
     }
 
-    /// The face point of a direction from the centre (ECEF axes, any length > 0).
+    /// The face point of a direction from the centre (ECEF axes, any length > 0). Points on a
+    /// face edge can round a unit in the last place past ±1; they are clamped onto the face.
     pub fn face_point_from_direction(self, d: DVec3) -> FacePoint {
         let face = Face::of_direction(d);
         let (x, y) = self.xy_from_local(face.local_from_ecef(d.normalize()));
-        FacePoint { face, x, y }
+        FacePoint { face, x: x.clamp(-1.0, 1.0), y: y.clamp(-1.0, 1.0) }
     }
 
     /// Unit direction (ECEF axes) of a face point.
@@ -89,9 +92,9 @@ impl CubeProjection {
     /// ```
     /// use terrafuse::ecm::{CubeProjection, Face};
     /// use terrafuse::geodesy::Ellipsoid;
-    /// // PROJ: echo "20 10 0" | cct -d 12 +proj=qsc +lat_0=0 +lon_0=0 +ellps=WGS84
-    /// //   → 1573673.296019594185  3015387.535487787332 (lon 20, lat 10)
-    /// let p = CubeProjection::Qsc.face_point_from_geodetic(&Ellipsoid::WGS84, 10f64.to_radians(), 20f64.to_radians());
+    /// // PROJ (input lon lat): echo "10 20 0" | cct -d 12 +proj=qsc +lat_0=0 +lon_0=0 +ellps=WGS84
+    /// //   → 1573673.296019594185  3015387.535487787332
+    /// let p = CubeProjection::Qsc.face_point_from_geodetic(&Ellipsoid::WGS84, 20f64.to_radians(), 10f64.to_radians());
     /// assert_eq!(p.face, Face::Front);
     /// assert!((p.x * 6_378_137.0 - 1_573_673.296_019_594).abs() < 1e-6);
     /// assert!((p.y * 6_378_137.0 - 3_015_387.535_487_787).abs() < 1e-6);

@@ -5,8 +5,8 @@ use std::fmt;
 
 use glam::{I64Vec3, IVec2};
 
-use super::{EcmError, Face, FacePoint};
 use super::face::Edge;
+use super::{EcmError, Face, FacePoint};
 
 /// The deepest quadtree level: 2³⁰ quads along a face edge (≈ 1 cm on Earth).
 pub const MAX_LEVEL: u8 = 30;
@@ -79,7 +79,12 @@ impl QuadId {
         if self.level >= MAX_LEVEL {
             return None;
         }
-        let c = |dx: u32, dy: u32| QuadId { face: self.face, level: self.level + 1, x: 2 * self.x + dx, y: 2 * self.y + dy };
+        let c = |dx: u32, dy: u32| QuadId {
+            face: self.face,
+            level: self.level + 1,
+            x: 2 * self.x + dx,
+            y: 2 * self.y + dy,
+        };
         Some([c(0, 0), c(1, 0), c(0, 1), c(1, 1)])
     }
 
@@ -221,10 +226,7 @@ mod tests {
                     for edge in Edge::ALL {
                         let nb = q.neighbour(edge);
                         // Walking back from the neighbour in the rotated opposite direction returns here.
-                        let back = Edge::ALL
-                            .into_iter()
-                            .filter(|e2| nb.quad.neighbour(*e2).quad == q)
-                            .count();
+                        let back = Edge::ALL.into_iter().filter(|e2| nb.quad.neighbour(*e2).quad == q).count();
                         assert!(back >= 1, "{q} {edge:?} → {} has no way back", nb.quad);
                         assert_ne!(nb.quad, q);
                     }
@@ -241,7 +243,11 @@ mod tests {
         let p = CubeProjection::Qsc;
         let centre = |q: QuadId| {
             let e = q.extent();
-            p.direction_from_face_point(FacePoint { face: q.face, x: 0.5 * (e.x_min + e.x_max), y: 0.5 * (e.y_min + e.y_max) })
+            p.direction_from_face_point(FacePoint {
+                face: q.face,
+                x: 0.5 * (e.x_min + e.x_max),
+                y: 0.5 * (e.y_min + e.y_max),
+            })
         };
         for face in Face::ALL {
             for edge in Edge::ALL {

@@ -34,37 +34,16 @@ impl Ellipsoid {
     const fn from_a_inv_f(name: &'static str, a_m: f64, inv_f: f64) -> Ellipsoid {
         let f = 1.0 / inv_f;
         let b_m = a_m * (1.0 - f);
-        Ellipsoid {
-            name,
-            a_m,
-            b_m,
-            f,
-            e2: f * (2.0 - f),
-            e2m: (1.0 - f) * (1.0 - f),
-        }
+        Ellipsoid { name, a_m, b_m, f, e2: f * (2.0 - f), e2m: (1.0 - f) * (1.0 - f) }
     }
 
     const fn from_axes_const(name: &'static str, a_m: f64, b_m: f64) -> Ellipsoid {
         let f = (a_m - b_m) / a_m;
-        Ellipsoid {
-            name,
-            a_m,
-            b_m,
-            f,
-            e2: f * (2.0 - f),
-            e2m: (1.0 - f) * (1.0 - f),
-        }
+        Ellipsoid { name, a_m, b_m, f, e2: f * (2.0 - f), e2m: (1.0 - f) * (1.0 - f) }
     }
 
     const fn sphere(name: &'static str, radius_m: f64) -> Ellipsoid {
-        Ellipsoid {
-            name,
-            a_m: radius_m,
-            b_m: radius_m,
-            f: 0.0,
-            e2: 0.0,
-            e2m: 1.0,
-        }
+        Ellipsoid { name, a_m: radius_m, b_m: radius_m, f: 0.0, e2: 0.0, e2m: 1.0 }
     }
 
     /// A user's ellipsoid from its two semi-axes in metres. Requires finite `a_m ≥ b_m > 0`
@@ -157,7 +136,9 @@ impl FromStr for Ellipsoid {
         }
         match (a, b, rf, r) {
             (Some(a), Some(b), None, None) => Ellipsoid::from_axes(a, b),
-            (Some(a), None, Some(rf), None) if rf.is_finite() && rf >= 1.0 => Ellipsoid::from_axes(a, a * (1.0 - 1.0 / rf)),
+            (Some(a), None, Some(rf), None) if rf.is_finite() && rf >= 1.0 => {
+                Ellipsoid::from_axes(a, a * (1.0 - 1.0 / rf))
+            }
             (None, None, None, Some(r)) => Ellipsoid::from_axes(r, r),
             _ => Err(unknown()),
         }

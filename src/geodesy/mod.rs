@@ -42,11 +42,7 @@ pub struct Geodetic {
 impl Geodetic {
     /// A position from degrees and metres (the units of files and command lines).
     pub fn from_degrees(lat_deg: f64, lon_deg: f64, height_m: f64) -> Geodetic {
-        Geodetic {
-            lat_rad: lat_deg.to_radians(),
-            lon_rad: lon_deg.to_radians(),
-            height_m,
-        }
+        Geodetic { lat_rad: lat_deg.to_radians(), lon_rad: lon_deg.to_radians(), height_m }
     }
 }
 
@@ -64,11 +60,7 @@ pub fn ecef_from_geodetic(ellipsoid: &Ellipsoid, point: Geodetic) -> DVec3 {
     let (sin_lon, cos_lon) = point.lon_rad.sin_cos();
     let n = ellipsoid.a_m() / (1.0 - ellipsoid.e2() * sin_lat * sin_lat).sqrt();
     let r = (n + point.height_m) * cos_lat;
-    DVec3::new(
-        r * cos_lon,
-        r * sin_lon,
-        (n * ellipsoid.b2_over_a2() + point.height_m) * sin_lat,
-    )
+    DVec3::new(r * cos_lon, r * sin_lon, (n * ellipsoid.b2_over_a2() + point.height_m) * sin_lat)
 }
 
 /// Geodetic position of an ECEF point, exact to rounding everywhere outside the evolute
@@ -146,11 +138,7 @@ pub fn geodetic_from_ecef(ellipsoid: &Ellipsoid, p: DVec3) -> Geodetic {
             height_m = -a * e2m * hyp / e2;
         }
     }
-    Geodetic {
-        lat_rad: sin_lat.atan2(cos_lat),
-        lon_rad,
-        height_m,
-    }
+    Geodetic { lat_rad: sin_lat.atan2(cos_lat), lon_rad, height_m }
 }
 
 /// Unit outward ellipsoid normal at geodetic latitude and longitude (radians), in ECEF.
@@ -234,7 +222,11 @@ mod tests {
                         let p = ecef_from_geodetic(&ellipsoid, g).length();
                         // < 1e-9 m, or a few ulp of the coordinate itself where 1 ulp exceeds that.
                         let tolerance = 1e-9_f64.max(4.0 * p * f64::EPSILON);
-                        assert!(err < tolerance, "{} lat {lat} lon {lon} h {h}: error {err:e} m > {tolerance:e}", ellipsoid.name());
+                        assert!(
+                            err < tolerance,
+                            "{} lat {lat} lon {lon} h {h}: error {err:e} m > {tolerance:e}",
+                            ellipsoid.name()
+                        );
                     }
                 }
             }
@@ -244,7 +236,9 @@ mod tests {
     #[test]
     fn inside_the_evolute_is_finite_and_consistent() {
         let e = Ellipsoid::WGS84;
-        for p in [DVec3::ZERO, DVec3::new(1000.0, 0.0, 0.0), DVec3::new(0.0, 0.0, -2000.0), DVec3::new(3000.0, 4000.0, 10.0)] {
+        for p in
+            [DVec3::ZERO, DVec3::new(1000.0, 0.0, 0.0), DVec3::new(0.0, 0.0, -2000.0), DVec3::new(3000.0, 4000.0, 10.0)]
+        {
             let g = geodetic_from_ecef(&e, p);
             assert!(g.lat_rad.is_finite() && g.height_m.is_finite(), "{p:?} → {g:?}");
             let back = ecef_from_geodetic(&e, g);

@@ -1,0 +1,117 @@
+//! The `terrafuse` binary as a user runs it: batch conversions, bad input, and the distortion
+//! table against the ECM paper's published figures.
+
+mod common;
+
+use std::io::Write;
+use std::process::{Command, Output, Stdio};
+
+use common::repo_path;
+
+fn terrafuse(args: &[&str], stdin: &str) -> Output {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_terrafuse"))
+        .args(args)
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("terrafuse runs");
+    // The program may exit before reading stdin (a bad --body): a broken pipe is not an error here.
+    let _ = child.stdin.take().unwrap().write_all(stdin.as_bytes());
+    child.wait_with_output().unwrap()
+}
+
+#[test]
+fn to_face_and_back_on_every_body() {
+    for body in ["wgs84", "moon", "mars", "a=6378137,b=6356752.314245"] {
+        let out = terrafuse(&["geo", "to-face", "--body", body], "39.9 41.27\n-90 0\n0 180\n35.0 -135.5\n");
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        let text = String::from_utf8(out.stdout).unwrap();
+        let faces: Vec<&str> = text.lines().map(|l| l.split(' ').next().unwrap()).collect();
+        assert_eq!(faces, ["top", "bottom", "back", "back"], "{body}: {text}");
+        let back = terrafuse(&["geo", "from-face", "--body", body], &text);
+        assert!(back.status.success());
+        let first: Vec<f64> = String::from_utf8(back.stdout)
+            .unwrap()
+            .lines()
+            .next()
+            .unwrap()
+            .split(' ')
+            .map(|f| f.parse().unwrap())
+            .collect();
+        assert!((first[0] - 39.9).abs() < 1e-12 && (first[1] - 41.27).abs() < 1e-12, "{first:?}");
+    }
+}
+
+#[test]
+fn ecef_conversions_read_files_and_stdin() {
+    let out = terrafuse(&["geo", "to-ecef", "--body", "wgs84"], "20 10 100\n");
+    let xyz: Vec<f64> = String::from_utf8(out.stdout).unwrap().split_whitespace().map(|f| f.parse().unwrap()).collect();
+    // GeographicLib CartConvert: 5904838.6983116427 1041182.3792437945 2167730.9898430901.
+    assert!((xyz[0] - 5_904_838.698_311_643).abs() < 1e-8 && (xyz[2] - 2_167_730.989_843_09).abs() < 1e-8, "{xyz:?}");
+    let out = terrafuse(&["geo", "from-ecef", "--body", "wgs84"], &format!("{} {} {}\n", xyz[0], xyz[1], xyz[2]));
+    let llh: Vec<f64> = String::from_utf8(out.stdout).unwrap().split_whitespace().map(|f| f.parse().unwrap()).collect();
+    assert!((llh[0] - 20.0).abs() < 1e-12 && (llh[1] - 10.0).abs() < 1e-12 && (llh[2] - 100.0).abs() < 1e-8, "{llh:?}");
+    let landmarks = repo_path("projects/samples/landmarks.txt");
+    let out = terrafuse(&["geo", "to-face", "--input", landmarks.to_str().unwrap()], "");
+    // The landmark file has four columns (name first): every record is refused, by line number.
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("line 2: 'Erzurum' is not a number"));
+}
+
+#[test]
+fn bad_input_is_refused_with_line_numbers_and_no_panic() {
+    let out = terrafuse(&["geo", "to-face", "--body", "wgs84"], "10 20\nten 20\n91 0\n");
+    assert_eq!(out.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("line 2: 'ten' is not a number"), "{err}");
+    assert!(err.contains("line 3: latitude 91 is outside [-90, 90]"), "{err}");
+    assert!(err.contains("2 of 3 records refused"), "{err}");
+    assert!(!err.contains("panicked"));
+    let out = terrafuse(&["geo", "to-face", "--body", "pluto"], "10 20\n");
+    assert_eq!(out.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("unknown body 'pluto'"));
+    let out = terrafuse(&["geo", "to-face", "--input", "/nonexistent/points.txt"], "");
+    assert!(String::from_utf8_lossy(&out.stderr).contains("cannot open input file /nonexistent/points.txt"));
+    let out = terrafuse(&["geo", "from-face"], "top 0.5\nfront 2 0\n");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("line 1: 1 field(s), need 2") && err.contains("line 2: face coordinates (2, 0) are outside"),
+        "{err}"
+    );
+}
+
+/// Parses the first table of `terrafuse analyze tissot`: label → numeric columns.
+fn tissot_rows(text: &str) -> Vec<(String, Vec<String>)> {
+    text.lines()
+        .skip(3)
+        .take_while(|l| !l.trim().is_empty())
+        .map(|l| {
+            let (label, rest) = l.split_at(36);
+            (label.trim().to_string(), rest.split_whitespace().filter(|f| *f != "|").map(str::to_string).collect())
+        })
+        .collect()
+}
+
+#[test]
+fn tissot_table_reproduces_the_paper() {
+    let out = terrafuse(&["analyze", "tissot", "--samples", "150", "--level", "7"], "");
+    assert!(out.status.success());
+    let text = String::from_utf8(out.stdout).unwrap();
+    let rows = tissot_rows(&text);
+    assert_eq!(rows.len(), 5, "{text}");
+    let num = |row: usize, col: usize| rows[row].1[col].parse::<f64>().unwrap_or(f64::NAN);
+    // columns: ω sup, ω corner, paper ω, area ratio, paper ratio, cells ω, cells area
+    // Gnomonic: 31.1° and 5.19 (the paper), both at the corner.
+    assert!((num(0, 0) - 31.1).abs() < 0.05 && (num(0, 3) - 5.19).abs() < 0.01, "{text}");
+    // Adjusted gnomonic: 31.1° and 1.41.
+    assert!((num(1, 0) - 31.1).abs() < 0.05 && (num(1, 3) - 1.41).abs() < 0.01, "{text}");
+    // QSC: 24.9° at the corners, equal-area; the supremum lies above the corner value.
+    assert!((num(2, 1) - 24.9).abs() < 0.05 && (num(2, 3) - 1.0).abs() < 1e-3, "{text}");
+    assert!(num(2, 0) > num(2, 1), "{text}");
+    // QTM: π/2 area ratio at the pole (closed form of the lat/lon midpoint octant).
+    assert!((num(3, 3) - std::f64::consts::FRAC_PI_2).abs() < 0.01, "{text}");
+    // Lat/lon faces with polar caps: degenerate pointwise, and its cells vary by far the most.
+    assert_eq!(rows[4].1[0], "degen.");
+    assert!(num(4, 6) > 10.0 * num(0, 6), "{text}");
+}

@@ -1,0 +1,44 @@
+//! Helpers shared by the integration tests: running the independent reference tools.
+
+#![allow(dead_code)]
+
+use std::io::Write;
+use std::path::PathBuf;
+use std::process::{Command, Stdio};
+
+/// A path inside the repository.
+pub fn repo_path(relative: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(relative)
+}
+
+/// Runs `program args…` with `input` on stdin and returns stdout. Panics with a message that
+/// says how to install the tool when it is missing, and shows stderr when it fails.
+pub fn run_tool(program: &str, args: &[&str], input: &str) -> String {
+    let mut child = Command::new(program)
+        .args(args)
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap_or_else(|e| {
+            panic!("cannot run {program} ({e}); install the reference tools with scripts/install-deps")
+        });
+    let mut stdin = child.stdin.take().expect("stdin is piped");
+    let text = input.to_string();
+    let writer = std::thread::spawn(move || stdin.write_all(text.as_bytes()));
+    let output = child.wait_with_output().expect("tool runs");
+    writer.join().expect("writer thread").expect("write to tool");
+    assert!(output.status.success(), "{program} {args:?} failed: {}", String::from_utf8_lossy(&output.stderr));
+    String::from_utf8(output.stdout).expect("tool prints UTF-8")
+}
+
+/// Parses whitespace-separated numbers of every non-comment line.
+pub fn parse_rows(text: &str) -> Vec<Vec<f64>> {
+    text.lines()
+        .filter(|l| !l.trim().is_empty() && !l.starts_with('#'))
+        .map(|l| l.split_whitespace().map(|f| f.parse::<f64>().unwrap_or(f64::NAN)).collect())
+        .collect()
+}
+
+/// The system Python with Debian's mpmath (python3-mpmath), not a user's virtual environment.
+pub const PYTHON: &str = "/usr/bin/python3";
