@@ -8,6 +8,7 @@
 
 pub mod distortion;
 mod face;
+pub mod geometry;
 mod projection;
 mod quad;
 
