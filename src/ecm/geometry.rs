@@ -114,6 +114,94 @@ impl QuadGeometry {
     }
 }
 
+/// The largest effects of the static maps on one quadtree level.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LevelExtremes {
+    /// Quadtree level.
+    pub level: u8,
+    /// Largest |oₑ| in metres.
+    pub max_displacement_m: f64,
+    /// Largest angle in radians between the ellipsoid normal and the bilinear patch's normal.
+    pub max_normal_angle_rad: f64,
+    /// Quads evaluated.
+    pub quads: usize,
+}
+
+/// Quad indices along one axis that the level scan visits: all of them up to 16, else both
+/// edges, the centre and an even stride between (the extremes of a smooth, symmetric quantity).
+fn scan_indices(level: u8) -> Vec<u32> {
+    let n = 1u64 << level;
+    if n <= 16 {
+        return (0..n as u32).collect();
+    }
+    let mut v: Vec<u32> = (0..=16).map(|k| ((n - 1) * k / 16) as u32).collect();
+    v.extend([1, (n / 2 - 1) as u32, (n / 2) as u32, (n - 2) as u32]);
+    v.sort_unstable();
+    v.dedup();
+    v
+}
+
+/// Scans a level for the largest displacement and normal deviation. The ellipsoid is symmetric
+/// about its axis and its equator, and the equatorial faces map onto each other by rotations
+/// about the axis, as the top face maps onto the bottom by the reflection z → −z; so the front
+/// and top faces represent all six. `samples` per quad edge (17 is plenty: both quantities are
+/// smooth inside a quad).
+pub fn level_extremes(ellipsoid: &Ellipsoid, projection: CubeProjection, level: u8, samples: u32) -> LevelExtremes {
+    use rayon::prelude::*;
+    let indices = scan_indices(level);
+    let quads: Vec<QuadId> = [super::Face::Front, super::Face::Top]
+        .into_iter()
+        .flat_map(|face| {
+            let indices = &indices;
+            indices.iter().flat_map(move |&x| indices.iter().map(move |&y| QuadId { face, level, x, y }))
+        })
+        .collect();
+    let (max_displacement_m, max_normal_angle_rad) = quads
+        .par_iter()
+        .map(|&quad| {
+            let n = samples.max(3);
+            let g = QuadGeometry::compute(ellipsoid, projection, quad, n);
+            let q = g.corners_ecef;
+            let mut worst = (0.0f64, 0.0f64);
+            for j in 0..n {
+                for i in 0..n {
+                    let (s, t) = QuadGeometry::st(n, i, j);
+                    let ds = (q[1] - q[0]) * (1.0 - t) + (q[3] - q[2]) * t;
+                    let dt = (q[2] - q[0]) * (1.0 - s) + (q[3] - q[1]) * s;
+                    let patch_normal = ds.cross(dt);
+                    let (x, y) = quad.sample_xy(n, i, j);
+                    let (point, normal) =
+                        surface_and_normal(ellipsoid, projection, FacePoint { face: quad.face, x, y });
+                    let displacement = (point - bilerp_f64(&q, s, t)).length();
+                    let angle = normal.cross(patch_normal).length().atan2(normal.dot(patch_normal));
+                    worst = (worst.0.max(displacement), worst.1.max(angle));
+                }
+            }
+            worst
+        })
+        .reduce(|| (0.0, 0.0), |a, b| (a.0.max(b.0), a.1.max(b.1)));
+    LevelExtremes { level, max_displacement_m, max_normal_angle_rad, quads: quads.len() }
+}
+
+/// The first level from which the static maps may be replaced by the flat patch and its normal:
+/// the largest displacement is below `tolerance_m` and the normal deviation moves a point at
+/// `max_height_m` by less than `tolerance_m` too. Returns the level and the scanned table.
+pub fn negligible_level(
+    ellipsoid: &Ellipsoid,
+    projection: CubeProjection,
+    tolerance_m: f64,
+    max_height_m: f64,
+    max_level: u8,
+) -> (Option<u8>, Vec<LevelExtremes>) {
+    let table: Vec<LevelExtremes> =
+        (0..=max_level.min(super::MAX_LEVEL)).map(|level| level_extremes(ellipsoid, projection, level, 17)).collect();
+    let cutoff = table
+        .iter()
+        .find(|e| e.max_displacement_m < tolerance_m && e.max_normal_angle_rad * max_height_m < tolerance_m)
+        .map(|e| e.level);
+    (cutoff, table)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -138,6 +226,25 @@ mod tests {
                 assert_eq!(g.displacement_m[corner], Vec3::ZERO, "{quad}");
             }
         }
+    }
+
+    #[test]
+    fn displacement_converges_quadratically_off_the_diagonals_and_linearly_on_them() {
+        // Off the face diagonals a patch of side L on a sphere of radius R deviates by O(L²/R):
+        // one level down divides the displacement by 4. QSC is only piecewise smooth (kinked
+        // along the face diagonals), so in the quads the diagonals cross, the bilinear patch
+        // misses the kink by O(L): one level down only halves it, and those quads dominate the
+        // level maximum.
+        let e = Ellipsoid::MOON;
+        let off = |level: u8| {
+            let quad = QuadId::new(Face::Front, level, 3 << (level - 3), 1 << (level - 3)).unwrap();
+            QuadGeometry::compute(&e, CubeProjection::Qsc, quad, 17).max_displacement_m() as f64
+        };
+        let ratio_off = off(8) / off(9);
+        assert!((ratio_off - 4.0).abs() < 0.2, "off-diagonal ratio {ratio_off}");
+        let d8 = level_extremes(&e, CubeProjection::Qsc, 8, 9).max_displacement_m;
+        let d9 = level_extremes(&e, CubeProjection::Qsc, 9, 9).max_displacement_m;
+        assert!((d8 / d9 - 2.0).abs() < 0.1, "level maxima {d8} {d9}");
     }
 
     #[test]
