@@ -87,7 +87,7 @@ fn run(args: Args) -> Result<ExitCode> {
             let text = std::fs::read_to_string(&landmarks)
                 .with_context(|| format!("cannot read landmark file {}", landmarks.display()))?;
             print!("{}", cli::overview(&text));
-            let (table, _) = cli::tissot_report(200, 8);
+            let (table, _) = cli::tissot_report(600, 10);
             print!("\n{table}");
         }
         Command::Geo { operation, body, projection, input } => {

@@ -3,7 +3,7 @@
 
 use std::fmt;
 
-use glam::{I64Vec3, IVec2};
+use glam::I64Vec3;
 
 use super::face::Edge;
 use super::{EcmError, Face, FacePoint};
@@ -164,11 +164,6 @@ impl QuadId {
     fn with_centre(self, face: Face, u: i64, v: i64) -> QuadId {
         let s = 1i64 << self.level;
         QuadId { face, level: self.level, x: ((u + s - 1) / 2) as u32, y: ((v + s - 1) / 2) as u32 }
-    }
-
-    /// Integer coordinates of the quad in a face's integer grid, for tests and diagnostics.
-    pub fn xy(self) -> IVec2 {
-        IVec2::new(self.x as i32, self.y as i32)
     }
 }
 
