@@ -7,4 +7,5 @@
 
 pub mod cli;
 pub mod ecm;
+pub mod files;
 pub mod geodesy;

@@ -2,9 +2,14 @@
 //! batch coordinate conversion in the manner of PROJ's `cct` and the analysis reports.
 
 mod geo;
+mod geometry;
 mod report;
 
 pub use geo::{BatchReport, GeoOperation, run_batch};
+pub use geometry::{
+    AccuracyBench, accuracy_bench, accuracy_csv, accuracy_plot, cutoff_report, fitted_rule, timing_report,
+    write_accuracy_outputs,
+};
 pub use report::{overview, tissot_report};
 
 /// Formats a float with full precision: the shortest decimal that reads back to the same f64

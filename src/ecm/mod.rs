@@ -6,6 +6,7 @@
 //! direction onto the face it falls on ([`CubeProjection`]). Face coordinates x, y lie in
 //! [−1, 1]; for QSC they are PROJ's `+proj=qsc` metres divided by the semi-major axis.
 
+pub mod accuracy;
 pub mod distortion;
 mod face;
 pub mod geometry;
