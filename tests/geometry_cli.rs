@@ -104,8 +104,10 @@ fn bad_bench_options_are_refused_with_a_message() {
         let err = String::from_utf8_lossy(&out.stderr);
         assert!(err.contains(expected), "{args:?}: {err}");
     }
+    // A folder that cannot be made (its parent is a file).
     let dir = out_dir("bench-unwritable");
-    let csv = dir.join("no/such/dir/a.csv");
+    std::fs::write(dir.join("file"), b"x").unwrap();
+    let csv = dir.join("file/a.csv");
     let out = terrafuse(&[
         "bench",
         "accuracy",

@@ -376,13 +376,18 @@ pub fn accuracy_plot(
     Ok(png)
 }
 
-/// Writes the CSV and the plot atomically; errors name the file.
+/// Writes the CSV and the plot atomically, creating their folders; errors name the file.
 pub fn write_accuracy_outputs(
     bench: &AccuracyBench,
     rows: &[AccuracyRow],
     csv: &Path,
     plot: Option<&Path>,
 ) -> Result<(), String> {
+    for path in std::iter::once(csv).chain(plot) {
+        if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+            std::fs::create_dir_all(dir).map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+        }
+    }
     crate::files::write_atomic(csv, accuracy_csv(rows).as_bytes())
         .map_err(|e| format!("cannot write {}: {e}", csv.display()))?;
     if let Some(plot) = plot {
