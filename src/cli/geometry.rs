@@ -441,7 +441,7 @@ pub fn timing_report(ellipsoid: &Ellipsoid, samples: u32) -> String {
         .flat_map(|j| (0..n).map(move |i| (i, j)))
         .map(|(i, j)| {
             let (s, t) = geometry::sample_st(n, i, j);
-            let maps = [g.displacement(i, j), g.normal(i, j), g.normal_delta(i, j)].map(|v| v.unwrap_or(Vec3::ZERO));
+            let maps = g.maps_at(i, j).unwrap_or([Vec3::ZERO; 3]);
             let point = geometry::interpolate_f64(g.split, &g.corners_ecef, s, t) + maps[0].as_dvec3();
             TimedVertex {
                 s: s as f32,

@@ -20,8 +20,8 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 use super::geometry::{
-    FlatRule, HeightRange, QuadFrame, Split, bilerp_f32, quad_corners, sample_maps_f64, sample_st, surface_and_normal,
-    vertex_f32,
+    FlatRule, HeightRange, QuadFrame, Split, bilerp_f32, bilerp_f64, quad_corners, sample_maps_f64, sample_st,
+    surface_and_normal, vertex_f32,
 };
 use super::{CubeProjection, Face, FacePoint, QuadId};
 use crate::geodesy::{self, Ellipsoid};
@@ -294,8 +294,7 @@ fn measure_trial(
                 Approach::EcmCutoff => ecm,
                 Approach::EcmPaper => {
                     // As printed: bilinear patch, its own displacement, h along nₑ.
-                    let bilinear_o =
-                        (point - super::geometry::bilerp_f64(&corners.0, f64::from(s), f64::from(t))).as_vec3();
+                    let bilinear_o = (point - bilerp_f64(&corners.0, f64::from(s), f64::from(t))).as_vec3();
                     bilerp_f32(&relative_corners, s, t) + bilinear_o + nn * h
                 }
                 Approach::NaiveF32 => (point + normal * h64).as_vec3() - camera.as_vec3(),

@@ -38,9 +38,9 @@ impl QuadBounds {
             for i in 0..n {
                 let (s, t) = sample_st(n, i, j);
                 let patch = interpolate_f64(geometry.split, &q, s, t);
-                let (surface, normal) = match (geometry.displacement(i, j), geometry.normal(i, j)) {
-                    (Some(o), Some(nn)) => (patch + o.as_dvec3(), nn.as_dvec3()),
-                    _ => (patch, interpolate_f64(geometry.split, &geometry.corner_normals, s, t).normalize()),
+                let (surface, normal) = match geometry.maps_at(i, j) {
+                    Some([o, nn, _]) => (patch + o.as_dvec3(), nn.as_dvec3()),
+                    None => (patch, interpolate_f64(geometry.split, &geometry.corner_normals, s, t).normalize()),
                 };
                 for h in [min_m, max_m] {
                     let r = surface + normal * h - origin;

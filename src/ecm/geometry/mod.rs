@@ -358,6 +358,18 @@ impl QuadGeometry {
         Some(self.symmetry.ecef_from_canonical_f32(v))
     }
 
+    /// The three maps [oₑ, nₑ, δn] at sample (i, j) in ECEF axes (f32, as stored), or `None` for
+    /// a flat quad: what the vertex stage reads.
+    pub fn maps_at(&self, i: u32, j: u32) -> Option<[Vec3; 3]> {
+        let maps = self.maps.as_ref()?;
+        let (ci, cj) = self.symmetry.canonical_sample(self.samples, i, j);
+        let k = (cj * self.samples + ci) as usize;
+        Some(
+            [maps.displacement_m[k], maps.normal[k], maps.normal_delta[k]]
+                .map(|v| self.symmetry.ecef_from_canonical_f32(v)),
+        )
+    }
+
     /// oₑ at sample (i, j) in ECEF axes (f32, as stored), or `None` for a flat quad.
     pub fn displacement(&self, i: u32, j: u32) -> Option<Vec3> {
         self.map_value(|m| &m.displacement_m, i, j)
@@ -384,10 +396,7 @@ impl QuadGeometry {
     /// The vertex shader's computation for sample (i, j) at `height_m`: see [`vertex_f32`].
     pub fn position_f32(&self, frame: &QuadFrame, i: u32, j: u32, height_m: f32) -> Vec3 {
         let (s, t) = sample_st(self.samples, i, j);
-        let maps = self.maps.as_ref().map(|_| {
-            [self.displacement(i, j), self.normal(i, j), self.normal_delta(i, j)].map(|v| v.unwrap_or(Vec3::ZERO))
-        });
-        vertex_f32(self.split, frame, s as f32, t as f32, maps, height_m)
+        vertex_f32(self.split, frame, s as f32, t as f32, self.maps_at(i, j), height_m)
     }
 
     /// The exact (f64) camera-relative position of sample (i, j) at `height_m` along the
