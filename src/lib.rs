@@ -9,3 +9,4 @@ pub mod cli;
 pub mod ecm;
 pub mod files;
 pub mod geodesy;
+pub mod store;

@@ -44,6 +44,16 @@ enum Command {
         #[command(subcommand)]
         analysis: Analysis,
     },
+    /// Import rasters GDAL reads (any CRS) onto the cube map, into a GeoPackage tile store.
+    Import {
+        #[command(flatten)]
+        import: ImportArgs,
+    },
+    /// Read a tile store: info, sample, export.
+    Store {
+        #[command(subcommand)]
+        command: StoreCommand,
+    },
     /// Benchmarks that report speed beside error.
     Bench {
         #[command(subcommand)]
@@ -51,8 +61,90 @@ enum Command {
     },
 }
 
+#[derive(clap::Args, Clone)]
+struct ImportArgs {
+    /// Source rasters (GeoTIFF, COG, VRT, …); where they overlap the first with data wins.
+    #[arg(required = true)]
+    sources: Vec<PathBuf>,
+    /// The store (a GeoPackage; created if missing).
+    #[arg(long)]
+    store: PathBuf,
+    /// Body: wgs84, moon, mars, a=A,b=B, a=A,rf=F or r=R (metres).
+    #[arg(long)]
+    body: String,
+    /// Dataset name (default: the first source's file name).
+    #[arg(long)]
+    name: Option<String>,
+    /// Finest level: auto (from the source resolution) or 0–30.
+    #[arg(long, default_value = "auto")]
+    max_level: String,
+    /// Resampling at the finest level: bilinear, cubic or nearest.
+    #[arg(long, default_value = "bilinear")]
+    resampling: String,
+    /// Vertical datum of the source heights: ellipsoidal, egm96, egm2008 or geoid:GRIDFILE
+    /// (geoid heights are converted to ellipsoidal ones through PROJ), or unspecified.
+    #[arg(long, default_value = "unspecified")]
+    vertical_datum: String,
+    /// Memory budget (GDAL cache, source windows, tiles in flight), e.g. 2GiB.
+    #[arg(long, default_value = "2GiB")]
+    memory_budget: String,
+    /// Worker threads (default: all cores).
+    #[arg(long)]
+    threads: Option<usize>,
+    /// No progress bar.
+    #[arg(long)]
+    quiet: bool,
+}
+
+#[derive(Subcommand)]
+enum StoreCommand {
+    /// Body, datasets, levels, tile counts, extents and provenance.
+    Info {
+        /// The store.
+        store: PathBuf,
+    },
+    /// Heights at `lat lon` lines from stdin (degrees), bilinear; `nan` where there are no data.
+    Sample {
+        /// The store.
+        store: PathBuf,
+        /// Dataset (needed when the store has several).
+        #[arg(long)]
+        dataset: Option<String>,
+        /// Level to sample (default: the finest).
+        #[arg(long)]
+        level: Option<u8>,
+    },
+    /// Write a dataset as a GeoTIFF in any CRS.
+    Export {
+        /// The store.
+        store: PathBuf,
+        /// The GeoTIFF to write.
+        out: PathBuf,
+        /// Output CRS (EPSG:4326, EPSG:32637, a PROJ string, WKT).
+        #[arg(long)]
+        crs: String,
+        /// xmin,ymin,xmax,ymax in the output CRS.
+        #[arg(long, allow_hyphen_values = true)]
+        bounds: String,
+        /// Pixel size in CRS units: one value, or x,y.
+        #[arg(long)]
+        resolution: String,
+        /// Dataset (needed when the store has several).
+        #[arg(long)]
+        dataset: Option<String>,
+        /// Level to read (default: the finest the output resolution needs).
+        #[arg(long)]
+        level: Option<u8>,
+    },
+}
+
 #[derive(Subcommand)]
 enum Bench {
+    /// Import against gdalwarp into the same QSC grid: throughput, peak memory, difference.
+    Import {
+        #[command(flatten)]
+        import: BenchImportArgs,
+    },
     /// Error of the rendered position against the exact one, per approach, body, level and
     /// camera distance; writes a CSV and a PNG plot, and prints timings.
     Accuracy {
@@ -139,6 +231,46 @@ enum Analysis {
         #[arg(long, default_value_t = 17)]
         samples: u32,
     },
+}
+
+#[derive(clap::Args, Clone)]
+struct BenchImportArgs {
+    /// Source raster.
+    source: PathBuf,
+    /// Body: wgs84, moon, mars, a=A,b=B.
+    #[arg(long)]
+    body: String,
+    /// Level: auto or 0–30.
+    #[arg(long, default_value = "auto")]
+    level: String,
+    /// Worker threads for both tools.
+    #[arg(long, default_value_t = 2)]
+    threads: usize,
+    /// Folder for the stores and gdalwarp outputs (default: a temporary folder).
+    #[arg(long)]
+    work: Option<PathBuf>,
+}
+
+fn import_options(a: &ImportArgs) -> Result<terrafuse::store::ImportOptions> {
+    Ok(terrafuse::store::ImportOptions {
+        sources: a.sources.clone(),
+        store: a.store.clone(),
+        body: a.body.parse()?,
+        name: a.name.clone(),
+        level: a.max_level.parse().map_err(anyhow::Error::msg)?,
+        resampling: a.resampling.parse().map_err(anyhow::Error::msg)?,
+        vertical: a.vertical_datum.parse().map_err(anyhow::Error::msg)?,
+        memory_budget: cli::parse_bytes(&a.memory_budget).map_err(anyhow::Error::msg)?,
+        threads: a.threads,
+        progress: !a.quiet,
+        finest_only: false,
+    })
+}
+
+fn parse_numbers(text: &str, what: &str) -> Result<Vec<f64>> {
+    text.split(',')
+        .map(|v| v.trim().parse::<f64>().map_err(|_| anyhow::anyhow!("{what}: '{v}' is not a number")))
+        .collect()
 }
 
 /// Parses `0-30` or `3,5,7` into levels ≤ 30.
@@ -235,6 +367,79 @@ fn run(args: Args) -> Result<ExitCode> {
             let (table, _) =
                 cli::cutoff_report(&ellipsoid, tolerance_m, limit_fraction, max_level.min(30), samples.max(3));
             print!("{table}");
+        }
+        Command::Import { import } => {
+            let opts = import_options(&import)?;
+            let report = terrafuse::store::import(&opts)?;
+            print!("{}", cli::import_summary(&opts.store, &report));
+        }
+        Command::Store { command: StoreCommand::Info { store } } => {
+            print!("{}", cli::store_info(&store)?);
+        }
+        Command::Store { command: StoreCommand::Sample { store, dataset, level } } => {
+            let s = terrafuse::store::Store::open_read_only(&store)?;
+            let mut reader = terrafuse::store::GridReader::new(s, dataset.as_deref().unwrap_or(""))?;
+            let finest = reader.finest_level();
+            let level = level.unwrap_or(finest);
+            anyhow::ensure!(
+                level <= finest,
+                "{}: dataset {} has levels 0–{finest}, not {level}",
+                store.display(),
+                reader.dataset()
+            );
+            let (_, refused) = cli::sample_lines(&mut reader, level, io::stdin().lock(), io::stdout().lock())?;
+            if refused > 0 {
+                eprintln!("terrafuse: {refused} lines refused");
+                return Ok(ExitCode::FAILURE);
+            }
+        }
+        Command::Store { command: StoreCommand::Export { store, out, crs, bounds, resolution, dataset, level } } => {
+            let b = parse_numbers(&bounds, "--bounds")?;
+            anyhow::ensure!(b.len() == 4, "--bounds takes xmin,ymin,xmax,ymax");
+            let r = parse_numbers(&resolution, "--resolution")?;
+            let resolution = match r.as_slice() {
+                [v] => (*v, *v),
+                [x, y] => (*x, *y),
+                _ => anyhow::bail!("--resolution takes one value or x,y"),
+            };
+            let opts = terrafuse::store::export::ExportOptions {
+                store,
+                dataset,
+                crs,
+                bounds: [b[0], b[1], b[2], b[3]],
+                resolution,
+                level,
+                out,
+            };
+            let report = terrafuse::store::export::export(&opts)?;
+            println!(
+                "wrote {} ({}×{} pixels, level {}, {} with data)",
+                opts.out.display(),
+                report.size.0,
+                report.size.1,
+                report.level,
+                report.valid
+            );
+        }
+        Command::Bench { bench: Bench::Import { import } } => {
+            let work = import.work.clone().unwrap_or_else(cli::default_work_dir);
+            let opts = terrafuse::store::ImportOptions {
+                sources: vec![import.source.clone()],
+                store: work.join("bench-store.gpkg"),
+                body: import.body.parse()?,
+                name: Some("bench".into()),
+                level: import.level.parse().map_err(anyhow::Error::msg)?,
+                resampling: terrafuse::store::Resampling::Bilinear,
+                vertical: terrafuse::store::VerticalDatum::Unspecified,
+                memory_budget: 2 << 30,
+                threads: Some(import.threads),
+                progress: false,
+                finest_only: true,
+            };
+            print!("{}", cli::bench_import(&opts, &work, import.threads.max(1))?);
+            if import.work.is_none() {
+                let _ = std::fs::remove_dir_all(&work);
+            }
         }
         Command::Bench {
             bench:

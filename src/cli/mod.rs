@@ -4,6 +4,7 @@
 mod geo;
 mod geometry;
 mod report;
+mod store;
 
 pub use geo::{BatchReport, GeoOperation, run_batch};
 pub use geometry::{
@@ -11,6 +12,10 @@ pub use geometry::{
     write_accuracy_outputs,
 };
 pub use report::{overview, tissot_report};
+pub use store::{
+    WarpComparison, bench_import, default_work_dir, import_summary, parse_bytes, sample_lines, store_info,
+    warp_comparison,
+};
 
 /// Formats a float with full precision: the shortest decimal that reads back to the same f64
 /// (like `%.17g`, but without trailing noise), in exponent form for very large or small values.

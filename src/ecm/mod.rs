@@ -15,7 +15,7 @@ mod quad;
 
 pub use face::{Edge, Face};
 pub use projection::{CubeProjection, FacePoint};
-pub use quad::{FaceRect, MAX_LEVEL, Neighbour, QuadId};
+pub use quad::{FaceRect, MAX_LEVEL, Neighbour, QuadId, fold_onto_face};
 
 /// Errors of the cube-map module.
 #[derive(Debug, thiserror::Error, PartialEq)]

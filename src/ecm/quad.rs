@@ -136,19 +136,13 @@ impl QuadId {
         if u.abs() < s && v.abs() < s {
             return Neighbour { quad: self.with_centre(self.face, u, v), quarter_turns: 0 };
         }
-        // Off the face: the point on the plane of the face, S·c + u·e + v·n, is folded over the
-        // edge onto the adjacent face, keeping its distance from the edge.
+        let (new_face, nu, nv) = fold_onto_face(self.face, s, u, v).expect("one step crosses one edge");
+        let quad = self.with_centre(new_face, nu, nv);
         let c = ivec(self.face.center());
         let e = ivec(self.face.x_axis());
-        let n = ivec(self.face.y_axis());
-        let beyond = if u.abs() >= s { e * u.signum() } else { n * v.signum() };
-        let excess = if u.abs() >= s { u.abs() - s } else { v.abs() - s };
-        let new_face = Face::of_direction(beyond.as_dvec3());
-        let along = if u.abs() >= s { n * v } else { e * u };
-        let point = beyond * s + c * (s - excess) + along;
+        let beyond = if u.abs() >= s { e * u.signum() } else { ivec(self.face.y_axis()) * v.signum() };
         let new_e = ivec(new_face.x_axis());
         let new_n = ivec(new_face.y_axis());
-        let quad = self.with_centre(new_face, point.dot(new_e), point.dot(new_n));
         // Rotation: where our x axis (pointing along the surface) goes on the new face.
         let our_x_there = fold_direction(e, beyond, c);
         let (ex, ey) = (our_x_there.dot(new_e), our_x_there.dot(new_n));
@@ -165,6 +159,27 @@ impl QuadId {
         let s = 1i64 << self.level;
         QuadId { face, level: self.level, x: ((u + s - 1) / 2) as u32, y: ((v + s - 1) / 2) as u32 }
     }
+}
+
+/// Folds a point given in integer face units (the face spans −s..=s along both axes) that lies
+/// off the face across one edge onto the adjacent face, keeping its distance from the shared edge
+/// and its position along it: returns the adjacent face and the point's coordinates there, in
+/// the same units. Points on the face come back unchanged; points beyond a cube corner (off the
+/// face along both axes) have no such fold and give `None`. Exact integer arithmetic.
+pub fn fold_onto_face(face: Face, s: i64, u: i64, v: i64) -> Option<(Face, i64, i64)> {
+    match (u.abs() > s, v.abs() > s) {
+        (false, false) => return Some((face, u, v)),
+        (true, true) => return None,
+        _ => {}
+    }
+    let c = ivec(face.center());
+    let e = ivec(face.x_axis());
+    let n = ivec(face.y_axis());
+    let (beyond, excess, along) =
+        if u.abs() > s { (e * u.signum(), u.abs() - s, n * v) } else { (n * v.signum(), v.abs() - s, e * u) };
+    let new_face = Face::of_direction(beyond.as_dvec3());
+    let point = beyond * s + c * (s - excess) + along;
+    Some((new_face, point.dot(ivec(new_face.x_axis())), point.dot(ivec(new_face.y_axis()))))
 }
 
 fn ivec(v: glam::DVec3) -> I64Vec3 {
