@@ -147,6 +147,25 @@ fn seams_agree_across_every_face_edge_and_cube_corner() {
         assert!(worst < 1e-3, "level {level}: {pairs} shared samples, worst {worst} m");
         println!("level {level}: {pairs} shared samples, worst difference {worst:.2e} m");
     }
+    // The renderer's read: a quad's grid with a border from its neighbours. Inside a face the
+    // border is the neighbours' own samples; across face edges it is filled as well.
+    let q = QuadId::new(Face::Front, 2, 1, 2).unwrap();
+    let b = reader.grid_with_border(q, 1).unwrap().unwrap();
+    let n = 259usize;
+    let west = reader.grid(QuadId::new(Face::Front, 2, 0, 2).unwrap()).unwrap().unwrap();
+    let north = reader.grid(QuadId::new(Face::Front, 2, 1, 3).unwrap()).unwrap().unwrap();
+    let own = reader.grid(q).unwrap().unwrap();
+    for k in 0..257u32 {
+        assert_eq!(b[(k as usize + 1) * n], west.get(255, k));
+        assert_eq!(b[258 * n + k as usize + 1], north.get(k, 1));
+        assert_eq!(b[(k as usize + 1) * n + 1], own.get(0, k));
+    }
+    for corner in [QuadId::new(Face::Top, 2, 3, 3).unwrap(), QuadId::new(Face::Bottom, 2, 0, 0).unwrap()] {
+        let b = reader.grid_with_border(corner, 2).unwrap().unwrap();
+        let missing = b.iter().filter(|v| v.is_nan()).count();
+        // Only the 2×2 block beyond the cube corner has no point.
+        assert_eq!(missing, 4, "{corner}");
+    }
     // Heights a hair either side of face edges (on meridians ±45°, ±135° and the edges of the
     // polar faces at lat ≈ 35–45°) agree.
     let mut worst = 0.0f64;
