@@ -351,10 +351,8 @@ pub fn import(opts: &ImportOptions) -> Result<ImportReport, StoreError> {
     for info in &infos {
         candidates.extend(footprint(&SourceReader::new(info, &body)?, &body, level)?);
     }
-    let finished = store.finished_quads(&name, level)?;
-    let mut todo: Vec<QuadId> = candidates.into_iter().filter(|q| !finished.contains(q)).collect();
-    todo.sort();
-    let (written, _) = run_level(
+    let (todo, finished) = pending(&store, &name, level, candidates)?;
+    let written = run_level(
         &mut store,
         &name,
         &pool,
@@ -372,7 +370,7 @@ pub fn import(opts: &ImportOptions) -> Result<ImportReport, StoreError> {
         },
         |w: &mut Worker, q| resample_quad(w, &body, &plan, q),
     )?;
-    report.levels.push((level, written, finished.len() as u64));
+    report.levels.push((level, written, finished));
     report.finest_samples = todo.len() as u64 * u64::from(GRID * GRID);
     report.seconds_finest = start.elapsed().as_secs_f64();
 
@@ -382,12 +380,10 @@ pub fn import(opts: &ImportOptions) -> Result<ImportReport, StoreError> {
         for parent_level in (0..level).rev() {
             let children = store.data_quads(&name, parent_level + 1)?;
             let parents: HashSet<QuadId> = children.iter().filter_map(|q| q.parent()).collect();
-            let finished = store.finished_quads(&name, parent_level)?;
-            let mut todo: Vec<QuadId> = parents.into_iter().filter(|q| !finished.contains(q)).collect();
-            todo.sort();
+            let (todo, finished) = pending(&store, &name, parent_level, parents)?;
             let store_path = opts.store.clone();
             let dataset = name.clone();
-            let (written, _) = run_level(
+            let written = run_level(
                 &mut store,
                 &name,
                 &pool,
@@ -398,13 +394,26 @@ pub fn import(opts: &ImportOptions) -> Result<ImportReport, StoreError> {
                 || GridReader::new(Store::open_read_only(&store_path)?, &dataset),
                 |r: &mut GridReader, q| average_quad(r, q),
             )?;
-            report.levels.push((parent_level, written, finished.len() as u64));
+            report.levels.push((parent_level, written, finished));
         }
         store.mark_complete(&name)?;
     }
     report.seconds_pyramid = start.elapsed().as_secs_f64();
     report.peak_rss_bytes = peak_rss_bytes();
     Ok(report)
+}
+
+/// The candidates of a level that no earlier run finished, in order, and how many it had finished.
+fn pending(
+    store: &Store,
+    dataset: &str,
+    level: u8,
+    candidates: HashSet<QuadId>,
+) -> Result<(Vec<QuadId>, u64), StoreError> {
+    let finished = store.finished_quads(dataset, level)?;
+    let mut todo: Vec<QuadId> = candidates.into_iter().filter(|q| !finished.contains(q)).collect();
+    todo.sort();
+    Ok((todo, finished.len() as u64))
 }
 
 fn default_name(path: &Path) -> String {
@@ -490,13 +499,13 @@ fn run_level<W, I, F>(
     label: &str,
     init: I,
     compute: F,
-) -> Result<(u64, u64), StoreError>
+) -> Result<u64, StoreError>
 where
     I: Fn() -> Result<W, StoreError> + Sync,
     F: Fn(&mut W, QuadId) -> Result<Option<QuadGrid>, StoreError> + Sync,
 {
     if todo.is_empty() {
-        return Ok((0, 0));
+        return Ok(0);
     }
     let bar = if progress { ProgressBar::new(todo.len() as u64) } else { ProgressBar::hidden() };
     bar.set_style(
@@ -572,7 +581,7 @@ where
     bar.finish_and_clear();
     match failure {
         Some(e) => Err(e),
-        None => Ok((written, 0)),
+        None => Ok(written),
     }
 }
 
