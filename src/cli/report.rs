@@ -120,7 +120,7 @@ pub fn overview(landmarks: &str) -> String {
     }
     let _ = writeln!(
         out,
-        "\nCommands: terrafuse geo to-face|from-face|to-ecef|from-ecef --body B (stdin → stdout, like cct),\n          terrafuse analyze tissot|cutoff, terrafuse bench accuracy. See README.md."
+        "\nCommands: terrafuse geo to-face|from-face|to-ecef|from-ecef --body B (stdin → stdout, like cct),\n          terrafuse analyze tissot|cutoff, terrafuse import SRC… --store S --body B,\n          terrafuse store info|sample|export, terrafuse bench accuracy|import. See README.md."
     );
     out
 }
