@@ -7,7 +7,7 @@ mod common;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 
-use common::{repo_path, run_tool};
+use common::{repo_path, run_tool, terrafuse};
 use terrafuse::cli::warp_comparison;
 use terrafuse::ecm::{Face, QuadId};
 use terrafuse::geodesy::Ellipsoid;
@@ -41,19 +41,6 @@ fn options(sources: &[PathBuf], store: &Path, body: Ellipsoid, name: &str, level
         progress: false,
         finest_only: false,
     }
-}
-
-fn terrafuse(args: &[&str], stdin: &str) -> std::process::Output {
-    let mut child = Command::new(BIN)
-        .args(args)
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    use std::io::Write;
-    child.stdin.take().unwrap().write_all(stdin.as_bytes()).unwrap();
-    child.wait_with_output().unwrap()
 }
 
 /// Every sample DEM, at a level where gdalwarp's bilinear is plain bilinear (every axis of the

@@ -351,15 +351,10 @@ pub fn import(opts: &ImportOptions) -> Result<ImportReport, StoreError> {
     for info in &infos {
         candidates.extend(footprint(&SourceReader::new(info, &body)?, &body, level)?);
     }
-    let (todo, finished) = pending(&store, &name, level, candidates)?;
-    let written = run_level(
-        &mut store,
-        &name,
-        &pool,
-        queue,
-        &todo,
-        opts.progress,
-        &format!("level {level}"),
+    let mut levels = LevelWriter { store: &mut store, dataset: &name, pool: &pool, queue, progress: opts.progress };
+    let (written, finished, computed) = levels.run(
+        level,
+        candidates,
         || {
             let readers = infos.iter().map(|i| SourceReader::new(i, &body)).collect::<Result<Vec<_>, _>>()?;
             let geoid = match &plan.geoid_grid {
@@ -371,49 +366,28 @@ pub fn import(opts: &ImportOptions) -> Result<ImportReport, StoreError> {
         |w: &mut Worker, q| resample_quad(w, &body, &plan, q),
     )?;
     report.levels.push((level, written, finished));
-    report.finest_samples = todo.len() as u64 * u64::from(GRID * GRID);
+    report.finest_samples = computed as u64 * u64::from(GRID * GRID);
     report.seconds_finest = start.elapsed().as_secs_f64();
 
     // 4. The pyramid.
     let start = Instant::now();
     if !opts.finest_only {
         for parent_level in (0..level).rev() {
-            let children = store.data_quads(&name, parent_level + 1)?;
+            let children = levels.store.data_quads(&name, parent_level + 1)?;
             let parents: HashSet<QuadId> = children.iter().filter_map(|q| q.parent()).collect();
-            let (todo, finished) = pending(&store, &name, parent_level, parents)?;
-            let store_path = opts.store.clone();
-            let dataset = name.clone();
-            let written = run_level(
-                &mut store,
-                &name,
-                &pool,
-                queue,
-                &todo,
-                opts.progress,
-                &format!("level {parent_level}"),
-                || GridReader::new(Store::open_read_only(&store_path)?, &dataset),
+            let (written, finished, _) = levels.run(
+                parent_level,
+                parents,
+                || GridReader::new(Store::open_read_only(&opts.store)?, &name),
                 |r: &mut GridReader, q| average_quad(r, q),
             )?;
             report.levels.push((parent_level, written, finished));
         }
-        store.mark_complete(&name)?;
+        levels.store.mark_complete(&name)?;
     }
     report.seconds_pyramid = start.elapsed().as_secs_f64();
     report.peak_rss_bytes = peak_rss_bytes();
     Ok(report)
-}
-
-/// The candidates of a level that no earlier run finished, in order, and how many it had finished.
-fn pending(
-    store: &Store,
-    dataset: &str,
-    level: u8,
-    candidates: HashSet<QuadId>,
-) -> Result<(Vec<QuadId>, u64), StoreError> {
-    let finished = store.finished_quads(dataset, level)?;
-    let mut todo: Vec<QuadId> = candidates.into_iter().filter(|q| !finished.contains(q)).collect();
-    todo.sort();
-    Ok((todo, finished.len() as u64))
 }
 
 fn default_name(path: &Path) -> String {
@@ -486,102 +460,124 @@ fn same_files(a: &[SourceProvenance], b: &[SourceProvenance]) -> bool {
             .all(|(x, y)| x.path == y.path && x.file_bytes == y.file_bytes && x.modified_unix_s == y.modified_unix_s)
 }
 
-/// Computes quads in parallel and writes them from this thread, committing every 32 quads or
-/// every second. Returns the tiles with data written.
-#[allow(clippy::too_many_arguments)]
-fn run_level<W, I, F>(
-    store: &mut Store,
-    dataset: &str,
-    pool: &rayon::ThreadPool,
+/// Runs the levels of one import: computes quads in parallel and writes them from this thread.
+struct LevelWriter<'a> {
+    store: &'a mut Store,
+    dataset: &'a str,
+    pool: &'a rayon::ThreadPool,
+    /// Quads in flight between the workers and the writer.
     queue: usize,
-    todo: &[QuadId],
     progress: bool,
-    label: &str,
-    init: I,
-    compute: F,
-) -> Result<u64, StoreError>
-where
-    I: Fn() -> Result<W, StoreError> + Sync,
-    F: Fn(&mut W, QuadId) -> Result<Option<QuadGrid>, StoreError> + Sync,
-{
-    if todo.is_empty() {
-        return Ok(0);
+}
+
+impl LevelWriter<'_> {
+    /// Computes the candidates of a level that no earlier run finished, committing every 32 quads
+    /// or every second. Returns the tiles with data written, the quads an earlier run had
+    /// finished, and the quads computed now.
+    fn run<W, I, F>(
+        &mut self,
+        level: u8,
+        candidates: HashSet<QuadId>,
+        init: I,
+        compute: F,
+    ) -> Result<(u64, u64, usize), StoreError>
+    where
+        I: Fn() -> Result<W, StoreError> + Sync,
+        F: Fn(&mut W, QuadId) -> Result<Option<QuadGrid>, StoreError> + Sync,
+    {
+        let finished = self.store.finished_quads(self.dataset, level)?;
+        let mut todo: Vec<QuadId> = candidates.into_iter().filter(|q| !finished.contains(q)).collect();
+        todo.sort();
+        let written = self.write(&todo, &format!("level {level}"), init, compute)?;
+        Ok((written, finished.len() as u64, todo.len()))
     }
-    let bar = if progress { ProgressBar::new(todo.len() as u64) } else { ProgressBar::hidden() };
-    bar.set_style(
-        ProgressStyle::with_template(
-            "{prefix:>9} [{bar:32}] {pos}/{len} tiles  {per_sec}  {elapsed} elapsed, ~{eta} left",
-        )
-        .expect("a valid template")
-        .progress_chars("=> "),
-    );
-    bar.set_prefix(label.to_owned());
-    let stop = AtomicBool::new(false);
-    let (tx, rx) = sync_channel::<Result<(QuadId, Option<QuadGrid>), StoreError>>(queue);
-    let mut written = 0u64;
-    let mut failure = None;
-    std::thread::scope(|s| {
-        let stop = &stop;
-        let init = &init;
-        let compute = &compute;
-        s.spawn(move || {
-            pool.install(|| {
-                todo.par_iter().for_each_init(
-                    || init().map_err(|e| e.to_string()),
-                    |worker, &q| {
-                        if stop.load(Ordering::Relaxed) {
-                            return;
-                        }
-                        let result = match worker {
-                            Ok(w) => compute(w, q).map(|g| (q, g)),
-                            Err(m) => Err(StoreError::new(Path::new(dataset), m.clone())),
-                        };
-                        if tx.send(result).is_err() {
-                            stop.store(true, Ordering::Relaxed);
-                        }
-                    },
-                );
+
+    fn write<W, I, F>(&mut self, todo: &[QuadId], label: &str, init: I, compute: F) -> Result<u64, StoreError>
+    where
+        I: Fn() -> Result<W, StoreError> + Sync,
+        F: Fn(&mut W, QuadId) -> Result<Option<QuadGrid>, StoreError> + Sync,
+    {
+        let (store, dataset, pool, queue, progress) =
+            (&mut *self.store, self.dataset, self.pool, self.queue, self.progress);
+        if todo.is_empty() {
+            return Ok(0);
+        }
+        let bar = if progress { ProgressBar::new(todo.len() as u64) } else { ProgressBar::hidden() };
+        bar.set_style(
+            ProgressStyle::with_template(
+                "{prefix:>9} [{bar:32}] {pos}/{len} tiles  {per_sec}  {elapsed} elapsed, ~{eta} left",
+            )
+            .expect("a valid template")
+            .progress_chars("=> "),
+        );
+        bar.set_prefix(label.to_owned());
+        let stop = AtomicBool::new(false);
+        let (tx, rx) = sync_channel::<Result<(QuadId, Option<QuadGrid>), StoreError>>(queue);
+        let mut written = 0u64;
+        let mut failure = None;
+        std::thread::scope(|s| {
+            let stop = &stop;
+            let init = &init;
+            let compute = &compute;
+            s.spawn(move || {
+                pool.install(|| {
+                    todo.par_iter().for_each_init(
+                        || init().map_err(|e| e.to_string()),
+                        |worker, &q| {
+                            if stop.load(Ordering::Relaxed) {
+                                return;
+                            }
+                            let result = match worker {
+                                Ok(w) => compute(w, q).map(|g| (q, g)),
+                                Err(m) => Err(StoreError::new(Path::new(dataset), m.clone())),
+                            };
+                            if tx.send(result).is_err() {
+                                stop.store(true, Ordering::Relaxed);
+                            }
+                        },
+                    );
+                });
+                drop(tx);
             });
-            drop(tx);
-        });
-        let mut batch = Vec::new();
-        let mut last = Instant::now();
-        let flush = |store: &mut Store, batch: &mut Vec<(QuadId, Option<QuadGrid>)>| -> Result<(), StoreError> {
-            store.write_quads(dataset, batch)?;
-            batch.clear();
-            Ok(())
-        };
-        for msg in rx.iter() {
-            match msg {
-                Ok((q, g)) => {
-                    written += u64::from(g.is_some());
-                    batch.push((q, g));
-                    bar.inc(1);
-                    if batch.len() >= 32 || last.elapsed().as_secs_f64() > 1.0 {
-                        if let Err(e) = flush(store, &mut batch) {
-                            failure = Some(e);
-                            break;
+            let mut batch = Vec::new();
+            let mut last = Instant::now();
+            let flush = |store: &mut Store, batch: &mut Vec<(QuadId, Option<QuadGrid>)>| -> Result<(), StoreError> {
+                store.write_quads(dataset, batch)?;
+                batch.clear();
+                Ok(())
+            };
+            for msg in rx.iter() {
+                match msg {
+                    Ok((q, g)) => {
+                        written += u64::from(g.is_some());
+                        batch.push((q, g));
+                        bar.inc(1);
+                        if batch.len() >= 32 || last.elapsed().as_secs_f64() > 1.0 {
+                            if let Err(e) = flush(store, &mut batch) {
+                                failure = Some(e);
+                                break;
+                            }
+                            last = Instant::now();
                         }
-                        last = Instant::now();
+                    }
+                    Err(e) => {
+                        failure = Some(e);
+                        break;
                     }
                 }
-                Err(e) => {
-                    failure = Some(e);
-                    break;
-                }
             }
+            if failure.is_some() {
+                stop.store(true, Ordering::Relaxed);
+                drop(rx);
+            } else if let Err(e) = flush(store, &mut batch) {
+                failure = Some(e);
+            }
+        });
+        bar.finish_and_clear();
+        match failure {
+            Some(e) => Err(e),
+            None => Ok(written),
         }
-        if failure.is_some() {
-            stop.store(true, Ordering::Relaxed);
-            drop(rx);
-        } else if let Err(e) = flush(store, &mut batch) {
-            failure = Some(e);
-        }
-    });
-    bar.finish_and_clear();
-    match failure {
-        Some(e) => Err(e),
-        None => Ok(written),
     }
 }
 

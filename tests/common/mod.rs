@@ -4,30 +4,39 @@
 
 use std::io::Write;
 use std::path::PathBuf;
-use std::process::{Command, Stdio};
+use std::process::{Command, Output, Stdio};
 
 /// A path inside the repository.
 pub fn repo_path(relative: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(relative)
 }
 
+/// Runs `program args…` with `input` on stdin and returns its status, stdout and stderr. A
+/// program that exits before reading its input (a refused argument) is not an error here.
+pub fn run_piped(program: &str, args: &[&str], input: &str) -> std::io::Result<Output> {
+    let mut child =
+        Command::new(program).args(args).stdin(Stdio::piped()).stdout(Stdio::piped()).stderr(Stdio::piped()).spawn()?;
+    let mut stdin = child.stdin.take().expect("stdin is piped");
+    let text = input.to_string();
+    let writer = std::thread::spawn(move || {
+        let _ = stdin.write_all(text.as_bytes());
+    });
+    let output = child.wait_with_output()?;
+    writer.join().expect("writer thread");
+    Ok(output)
+}
+
+/// Runs the `terrafuse` binary of this build with `stdin` as input.
+pub fn terrafuse(args: &[&str], stdin: &str) -> Output {
+    run_piped(env!("CARGO_BIN_EXE_terrafuse"), args, stdin).expect("terrafuse runs")
+}
+
 /// Runs `program args…` with `input` on stdin and returns stdout. Panics with a message that
 /// says how to install the tool when it is missing, and shows stderr when it fails.
 pub fn run_tool(program: &str, args: &[&str], input: &str) -> String {
-    let mut child = Command::new(program)
-        .args(args)
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap_or_else(|e| {
-            panic!("cannot run {program} ({e}); install the reference tools with scripts/install-deps")
-        });
-    let mut stdin = child.stdin.take().expect("stdin is piped");
-    let text = input.to_string();
-    let writer = std::thread::spawn(move || stdin.write_all(text.as_bytes()));
-    let output = child.wait_with_output().expect("tool runs");
-    writer.join().expect("writer thread").expect("write to tool");
+    let output = run_piped(program, args, input).unwrap_or_else(|e| {
+        panic!("cannot run {program} ({e}); install the reference tools with scripts/install-deps")
+    });
     assert!(output.status.success(), "{program} {args:?} failed: {}", String::from_utf8_lossy(&output.stderr));
     String::from_utf8(output.stdout).expect("tool prints UTF-8")
 }
