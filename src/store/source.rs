@@ -77,7 +77,15 @@ impl SourceInfo {
             return Err(fail("no such file".into()));
         }
         let abs = std::fs::canonicalize(path).map_err(|e| fail(e.to_string()))?;
-        let ds = Dataset::open(&abs).map_err(|e| fail(format!("not a raster GDAL can read ({e})")))?;
+        let ds = Dataset::open(&abs).map_err(|e| {
+            // GDAL often has nothing to add ("Error msg: ''"): say so only when it has.
+            let detail = e.to_string();
+            if detail.ends_with("Error msg: ''") {
+                fail("not a raster GDAL can read".into())
+            } else {
+                fail(format!("not a raster GDAL can read ({detail})"))
+            }
+        })?;
         if ds.raster_count() == 0 {
             return Err(fail("has no raster bands (a vector file?)".into()));
         }
