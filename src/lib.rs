@@ -6,7 +6,10 @@
 #![warn(missing_docs)]
 
 pub mod cli;
+pub mod colour;
 pub mod ecm;
 pub mod files;
 pub mod geodesy;
+pub mod gpu;
+pub mod project;
 pub mod store;

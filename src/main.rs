@@ -54,6 +54,29 @@ enum Command {
         #[command(subcommand)]
         command: StoreCommand,
     },
+    /// Render one frame of a project to a PNG and report what it drew and what it cost.
+    Render {
+        /// The project file (JSON).
+        project: PathBuf,
+        /// The PNG to write.
+        #[arg(long)]
+        out: PathBuf,
+        /// Image width, pixels.
+        #[arg(long, default_value_t = 1280)]
+        width: u32,
+        /// Image height, pixels.
+        #[arg(long, default_value_t = 1024)]
+        height: u32,
+        /// A named view of the project (default: its default view).
+        #[arg(long, conflicts_with = "camera")]
+        view: Option<String>,
+        /// A camera: lat,lon,alt,heading,pitch[,fov] (degrees, metres above the ellipsoid).
+        #[arg(long, allow_hyphen_values = true)]
+        camera: Option<String>,
+        /// Split quads while a sample covers more than this many pixels (the project's default).
+        #[arg(long)]
+        lod_threshold: Option<f64>,
+    },
     /// Benchmarks that report speed beside error.
     Bench {
         #[command(subcommand)]
@@ -367,6 +390,19 @@ fn run(args: Args) -> Result<ExitCode> {
             let (table, _) =
                 cli::cutoff_report(&ellipsoid, tolerance_m, limit_fraction, max_level.min(30), samples.max(3));
             print!("{table}");
+        }
+        Command::Render { project, out, width, height, view, camera, lod_threshold } => {
+            let report = cli::render(&cli::RenderRequest {
+                project: &project,
+                out: &out,
+                width,
+                height,
+                view: view.as_deref(),
+                camera: camera.as_deref(),
+                lod_threshold,
+            })
+            .map_err(anyhow::Error::msg)?;
+            print!("{report}");
         }
         Command::Import { import } => {
             let opts = import_options(&import)?;

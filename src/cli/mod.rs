@@ -3,6 +3,7 @@
 
 mod geo;
 mod geometry;
+mod render;
 mod report;
 mod store;
 
@@ -11,6 +12,7 @@ pub use geometry::{
     AccuracyBench, accuracy_bench, accuracy_csv, accuracy_plot, cutoff_report, fitted_rule, timing_report,
     write_accuracy_outputs,
 };
+pub use render::{RenderRequest, frame_report, open_renderer, render, request_camera, write_png};
 pub use report::{overview, tissot_report};
 pub use store::{
     WarpComparison, bench_import, default_work_dir, import_summary, parse_bytes, sample_lines, store_info,

@@ -1,0 +1,46 @@
+// Per-pixel shading helpers: sRGB transfer, isoline coverage, hillshade. Pure functions; the CPU
+// references are in src/colour.rs and src/gpu/shading.rs.
+
+fn srgb_to_linear(c: vec3<f32>) -> vec3<f32> {
+    let low = c / 12.92;
+    let high = pow((c + vec3<f32>(0.055)) / 1.055, vec3<f32>(2.4));
+    return select(high, low, c <= vec3<f32>(0.04045));
+}
+
+fn linear_to_srgb(c: vec3<f32>) -> vec3<f32> {
+    let x = clamp(c, vec3<f32>(0.0), vec3<f32>(1.0));
+    let low = x * 12.92;
+    let high = 1.055 * pow(x, vec3<f32>(1.0 / 2.4)) - vec3<f32>(0.055);
+    return select(high, low, x <= vec3<f32>(0.0031308));
+}
+
+// Coverage (0–1) of an isoline at a pixel. x: height in units of the interval (lines at
+// integers); fw: |∂x/∂screen| summed over both axes (fwidth), intervals per pixel; width and
+// min_width in pixels; spacing_factor: how many intervals apart lines of this kind are (1 minor,
+// k major). Lines thinner than min_width are drawn min_width wide and proportionally fainter;
+// lines closer than 4 widths apart fade out (gone at 2 widths) instead of turning into noise.
+fn isoline_coverage(x: f32, fw: f32, width: f32, min_width: f32, spacing_factor: f32) -> f32 {
+    let safe_fw = max(fw, 1e-20);
+    let distance_px = abs(x - round(x)) / safe_fw;
+    let w = max(width, min_width);
+    let thinness = select(1.0, width / max(min_width, 1e-6), width < min_width);
+    let coverage = clamp(0.5 * w + 0.5 - distance_px, 0.0, 1.0);
+    let spacing_px = spacing_factor / safe_fw;
+    let fade = clamp((spacing_px - 2.0 * w) / (2.0 * w), 0.0, 1.0);
+    return coverage * thinness * fade;
+}
+
+// Hillshade factor: 1 on flat ground, brighter on slopes facing the sun, darker away from it.
+// n: surface normal; up: ellipsoid normal; sun azimuth (clockwise from north) and elevation in
+// radians, in the local east-north-up frame.
+fn hillshade(n: vec3<f32>, up: vec3<f32>, azimuth: f32, elevation: f32, strength: f32) -> f32 {
+    var east = cross(vec3<f32>(0.0, 0.0, 1.0), up);
+    if length(east) < 1e-6 {
+        east = vec3<f32>(0.0, 1.0, 0.0);
+    }
+    east = normalize(east);
+    let north = cross(up, east);
+    let sun = cos(elevation) * (sin(azimuth) * east + cos(azimuth) * north) + sin(elevation) * up;
+    let lit = max(dot(n, sun), 0.0) / max(sin(elevation), 1e-3);
+    return (1.0 - strength) + strength * lit;
+}

@@ -1,0 +1,276 @@
+// The ECM terrain: one instanced draw of every selected quad. Vertex stage: the camera-centric
+// single-precision reconstruction P = A′ + (patch + oₑ + h₀·δn + (h − h₀)·nₑ) with skirts;
+// fragment stage: colour ramp, isolines and hillshade computed per pixel from the elevation.
+//!include shared/ecm.wgsl
+//!include shared/shading.wgsl
+
+// Samples per quad edge, and with the skirt ring around them.
+const N: u32 = 257u;
+const NV: u32 = 259u;
+// A height slot of no data, and the value a sample without data is stored as.
+const NO_SLOT: u32 = 0xffffffffu;
+const NODATA_BELOW: f32 = -1.0e37;
+
+struct Frame {
+    // Camera-relative ECEF metres to reversed-Z clip space.
+    view_proj: mat4x4<f32>,
+    // width, height (pixels), vertical exaggeration, number of ramp stops.
+    viewport: vec4<f32>,
+    // sun azimuth, sun elevation (radians), strength, lighting on (1) or off (0).
+    sun: vec4<f32>,
+    // isoline interval, offset (metres), major every k (0: none), isolines on (1) or off (0).
+    iso: vec4<f32>,
+    // minor width, major width, minimum width (pixels), unused.
+    iso_width: vec4<f32>,
+    // sRGB colours 0–1 with alpha: isolines, below the ramp, above it, no data.
+    iso_colour: vec4<f32>,
+    below: vec4<f32>,
+    above: vec4<f32>,
+    nodata: vec4<f32>,
+}
+
+struct Quad {
+    // A′ = A − C (xyz) and the reference height h₀ (w, exaggerated metres).
+    anchor: vec4<f32>,
+    // Corners raised to h₀, relative to A, with A′'s rounding (SW, SE, NW, NE).
+    corners: array<vec4<f32>, 4>,
+    // Unit ellipsoid normals at the corners.
+    normals: array<vec4<f32>, 4>,
+    // Columns of the signed permutation from the canonical quad's axes to this quad's.
+    sym: array<vec4<f32>, 3>,
+    // split code, map slot (NO_SLOT: flat), height slot (NO_SLOT: no data), symmetry flags.
+    slots: vec4<u32>,
+    // skirt depth (metres), level, height drawn where there is no data, unused.
+    params: vec4<f32>,
+}
+
+struct RampStop {
+    // x: height in metres.
+    value: vec4<f32>,
+    // sRGB 0–1 with alpha.
+    colour: vec4<f32>,
+}
+
+@group(0) @binding(0) var<uniform> frame: Frame;
+@group(0) @binding(1) var<storage, read> quads: array<Quad>;
+@group(0) @binding(2) var<storage, read> heights: array<f32>;
+@group(0) @binding(3) var<storage, read> map_o: array<f32>;
+@group(0) @binding(4) var<storage, read> map_n: array<f32>;
+@group(0) @binding(5) var<storage, read> map_dn: array<f32>;
+@group(0) @binding(6) var<storage, read> ramp: array<RampStop>;
+
+struct VertexOut {
+    @builtin(position) clip: vec4<f32>,
+    // Camera-relative position, metres.
+    @location(0) rel: vec3<f32>,
+    // Height in metres (not exaggerated).
+    @location(1) height: f32,
+    // 1 where the sample has data.
+    @location(2) valid: f32,
+    // Ellipsoid normal.
+    @location(3) up: vec3<f32>,
+    // Surface tangents along the sample axes (∂P/∂i, ∂P/∂j), metres per sample.
+    @location(4) along_i: vec3<f32>,
+    @location(5) along_j: vec3<f32>,
+    // Which quad, and the sample coordinates with 1 for a skirt vertex (probe output).
+    @location(6) @interpolate(flat) quad: u32,
+    @location(7) @interpolate(flat) sample: vec3<u32>,
+}
+
+fn map_value(which: u32, slot: u32, c: vec2<u32>) -> vec3<f32> {
+    let k = 3u * (slot * N * N + c.y * N + c.x);
+    var v: vec3<f32>;
+    switch which {
+        case 0u: { v = vec3<f32>(map_o[k], map_o[k + 1u], map_o[k + 2u]); }
+        case 1u: { v = vec3<f32>(map_n[k], map_n[k + 1u], map_n[k + 2u]); }
+        default: { v = vec3<f32>(map_dn[k], map_dn[k + 1u], map_dn[k + 2u]); }
+    }
+    return v;
+}
+
+fn turn(q: Quad, v: vec3<f32>) -> vec3<f32> {
+    // Entries are 0 and ±1: exact.
+    return q.sym[0].xyz * v.x + q.sym[1].xyz * v.y + q.sym[2].xyz * v.z;
+}
+
+fn st(i: u32, j: u32) -> vec2<f32> {
+    return vec2<f32>(f32(i), f32(j)) / f32(N - 1u);
+}
+
+// Raw stored height of sample (i, j) (NODATA_BELOW where none).
+fn raw_height(q: Quad, i: u32, j: u32) -> f32 {
+    if q.slots.z == NO_SLOT {
+        return NODATA_BELOW * 2.0;
+    }
+    return heights[q.slots.z * N * N + j * N + i];
+}
+
+// The height the geometry uses (exaggerated; the no-data fill where there is none).
+fn geometry_height(q: Quad, i: u32, j: u32) -> f32 {
+    let raw = raw_height(q, i, j);
+    return select(q.params.z, raw, raw > NODATA_BELOW) * frame.viewport.z;
+}
+
+// The ellipsoid normal at a sample (the map, or the normalised patch past the flat rule).
+fn ellipsoid_normal(q: Quad, i: u32, j: u32) -> vec3<f32> {
+    let uv = st(i, j);
+    if q.slots.y == NO_SLOT {
+        return normalize(ecm_interpolate(q.slots.x, q.normals[0].xyz, q.normals[1].xyz, q.normals[2].xyz, q.normals[3].xyz, uv.x, uv.y));
+    }
+    return turn(q, map_value(1u, q.slots.y, ecm_canonical_sample(q.slots.w, N, i, j)));
+}
+
+// The ellipsoid point of a sample relative to A′ (corners at h₀): patch + oₑ, for tangents.
+fn surface_point(q: Quad, i: u32, j: u32) -> vec3<f32> {
+    let uv = st(i, j);
+    let base = ecm_interpolate(q.slots.x, q.corners[0].xyz, q.corners[1].xyz, q.corners[2].xyz, q.corners[3].xyz, uv.x, uv.y);
+    if q.slots.y == NO_SLOT {
+        return base;
+    }
+    return base + turn(q, map_value(0u, q.slots.y, ecm_canonical_sample(q.slots.w, N, i, j)));
+}
+
+// The vertex position relative to A′ at height h (exaggerated metres): vertex_f32 less A′.
+fn local_position(q: Quad, i: u32, j: u32, h: f32) -> vec3<f32> {
+    let uv = st(i, j);
+    let base = ecm_interpolate(q.slots.x, q.corners[0].xyz, q.corners[1].xyz, q.corners[2].xyz, q.corners[3].xyz, uv.x, uv.y);
+    let h0 = q.anchor.w;
+    if q.slots.y == NO_SLOT {
+        let n = ecm_interpolate(q.slots.x, q.normals[0].xyz, q.normals[1].xyz, q.normals[2].xyz, q.normals[3].xyz, uv.x, uv.y);
+        return ecm_local_flat(base, n, h0, h);
+    }
+    let c = ecm_canonical_sample(q.slots.w, N, i, j);
+    let o = turn(q, map_value(0u, q.slots.y, c));
+    let n = turn(q, map_value(1u, q.slots.y, c));
+    let dn = turn(q, map_value(2u, q.slots.y, c));
+    return ecm_local_with_maps(base, o, n, dn, h0, h);
+}
+
+@vertex
+fn vs_main(@builtin(vertex_index) vertex: u32, @builtin(instance_index) instance: u32) -> VertexOut {
+    let q = quads[instance];
+    let gi = vertex % NV;
+    let gj = vertex / NV;
+    let i = u32(clamp(i32(gi) - 1, 0, i32(N) - 1));
+    let j = u32(clamp(i32(gj) - 1, 0, i32(N) - 1));
+    let skirt = gi == 0u || gj == 0u || gi == NV - 1u || gj == NV - 1u;
+
+    let raw = raw_height(q, i, j);
+    let valid = raw > NODATA_BELOW;
+    let up = ellipsoid_normal(q, i, j);
+    var local = local_position(q, i, j, geometry_height(q, i, j));
+    if skirt {
+        local = local - up * q.params.x;
+    }
+    // Tangents from the neighbouring samples (one-sided at the quad's edges): the ellipsoid
+    // point's change plus the height's change along this sample's normal (the normal's own turn
+    // over one sample, ~10⁻⁴ rad at level 0, is left out: it only tilts the shading normal).
+    let i0 = max(i, 1u) - 1u;
+    let i1 = min(i + 1u, N - 1u);
+    let j0 = max(j, 1u) - 1u;
+    let j1 = min(j + 1u, N - 1u);
+    let along_i = (surface_point(q, i1, j) - surface_point(q, i0, j) + up * (geometry_height(q, i1, j) - geometry_height(q, i0, j))) / f32(i1 - i0);
+    let along_j = (surface_point(q, i, j1) - surface_point(q, i, j0) + up * (geometry_height(q, i, j1) - geometry_height(q, i, j0))) / f32(j1 - j0);
+
+    var out: VertexOut;
+    out.rel = q.anchor.xyz + local;
+    out.clip = frame.view_proj * vec4<f32>(out.rel, 1.0);
+    out.height = select(q.params.z, raw, valid);
+    out.valid = select(0.0, 1.0, valid);
+    out.up = up;
+    out.along_i = along_i;
+    out.along_j = along_j;
+    out.quad = instance;
+    out.sample = vec3<u32>(i, j, select(0u, 1u, skirt));
+    return out;
+}
+
+// The ramp's sRGB colour at height h: below/above beyond the stops, linear between them, a step
+// where two stops share a height (the upper one wins). CPU reference: Ramp::colour_at.
+fn ramp_colour(h: f32) -> vec4<f32> {
+    let count = u32(frame.viewport.w);
+    if h < ramp[0].value.x {
+        return frame.below;
+    }
+    if h > ramp[count - 1u].value.x {
+        return frame.above;
+    }
+    var lo = 0u;
+    var hi = count;
+    loop {
+        if lo >= hi {
+            break;
+        }
+        let mid = (lo + hi) / 2u;
+        if ramp[mid].value.x <= h {
+            lo = mid + 1u;
+        } else {
+            hi = mid;
+        }
+    }
+    let k = max(lo, 1u) - 1u;
+    if k + 1u >= count {
+        return ramp[count - 1u].colour;
+    }
+    let a = ramp[k];
+    let b = ramp[k + 1u];
+    var w = 0.0;
+    if b.value.x > a.value.x {
+        w = (h - a.value.x) / (b.value.x - a.value.x);
+    }
+    return a.colour + (b.colour - a.colour) * w;
+}
+
+// The pixel's colour, sRGB-encoded 0–1.
+fn shade(in: VertexOut, fw_iso: f32) -> vec4<f32> {
+    if in.valid < 0.5 {
+        return frame.nodata;
+    }
+    let base = ramp_colour(in.height);
+    var colour = srgb_to_linear(base.rgb);
+    if frame.sun.w > 0.5 {
+        let up = normalize(in.up);
+        var n = normalize(cross(in.along_i, in.along_j));
+        if dot(n, up) < 0.0 {
+            n = -n;
+        }
+        colour = colour * hillshade(n, up, frame.sun.x, frame.sun.y, frame.sun.z);
+    }
+    if frame.iso.w > 0.5 {
+        let x = (in.height - frame.iso.y) / frame.iso.x;
+        let k = round(x);
+        let every = frame.iso.z;
+        let major = every > 0.5 && abs(k - every * round(k / every)) < 0.5;
+        let width = select(frame.iso_width.x, frame.iso_width.y, major);
+        let spacing = select(1.0, every, major);
+        let coverage = isoline_coverage(x, fw_iso, width, frame.iso_width.z, spacing) * frame.iso_colour.a;
+        colour = mix(colour, srgb_to_linear(frame.iso_colour.rgb), coverage);
+    }
+    return vec4<f32>(linear_to_srgb(colour), 1.0);
+}
+
+@fragment
+fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
+    // Derivatives in uniform control flow, before any branch.
+    let fw_iso = fwidth(in.height / frame.iso.x);
+    return shade(in, fw_iso);
+}
+
+struct ProbeOut {
+    @location(0) colour: vec4<f32>,
+    // Camera-relative position (metres) and height (metres).
+    @location(1) surface: vec4<f32>,
+    // Quad index + 1, sample i, sample j; w: bit 0 the sample has data, bit 1 a skirt vertex.
+    @location(2) id: vec4<u32>,
+}
+
+// The test and benchmark variant: the colour and, per pixel, where the surface is.
+@fragment
+fn fs_probe(in: VertexOut) -> ProbeOut {
+    let fw_iso = fwidth(in.height / frame.iso.x);
+    var out: ProbeOut;
+    out.colour = shade(in, fw_iso);
+    out.surface = vec4<f32>(in.rel, in.height);
+    out.id = vec4<u32>(in.quad + 1u, in.sample.x, in.sample.y, select(0u, 1u, in.valid > 0.5) + 2u * in.sample.z);
+    return out;
+}

@@ -1,0 +1,398 @@
+//! Terrain data for the renderer: which quads have data (known up front from the stores), the
+//! asynchronous loader (worker threads that read heights from the stores and compute static
+//! maps), and the bounded CPU cache (least recently used, byte budget) the loader fills.
+//!
+//! Nothing here blocks a frame: the renderer asks for what it wants, takes whatever has arrived
+//! since the last frame, and draws what it has.
+
+use std::collections::{HashMap, HashSet, VecDeque};
+use std::path::PathBuf;
+use std::sync::mpsc::{Receiver, Sender};
+use std::sync::{Arc, Condvar, Mutex};
+
+use crate::ecm::geometry::{MapCache, StaticMaps};
+use crate::ecm::{CubeProjection, QuadId};
+use crate::geodesy::Ellipsoid;
+use crate::store::Store;
+use crate::store::grid::GRID;
+
+/// Samples along a quad edge, in the store and on the GPU.
+pub const SAMPLES: u32 = GRID;
+
+/// One quad's composed heights (all datasets, first with data wins per sample).
+#[derive(Debug)]
+pub struct QuadHeights {
+    /// 257² heights, row by row from the south, NaN where no dataset has data.
+    pub grid: Vec<f32>,
+    /// Lowest and highest height with data, metres.
+    pub range_m: (f32, f32),
+    /// Largest difference between neighbouring samples along the quad's edges, metres: how far
+    /// a coarser neighbour's edge can stray from this one's (sizes the skirt).
+    pub edge_roughness_m: f32,
+}
+
+impl QuadHeights {
+    /// Heights from a composed grid.
+    pub fn new(grid: Vec<f32>) -> QuadHeights {
+        let n = SAMPLES as usize;
+        let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
+        for &h in grid.iter().filter(|h| !h.is_nan()) {
+            lo = lo.min(h);
+            hi = hi.max(h);
+        }
+        let mut rough = 0f32;
+        let edges: [Box<dyn Fn(usize) -> usize>; 4] = [
+            Box::new(|k| k),
+            Box::new(move |k| (n - 1) * n + k),
+            Box::new(move |k| k * n),
+            Box::new(move |k| k * n + n - 1),
+        ];
+        for edge in &edges {
+            for k in 1..n {
+                let d = (grid[edge(k)] - grid[edge(k - 1)]).abs();
+                if d.is_finite() {
+                    rough = rough.max(d);
+                }
+            }
+        }
+        if lo > hi {
+            (lo, hi) = (0.0, 0.0);
+        }
+        QuadHeights { grid, range_m: (lo, hi), edge_roughness_m: rough }
+    }
+
+    fn bytes(&self) -> usize {
+        self.grid.len() * 4
+    }
+}
+
+/// One dataset the renderer reads.
+#[derive(Clone, Debug)]
+pub struct DatasetInfo {
+    /// Its store.
+    pub store: PathBuf,
+    /// Its name in the store.
+    pub dataset: String,
+    /// Finest level.
+    pub finest_level: u8,
+    /// Quads with data, per level 0 ..= finest.
+    pub present: Vec<HashSet<QuadId>>,
+    /// Height range over its finest level, metres.
+    pub range_m: (f64, f64),
+}
+
+impl DatasetInfo {
+    /// Reads what a store's dataset covers.
+    pub fn open(store_path: &std::path::Path, dataset: &str) -> Result<DatasetInfo, String> {
+        let store = Store::open_read_only(store_path).map_err(|e| e.to_string())?;
+        let record = store.resolve_dataset(Some(dataset)).map_err(|e| e.to_string())?;
+        let finest = record.settings.finest_level;
+        let present = (0..=finest)
+            .map(|l| store.data_quads(&record.name, l).map_err(|e| e.to_string()))
+            .collect::<Result<Vec<_>, _>>()?;
+        let range_m = store.height_range(&record.name, finest).map_err(|e| e.to_string())?.unwrap_or((0.0, 0.0));
+        Ok(DatasetInfo {
+            store: store_path.to_path_buf(),
+            dataset: record.name,
+            finest_level: finest,
+            present,
+            range_m,
+        })
+    }
+
+    /// Whether the dataset has a tile at `quad`.
+    pub fn has(&self, quad: QuadId) -> bool {
+        self.present.get(quad.level as usize).is_some_and(|s| s.contains(&quad))
+    }
+}
+
+/// What the loader is asked for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum DataKey {
+    /// A quad's composed heights.
+    Heights(QuadId),
+    /// The static maps of a canonical quad.
+    Maps(QuadId),
+}
+
+/// What the loader sends back.
+pub enum Loaded {
+    /// Heights (or a read error, named).
+    Heights(QuadId, Result<Arc<QuadHeights>, String>),
+    /// Static maps.
+    Maps(QuadId, Arc<StaticMaps>),
+}
+
+struct Queue {
+    pending: VecDeque<DataKey>,
+    in_flight: HashSet<DataKey>,
+    stop: bool,
+}
+
+/// Worker threads reading heights and computing maps, most wanted first.
+pub struct Loader {
+    queue: Arc<(Mutex<Queue>, Condvar)>,
+    results: Receiver<Loaded>,
+    workers: Vec<std::thread::JoinHandle<()>>,
+}
+
+/// Most requests kept waiting; older wishes are dropped when a frame asks for new ones.
+const MAX_PENDING: usize = 256;
+
+impl Loader {
+    /// Starts `threads` workers over the datasets.
+    pub fn start(datasets: Arc<Vec<DatasetInfo>>, ellipsoid: Ellipsoid, threads: usize) -> Loader {
+        let queue = Arc::new((
+            Mutex::new(Queue { pending: VecDeque::new(), in_flight: HashSet::new(), stop: false }),
+            Condvar::new(),
+        ));
+        let (tx, rx) = std::sync::mpsc::channel();
+        let maps = Arc::new(MapCache::new());
+        let workers = (0..threads.max(1))
+            .map(|k| {
+                let (queue, tx, datasets, maps) = (queue.clone(), tx.clone(), datasets.clone(), maps.clone());
+                std::thread::Builder::new()
+                    .name(format!("terrafuse-loader-{k}"))
+                    .spawn(move || worker(&queue, &tx, &datasets, &ellipsoid, &maps))
+                    .expect("spawning a loader thread")
+            })
+            .collect();
+        Loader { queue, results: rx, workers }
+    }
+
+    /// Replaces the waiting requests with `keys` (most wanted first); keys already being loaded
+    /// are not asked twice.
+    pub fn request(&self, keys: &[DataKey]) {
+        let (lock, cv) = &*self.queue;
+        let mut q = lock.lock().unwrap_or_else(|p| p.into_inner());
+        q.pending.clear();
+        for key in keys.iter().take(MAX_PENDING) {
+            if !q.in_flight.contains(key) && !q.pending.contains(key) {
+                q.pending.push_back(*key);
+            }
+        }
+        cv.notify_all();
+    }
+
+    /// Whatever has arrived.
+    pub fn drain(&self) -> Vec<Loaded> {
+        self.results.try_iter().collect()
+    }
+
+    /// Waits up to `timeout` for one result (the command line uses it; a frame never does).
+    pub fn wait(&self, timeout: std::time::Duration) -> Option<Loaded> {
+        self.results.recv_timeout(timeout).ok()
+    }
+
+    /// Requests waiting or being worked on.
+    pub fn busy(&self) -> usize {
+        let q = self.queue.0.lock().unwrap_or_else(|p| p.into_inner());
+        q.pending.len() + q.in_flight.len()
+    }
+}
+
+impl Drop for Loader {
+    fn drop(&mut self) {
+        let (lock, cv) = &*self.queue;
+        lock.lock().unwrap_or_else(|p| p.into_inner()).stop = true;
+        cv.notify_all();
+        for w in self.workers.drain(..) {
+            let _ = w.join();
+        }
+    }
+}
+
+fn worker(
+    queue: &(Mutex<Queue>, Condvar),
+    tx: &Sender<Loaded>,
+    datasets: &[DatasetInfo],
+    ellipsoid: &Ellipsoid,
+    maps: &MapCache,
+) {
+    // Each worker has its own connections (SQLite handles are not shared between threads).
+    let mut stores: Vec<Option<Store>> = datasets.iter().map(|_| None).collect();
+    loop {
+        let key = {
+            let (lock, cv) = queue;
+            let mut q = lock.lock().unwrap_or_else(|p| p.into_inner());
+            loop {
+                if q.stop {
+                    return;
+                }
+                if let Some(key) = q.pending.pop_front() {
+                    q.in_flight.insert(key);
+                    break key;
+                }
+                q = cv.wait(q).unwrap_or_else(|p| p.into_inner());
+            }
+        };
+        let result = match key {
+            DataKey::Maps(quad) => {
+                let symmetry = crate::ecm::geometry::MapSymmetry::of(quad);
+                Loaded::Maps(quad, maps.get(ellipsoid, CubeProjection::Qsc, symmetry, SAMPLES))
+            }
+            DataKey::Heights(quad) => Loaded::Heights(quad, compose_heights(quad, datasets, &mut stores).map(Arc::new)),
+        };
+        queue.0.lock().unwrap_or_else(|p| p.into_inner()).in_flight.remove(&key);
+        if tx.send(result).is_err() {
+            return;
+        }
+    }
+}
+
+/// A quad's heights from every dataset that has a tile there, the first with data winning per
+/// sample.
+pub fn compose_heights(
+    quad: QuadId,
+    datasets: &[DatasetInfo],
+    stores: &mut [Option<Store>],
+) -> Result<QuadHeights, String> {
+    let mut grid: Option<Vec<f32>> = None;
+    for (d, store) in datasets.iter().zip(stores.iter_mut()) {
+        if !d.has(quad) {
+            continue;
+        }
+        if store.is_none() {
+            *store = Some(Store::open_read_only(&d.store).map_err(|e| e.to_string())?);
+        }
+        let s = store.as_ref().expect("opened above");
+        let Some(tile) = s.read_grid(&d.dataset, quad).map_err(|e| e.to_string())? else { continue };
+        match &mut grid {
+            None => grid = Some(tile.values),
+            Some(g) => {
+                for (h, t) in g.iter_mut().zip(&tile.values) {
+                    if h.is_nan() {
+                        *h = *t;
+                    }
+                }
+            }
+        }
+        if grid.as_ref().is_some_and(|g| !g.iter().any(|h| h.is_nan())) {
+            break;
+        }
+    }
+    let grid = grid.unwrap_or_else(|| vec![f32::NAN; (SAMPLES * SAMPLES) as usize]);
+    Ok(QuadHeights::new(grid))
+}
+
+/// The CPU cache: heights and maps by key, least recently used dropped past the budget.
+pub struct CpuCache {
+    budget_bytes: usize,
+    used_bytes: usize,
+    clock: u64,
+    heights: HashMap<QuadId, (Arc<QuadHeights>, u64)>,
+    maps: HashMap<QuadId, (Arc<StaticMaps>, u64)>,
+}
+
+impl CpuCache {
+    /// An empty cache with a budget.
+    pub fn new(budget_bytes: usize) -> CpuCache {
+        CpuCache { budget_bytes, used_bytes: 0, clock: 0, heights: HashMap::new(), maps: HashMap::new() }
+    }
+
+    /// Bytes held.
+    pub fn used_bytes(&self) -> usize {
+        self.used_bytes
+    }
+
+    /// Entries held.
+    pub fn len(&self) -> usize {
+        self.heights.len() + self.maps.len()
+    }
+
+    /// Whether nothing is held.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Stores a loaded item, dropping the least recently used past the budget.
+    pub fn insert(&mut self, loaded: Loaded) {
+        self.clock += 1;
+        match loaded {
+            Loaded::Heights(quad, Ok(h)) => {
+                self.used_bytes += h.bytes();
+                if let Some((old, _)) = self.heights.insert(quad, (h, self.clock)) {
+                    self.used_bytes -= old.bytes();
+                }
+            }
+            Loaded::Heights(_, Err(_)) => {}
+            Loaded::Maps(quad, m) => {
+                self.used_bytes += m.size_bytes();
+                if let Some((old, _)) = self.maps.insert(quad, (m, self.clock)) {
+                    self.used_bytes -= old.size_bytes();
+                }
+            }
+        }
+        while self.used_bytes > self.budget_bytes {
+            let oldest_h =
+                self.heights.iter().min_by_key(|(_, (_, t))| *t).map(|(k, (_, t))| (*t, DataKey::Heights(*k)));
+            let oldest_m = self.maps.iter().min_by_key(|(_, (_, t))| *t).map(|(k, (_, t))| (*t, DataKey::Maps(*k)));
+            let Some((_, key)) = [oldest_h, oldest_m].into_iter().flatten().min_by_key(|(t, _)| *t) else { break };
+            match key {
+                DataKey::Heights(q) => self.used_bytes -= self.heights.remove(&q).map_or(0, |(h, _)| h.bytes()),
+                DataKey::Maps(q) => self.used_bytes -= self.maps.remove(&q).map_or(0, |(m, _)| m.size_bytes()),
+            }
+        }
+    }
+
+    /// Heights of a quad, marking them used.
+    pub fn heights(&mut self, quad: QuadId) -> Option<Arc<QuadHeights>> {
+        self.clock += 1;
+        let clock = self.clock;
+        self.heights.get_mut(&quad).map(|(h, t)| {
+            *t = clock;
+            h.clone()
+        })
+    }
+
+    /// Maps of a canonical quad, marking them used.
+    pub fn maps(&mut self, quad: QuadId) -> Option<Arc<StaticMaps>> {
+        self.clock += 1;
+        let clock = self.clock;
+        self.maps.get_mut(&quad).map(|(m, t)| {
+            *t = clock;
+            m.clone()
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::ecm::Face;
+
+    fn heights(v: f32) -> Arc<QuadHeights> {
+        Arc::new(QuadHeights::new(vec![v; (SAMPLES * SAMPLES) as usize]))
+    }
+
+    #[test]
+    fn the_cpu_cache_stays_within_its_budget_and_drops_the_least_recently_used() {
+        let one = (SAMPLES * SAMPLES * 4) as usize;
+        let mut cache = CpuCache::new(3 * one);
+        let q = |x| QuadId { face: Face::Front, level: 3, x, y: 0 };
+        for x in 0..3 {
+            cache.insert(Loaded::Heights(q(x), Ok(heights(x as f32))));
+        }
+        assert_eq!(cache.used_bytes(), 3 * one);
+        assert!(cache.heights(q(0)).is_some()); // 0 is now the most recently used
+        cache.insert(Loaded::Heights(q(3), Ok(heights(3.0))));
+        assert_eq!(cache.len(), 3);
+        assert!(cache.used_bytes() <= 3 * one);
+        assert!(cache.heights(q(1)).is_none(), "1 was the least recently used");
+        assert!(cache.heights(q(0)).is_some() && cache.heights(q(3)).is_some());
+    }
+
+    #[test]
+    fn heights_know_their_range_and_edge_roughness() {
+        let n = SAMPLES as usize;
+        let mut grid = vec![100.0f32; n * n];
+        grid[5] = 130.0; // on the south edge
+        grid[n * 100 + 100] = 5000.0; // inside: not an edge
+        grid[n * 7] = f32::NAN;
+        let h = QuadHeights::new(grid);
+        assert_eq!(h.range_m, (100.0, 5000.0));
+        assert_eq!(h.edge_roughness_m, 30.0);
+        let empty = QuadHeights::new(vec![f32::NAN; n * n]);
+        assert_eq!((empty.range_m, empty.edge_roughness_m), ((0.0, 0.0), 0.0));
+    }
+}

@@ -1,0 +1,75 @@
+//! The WGSL sources, embedded at build time, and their composition: a line
+//! `//!include shared/NAME.wgsl` is replaced by that file (once; no nesting needed yet).
+
+/// Every WGSL file in `shaders/`, by path relative to it.
+pub const FILES: &[(&str, &str)] = &[
+    ("terrain.wgsl", include_str!("../../shaders/terrain.wgsl")),
+    ("shared/ecm.wgsl", include_str!("../../shaders/shared/ecm.wgsl")),
+    ("shared/shading.wgsl", include_str!("../../shaders/shared/shading.wgsl")),
+];
+
+/// A shader with its includes expanded. Panics only on a missing include, which the naga test
+/// catches for every shipped file.
+pub fn composed(name: &str) -> Result<String, String> {
+    let source = file(name)?;
+    let mut out = String::with_capacity(source.len() * 2);
+    for line in source.lines() {
+        match line.trim().strip_prefix("//!include ") {
+            Some(include) => {
+                out.push_str(file(include.trim())?);
+                out.push('\n');
+            }
+            None => {
+                out.push_str(line);
+                out.push('\n');
+            }
+        }
+    }
+    Ok(out)
+}
+
+fn file(name: &str) -> Result<&'static str, String> {
+    FILES.iter().find(|(n, _)| *n == name).map(|(_, s)| *s).ok_or_else(|| format!("no shader file '{name}'"))
+}
+
+/// Parses and validates WGSL with naga (all capabilities the renderer may use), returning the
+/// module's entry points or the error, formatted with the source.
+pub fn validate(name: &str, source: &str) -> Result<Vec<String>, String> {
+    let module = naga::front::wgsl::parse_str(source).map_err(|e| e.emit_to_string_with_path(source, name))?;
+    let mut validator =
+        naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::all());
+    validator.validate(&module).map_err(|e| e.emit_to_string_with_path(source, name))?;
+    Ok(module.entry_points.iter().map(|e| e.name.clone()).collect())
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn every_wgsl_file_is_listed_and_valid() {
+        // Every file on disk is embedded (none forgotten) ...
+        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("shaders");
+        let mut on_disk = Vec::new();
+        for sub in ["", "shared"] {
+            for entry in std::fs::read_dir(dir.join(sub)).unwrap() {
+                let path = entry.unwrap().path();
+                if path.extension().is_some_and(|e| e == "wgsl") {
+                    on_disk.push(path.strip_prefix(&dir).unwrap().to_string_lossy().into_owned());
+                }
+            }
+        }
+        on_disk.sort();
+        let mut listed: Vec<String> = super::FILES.iter().map(|(n, _)| n.to_string()).collect();
+        listed.sort();
+        assert_eq!(on_disk, listed);
+        // ... and each validates alone (the shared modules) or composed (the pipelines).
+        for (name, _) in super::FILES {
+            let source = super::composed(name).unwrap();
+            let entries = super::validate(name, &source).unwrap_or_else(|e| panic!("{e}"));
+            if *name == "terrain.wgsl" {
+                assert_eq!(entries, ["vs_main", "fs_main", "fs_probe"]);
+            }
+        }
+        // The validator does catch errors.
+        assert!(super::validate("bad.wgsl", "fn f() -> f32 { return 1u; }").is_err());
+    }
+}

@@ -1,0 +1,516 @@
+//! The project file: a versioned JSON scene (body, datasets, visual settings, named views).
+//!
+//! ```json
+//! { "format": "terrafuse-project", "version": 1, "body": "moon",
+//!   "datasets": [ { "name": "lola", "store": "stores/moon.gpkg", "dataset": "lola",
+//!                   "source": { "files": ["data/moon.tif"] } } ],
+//!   "visuals": { "colour_map": { "preset": "hypsometric" }, "isolines": { "interval_m": 500 } },
+//!   "views": { "overview": { "lat": 0, "lon": 0, "alt": 4e6, "heading": 0, "pitch": -90 } } }
+//! ```
+//!
+//! Every field past `format`, `version` and `body` has a default, unknown fields are refused (a
+//! typo must not be silently ignored), and relative paths resolve against the file's folder. The
+//! version is checked on load: a file of a newer version is refused by name, older ones are
+//! migrated here when a later version arrives.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
+
+use crate::geodesy::Ellipsoid;
+
+/// The `format` value of every project file.
+pub const FORMAT: &str = "terrafuse-project";
+/// The version this build writes and reads.
+pub const VERSION: u32 = 1;
+
+/// A project file that could not be used, naming the file and the problem.
+#[derive(Debug, thiserror::Error)]
+#[error("{path}: {problem}")]
+pub struct ProjectError {
+    /// The file.
+    pub path: PathBuf,
+    /// What is wrong with it.
+    pub problem: String,
+}
+
+impl ProjectError {
+    fn new(path: &Path, problem: impl Into<String>) -> ProjectError {
+        ProjectError { path: path.to_path_buf(), problem: problem.into() }
+    }
+}
+
+/// A camera in geodetic terms, all f64: where it is and where it looks.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CameraSpec {
+    /// Geodetic latitude, degrees.
+    pub lat: f64,
+    /// Longitude, degrees east.
+    pub lon: f64,
+    /// Height above the ellipsoid, metres.
+    pub alt: f64,
+    /// Heading, degrees clockwise from north.
+    #[serde(default)]
+    pub heading: f64,
+    /// Pitch, degrees: −90 looks straight down, 0 at the horizon.
+    #[serde(default = "default_pitch")]
+    pub pitch: f64,
+    /// Vertical field of view, degrees.
+    #[serde(default = "default_fov")]
+    pub fov: f64,
+}
+
+fn default_pitch() -> f64 {
+    -90.0
+}
+
+fn default_fov() -> f64 {
+    45.0
+}
+
+impl CameraSpec {
+    /// Parses `lat,lon,alt,heading,pitch[,fov]` (degrees and metres).
+    pub fn parse(text: &str) -> Result<CameraSpec, String> {
+        let values: Vec<f64> = text
+            .split(',')
+            .map(|v| v.trim().parse::<f64>().map_err(|_| format!("'{}' is not a number", v.trim())))
+            .collect::<Result<_, _>>()?;
+        if !(5..=6).contains(&values.len()) {
+            return Err(format!("a camera is lat,lon,alt,heading,pitch[,fov]; got {} values", values.len()));
+        }
+        let camera = CameraSpec {
+            lat: values[0],
+            lon: values[1],
+            alt: values[2],
+            heading: values[3],
+            pitch: values[4],
+            fov: values.get(5).copied().unwrap_or_else(default_fov),
+        };
+        camera.check()?;
+        Ok(camera)
+    }
+
+    /// Checks the ranges: latitude within ±90°, pitch within [−90°, 90°], field of view in
+    /// (0°, 170°), everything finite.
+    pub fn check(&self) -> Result<(), String> {
+        let all = [self.lat, self.lon, self.alt, self.heading, self.pitch, self.fov];
+        if all.iter().any(|v| !v.is_finite()) {
+            return Err("camera values must be finite numbers".into());
+        }
+        if self.lat.abs() > 90.0 {
+            return Err(format!("camera latitude {} is outside [-90, 90]", self.lat));
+        }
+        if self.pitch.abs() > 90.0 {
+            return Err(format!("camera pitch {} is outside [-90, 90] (-90 looks straight down)", self.pitch));
+        }
+        if !(self.fov > 0.0 && self.fov < 170.0) {
+            return Err(format!("camera field of view {} must lie between 0 and 170 degrees", self.fov));
+        }
+        Ok(())
+    }
+}
+
+/// Where a dataset's store comes from when it is not there yet: the source files to import.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SourceSpec {
+    /// DEM files (relative to the project file).
+    pub files: Vec<PathBuf>,
+    /// Finest level to import (default: the level that matches the source's resolution).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub max_level: Option<u8>,
+    /// Vertical datum of the source: `ellipsoidal` (default), `egm96`, `egm2008`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub vertical_datum: Option<String>,
+}
+
+/// One dataset of the scene: a dataset of a tile store.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DatasetSpec {
+    /// The name the project uses for it.
+    pub name: String,
+    /// The tile store (GeoPackage), relative to the project file.
+    pub store: PathBuf,
+    /// The dataset's name in the store (default: `name`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub dataset: Option<String>,
+    /// Sources to import from when the store lacks the dataset.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub source: Option<SourceSpec>,
+}
+
+impl DatasetSpec {
+    /// The dataset's name inside the store.
+    pub fn store_dataset(&self) -> &str {
+        self.dataset.as_deref().unwrap_or(&self.name)
+    }
+}
+
+/// The colour map: a preset or a user's ramp file, over a height range.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ColourMapSpec {
+    /// A preset name (`terrafuse render --list-colour-maps` lists them), used unless `file` is set.
+    #[serde(default = "default_preset")]
+    pub preset: String,
+    /// A gdaldem colour-relief file or a GMT `.cpt` (relative to the project file); its values are
+    /// heights in metres.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub file: Option<PathBuf>,
+    /// Heights the preset spans, metres; default: the datasets' height range.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub range_m: Option<[f64; 2]>,
+    /// Colour where there is no data, sRGB bytes with alpha.
+    #[serde(default = "default_nodata_colour")]
+    pub nodata_colour: [u8; 4],
+}
+
+fn default_preset() -> String {
+    "hypsometric".into()
+}
+
+fn default_nodata_colour() -> [u8; 4] {
+    [96, 96, 104, 255]
+}
+
+impl Default for ColourMapSpec {
+    fn default() -> ColourMapSpec {
+        ColourMapSpec { preset: default_preset(), file: None, range_m: None, nodata_colour: default_nodata_colour() }
+    }
+}
+
+/// Isolines (contour lines) computed per pixel from the elevation.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct IsolineSpec {
+    /// Whether they are drawn.
+    pub enabled: bool,
+    /// Height between lines, metres.
+    pub interval_m: f64,
+    /// Heights of lines are offset + k·interval, metres.
+    pub offset_m: f64,
+    /// Every k-th line is a major line (0: none).
+    pub major_every: u32,
+    /// Width of a minor line, pixels.
+    pub width_px: f32,
+    /// Width of a major line, pixels.
+    pub major_width_px: f32,
+    /// Lines thinner than this are drawn this wide with proportionally less opacity, so that they
+    /// neither alias nor vanish; pixels.
+    pub min_width_px: f32,
+    /// Line colour, sRGB bytes with alpha.
+    pub colour: [u8; 4],
+}
+
+impl Default for IsolineSpec {
+    fn default() -> IsolineSpec {
+        IsolineSpec {
+            enabled: false,
+            interval_m: 100.0,
+            offset_m: 0.0,
+            major_every: 5,
+            width_px: 1.0,
+            major_width_px: 2.0,
+            min_width_px: 1.0,
+            colour: [20, 20, 20, 220],
+        }
+    }
+}
+
+/// Per-pixel lighting from the elevation gradient and the ellipsoid normal (a hillshade: the
+/// sun's direction is given in each point's local east-north-up frame, as gdaldem does).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct LightingSpec {
+    /// Whether the terrain is shaded.
+    pub enabled: bool,
+    /// Sun azimuth, degrees clockwise from north.
+    pub sun_azimuth_deg: f64,
+    /// Sun elevation above the horizon, degrees.
+    pub sun_elevation_deg: f64,
+    /// How much the shading darkens: 0 none, 1 full hillshade.
+    pub strength: f64,
+}
+
+impl Default for LightingSpec {
+    fn default() -> LightingSpec {
+        LightingSpec { enabled: true, sun_azimuth_deg: 315.0, sun_elevation_deg: 45.0, strength: 0.7 }
+    }
+}
+
+/// Everything about how the terrain looks.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Visuals {
+    /// Colour gradient.
+    pub colour_map: ColourMapSpec,
+    /// Isolines.
+    pub isolines: IsolineSpec,
+    /// Lighting.
+    pub lighting: LightingSpec,
+    /// Vertical exaggeration (1: true heights).
+    pub exaggeration: f64,
+    /// Sky colour behind the planet, sRGB bytes.
+    pub background: [u8; 4],
+}
+
+impl Default for Visuals {
+    fn default() -> Visuals {
+        Visuals {
+            colour_map: ColourMapSpec::default(),
+            isolines: IsolineSpec::default(),
+            lighting: LightingSpec::default(),
+            exaggeration: 1.0,
+            background: [0, 0, 0, 255],
+        }
+    }
+}
+
+/// Level-of-detail settings.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct DetailSpec {
+    /// Split a quad while a sample covers more than this many pixels (the paper's t).
+    pub lod_threshold_px: f64,
+    /// Most quads drawn in one frame.
+    pub max_quads: usize,
+    /// CPU cache budget, MiB.
+    pub cpu_cache_mib: u64,
+    /// GPU cache budget, MiB.
+    pub gpu_cache_mib: u64,
+}
+
+impl Default for DetailSpec {
+    fn default() -> DetailSpec {
+        DetailSpec { lod_threshold_px: 1.5, max_quads: 128, cpu_cache_mib: 1024, gpu_cache_mib: 768 }
+    }
+}
+
+/// The project: what `terrafuse render` and the workstation open.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Project {
+    /// Always [`FORMAT`].
+    pub format: String,
+    /// The schema version, [`VERSION`] for files this build writes.
+    pub version: u32,
+    /// The body: `wgs84`, `moon`, `mars`.
+    pub body: String,
+    /// The datasets, in order: where an earlier one has no data a later one shows.
+    #[serde(default)]
+    pub datasets: Vec<DatasetSpec>,
+    /// How the terrain looks.
+    #[serde(default)]
+    pub visuals: Visuals,
+    /// Level of detail and caches.
+    #[serde(default)]
+    pub detail: DetailSpec,
+    /// Named views.
+    #[serde(default)]
+    pub views: BTreeMap<String, CameraSpec>,
+    /// The view shown when none is asked for (default: the first by name).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub default_view: Option<String>,
+    /// The folder relative paths resolve against (not saved).
+    #[serde(skip)]
+    pub base_dir: PathBuf,
+}
+
+impl Project {
+    /// An empty project on a body.
+    pub fn new(body: &str) -> Project {
+        Project {
+            format: FORMAT.into(),
+            version: VERSION,
+            body: body.into(),
+            datasets: Vec::new(),
+            visuals: Visuals::default(),
+            detail: DetailSpec::default(),
+            views: BTreeMap::new(),
+            default_view: None,
+            base_dir: PathBuf::from("."),
+        }
+    }
+
+    /// Reads and checks a project file.
+    pub fn load(path: &Path) -> Result<Project, ProjectError> {
+        let text = std::fs::read_to_string(path).map_err(|e| ProjectError::new(path, format!("cannot read: {e}")))?;
+        let mut project = Project::parse(&text).map_err(|problem| ProjectError::new(path, problem))?;
+        project.base_dir = path.parent().map_or_else(|| PathBuf::from("."), Path::to_path_buf);
+        if project.base_dir.as_os_str().is_empty() {
+            project.base_dir = PathBuf::from(".");
+        }
+        Ok(project)
+    }
+
+    /// Parses and checks a project from JSON text (paths stay relative).
+    pub fn parse(text: &str) -> Result<Project, String> {
+        let value: serde_json::Value = serde_json::from_str(text).map_err(|e| format!("not valid JSON: {e}"))?;
+        match value.get("format").and_then(|f| f.as_str()) {
+            Some(FORMAT) => {}
+            Some(other) => return Err(format!("format is '{other}', not '{FORMAT}'")),
+            None => return Err(format!("no \"format\": \"{FORMAT}\" field: not a Terrafuse project")),
+        }
+        let version = value.get("version").and_then(|v| v.as_u64()).ok_or("no numeric \"version\" field")?;
+        if version > u64::from(VERSION) || version == 0 {
+            return Err(format!(
+                "version {version} is not supported: this build reads versions 1 to {VERSION}; a newer Terrafuse wrote it?"
+            ));
+        }
+        let project: Project = serde_json::from_value(value).map_err(|e| format!("{e}"))?;
+        project.check()?;
+        Ok(project)
+    }
+
+    /// The checks serde cannot express.
+    pub fn check(&self) -> Result<(), String> {
+        self.ellipsoid()?;
+        for (name, view) in &self.views {
+            view.check().map_err(|e| format!("view '{name}': {e}"))?;
+        }
+        if let Some(v) = &self.default_view
+            && !self.views.contains_key(v)
+        {
+            return Err(format!("default_view '{v}' is not one of the views"));
+        }
+        let mut names = std::collections::HashSet::new();
+        for d in &self.datasets {
+            if !names.insert(&d.name) {
+                return Err(format!("dataset '{}' is listed twice", d.name));
+            }
+        }
+        let v = &self.visuals;
+        if !(v.exaggeration.is_finite() && v.exaggeration > 0.0) {
+            return Err(format!("visuals.exaggeration {} must be a positive number", v.exaggeration));
+        }
+        let iso = &v.isolines;
+        if !(iso.interval_m.is_finite() && iso.interval_m > 0.0) {
+            return Err(format!("visuals.isolines.interval_m {} must be positive", iso.interval_m));
+        }
+        if !(iso.width_px >= 0.0 && iso.major_width_px >= 0.0 && iso.min_width_px >= 0.0) {
+            return Err("visuals.isolines widths must not be negative".into());
+        }
+        if let Some([lo, hi]) = v.colour_map.range_m
+            && !(lo.is_finite() && hi.is_finite() && lo < hi)
+        {
+            return Err(format!("visuals.colour_map.range_m [{lo}, {hi}] must be increasing"));
+        }
+        if !(v.lighting.strength >= 0.0 && v.lighting.strength <= 1.0) {
+            return Err(format!("visuals.lighting.strength {} must lie in [0, 1]", v.lighting.strength));
+        }
+        let d = &self.detail;
+        if !(d.lod_threshold_px.is_finite() && d.lod_threshold_px > 0.0) {
+            return Err(format!("detail.lod_threshold_px {} must be positive", d.lod_threshold_px));
+        }
+        if d.max_quads < 6 {
+            return Err(format!("detail.max_quads {} must be at least 6 (the cube's faces)", d.max_quads));
+        }
+        Ok(())
+    }
+
+    /// The body's ellipsoid.
+    pub fn ellipsoid(&self) -> Result<Ellipsoid, String> {
+        self.body.parse::<Ellipsoid>().map_err(|e| format!("body: {e}"))
+    }
+
+    /// A path of the project, resolved against the project file's folder.
+    pub fn resolve(&self, path: &Path) -> PathBuf {
+        if path.is_absolute() { path.to_path_buf() } else { self.base_dir.join(path) }
+    }
+
+    /// A named view, or the default view when `name` is `None`.
+    pub fn view(&self, name: Option<&str>) -> Result<CameraSpec, String> {
+        let name = match name {
+            Some(n) => n.to_string(),
+            None => match (&self.default_view, self.views.keys().next()) {
+                (Some(v), _) => v.clone(),
+                (None, Some(first)) => first.clone(),
+                (None, None) => return Err("the project has no views: pass --camera lat,lon,alt,heading,pitch".into()),
+            },
+        };
+        self.views.get(&name).copied().ok_or_else(|| {
+            let known: Vec<&str> = self.views.keys().map(String::as_str).collect();
+            format!("no view '{name}'; the project has: {}", known.join(", "))
+        })
+    }
+
+    /// Writes the project atomically (paths as they are, relative ones stay relative).
+    pub fn save(&self, path: &Path) -> Result<(), ProjectError> {
+        let mut text = serde_json::to_string_pretty(self).map_err(|e| ProjectError::new(path, e.to_string()))?;
+        text.push('\n');
+        crate::files::write_atomic(path, text.as_bytes())
+            .map_err(|e| ProjectError::new(path, format!("cannot write: {e}")))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const MINIMAL: &str = r#"{"format": "terrafuse-project", "version": 1, "body": "moon"}"#;
+
+    #[test]
+    fn a_minimal_project_gets_the_defaults() {
+        let p = Project::parse(MINIMAL).unwrap();
+        assert_eq!(p.body, "moon");
+        assert_eq!(p.detail.lod_threshold_px, 1.5);
+        assert!(p.visuals.lighting.enabled);
+        assert!(p.view(None).unwrap_err().contains("no views"));
+    }
+
+    #[test]
+    fn save_and_load_round_trip_and_paths_resolve_against_the_file() {
+        let dir = std::env::temp_dir().join(format!("terrafuse-project-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let mut p = Project::new("wgs84");
+        p.datasets.push(DatasetSpec { name: "srtm".into(), store: "s/e.gpkg".into(), dataset: None, source: None });
+        p.views.insert("near".into(), CameraSpec::parse("39.9,41.3,2000,30,-20").unwrap());
+        let path = dir.join("p.json");
+        p.save(&path).unwrap();
+        let q = Project::load(&path).unwrap();
+        assert_eq!(q.datasets, p.datasets);
+        assert_eq!(q.views, p.views);
+        assert_eq!(q.resolve(&q.datasets[0].store), dir.join("s/e.gpkg"));
+        assert_eq!(q.view(None).unwrap().heading, 30.0);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn bad_projects_are_refused_with_the_reason() {
+        let cases = [
+            ("{", "not valid JSON"),
+            (r#"{"format": "x", "version": 1, "body": "moon"}"#, "format is 'x'"),
+            (r#"{"format": "terrafuse-project", "version": 9, "body": "moon"}"#, "version 9 is not supported"),
+            (r#"{"format": "terrafuse-project", "version": 1, "body": "pluto"}"#, "body"),
+            (r#"{"format": "terrafuse-project", "version": 1, "body": "moon", "colour": 1}"#, "unknown field"),
+            (
+                r#"{"format": "terrafuse-project", "version": 1, "body": "moon",
+                    "views": {"v": {"lat": 95, "lon": 0, "alt": 1}}}"#,
+                "view 'v': camera latitude 95",
+            ),
+            (
+                r#"{"format": "terrafuse-project", "version": 1, "body": "moon",
+                    "visuals": {"isolines": {"interval_m": 0}}}"#,
+                "interval_m 0 must be positive",
+            ),
+        ];
+        for (text, expected) in cases {
+            let e = Project::parse(text).unwrap_err();
+            assert!(e.contains(expected), "{text}: {e}");
+        }
+        let e = Project::load(Path::new("/nonexistent/p.json")).unwrap_err().to_string();
+        assert!(e.starts_with("/nonexistent/p.json: cannot read"), "{e}");
+    }
+
+    #[test]
+    fn cameras_parse_from_the_command_line() {
+        let c = CameraSpec::parse("39.9, 41.27, 30000, 45, -30").unwrap();
+        assert_eq!((c.lat, c.lon, c.alt, c.heading, c.pitch, c.fov), (39.9, 41.27, 30000.0, 45.0, -30.0, 45.0));
+        assert!(CameraSpec::parse("1,2,3").unwrap_err().contains("got 3 values"));
+        assert!(CameraSpec::parse("1,2,x,4,5").unwrap_err().contains("'x' is not a number"));
+        assert!(CameraSpec::parse("0,0,100,0,-100").unwrap_err().contains("pitch"));
+    }
+}
