@@ -18,7 +18,7 @@ fn linear_to_srgb(c: vec3<f32>) -> vec3<f32> {
 // integers); fw: |∂x/∂screen| summed over both axes (fwidth), intervals per pixel; width and
 // min_width in pixels; spacing_factor: how many intervals apart lines of this kind are (1 minor,
 // k major). Lines thinner than min_width are drawn min_width wide and proportionally fainter;
-// lines closer than 4 widths apart fade out (gone at 2 widths) instead of turning into noise.
+// lines closer than 6 widths apart fade out (gone at 3 widths) instead of turning into noise.
 fn isoline_coverage(x: f32, fw: f32, width: f32, min_width: f32, spacing_factor: f32) -> f32 {
     let safe_fw = max(fw, 1e-20);
     let distance_px = abs(x - round(x)) / safe_fw;
@@ -26,7 +26,7 @@ fn isoline_coverage(x: f32, fw: f32, width: f32, min_width: f32, spacing_factor:
     let thinness = select(1.0, width / max(min_width, 1e-6), width < min_width);
     let coverage = clamp(0.5 * w + 0.5 - distance_px, 0.0, 1.0);
     let spacing_px = spacing_factor / safe_fw;
-    let fade = clamp((spacing_px - 2.0 * w) / (2.0 * w), 0.0, 1.0);
+    let fade = clamp((spacing_px - 3.0 * w) / (3.0 * w), 0.0, 1.0);
     return coverage * thinness * fade;
 }
 

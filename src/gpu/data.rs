@@ -335,6 +335,14 @@ impl CpuCache {
         }
     }
 
+    /// Whether the cache holds `key` (without marking it used).
+    pub fn contains(&self, key: DataKey) -> bool {
+        match key {
+            DataKey::Heights(q) => self.heights.contains_key(&q),
+            DataKey::Maps(q) => self.maps.contains_key(&q),
+        }
+    }
+
     /// Heights of a quad, marking them used.
     pub fn heights(&mut self, quad: QuadId) -> Option<Arc<QuadHeights>> {
         self.clock += 1;

@@ -121,6 +121,38 @@ pub struct QuadInstance {
     params: [f32; 4],
 }
 
+impl QuadInstance {
+    /// The reference height h₀ the quad was placed with (exaggerated metres).
+    pub fn reference_height_m(&self) -> f32 {
+        self.anchor[3]
+    }
+
+    /// The skirt depth, metres.
+    pub fn skirt_m(&self) -> f32 {
+        self.params[0]
+    }
+
+    /// Whether the quad was drawn with static maps.
+    pub fn has_maps(&self) -> bool {
+        self.slots[1] != NO_SLOT
+    }
+}
+
+/// The flat rule of a body and height range, fitted once per process (the fit scans thousands
+/// of quads).
+fn flat_rule_for(ellipsoid: &crate::geodesy::Ellipsoid, heights: HeightRange) -> FlatRule {
+    type Key = (u64, u64, u64, u64);
+    static RULES: std::sync::Mutex<Vec<(Key, FlatRule)>> = std::sync::Mutex::new(Vec::new());
+    let key = (ellipsoid.a_m().to_bits(), ellipsoid.b_m().to_bits(), heights.min_m.to_bits(), heights.max_m.to_bits());
+    let mut rules = RULES.lock().unwrap_or_else(|p| p.into_inner());
+    if let Some((_, rule)) = rules.iter().find(|(k, _)| *k == key) {
+        return *rule;
+    }
+    let rule = FlatRule::fit(ellipsoid, CubeProjection::Qsc, FlatRule::DEFAULT_TOLERANCE_M, heights);
+    rules.push((key, rule));
+    rule
+}
+
 fn v4(v: glam::Vec3, w: f32) -> [f32; 4] {
     [v.x, v.y, v.z, w]
 }
@@ -181,6 +213,10 @@ pub struct FrameStats {
     pub uploads: usize,
     /// Quads that would be refined if their data were on the GPU.
     pub pending: usize,
+    /// Data asked of the loader this frame.
+    pub requested: usize,
+    /// 1 when wanted quads were left out because the GPU cache is full of this frame's quads.
+    pub blocked: usize,
     /// Triangles drawn.
     pub triangles: u64,
     /// Quads drawn without static maps (past the flat rule).
@@ -491,7 +527,7 @@ impl Renderer {
             min_m: heights.min_m.min(scene.range_m.0 * scene.visuals.exaggeration),
             max_m: heights.max_m.max(scene.range_m.1 * scene.visuals.exaggeration),
         };
-        let flat = FlatRule::fit(&scene.ellipsoid, CubeProjection::Qsc, FlatRule::DEFAULT_TOLERANCE_M, heights);
+        let flat = flat_rule_for(&scene.ellipsoid, heights);
         let threads = std::thread::available_parallelism().map_or(2, |n| n.get()).clamp(1, 4);
         let loader = Loader::start(scene.datasets.clone(), scene.ellipsoid, threads);
         let cpu = CpuCache::new((scene.detail.cpu_cache_mib.max(16) << 20) as usize);
@@ -666,23 +702,65 @@ impl Renderer {
         };
         stats.select_ms = t.elapsed().as_secs_f64() * 1e3;
 
-        // Keep what is drawn and what is wanted (so that a quad's children, filled over several
-        // frames, are not evicted by each other); then fill slots for the wanted quads, coarsest
-        // first. When drawn and wanted quads fill the pools, refinement stops there.
-        for q in selection.quads.iter().chain(&selection.wanted) {
-            self.heights_pool.touch(*q, self.frame);
-            self.maps_pool.touch(MapSymmetry::of(*q).canonical, self.frame);
+        // Keep what is drawn and its ancestors; then, in priority order (coarsest and largest first), take wanted
+        // quads while their slots fit in what the drawn ones leave free, keep their slots, fill
+        // the missing ones from the CPU cache and ask the loader for the rest. Strict priority
+        // and no more than fits means slots are never taken from each other in circles.
+        // Ancestors stay too: selection walks down through them every frame, and they stand in
+        // at once when the view pulls back (a 4-ary tree has at most a third as many inner
+        // quads as leaves).
+        let mut kept: std::collections::HashSet<QuadId> = selection.quads.iter().copied().collect();
+        for q in &selection.quads {
+            let mut p = q.parent();
+            while let Some(a) = p {
+                if !kept.insert(a) {
+                    break;
+                }
+                p = a.parent();
+            }
         }
+        let mut maps_counted = std::collections::HashSet::new();
+        let mut heights_pinned = 0u32;
+        for q in &kept {
+            if self.heights_pool.touch(*q, self.frame).is_some() {
+                heights_pinned += 1;
+            }
+            let canonical = MapSymmetry::of(*q).canonical;
+            if !self.flat.is_flat(*q) && maps_counted.insert(canonical) {
+                self.maps_pool.touch(canonical, self.frame);
+            }
+        }
+        let mut free_heights = self.heights_pool.capacity.saturating_sub(heights_pinned);
+        let mut free_maps = self.maps_pool.capacity.saturating_sub(maps_counted.len() as u32);
         let mut requests = Vec::new();
         for q in &selection.wanted {
+            let has = self.scene.datasets.iter().any(|d| d.has(*q));
+            let canonical = MapSymmetry::of(*q).canonical;
+            let new_map = !self.flat.is_flat(*q) && !maps_counted.contains(&canonical);
+            if u32::from(has) > free_heights || u32::from(new_map) > free_maps {
+                stats.blocked += 1;
+                break;
+            }
+            free_heights -= u32::from(has);
+            if new_map {
+                free_maps -= 1;
+                maps_counted.insert(canonical);
+                self.maps_pool.touch(canonical, self.frame);
+            }
+            if has {
+                self.heights_pool.touch(*q, self.frame);
+            }
             for key in self.missing_keys(*q) {
-                if stats.uploads < UPLOADS_PER_FRAME && self.upload(key) {
+                if !self.cpu.contains(key) {
+                    if !requests.contains(&key) {
+                        requests.push(key);
+                    }
+                } else if stats.uploads < UPLOADS_PER_FRAME && self.upload(key) {
                     stats.uploads += 1;
-                } else if !requests.contains(&key) {
-                    requests.push(key);
                 }
             }
         }
+        stats.requested = requests.len();
         self.loader.request(&requests);
         if stats.uploads > 0 {
             // Hand the writes to the GPU now, so that their staging memory is released even when
@@ -790,12 +868,33 @@ impl Renderer {
         let mut stalls = 0;
         for _ in 0..100_000 {
             let mut stats = self.prepare(spec, width, height);
+            if std::env::var_os("TERRAFUSE_DEBUG").is_some() {
+                eprintln!(
+                    "settle: {} drawn, {} pending, {} uploads, {} requested, {} blocked, loader {} / culled {} {} visited {}",
+                    stats.selection.quads.len(),
+                    stats.pending,
+                    stats.uploads,
+                    stats.requested,
+                    stats.blocked,
+                    self.loader.busy(),
+                    stats.selection.culled_frustum,
+                    stats.selection.culled_horizon,
+                    stats.selection.visited
+                );
+                if std::env::var_os("TERRAFUSE_DEBUG_QUADS").is_some() {
+                    eprintln!(
+                        "  drawn {:?}\n  wanted {:?}",
+                        stats.selection.quads.iter().map(|q| q.to_string()).collect::<Vec<_>>(),
+                        stats.selection.wanted.iter().map(|q| q.to_string()).collect::<Vec<_>>()
+                    );
+                }
+            }
             errors.append(&mut stats.errors);
             if stats.pending == 0 || start.elapsed() > timeout {
                 stats.errors = errors;
                 return stats;
             }
-            if stats.uploads == 0 && self.loader.busy() == 0 {
+            if stats.uploads == 0 && stats.requested == 0 && self.loader.busy() == 0 {
                 // Nothing arriving and nothing fits: the GPU cache is full of this frame's quads.
                 stalls += 1;
                 if stalls > 2 {

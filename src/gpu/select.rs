@@ -107,6 +107,25 @@ pub fn pixels_per_sample(camera: &Camera, info: &QuadInfo, height_px: u32) -> f6
     info.edge_m / 256.0 * camera.focal_px(height_px) / distance
 }
 
+enum Culled {
+    Frustum,
+    Horizon,
+}
+
+fn cull(camera: &Camera, planes: &[super::camera::Plane; 5], params: &SelectParams, info: &QuadInfo) -> Option<Culled> {
+    if planes.iter().any(|p| info.bounds.outside_plane(p.normal, p.d)) {
+        return Some(Culled::Frustum);
+    }
+    if behind_horizon(camera.position, &info.bounds.corners(), params.occluder_m) {
+        return Some(Culled::Horizon);
+    }
+    None
+}
+
+fn visible(camera: &Camera, planes: &[super::camera::Plane; 5], params: &SelectParams, info: &QuadInfo) -> bool {
+    cull(camera, planes, params, info).is_none()
+}
+
 /// Selects the quads to draw.
 pub fn select(camera: &Camera, params: &SelectParams, source: &mut impl QuadSource) -> Selection {
     let mut out = Selection::default();
@@ -124,13 +143,16 @@ pub fn select(camera: &Camera, params: &SelectParams, source: &mut impl QuadSour
     while let Some(quad) = queue.pop_front() {
         out.visited += 1;
         let info = source.info(quad);
-        if planes.iter().any(|p| info.bounds.outside_plane(p.normal, p.d)) {
-            out.culled_frustum += 1;
-            continue;
-        }
-        if behind_horizon(camera.position, &info.bounds.corners(), params.occluder_m) {
-            out.culled_horizon += 1;
-            continue;
+        match cull(camera, &planes, params, &info) {
+            Some(Culled::Frustum) => {
+                out.culled_frustum += 1;
+                continue;
+            }
+            Some(Culled::Horizon) => {
+                out.culled_horizon += 1;
+                continue;
+            }
+            None => {}
         }
         let px = pixels_per_sample(camera, &info, params.height);
         let children = quad.children().filter(|_| px > params.threshold_px && source.refinable(quad));
@@ -138,7 +160,12 @@ pub fn select(camera: &Camera, params: &SelectParams, source: &mut impl QuadSour
             out.quads.push(quad);
             continue;
         };
-        let missing: Vec<QuadId> = children.iter().copied().filter(|c| !source.ready(*c)).collect();
+        // Children that will be culled need no data: only the visible ones must be ready.
+        let missing: Vec<QuadId> = children
+            .iter()
+            .copied()
+            .filter(|c| !source.ready(*c) && visible(camera, &planes, params, &source.info(*c)))
+            .collect();
         if !missing.is_empty() {
             wanted_scored.extend(missing.into_iter().map(|c| (c.level, -px, c)));
             out.quads.push(quad);
@@ -258,6 +285,29 @@ mod tests {
         assert!(!partial.quads.contains(&deep));
         assert_eq!(partial.wanted, [deep]);
         assert!(full.wanted.is_empty());
+    }
+
+    #[test]
+    fn culled_children_need_no_data() {
+        // Looking at the horizon from low altitude: some children of split quads are culled. If
+        // they lack data the split still happens (they would not be drawn anyway).
+        let cam = camera(2e4, -10.0);
+        let mut all = Fake { infos: HashMap::new(), missing: HashSet::new(), max_level: 14 };
+        let full = select(&cam, &params(1.5), &mut all);
+        let drawn: HashSet<QuadId> = full.quads.iter().copied().collect();
+        let planes = cam.frustum(640, 480);
+        let culled: HashSet<QuadId> = full
+            .quads
+            .iter()
+            .filter_map(|q| q.parent())
+            .flat_map(|p| p.children().unwrap())
+            .filter(|c| !drawn.contains(c) && !visible(&cam, &planes, &params(1.5), &all.info(*c)))
+            .collect();
+        assert!(!culled.is_empty());
+        let mut fake = Fake { infos: all.infos.clone(), missing: culled, max_level: 14 };
+        let partial = select(&cam, &params(1.5), &mut fake);
+        assert_eq!(partial.quads, full.quads);
+        assert!(partial.wanted.is_empty());
     }
 
     #[test]
