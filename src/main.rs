@@ -168,6 +168,28 @@ enum Bench {
         #[command(flatten)]
         import: BenchImportArgs,
     },
+    /// Frame time against screen-space error over the level-of-detail threshold t, on the
+    /// projects' views (the camera path); writes render.csv and render.png.
+    Render {
+        /// Project files.
+        #[arg(long, value_delimiter = ',', default_values = [concat!(env!("CARGO_MANIFEST_DIR"), "/projects/moon-lola.json"), concat!(env!("CARGO_MANIFEST_DIR"), "/projects/erzurum.json")])]
+        projects: Vec<PathBuf>,
+        /// Thresholds (pixels per sample); the smallest is the reference.
+        #[arg(long, value_delimiter = ',', default_values_t = [0.5, 1.0, 1.5, 2.0, 4.0, 8.0])]
+        thresholds: Vec<f64>,
+        /// Image width.
+        #[arg(long, default_value_t = 1280)]
+        width: u32,
+        /// Image height.
+        #[arg(long, default_value_t = 1024)]
+        height: u32,
+        /// Timed frames per view and threshold.
+        #[arg(long, default_value_t = 3)]
+        frames: usize,
+        /// Folder for render.csv and render.png.
+        #[arg(long, default_value = "out/bench")]
+        out: PathBuf,
+    },
     /// Error of the rendered position against the exact one, per approach, body, level and
     /// camera distance; writes a CSV and a PNG plot, and prints timings.
     Accuracy {
@@ -456,6 +478,14 @@ fn run(args: Args) -> Result<ExitCode> {
                 report.level,
                 report.valid
             );
+        }
+        Command::Bench { bench: Bench::Render { projects, thresholds, width, height, frames, out } } => {
+            anyhow::ensure!(thresholds.iter().all(|t| t.is_finite() && *t > 0.0), "--thresholds must be positive");
+            let settings = cli::RenderBenchSettings { projects, thresholds, width, height, frames, out: out.clone() };
+            let (rows, report) = cli::bench_render(&settings).map_err(anyhow::Error::msg)?;
+            print!("{report}");
+            let (csv, png) = cli::write_render_bench(&out, &rows).map_err(anyhow::Error::msg)?;
+            println!("wrote {} and {}", csv.display(), png.display());
         }
         Command::Bench { bench: Bench::Import { import } } => {
             let work = import.work.clone().unwrap_or_else(cli::default_work_dir);

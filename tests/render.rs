@@ -359,7 +359,7 @@ fn the_render_command_writes_the_png_and_reports_what_it_drew() {
             terrafuse(&[&args[..], &["--camera", "39.3,40.42,60000,0,-50", "--lod-threshold", threshold]].concat(), "");
         let s = String::from_utf8_lossy(&o.stdout).to_string();
         let line = s.lines().find(|l| l.starts_with("quads: ")).unwrap_or_else(|| panic!("{s}"));
-        let last = line.split_whitespace().filter(|w| w.starts_with('L')).last().unwrap().trim_end_matches([')', ',']);
+        let last = line.split_whitespace().rfind(|w| w.starts_with('L')).unwrap().trim_end_matches([')', ',']);
         let (level, count) = last[1..].split_once(':').unwrap();
         (level.parse().unwrap(), count.parse().unwrap())
     };

@@ -245,7 +245,7 @@ fn colour(approach: Approach) -> plotters::style::RGBColor {
     }
 }
 
-fn register_font() {
+pub(crate) fn register_font() {
     static ONCE: std::sync::Once = std::sync::Once::new();
     ONCE.call_once(|| {
         let font: &'static [u8] = include_bytes!("../../assets/fonts/DejaVuSans.ttf");

@@ -1,0 +1,300 @@
+//! `terrafuse bench render`: frame time against error over the level-of-detail threshold t.
+//!
+//! For each project and each of its views (the camera path), the finest rendering (t = the
+//! smallest threshold) is the reference; every threshold is rendered to the same pixels and
+//! compared with it: height difference at each pixel (metres) and the difference of the rendered
+//! surface positions, seen from the camera (pixels), over the pixels both draw terrain in.
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+use super::render::open_renderer;
+use crate::gpu::{DrawMode, RenderedImage};
+
+/// Settings of the benchmark.
+#[derive(Clone, Debug)]
+pub struct RenderBenchSettings {
+    /// Project files.
+    pub projects: Vec<PathBuf>,
+    /// Thresholds, pixels per sample.
+    pub thresholds: Vec<f64>,
+    /// Image size.
+    pub width: u32,
+    /// Image size.
+    pub height: u32,
+    /// Timed frames per camera and threshold.
+    pub frames: usize,
+    /// Folder for the CSV and the plot.
+    pub out: PathBuf,
+}
+
+/// One measurement.
+#[derive(Clone, Debug)]
+pub struct RenderBenchRow {
+    /// Project file name.
+    pub project: String,
+    /// View name.
+    pub view: String,
+    /// Threshold.
+    pub threshold: f64,
+    /// Quads and triangles drawn.
+    pub quads: usize,
+    /// Triangles.
+    pub triangles: u64,
+    /// Deepest level drawn.
+    pub max_level: u8,
+    /// CPU frame preparation (selection, per-quad values), ms, mean over frames.
+    pub cpu_ms: f64,
+    /// Of which selection, ms.
+    pub select_ms: f64,
+    /// GPU terrain pass, ms, mean over frames (NaN without timestamps).
+    pub gpu_ms: f64,
+    /// Wall time of a whole frame (prepare, draw, read back), ms, mean.
+    pub wall_ms: f64,
+    /// Height error against the finest rendering, metres: mean, max.
+    pub height_error_m: (f64, f64),
+    /// Surface position error seen from the camera, pixels: mean, max.
+    pub position_error_px: (f64, f64),
+    /// Share of pixels where one draws terrain and the other sky.
+    pub coverage_mismatch: f64,
+}
+
+fn compare(reference: &RenderedImage, image: &RenderedImage, focal_px: f64) -> ((f64, f64), (f64, f64), f64) {
+    let (rs, ri) = (reference.surface.as_ref().unwrap(), reference.ids.as_ref().unwrap());
+    let (s, i) = (image.surface.as_ref().unwrap(), image.ids.as_ref().unwrap());
+    let (mut n, mut mismatch) = (0usize, 0usize);
+    let (mut h_sum, mut h_max, mut p_sum, mut p_max) = (0f64, 0f64, 0f64, 0f64);
+    for k in 0..rs.len() {
+        let (a, b) = (ri[k][0] > 0, i[k][0] > 0);
+        if a != b {
+            mismatch += 1;
+            continue;
+        }
+        // Both terrain, both with data.
+        if !a || ri[k][3] & 1 == 0 || i[k][3] & 1 == 0 {
+            continue;
+        }
+        let dh = f64::from((s[k][3] - rs[k][3]).abs());
+        let p = glam::DVec3::new(f64::from(s[k][0]), f64::from(s[k][1]), f64::from(s[k][2]));
+        let q = glam::DVec3::new(f64::from(rs[k][0]), f64::from(rs[k][1]), f64::from(rs[k][2]));
+        // The difference as an angle from the eye, in pixels.
+        let dp = (p - q).length() / q.length().max(1e-9) * focal_px;
+        h_sum += dh;
+        h_max = h_max.max(dh);
+        p_sum += dp;
+        p_max = p_max.max(dp);
+        n += 1;
+    }
+    let n = n.max(1) as f64;
+    ((h_sum / n, h_max), (p_sum / n, p_max), mismatch as f64 / rs.len() as f64)
+}
+
+/// Runs the benchmark; returns the rows and a report (device, table).
+pub fn bench_render(settings: &RenderBenchSettings) -> Result<(Vec<RenderBenchRow>, String), String> {
+    let mut rows = Vec::new();
+    let mut report = String::new();
+    let finest = settings.thresholds.iter().copied().fold(f64::INFINITY, f64::min);
+    for project_path in &settings.projects {
+        let (project, mut renderer, lines) = open_renderer(project_path)?;
+        for l in lines {
+            let _ = writeln!(report, "{}: {l}", project_path.display());
+        }
+        let name = project_path.file_stem().map_or_else(String::new, |s| s.to_string_lossy().into_owned());
+        for (view, camera) in &project.views {
+            renderer.set_threshold(finest);
+            renderer.settle(camera, settings.width, settings.height, Duration::from_secs(600));
+            let reference = renderer.render_image(DrawMode::Probe)?;
+            let focal = renderer.last_camera().map_or(1.0, |c| c.focal_px(settings.height));
+            for &t in &settings.thresholds {
+                renderer.set_threshold(t);
+                let settled = renderer.settle(camera, settings.width, settings.height, Duration::from_secs(600));
+                let probe = renderer.render_image(DrawMode::Probe)?;
+                let (height_error_m, position_error_px, coverage_mismatch) = compare(&reference, &probe, focal);
+                let (mut cpu, mut select, mut gpu, mut wall) = (0.0, 0.0, 0.0, 0.0);
+                let frames = settings.frames.max(1);
+                for _ in 0..frames {
+                    let start = Instant::now();
+                    let stats = renderer.prepare(camera, settings.width, settings.height);
+                    let image = renderer.render_image(DrawMode::Colour)?;
+                    wall += start.elapsed().as_secs_f64() * 1e3;
+                    cpu += stats.prepare_ms;
+                    select += stats.select_ms;
+                    gpu += image.gpu_ms.unwrap_or(f64::NAN);
+                }
+                let f = frames as f64;
+                rows.push(RenderBenchRow {
+                    project: name.clone(),
+                    view: view.clone(),
+                    threshold: t,
+                    quads: settled.selection.quads.len(),
+                    triangles: settled.triangles,
+                    max_level: settled.selection.quads.iter().map(|q| q.level).max().unwrap_or(0),
+                    cpu_ms: cpu / f,
+                    select_ms: select / f,
+                    gpu_ms: gpu / f,
+                    wall_ms: wall / f,
+                    height_error_m,
+                    position_error_px,
+                    coverage_mismatch,
+                });
+            }
+        }
+    }
+    let _ = writeln!(
+        report,
+        "{:<10} {:<10} {:>5} {:>6} {:>10} {:>4} {:>8} {:>8} {:>9} {:>9} {:>10} {:>10} {:>9} {:>9} {:>7}",
+        "project",
+        "view",
+        "t",
+        "quads",
+        "triangles",
+        "Lmax",
+        "cpu ms",
+        "sel ms",
+        "gpu ms",
+        "frame ms",
+        "dh mean m",
+        "dh max m",
+        "dp mean",
+        "dp max",
+        "cover"
+    );
+    for r in &rows {
+        let _ = writeln!(
+            report,
+            "{:<10} {:<10} {:>5} {:>6} {:>10} {:>4} {:>8.3} {:>8.3} {:>9.2} {:>9.1} {:>10.3} {:>10.2} {:>9.3} {:>9.2} {:>6.2}%",
+            r.project.chars().take(10).collect::<String>(),
+            r.view,
+            r.threshold,
+            r.quads,
+            r.triangles,
+            r.max_level,
+            r.cpu_ms,
+            r.select_ms,
+            r.gpu_ms,
+            r.wall_ms,
+            r.height_error_m.0,
+            r.height_error_m.1,
+            r.position_error_px.0,
+            r.position_error_px.1,
+            r.coverage_mismatch * 100.0
+        );
+    }
+    let _ = writeln!(
+        report,
+        "dh: height difference against the t = {finest} rendering at the same pixel; dp: the surface position difference seen from the eye, pixels; cover: pixels terrain in one, sky in the other"
+    );
+    Ok((rows, report))
+}
+
+/// The CSV of the rows.
+pub fn render_bench_csv(rows: &[RenderBenchRow]) -> String {
+    let mut out = String::from(
+        "project,view,threshold_px,quads,triangles,max_level,cpu_ms,select_ms,gpu_ms,frame_ms,height_error_mean_m,height_error_max_m,position_error_mean_px,position_error_max_px,coverage_mismatch\n",
+    );
+    for r in rows {
+        let _ = writeln!(
+            out,
+            "{},{},{},{},{},{},{:.4},{:.4},{:.4},{:.3},{:.5},{:.5},{:.5},{:.5},{:.6}",
+            r.project,
+            r.view,
+            r.threshold,
+            r.quads,
+            r.triangles,
+            r.max_level,
+            r.cpu_ms,
+            r.select_ms,
+            r.gpu_ms,
+            r.wall_ms,
+            r.height_error_m.0,
+            r.height_error_m.1,
+            r.position_error_px.0,
+            r.position_error_px.1,
+            r.coverage_mismatch
+        );
+    }
+    out
+}
+
+/// Plot: GPU pass time and triangles (top) and mean errors (bottom) against t, one line per view.
+pub fn render_bench_plot(rows: &[RenderBenchRow]) -> Result<Vec<u8>, String> {
+    use plotters::prelude::*;
+    super::geometry::register_font();
+    let (w, h) = (1100u32, 900u32);
+    let mut buffer = vec![0u8; (w * h * 3) as usize];
+    let err = |e: &dyn std::fmt::Display| e.to_string();
+    let mut keys: Vec<(String, String)> = rows.iter().map(|r| (r.project.clone(), r.view.clone())).collect();
+    keys.dedup();
+    let t_min = rows.iter().map(|r| r.threshold).fold(f64::INFINITY, f64::min).max(1e-3);
+    let t_max = rows.iter().map(|r| r.threshold).fold(0.0, f64::max).max(t_min * 2.0);
+    let palette = [RED, BLUE, GREEN, MAGENTA, CYAN, BLACK, RGBColor(230, 140, 0), RGBColor(120, 60, 160)];
+    {
+        let root = BitMapBackend::with_buffer(&mut buffer, (w, h)).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| err(&e))?;
+        let panels = root.split_evenly((2, 2));
+        type Metric = (&'static str, fn(&RenderBenchRow) -> f64);
+        let metrics: [Metric; 4] = [
+            ("GPU terrain pass (ms)", |r| if r.gpu_ms.is_finite() { r.gpu_ms } else { r.wall_ms }),
+            ("triangles", |r| r.triangles as f64),
+            ("height error, mean (m)", |r| r.height_error_m.0),
+            ("position error, mean (px)", |r| r.position_error_px.0),
+        ];
+        for (panel, (label, metric)) in panels.iter().zip(metrics) {
+            let values: Vec<f64> = rows.iter().map(metric).filter(|v| v.is_finite() && *v > 0.0).collect();
+            let lo = values.iter().copied().fold(f64::INFINITY, f64::min).min(1.0) * 0.5;
+            let hi = values.iter().copied().fold(0.0, f64::max).max(lo * 10.0) * 2.0;
+            let mut chart = ChartBuilder::on(panel)
+                .caption(format!("{label} against t"), ("sans-serif", 18))
+                .margin(12)
+                .x_label_area_size(40)
+                .y_label_area_size(70)
+                .build_cartesian_2d((t_min..t_max).log_scale(), (lo.max(1e-6)..hi).log_scale())
+                .map_err(|e| err(&e))?;
+            chart
+                .configure_mesh()
+                .x_desc("t (pixels per sample)")
+                .y_desc(label)
+                .y_label_formatter(&|v| format!("{v:.1e}"))
+                .draw()
+                .map_err(|e| err(&e))?;
+            for (k, (project, view)) in keys.iter().enumerate() {
+                let c = palette[k % palette.len()];
+                let points: Vec<(f64, f64)> = rows
+                    .iter()
+                    .filter(|r| &r.project == project && &r.view == view)
+                    .map(|r| (r.threshold, metric(r).max(lo.max(1e-6))))
+                    .collect();
+                chart
+                    .draw_series(LineSeries::new(points.clone(), c.stroke_width(2)))
+                    .map_err(|e| err(&e))?
+                    .label(format!("{project} {view}"))
+                    .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], c.stroke_width(2)));
+                chart.draw_series(points.iter().map(|&p| Circle::new(p, 3, c.filled()))).map_err(|e| err(&e))?;
+            }
+            chart
+                .configure_series_labels()
+                .position(SeriesLabelPosition::UpperRight)
+                .background_style(WHITE.mix(0.85))
+                .border_style(BLACK)
+                .label_font(("sans-serif", 11))
+                .draw()
+                .map_err(|e| err(&e))?;
+        }
+        root.present().map_err(|e| err(&e))?;
+    }
+    let image = image::RgbImage::from_raw(w, h, buffer).ok_or("plot buffer has the wrong size")?;
+    let mut png = Vec::new();
+    image.write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png).map_err(|e| err(&e))?;
+    Ok(png)
+}
+
+/// Writes `render.csv` and `render.png` into `dir` atomically; returns their paths.
+pub fn write_render_bench(dir: &Path, rows: &[RenderBenchRow]) -> Result<(PathBuf, PathBuf), String> {
+    std::fs::create_dir_all(dir).map_err(|e| format!("{}: cannot create: {e}", dir.display()))?;
+    let (csv, png) = (dir.join("render.csv"), dir.join("render.png"));
+    crate::files::write_atomic(&csv, render_bench_csv(rows).as_bytes())
+        .map_err(|e| format!("{}: {e}", csv.display()))?;
+    crate::files::write_atomic(&png, &render_bench_plot(rows)?).map_err(|e| format!("{}: {e}", png.display()))?;
+    Ok((csv, png))
+}
