@@ -161,31 +161,42 @@ pub fn bench_render(settings: &RenderBenchSettings) -> Result<(Vec<RenderBenchRo
         "cover"
     );
     for r in &rows {
-        let _ = writeln!(
-            report,
-            "{:<10} {:<10} {:>5} {:>6} {:>10} {:>4} {:>8.3} {:>8.3} {:>9.2} {:>9.1} {:>10.3} {:>10.2} {:>9.3} {:>9.2} {:>6.2}%",
-            r.project.chars().take(10).collect::<String>(),
-            r.view,
-            r.threshold,
-            r.quads,
-            r.triangles,
-            r.max_level,
-            r.cpu_ms,
-            r.select_ms,
-            r.gpu_ms,
-            r.wall_ms,
-            r.height_error_m.0,
-            r.height_error_m.1,
-            r.position_error_px.0,
-            r.position_error_px.1,
-            r.coverage_mismatch * 100.0
-        );
+        let v = row_values(r);
+        let widths = [10, 10, 5, 6, 10, 4, 8, 8, 9, 9, 10, 10, 9, 9, 7];
+        let cells: Vec<String> = v
+            .iter()
+            .zip(widths)
+            .enumerate()
+            .map(|(k, (value, w))| if k < 2 { format!("{value:<w$}") } else { format!("{value:>w$}") })
+            .collect();
+        let _ = writeln!(report, "{}", cells.join(" "));
     }
     let _ = writeln!(
         report,
-        "dh: height difference against the t = {finest} rendering at the same pixel; dp: the surface position difference seen from the eye, pixels; cover: pixels terrain in one, sky in the other"
+        "dh: height difference against the t = {finest} rendering at the same pixel; dp: the surface position difference seen from the eye, pixels; cover: share of pixels that are terrain in one and sky in the other"
     );
     Ok((rows, report))
+}
+
+/// A row's values as printed: the table and the CSV share them.
+fn row_values(r: &RenderBenchRow) -> [String; 15] {
+    [
+        r.project.chars().take(10).collect(),
+        r.view.clone(),
+        r.threshold.to_string(),
+        r.quads.to_string(),
+        r.triangles.to_string(),
+        r.max_level.to_string(),
+        format!("{:.3}", r.cpu_ms),
+        format!("{:.3}", r.select_ms),
+        format!("{:.2}", r.gpu_ms),
+        format!("{:.1}", r.wall_ms),
+        format!("{:.3}", r.height_error_m.0),
+        format!("{:.2}", r.height_error_m.1),
+        format!("{:.3}", r.position_error_px.0),
+        format!("{:.2}", r.position_error_px.1),
+        format!("{:.4}", r.coverage_mismatch),
+    ]
 }
 
 /// The CSV of the rows.
@@ -194,25 +205,7 @@ pub fn render_bench_csv(rows: &[RenderBenchRow]) -> String {
         "project,view,threshold_px,quads,triangles,max_level,cpu_ms,select_ms,gpu_ms,frame_ms,height_error_mean_m,height_error_max_m,position_error_mean_px,position_error_max_px,coverage_mismatch\n",
     );
     for r in rows {
-        let _ = writeln!(
-            out,
-            "{},{},{},{},{},{},{:.4},{:.4},{:.4},{:.3},{:.5},{:.5},{:.5},{:.5},{:.6}",
-            r.project,
-            r.view,
-            r.threshold,
-            r.quads,
-            r.triangles,
-            r.max_level,
-            r.cpu_ms,
-            r.select_ms,
-            r.gpu_ms,
-            r.wall_ms,
-            r.height_error_m.0,
-            r.height_error_m.1,
-            r.position_error_px.0,
-            r.position_error_px.1,
-            r.coverage_mismatch
-        );
+        let _ = writeln!(out, "{}", row_values(r).join(","));
     }
     out
 }
@@ -283,10 +276,7 @@ pub fn render_bench_plot(rows: &[RenderBenchRow]) -> Result<Vec<u8>, String> {
         }
         root.present().map_err(|e| err(&e))?;
     }
-    let image = image::RgbImage::from_raw(w, h, buffer).ok_or("plot buffer has the wrong size")?;
-    let mut png = Vec::new();
-    image.write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png).map_err(|e| err(&e))?;
-    Ok(png)
+    super::geometry::plot_png(w, h, buffer)
 }
 
 /// Writes `render.csv` and `render.png` into `dir` atomically; returns their paths.

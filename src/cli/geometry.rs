@@ -370,9 +370,14 @@ pub fn accuracy_plot(
         }
         root.present().map_err(|e| err(&e))?;
     }
+    plot_png(w, h, buffer)
+}
+
+/// A plot's RGB buffer as PNG bytes.
+pub(crate) fn plot_png(w: u32, h: u32, buffer: Vec<u8>) -> Result<Vec<u8>, String> {
     let image = image::RgbImage::from_raw(w, h, buffer).ok_or("plot buffer has the wrong size")?;
     let mut png = Vec::new();
-    image.write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png).map_err(|e| err(&e))?;
+    image.write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png).map_err(|e| e.to_string())?;
     Ok(png)
 }
 
