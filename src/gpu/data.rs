@@ -104,6 +104,21 @@ impl DatasetInfo {
     pub fn has(&self, quad: QuadId) -> bool {
         self.present.get(quad.level as usize).is_some_and(|s| s.contains(&quad))
     }
+
+    /// The quad whose tile gives this dataset's heights at `quad`: the quad itself up to the
+    /// dataset's finest level, below it the ancestor at the finest level (upsampled).
+    pub fn source_quad(&self, quad: QuadId) -> QuadId {
+        let mut q = quad;
+        while q.level > self.finest_level {
+            q = q.parent().expect("a quad below level 0 has a parent");
+        }
+        q
+    }
+
+    /// Whether the dataset has heights at `quad`, its own or upsampled from the finest level.
+    pub fn covers(&self, quad: QuadId) -> bool {
+        self.has(self.source_quad(quad))
+    }
 }
 
 /// What the loader is asked for.
@@ -249,18 +264,20 @@ pub fn compose_heights(
 ) -> Result<QuadHeights, String> {
     let mut grid: Option<Vec<f32>> = None;
     for (d, store) in datasets.iter().zip(stores.iter_mut()) {
-        if !d.has(quad) {
+        if !d.covers(quad) {
             continue;
         }
         if store.is_none() {
             *store = Some(Store::open_read_only(&d.store).map_err(|e| e.to_string())?);
         }
         let s = store.as_ref().expect("opened above");
-        let Some(tile) = s.read_grid(&d.dataset, quad).map_err(|e| e.to_string())? else { continue };
+        let source = d.source_quad(quad);
+        let Some(tile) = s.read_grid(&d.dataset, source).map_err(|e| e.to_string())? else { continue };
+        let values = if source == quad { tile.values } else { upsample(&tile.values, source, quad) };
         match &mut grid {
-            None => grid = Some(tile.values),
+            None => grid = Some(values),
             Some(g) => {
-                for (h, t) in g.iter_mut().zip(&tile.values) {
+                for (h, t) in g.iter_mut().zip(&values) {
                     if h.is_nan() {
                         *h = *t;
                     }
@@ -273,6 +290,35 @@ pub fn compose_heights(
     }
     let grid = grid.unwrap_or_else(|| vec![f32::NAN; (SAMPLES * SAMPLES) as usize]);
     Ok(QuadHeights::new(grid))
+}
+
+/// The heights of `quad` bilinearly interpolated from the grid of its ancestor `source` (both
+/// corner-inclusive 257² grids); NaN where a sample with weight has no data.
+pub fn upsample(grid: &[f32], source: QuadId, quad: QuadId) -> Vec<f32> {
+    let n = SAMPLES as usize;
+    let k = quad.level - source.level;
+    let scale = 1.0 / f64::from(1u32 << k);
+    let (ox, oy) = (f64::from(quad.x - (source.x << k)), f64::from(quad.y - (source.y << k)));
+    let cells = f64::from(SAMPLES - 1);
+    let mut out = Vec::with_capacity(n * n);
+    for j in 0..n {
+        let v = (oy * cells + j as f64) * scale;
+        for i in 0..n {
+            let u = (ox * cells + i as f64) * scale;
+            let (i0, j0) = ((u.floor() as usize).min(n - 2), (v.floor() as usize).min(n - 2));
+            let (fu, fv) = (u - i0 as f64, v - j0 as f64);
+            let mut h = 0.0;
+            for (di, dj, w) in
+                [(0, 0, (1.0 - fu) * (1.0 - fv)), (1, 0, fu * (1.0 - fv)), (0, 1, (1.0 - fu) * fv), (1, 1, fu * fv)]
+            {
+                if w > 0.0 {
+                    h += w * f64::from(grid[(j0 + dj) * n + i0 + di]);
+                }
+            }
+            out.push(h as f32);
+        }
+    }
+    out
 }
 
 /// The CPU cache: heights and maps by key, least recently used dropped past the budget.
@@ -388,6 +434,25 @@ mod tests {
         assert!(cache.used_bytes() <= 3 * one);
         assert!(cache.heights(q(1)).is_none(), "1 was the least recently used");
         assert!(cache.heights(q(0)).is_some() && cache.heights(q(3)).is_some());
+    }
+
+    #[test]
+    fn upsampling_from_an_ancestor_is_bilinear_and_exact_on_shared_samples() {
+        let n = SAMPLES as usize;
+        // A plane h = 3i + 5j on the ancestor: bilinear interpolation reproduces it exactly.
+        let grid: Vec<f32> = (0..n * n).map(|k| (3 * (k % n) + 5 * (k / n)) as f32).collect();
+        let source = QuadId { face: Face::Top, level: 2, x: 1, y: 3 };
+        let quad = QuadId { face: Face::Top, level: 4, x: 7, y: 14 }; // offset (3, 2) inside the ancestor
+        let up = upsample(&grid, source, quad);
+        for (i, j) in [(0usize, 0usize), (256, 0), (0, 256), (256, 256), (100, 37)] {
+            let (u, v) = ((3.0 * 256.0 + i as f64) / 4.0, (2.0 * 256.0 + j as f64) / 4.0);
+            assert_eq!(f64::from(up[j * n + i]), 3.0 * u + 5.0 * v, "({i},{j})");
+        }
+        let mut holes = grid.clone();
+        holes[128 * n + 192] = f32::NAN; // under the quad's sample (0, 0)
+        let up = upsample(&holes, source, quad);
+        assert!(up[0].is_nan(), "a sample next to no data has none");
+        assert!(!up[n * n - 1].is_nan());
     }
 
     #[test]

@@ -279,7 +279,7 @@ struct Source<'a> {
 
 impl Source<'_> {
     fn has_data(&self, quad: QuadId) -> bool {
-        self.scene.datasets.iter().any(|d| d.has(quad))
+        self.scene.datasets.iter().any(|d| d.covers(quad))
     }
 }
 
@@ -335,7 +335,7 @@ impl QuadSource for Source<'_> {
     }
 
     fn refinable(&self, quad: QuadId) -> bool {
-        let finest = self.scene.datasets.iter().filter(|d| d.has(quad)).map(|d| d.finest_level).max();
+        let finest = self.scene.datasets.iter().filter(|d| d.covers(quad)).map(|d| d.finest_level).max();
         match finest {
             Some(f) => quad.level < f,
             None => quad.level < NODATA_MAX_LEVEL,
@@ -659,7 +659,7 @@ impl Renderer {
     /// What a quad still needs on the GPU.
     fn missing_keys(&self, quad: QuadId) -> Vec<DataKey> {
         let mut keys = Vec::new();
-        if self.scene.datasets.iter().any(|d| d.has(quad)) && self.heights_pool.get(quad).is_none() {
+        if self.scene.datasets.iter().any(|d| d.covers(quad)) && self.heights_pool.get(quad).is_none() {
             keys.push(DataKey::Heights(quad));
         }
         let canonical = MapSymmetry::of(quad).canonical;
@@ -734,7 +734,7 @@ impl Renderer {
         let mut free_maps = self.maps_pool.capacity.saturating_sub(maps_counted.len() as u32);
         let mut requests = Vec::new();
         for q in &selection.wanted {
-            let has = self.scene.datasets.iter().any(|d| d.has(*q));
+            let has = self.scene.datasets.iter().any(|d| d.covers(*q));
             let canonical = MapSymmetry::of(*q).canonical;
             let new_map = !self.flat.is_flat(*q) && !maps_counted.contains(&canonical);
             if u32::from(has) > free_heights || u32::from(new_map) > free_maps {
@@ -772,7 +772,7 @@ impl Renderer {
         // Per-quad values, camera-relative, from f64.
         self.instances.clear();
         for &quad in &selection.quads {
-            let has = self.scene.datasets.iter().any(|d| d.has(quad));
+            let has = self.scene.datasets.iter().any(|d| d.covers(quad));
             let range = self.cache.range(&self.scene, quad, has, exaggeration);
             let roughness = self.cache.ranges.get(&quad).map_or(0.0, |r| f64::from(r.2));
             let info = self.cache.infos.get(&quad).map(|i| i.1);
