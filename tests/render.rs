@@ -416,3 +416,48 @@ fn quads_wait_for_their_data_and_the_parent_stands_in() {
     let root_face = QuadId::root(Face::Front);
     assert!(!settled.selection.quads.contains(&root_face) || settled.selection.quads.len() < 6);
 }
+
+#[test]
+fn datasets_fill_each_other_and_show_below_their_finest_level() {
+    use terrafuse::gpu::data::{compose_heights, upsample};
+    use terrafuse::store::Store;
+    // Both Moon grids: the polar one (levels 0–3) first, the global one (levels 0–1) after.
+    let mut p = Project::load(&repo_path("projects/moon-lola.json")).unwrap();
+    for d in &mut p.datasets {
+        d.store = out_dir().join("moon-fusion.gpkg");
+        if let Some(s) = &mut d.source {
+            s.files = s.files.iter().map(|f| repo_path("projects").join(f)).collect();
+        }
+    }
+    let (scene, _) = Scene::open(&p).unwrap();
+    let (north, global) = (&scene.datasets[0], &scene.datasets[1]);
+    assert_eq!((north.finest_level, global.finest_level), (3, 1));
+    let mut stores = vec![None, None];
+    let store = Store::open_read_only(&north.store).unwrap();
+    // A level-2 quad the polar grid only partly covers: the global grid (upsampled from level 1)
+    // fills the rest, and the polar samples stay as they are.
+    let partial = north.present[2]
+        .iter()
+        .copied()
+        .find(|q| store.read_grid(&north.dataset, *q).unwrap().unwrap().values.iter().any(|h| h.is_nan()))
+        .expect("a level-2 quad at the polar grid's edge");
+    let polar = store.read_grid(&north.dataset, partial).unwrap().unwrap();
+    let fused = compose_heights(partial, &scene.datasets, &mut stores).unwrap();
+    assert!(fused.grid.iter().all(|h| h.is_finite()), "{partial}: no data left");
+    for (f, n) in fused.grid.iter().zip(&polar.values) {
+        if !n.is_nan() {
+            assert_eq!(f.to_bits(), n.to_bits());
+        }
+    }
+    // A level-3 quad on the equator, outside the polar grid: the global grid's level-1 ancestor,
+    // upsampled.
+    let equator = QuadId { face: Face::Front, level: 3, x: 3, y: 4 };
+    assert!(!north.covers(equator) && global.covers(equator));
+    let ancestor = global.source_quad(equator);
+    assert_eq!(ancestor.level, 1);
+    let coarse = store.read_grid(&global.dataset, ancestor).unwrap().unwrap();
+    let fused = compose_heights(equator, &scene.datasets, &mut stores).unwrap();
+    let expected = upsample(&coarse.values, ancestor, equator);
+    assert!(fused.grid.iter().zip(&expected).all(|(a, b)| a.to_bits() == b.to_bits()));
+    assert!(fused.grid.iter().all(|h| h.is_finite()));
+}
