@@ -40,16 +40,11 @@ impl QuadHeights {
             lo = lo.min(h);
             hi = hi.max(h);
         }
+        // The four edges: south and north rows, west and east columns.
         let mut rough = 0f32;
-        let edges: [Box<dyn Fn(usize) -> usize>; 4] = [
-            Box::new(|k| k),
-            Box::new(move |k| (n - 1) * n + k),
-            Box::new(move |k| k * n),
-            Box::new(move |k| k * n + n - 1),
-        ];
-        for edge in &edges {
+        for (start, step) in [(0, 1), ((n - 1) * n, 1), (0, n), (n - 1, n)] {
             for k in 1..n {
-                let d = (grid[edge(k)] - grid[edge(k - 1)]).abs();
+                let d = (grid[start + k * step] - grid[start + (k - 1) * step]).abs();
                 if d.is_finite() {
                     rough = rough.max(d);
                 }
@@ -79,6 +74,8 @@ pub struct DatasetInfo {
     pub present: Vec<HashSet<QuadId>>,
     /// Height range over its finest level, metres.
     pub range_m: (f64, f64),
+    /// The body of its store.
+    pub body: Ellipsoid,
 }
 
 impl DatasetInfo {
@@ -97,6 +94,7 @@ impl DatasetInfo {
             finest_level: finest,
             present,
             range_m,
+            body: *store.body(),
         })
     }
 

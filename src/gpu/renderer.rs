@@ -277,12 +277,6 @@ struct Source<'a> {
     exaggeration: f64,
 }
 
-impl Source<'_> {
-    fn has_data(&self, quad: QuadId) -> bool {
-        self.scene.datasets.iter().any(|d| d.covers(quad))
-    }
-}
-
 impl QuadCache {
     fn geometry(&mut self, scene: &Scene, quad: QuadId) -> &QuadGeometry {
         self.geometry
@@ -305,7 +299,7 @@ impl QuadCache {
 
 impl QuadSource for Source<'_> {
     fn info(&mut self, quad: QuadId) -> QuadInfo {
-        let has = self.has_data(quad);
+        let has = self.scene.has_data(quad);
         let range = self.cache.range(self.scene, quad, has, self.exaggeration);
         if let Some((r, info)) = self.cache.infos.get(&quad)
             && *r == range
@@ -329,14 +323,13 @@ impl QuadSource for Source<'_> {
     }
 
     fn ready(&self, quad: QuadId) -> bool {
-        let heights = !self.has_data(quad) || self.heights.get(quad).is_some();
+        let heights = !self.scene.has_data(quad) || self.heights.get(quad).is_some();
         let maps = self.flat.is_flat(quad) || self.maps.get(MapSymmetry::of(quad).canonical).is_some();
         heights && maps
     }
 
     fn refinable(&self, quad: QuadId) -> bool {
-        let finest = self.scene.datasets.iter().filter(|d| d.covers(quad)).map(|d| d.finest_level).max();
-        match finest {
+        match self.scene.finest_level_at(quad) {
             Some(f) => quad.level < f,
             None => quad.level < NODATA_MAX_LEVEL,
         }
@@ -659,7 +652,7 @@ impl Renderer {
     /// What a quad still needs on the GPU.
     fn missing_keys(&self, quad: QuadId) -> Vec<DataKey> {
         let mut keys = Vec::new();
-        if self.scene.datasets.iter().any(|d| d.covers(quad)) && self.heights_pool.get(quad).is_none() {
+        if self.scene.has_data(quad) && self.heights_pool.get(quad).is_none() {
             keys.push(DataKey::Heights(quad));
         }
         let canonical = MapSymmetry::of(quad).canonical;
@@ -734,7 +727,7 @@ impl Renderer {
         let mut free_maps = self.maps_pool.capacity.saturating_sub(maps_counted.len() as u32);
         let mut requests = Vec::new();
         for q in &selection.wanted {
-            let has = self.scene.datasets.iter().any(|d| d.covers(*q));
+            let has = self.scene.has_data(*q);
             let canonical = MapSymmetry::of(*q).canonical;
             let new_map = !self.flat.is_flat(*q) && !maps_counted.contains(&canonical);
             if u32::from(has) > free_heights || u32::from(new_map) > free_maps {
@@ -772,7 +765,7 @@ impl Renderer {
         // Per-quad values, camera-relative, from f64.
         self.instances.clear();
         for &quad in &selection.quads {
-            let has = self.scene.datasets.iter().any(|d| d.covers(quad));
+            let has = self.scene.has_data(quad);
             let range = self.cache.range(&self.scene, quad, has, exaggeration);
             let roughness = self.cache.ranges.get(&quad).map_or(0.0, |r| f64::from(r.2));
             let info = self.cache.infos.get(&quad).map(|i| i.1);

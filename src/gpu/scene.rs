@@ -5,6 +5,7 @@ use std::sync::Arc;
 
 use super::data::DatasetInfo;
 use crate::colour::Ramp;
+use crate::ecm::QuadId;
 use crate::geodesy::Ellipsoid;
 use crate::project::{DetailSpec, Project, Visuals};
 use crate::store::{ImportOptions, LevelChoice, Resampling, Store, VerticalDatum};
@@ -34,6 +35,16 @@ pub struct OpenReport {
 }
 
 impl Scene {
+    /// Whether any dataset has heights at `quad` (its own tile or upsampled from its finest level).
+    pub fn has_data(&self, quad: QuadId) -> bool {
+        self.datasets.iter().any(|d| d.covers(quad))
+    }
+
+    /// The finest level of the datasets with heights at `quad`, if any has.
+    pub fn finest_level_at(&self, quad: QuadId) -> Option<u8> {
+        self.datasets.iter().filter(|d| d.covers(quad)).map(|d| d.finest_level).max()
+    }
+
     /// Opens a project's datasets, importing those whose store lacks them and that list sources.
     pub fn open(project: &Project) -> Result<(Scene, OpenReport), String> {
         let ellipsoid = project.ellipsoid()?;
@@ -86,7 +97,7 @@ impl Scene {
                 ));
             }
             let info = DatasetInfo::open(&store_path, name).map_err(|e| format!("dataset '{}': {e}", d.name))?;
-            let store_body = *Store::open_read_only(&store_path).map_err(|e| e.to_string())?.body();
+            let store_body = info.body;
             if store_body.a_m() != ellipsoid.a_m() || store_body.b_m() != ellipsoid.b_m() {
                 return Err(format!(
                     "dataset '{}': {} is on {}, the project on {}",
