@@ -62,12 +62,16 @@ pub fn render(request: &RenderRequest) -> Result<String, String> {
     if request.width == 0 || request.height == 0 || request.width > 16384 || request.height > 16384 {
         return Err(format!("image size {}x{} must lie within 1–16384 pixels", request.width, request.height));
     }
-    let (project, mut renderer, lines) = open_renderer(request.project)?;
+    // Check the request before importing anything or opening the GPU.
+    let project = Project::load(request.project).map_err(|e| e.to_string())?;
     let camera = request_camera(&project, request.view, request.camera)?;
+    if let Some(t) = request.lod_threshold
+        && !(t.is_finite() && t > 0.0)
+    {
+        return Err(format!("--lod-threshold {t} must be a positive number of pixels"));
+    }
+    let (_, mut renderer, lines) = open_renderer(request.project)?;
     if let Some(t) = request.lod_threshold {
-        if !(t.is_finite() && t > 0.0) {
-            return Err(format!("--lod-threshold {t} must be a positive number of pixels"));
-        }
         renderer.set_threshold(t);
     }
     let stats = renderer.settle(&camera, request.width, request.height, Duration::from_secs(300));
