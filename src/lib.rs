@@ -11,5 +11,6 @@ pub mod ecm;
 pub mod files;
 pub mod geodesy;
 pub mod gpu;
+pub mod gui;
 pub mod project;
 pub mod store;

@@ -77,6 +77,33 @@ enum Command {
         #[arg(long)]
         lod_threshold: Option<f64>,
     },
+    /// Open the workstation: a window with the project's terrain, its views and its visual
+    /// settings (needs an X11 display; `xvfb-run` provides one for screenshots).
+    View {
+        /// The project file (JSON).
+        project: PathBuf,
+        /// A named view of the project (default: its default view).
+        #[arg(long, conflicts_with = "camera")]
+        view: Option<String>,
+        /// A camera: lat,lon,alt,heading,pitch[,fov] (degrees, metres above the ellipsoid).
+        #[arg(long, allow_hyphen_values = true)]
+        camera: Option<String>,
+        /// Split quads while a sample covers more than this many pixels (the project's default).
+        #[arg(long)]
+        lod_threshold: Option<f64>,
+        /// Window width, pixels.
+        #[arg(long, default_value_t = 1280)]
+        width: u32,
+        /// Window height, pixels.
+        #[arg(long, default_value_t = 800)]
+        height: u32,
+        /// Once the view has loaded, write a picture of the whole window to this PNG and close.
+        #[arg(long)]
+        screenshot: Option<PathBuf>,
+        /// Seconds a --screenshot run waits for the view to load.
+        #[arg(long, default_value_t = 300.0)]
+        timeout: f64,
+    },
     /// Benchmarks that report speed beside error.
     Bench {
         #[command(subcommand)]
@@ -422,6 +449,23 @@ fn run(args: Args) -> Result<ExitCode> {
                 view: view.as_deref(),
                 camera: camera.as_deref(),
                 lod_threshold,
+            })
+            .map_err(anyhow::Error::msg)?;
+            print!("{report}");
+        }
+        Command::View { project, view, camera, lod_threshold, width, height, screenshot, timeout } => {
+            if !(timeout.is_finite() && timeout > 0.0) {
+                anyhow::bail!("--timeout {timeout} must be a positive number of seconds");
+            }
+            let report = terrafuse::gui::run(&terrafuse::gui::ViewOptions {
+                project,
+                view,
+                camera,
+                lod_threshold,
+                width,
+                height,
+                screenshot,
+                timeout: std::time::Duration::from_secs_f64(timeout),
             })
             .map_err(anyhow::Error::msg)?;
             print!("{report}");

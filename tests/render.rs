@@ -5,7 +5,6 @@
 mod common;
 
 use std::path::{Path, PathBuf};
-use std::sync::OnceLock;
 use std::time::Duration;
 
 use common::{repo_path, terrafuse};
@@ -20,26 +19,9 @@ fn out_dir() -> PathBuf {
     dir
 }
 
-/// The sample project `name` with its store under tests/out and absolute source paths, written
-/// next to the store; the datasets are imported once per test run.
+/// The sample project `name`, its datasets imported once into tests/out/render.
 fn project(name: &str) -> PathBuf {
-    static LOCK: OnceLock<std::sync::Mutex<()>> = OnceLock::new();
-    let _guard = LOCK.get_or_init(Default::default).lock().unwrap_or_else(|p| p.into_inner());
-    let mut p = Project::load(&repo_path(&format!("projects/{name}.json"))).unwrap();
-    let dir = out_dir();
-    for d in &mut p.datasets {
-        d.store = dir.join(format!("{name}.gpkg"));
-        if let Some(s) = &mut d.source {
-            s.files = s.files.iter().map(|f| repo_path("projects").join(f)).collect();
-        }
-    }
-    // Keep the tests light: the global Moon grid only, small GPU pools.
-    p.datasets.retain(|d| d.name != "lola_north");
-    p.detail.gpu_cache_mib = 256;
-    let path = dir.join(format!("{name}.json"));
-    p.save(&path).unwrap();
-    Scene::open(&Project::load(&path).unwrap()).unwrap();
-    path
+    common::sample_project(name, &out_dir())
 }
 
 fn renderer(project_path: &Path, edit: impl FnOnce(&mut Project)) -> Renderer {

@@ -54,6 +54,40 @@ impl Camera {
         Camera { spec, position, forward, right, up, zenith, fov_y: spec.fov.to_radians(), near_m }
     }
 
+    /// The geodetic description of a camera at `position` looking along `forward` with `up` the
+    /// top of the image (the inverse of [`Camera::new`]). The spec has no roll: heading comes from
+    /// the horizontal part of `forward·cos p − up·sin p`, which is exact for a camera without roll
+    /// and stays defined looking straight down; `fov` is kept.
+    pub fn spec_from_pose(ellipsoid: &Ellipsoid, position: DVec3, forward: DVec3, up: DVec3, fov: f64) -> CameraSpec {
+        let g = geodesy::geodetic_from_ecef(ellipsoid, position);
+        let zenith = geodesy::normal_from_geodetic(g.lat_rad, g.lon_rad);
+        let east = DVec3::new(-g.lon_rad.sin(), g.lon_rad.cos(), 0.0);
+        let north = zenith.cross(east);
+        let forward = forward.normalize();
+        let sin_p = forward.dot(zenith).clamp(-1.0, 1.0);
+        let pitch = sin_p.asin();
+        let level = forward * pitch.cos() - up.normalize() * sin_p;
+        let heading = level.dot(east).atan2(level.dot(north)).to_degrees().rem_euclid(360.0);
+        CameraSpec {
+            lat: g.lat_rad.to_degrees(),
+            lon: g.lon_rad.to_degrees(),
+            alt: g.height_m,
+            heading,
+            pitch: pitch.to_degrees(),
+            fov,
+        }
+    }
+
+    /// The unit ECEF direction of the ray through image point (`x`, `y`) (pixels from the top
+    /// left) of an image `width` × `height`: the inverse of [`Camera::project`].
+    pub fn ray(&self, x: f64, y: f64, width: u32, height: u32) -> DVec3 {
+        let tan_y = (0.5 * self.fov_y).tan();
+        let tan_x = tan_y * f64::from(width) / f64::from(height.max(1));
+        let nx = 2.0 * x / f64::from(width.max(1)) - 1.0;
+        let ny = 1.0 - 2.0 * y / f64::from(height.max(1));
+        (self.forward + self.right * (nx * tan_x) + self.up * (ny * tan_y)).normalize()
+    }
+
     /// A near plane for a camera `clearance_m` above the highest terrain that may be in view: half
     /// the clearance, within 5 cm … 10 km. Reversed-Z float depth keeps the far range precise,
     /// so only the near plane needs choosing.
@@ -171,6 +205,38 @@ mod tests {
         // A point at the top edge of the field of view lands on row 0.
         let top = c.forward + c.up * (0.5 * c.fov_y).tan();
         assert!(c.project(top, 800, 600).unwrap().1.abs() < 1e-9);
+    }
+
+    #[test]
+    fn pose_inverts_placement() {
+        for e in [Ellipsoid::WGS84, Ellipsoid::MOON] {
+            for s in [
+                spec(39.9, 41.3, 30_000.0, 12.5, -35.0),
+                spec(-89.0, -170.0, 2.0e6, 300.0, -90.0),
+                spec(0.0, 179.9, 150.0, 90.0, 10.0),
+                spec(60.0, 5.0, 800.0, 0.0, -89.999),
+            ] {
+                let c = Camera::new(&e, s, 1.0);
+                let back = Camera::spec_from_pose(&e, c.position, c.forward, c.up, s.fov);
+                assert!((back.lat - s.lat).abs() < 1e-9 && (back.alt - s.alt).abs() < 1e-6, "{back:?} from {s:?}");
+                let dlon = (back.lon - s.lon + 540.0).rem_euclid(360.0) - 180.0;
+                let dheading = (back.heading - s.heading + 540.0).rem_euclid(360.0) - 180.0;
+                assert!(
+                    dlon.abs() < 1e-9 && dheading.abs() < 1e-7 && (back.pitch - s.pitch).abs() < 1e-7,
+                    "{back:?} from {s:?}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn rays_go_through_the_pixels_they_name() {
+        let c = Camera::new(&Ellipsoid::WGS84, spec(30.0, 40.0, 2000.0, 10.0, -30.0), 1.0);
+        for (x, y) in [(0.0, 0.0), (320.0, 240.0), (639.5, 17.25), (100.0, 479.0)] {
+            let d = c.ray(x, y, 640, 480);
+            let (px, py, _) = c.project(d * 1000.0, 640, 480).unwrap();
+            assert!((px - x).abs() < 1e-9 && (py - y).abs() < 1e-9, "({x}, {y}) → ({px}, {py})");
+        }
     }
 
     #[test]

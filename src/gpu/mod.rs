@@ -10,5 +10,5 @@ pub mod select;
 pub mod shaders;
 
 pub use camera::Camera;
-pub use renderer::{DrawMode, FrameStats, GpuContext, IMAGE_FORMAT, RenderedImage, Renderer};
+pub use renderer::{DrawMode, FrameStats, FrameTargets, GpuContext, IMAGE_FORMAT, RenderedImage, Renderer};
 pub use scene::Scene;

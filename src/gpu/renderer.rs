@@ -38,8 +38,10 @@ const BOUND_SAMPLES: u32 = 17;
 /// surface of egui-wgpu needs).
 pub const IMAGE_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
 const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
-const SURFACE_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Float;
-const ID_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Uint;
+/// Probe target: camera-relative surface position (metres) and height.
+pub const SURFACE_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Float;
+/// Probe target: quad index + 1, sample i, j, flags.
+pub const ID_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Uint;
 
 /// A wgpu device and queue, and what the adapter can do.
 pub struct GpuContext {
@@ -161,6 +163,42 @@ fn rgba(c: [u8; 4]) -> [f32; 4] {
     c.map(|v| f32::from(v) / 255.0)
 }
 
+/// The heights the terrain may reach: the body's range, widened by the exaggerated data.
+fn exaggerated_range(scene: &Scene, exaggeration: f64) -> HeightRange {
+    let heights = HeightRange::for_body(&scene.ellipsoid);
+    HeightRange {
+        min_m: heights.min_m.min(scene.range_m.0 * exaggeration),
+        max_m: heights.max_m.max(scene.range_m.1 * exaggeration),
+    }
+}
+
+/// The ramp's stops for the shader: value, padding, linear RGBA.
+fn ramp_buffer(device: &wgpu::Device, ramp: &crate::colour::Ramp) -> wgpu::Buffer {
+    let stops: Vec<[f32; 8]> = ramp
+        .stops
+        .iter()
+        .map(|s| {
+            let c = rgba(s.rgba);
+            [s.value_m as f32, 0.0, 0.0, 0.0, c[0], c[1], c[2], c[3]]
+        })
+        .collect();
+    device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: Some("ramp"),
+        contents: bytemuck::cast_slice(&stops),
+        usage: wgpu::BufferUsages::STORAGE,
+    })
+}
+
+/// The terrain bind group: frame, quads, heights, the three maps, the ramp.
+fn bind_group(device: &wgpu::Device, layout: &wgpu::BindGroupLayout, buffers: [&wgpu::Buffer; 7]) -> wgpu::BindGroup {
+    let entries: Vec<wgpu::BindGroupEntry> = buffers
+        .iter()
+        .enumerate()
+        .map(|(k, b)| wgpu::BindGroupEntry { binding: k as u32, resource: b.as_entire_binding() })
+        .collect();
+    device.create_bind_group(&wgpu::BindGroupDescriptor { label: Some("terrain"), layout, entries: &entries })
+}
+
 /// A fixed pool of equal slots in one GPU buffer, keyed by quad, least recently used reused.
 struct SlotPool {
     capacity: u32,
@@ -246,6 +284,65 @@ pub struct RenderedImage {
     pub ids: Option<Vec<[u32; 4]>>,
     /// GPU time of the terrain pass, milliseconds (where timestamps exist).
     pub gpu_ms: Option<f64>,
+}
+
+/// The targets of one frame: the colour image ([`IMAGE_FORMAT`], sRGB-encoded), for probes the
+/// camera-relative surface position with height ([`SURFACE_FORMAT`]) and the ids
+/// ([`ID_FORMAT`]), and the depth buffer.
+pub struct FrameTargets {
+    /// Width, pixels.
+    pub width: u32,
+    /// Height, pixels.
+    pub height: u32,
+    /// The colour image.
+    pub colour: wgpu::Texture,
+    /// Surface position and height (probe targets only).
+    pub surface: Option<wgpu::Texture>,
+    /// Quad and sample ids (probe targets only).
+    pub ids: Option<wgpu::Texture>,
+    views: Vec<wgpu::TextureView>,
+    depth_view: wgpu::TextureView,
+}
+
+impl FrameTargets {
+    /// Targets of a size; `usage` is added to every colour target's (copying out, sampling in a
+    /// window).
+    pub fn new(
+        device: &wgpu::Device,
+        width: u32,
+        height: u32,
+        probe: bool,
+        usage: wgpu::TextureUsages,
+    ) -> FrameTargets {
+        let texture = |label: &str, format: wgpu::TextureFormat, usage: wgpu::TextureUsages| {
+            device.create_texture(&wgpu::TextureDescriptor {
+                label: Some(label),
+                size: wgpu::Extent3d { width: width.max(1), height: height.max(1), depth_or_array_layers: 1 },
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format,
+                usage: wgpu::TextureUsages::RENDER_ATTACHMENT | usage,
+                view_formats: &[],
+            })
+        };
+        let colour = texture("colour", IMAGE_FORMAT, usage);
+        let surface = probe.then(|| texture("surface", SURFACE_FORMAT, usage));
+        let ids = probe.then(|| texture("ids", ID_FORMAT, usage));
+        let depth = texture("depth", DEPTH_FORMAT, wgpu::TextureUsages::empty());
+        let views = std::iter::once(&colour)
+            .chain(surface.iter())
+            .chain(ids.iter())
+            .map(|t| t.create_view(&Default::default()))
+            .collect();
+        let depth_view = depth.create_view(&Default::default());
+        FrameTargets { width, height, colour, surface, ids, views, depth_view }
+    }
+
+    /// The colour target's view.
+    pub fn colour_view(&self) -> &wgpu::TextureView {
+        &self.views[0]
+    }
 }
 
 /// How to draw: the normal pass, the probe (colour + surface + ids), or the probe drawing every
@@ -344,7 +441,9 @@ pub struct Renderer {
     pipeline: wgpu::RenderPipeline,
     probe_pipeline: wgpu::RenderPipeline,
     points_pipeline: wgpu::RenderPipeline,
+    bind_layout: wgpu::BindGroupLayout,
     bind_group: wgpu::BindGroup,
+    ramp_buffer: wgpu::Buffer,
     frame_buffer: wgpu::Buffer,
     quad_buffer: wgpu::Buffer,
     heights_buffer: wgpu::Buffer,
@@ -402,20 +501,7 @@ impl Renderer {
             usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        let stops: Vec<[f32; 8]> = scene
-            .ramp
-            .stops
-            .iter()
-            .map(|s| {
-                let c = rgba(s.rgba);
-                [s.value_m as f32, 0.0, 0.0, 0.0, c[0], c[1], c[2], c[3]]
-            })
-            .collect();
-        let ramp_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("ramp"),
-            contents: bytemuck::cast_slice(&stops),
-            usage: wgpu::BufferUsages::STORAGE,
-        });
+        let ramp_buffer = ramp_buffer(&device, &scene.ramp);
         let mut indices = Vec::with_capacity(TRIANGLES_PER_QUAD as usize * 3);
         for b in 0..MESH_EDGE - 1 {
             for a in 0..MESH_EDGE - 1 {
@@ -451,25 +537,19 @@ impl Renderer {
                 entry(6, wgpu::ShaderStages::FRAGMENT, read),
             ],
         });
-        let buffers = [
-            &frame_buffer,
-            &quad_buffer,
-            &heights_buffer,
-            &map_buffers[0],
-            &map_buffers[1],
-            &map_buffers[2],
-            &ramp_buffer,
-        ];
-        let entries: Vec<wgpu::BindGroupEntry> = buffers
-            .iter()
-            .enumerate()
-            .map(|(k, b)| wgpu::BindGroupEntry { binding: k as u32, resource: b.as_entire_binding() })
-            .collect();
-        let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("terrain"),
-            layout: &layout,
-            entries: &entries,
-        });
+        let bind_group = bind_group(
+            &device,
+            &layout,
+            [
+                &frame_buffer,
+                &quad_buffer,
+                &heights_buffer,
+                &map_buffers[0],
+                &map_buffers[1],
+                &map_buffers[2],
+                &ramp_buffer,
+            ],
+        );
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some("terrain"),
             bind_group_layouts: &[Some(&layout)],
@@ -515,12 +595,7 @@ impl Renderer {
         let probe_pipeline = make("terrain probe", "fs_probe", &probe_targets, wgpu::PrimitiveTopology::TriangleList);
         let points_pipeline = make("terrain points", "fs_probe", &probe_targets, wgpu::PrimitiveTopology::PointList);
 
-        let heights = HeightRange::for_body(&scene.ellipsoid);
-        let heights = HeightRange {
-            min_m: heights.min_m.min(scene.range_m.0 * scene.visuals.exaggeration),
-            max_m: heights.max_m.max(scene.range_m.1 * scene.visuals.exaggeration),
-        };
-        let flat = flat_rule_for(&scene.ellipsoid, heights);
+        let flat = flat_rule_for(&scene.ellipsoid, exaggerated_range(&scene, scene.visuals.exaggeration));
         let threads = std::thread::available_parallelism().map_or(2, |n| n.get()).clamp(1, 4);
         let loader = Loader::start(scene.datasets.clone(), scene.ellipsoid, threads);
         let cpu = CpuCache::new((scene.detail.cpu_cache_mib.max(16) << 20) as usize);
@@ -531,7 +606,9 @@ impl Renderer {
             pipeline,
             probe_pipeline,
             points_pipeline,
+            bind_layout: layout,
             bind_group,
+            ramp_buffer,
             frame_buffer,
             quad_buffer,
             heights_buffer,
@@ -561,6 +638,34 @@ impl Renderer {
     /// Changes the level-of-detail threshold (pixels per sample).
     pub fn set_threshold(&mut self, threshold_px: f64) {
         self.scene.detail.lod_threshold_px = threshold_px;
+    }
+
+    /// Changes how the terrain looks (colour ramp, isolines, lighting, exaggeration, background)
+    /// from the next prepared frame on. A new exaggeration changes the quads' bounds and the flat
+    /// rule, which are recomputed.
+    pub fn set_visuals(&mut self, visuals: crate::project::Visuals, ramp: crate::colour::Ramp) {
+        if ramp != self.scene.ramp {
+            self.ramp_buffer = ramp_buffer(&self.device, &ramp);
+            self.bind_group = bind_group(
+                &self.device,
+                &self.bind_layout,
+                [
+                    &self.frame_buffer,
+                    &self.quad_buffer,
+                    &self.heights_buffer,
+                    &self.map_buffers[0],
+                    &self.map_buffers[1],
+                    &self.map_buffers[2],
+                    &self.ramp_buffer,
+                ],
+            );
+            self.scene.ramp = ramp;
+        }
+        if visuals.exaggeration != self.scene.visuals.exaggeration {
+            self.flat = flat_rule_for(&self.scene.ellipsoid, exaggerated_range(&self.scene, visuals.exaggeration));
+            self.cache.infos.clear();
+        }
+        self.scene.visuals = visuals;
     }
 
     /// The camera placed for a spec, with a near plane from its clearance over the terrain.
@@ -928,32 +1033,75 @@ impl Renderer {
         }
     }
 
+    /// Records the prepared frame into `targets`: the colour target cleared to the background,
+    /// the probe targets (for [`DrawMode::Probe`] and [`DrawMode::Points`]) to zero, depth to 0
+    /// (reversed Z). `timestamps` gets the pass's start and end.
+    pub fn encode(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        targets: &FrameTargets,
+        mode: DrawMode,
+        timestamps: Option<&wgpu::QuerySet>,
+    ) -> Result<(), String> {
+        let probe = mode != DrawMode::Colour;
+        if probe && targets.surface.is_none() {
+            return Err("a probe pass needs probe targets (FrameTargets::new with probe = true)".into());
+        }
+        let bg = self.scene.visuals.background.map(|c| crate::colour::srgb_to_linear(f64::from(c)));
+        // The colour image is cleared to the background (the shader's output is already
+        // sRGB-encoded, and so is the stored clear value of a unorm target).
+        let clear = wgpu::Color {
+            r: crate::colour::linear_to_srgb(bg[0]),
+            g: crate::colour::linear_to_srgb(bg[1]),
+            b: crate::colour::linear_to_srgb(bg[2]),
+            a: f64::from(self.scene.visuals.background[3]) / 255.0,
+        };
+        let mut views = vec![(&targets.views[0], clear)];
+        if probe {
+            views.extend(targets.views[1..].iter().map(|v| (v, wgpu::Color::TRANSPARENT)));
+        }
+        let attachments: Vec<Option<wgpu::RenderPassColorAttachment>> = views
+            .into_iter()
+            .map(|(view, clear)| {
+                Some(wgpu::RenderPassColorAttachment {
+                    view,
+                    depth_slice: None,
+                    resolve_target: None,
+                    ops: wgpu::Operations { load: wgpu::LoadOp::Clear(clear), store: wgpu::StoreOp::Store },
+                })
+            })
+            .collect();
+        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("terrain"),
+            color_attachments: &attachments,
+            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                view: &targets.depth_view,
+                depth_ops: Some(wgpu::Operations { load: wgpu::LoadOp::Clear(0.0), store: wgpu::StoreOp::Store }),
+                stencil_ops: None,
+            }),
+            timestamp_writes: timestamps.map(|q| wgpu::RenderPassTimestampWrites {
+                query_set: q,
+                beginning_of_pass_write_index: Some(0),
+                end_of_pass_write_index: Some(1),
+            }),
+            occlusion_query_set: None,
+            multiview_mask: None,
+        });
+        self.draw(&mut pass, mode);
+        Ok(())
+    }
+
     /// Draws the prepared frame into an image and reads it back.
     pub fn render_image(&self, mode: DrawMode) -> Result<RenderedImage, String> {
         let (width, height) = self.size;
         let device = &self.device;
-        let texture = |label: &str, format: wgpu::TextureFormat| {
-            device.create_texture(&wgpu::TextureDescriptor {
-                label: Some(label),
-                size: wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
-                mip_level_count: 1,
-                sample_count: 1,
-                dimension: wgpu::TextureDimension::D2,
-                format,
-                usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
-                view_formats: &[],
-            })
-        };
         let probe = mode != DrawMode::Colour;
-        let mut targets = vec![(texture("colour", IMAGE_FORMAT), 4u32)];
-        if probe {
-            targets.push((texture("surface", SURFACE_FORMAT), 16));
-            targets.push((texture("ids", ID_FORMAT), 16));
+        let frame = FrameTargets::new(device, width, height, probe, wgpu::TextureUsages::COPY_SRC);
+        let mut targets = vec![(&frame.colour, 4u32)];
+        if let (Some(surface), Some(ids)) = (&frame.surface, &frame.ids) {
+            targets.push((surface, 16));
+            targets.push((ids, 16));
         }
-        let depth = texture("depth", DEPTH_FORMAT);
-        let views: Vec<wgpu::TextureView> = targets.iter().map(|(t, _)| t.create_view(&Default::default())).collect();
-        let depth_view = depth.create_view(&Default::default());
-        let bg = self.scene.visuals.background.map(|c| crate::colour::srgb_to_linear(f64::from(c)));
         let queries = self.timestamps.then(|| {
             device.create_query_set(&wgpu::QuerySetDescriptor {
                 label: Some("pass time"),
@@ -962,49 +1110,7 @@ impl Renderer {
             })
         });
         let mut encoder = device.create_command_encoder(&Default::default());
-        {
-            let attachments: Vec<Option<wgpu::RenderPassColorAttachment>> = views
-                .iter()
-                .enumerate()
-                .map(|(k, view)| {
-                    // The colour image is cleared to the background (the shader's output is
-                    // already sRGB-encoded, and so is the stored clear value of a unorm target).
-                    let clear = if k == 0 {
-                        wgpu::Color {
-                            r: crate::colour::linear_to_srgb(bg[0]),
-                            g: crate::colour::linear_to_srgb(bg[1]),
-                            b: crate::colour::linear_to_srgb(bg[2]),
-                            a: f64::from(self.scene.visuals.background[3]) / 255.0,
-                        }
-                    } else {
-                        wgpu::Color::TRANSPARENT
-                    };
-                    Some(wgpu::RenderPassColorAttachment {
-                        view,
-                        depth_slice: None,
-                        resolve_target: None,
-                        ops: wgpu::Operations { load: wgpu::LoadOp::Clear(clear), store: wgpu::StoreOp::Store },
-                    })
-                })
-                .collect();
-            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-                label: Some("terrain"),
-                color_attachments: &attachments,
-                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                    view: &depth_view,
-                    depth_ops: Some(wgpu::Operations { load: wgpu::LoadOp::Clear(0.0), store: wgpu::StoreOp::Store }),
-                    stencil_ops: None,
-                }),
-                timestamp_writes: queries.as_ref().map(|q| wgpu::RenderPassTimestampWrites {
-                    query_set: q,
-                    beginning_of_pass_write_index: Some(0),
-                    end_of_pass_write_index: Some(1),
-                }),
-                occlusion_query_set: None,
-                multiview_mask: None,
-            });
-            self.draw(&mut pass, mode);
-        }
+        self.encode(&mut encoder, &frame, mode, queries.as_ref())?;
         let readback = |bytes_per_pixel: u32| {
             let row = (width * bytes_per_pixel).div_ceil(256) * 256;
             let buffer = device.create_buffer(&wgpu::BufferDescriptor {
@@ -1016,8 +1122,8 @@ impl Renderer {
             (buffer, row)
         };
         let mut reads = Vec::new();
-        for (texture, bpp) in &targets {
-            let (buffer, row) = readback(*bpp);
+        for (texture, bpp) in targets {
+            let (buffer, row) = readback(bpp);
             encoder.copy_texture_to_buffer(
                 texture.as_image_copy(),
                 wgpu::TexelCopyBufferInfo {
@@ -1030,7 +1136,7 @@ impl Renderer {
                 },
                 wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
             );
-            reads.push((buffer, row, *bpp));
+            reads.push((buffer, row, bpp));
         }
         let time_buffers = queries.as_ref().map(|q| {
             let resolve = device.create_buffer(&wgpu::BufferDescriptor {

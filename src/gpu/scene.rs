@@ -7,7 +7,7 @@ use super::data::DatasetInfo;
 use crate::colour::Ramp;
 use crate::ecm::QuadId;
 use crate::geodesy::Ellipsoid;
-use crate::project::{DetailSpec, Project, Visuals};
+use crate::project::{ColourMapSpec, DetailSpec, Project, Visuals};
 use crate::store::{ImportOptions, LevelChoice, Resampling, Store, VerticalDatum};
 
 /// Everything the renderer needs from a project.
@@ -112,15 +112,21 @@ impl Scene {
         let range_m =
             datasets.iter().map(|d| d.range_m).reduce(|a, b| (a.0.min(b.0), a.1.max(b.1))).unwrap_or((0.0, 0.0));
         let visuals = project.visuals.clone();
-        let cm = &visuals.colour_map;
-        let ramp_range = cm.range_m.map_or(if range_m.1 > range_m.0 { range_m } else { (0.0, 1.0) }, |[a, b]| (a, b));
-        let ramp = match &cm.file {
-            Some(file) => Ramp::from_file(&project.resolve(file), ramp_range, cm.nodata_colour)?,
-            None => Ramp::preset(&cm.preset, ramp_range, cm.nodata_colour)?,
-        };
+        let ramp = resolve_ramp(project, &visuals.colour_map, range_m)?;
         Ok((
             Scene { ellipsoid, datasets: Arc::new(datasets), visuals, detail: project.detail.clone(), ramp, range_m },
             report,
         ))
+    }
+}
+
+/// The colour ramp a colour-map setting names: a user's file (relative to the project) or a
+/// preset, over its range or, without one, the data's height range.
+pub fn resolve_ramp(project: &Project, cm: &ColourMapSpec, data_range_m: (f64, f64)) -> Result<Ramp, String> {
+    let range = if data_range_m.1 > data_range_m.0 { data_range_m } else { (0.0, 1.0) };
+    let range = cm.range_m.map_or(range, |[a, b]| (a, b));
+    match &cm.file {
+        Some(file) => Ramp::from_file(&project.resolve(file), range, cm.nodata_colour),
+        None => Ramp::preset(&cm.preset, range, cm.nodata_colour),
     }
 }

@@ -51,3 +51,28 @@ pub fn parse_rows(text: &str) -> Vec<Vec<f64>> {
 
 /// The system Python with Debian's mpmath (python3-mpmath), not a user's virtual environment.
 pub const PYTHON: &str = "/usr/bin/python3";
+
+/// The sample project `projects/NAME.json` rewritten into `dir`: its store there, source paths
+/// absolute, only the global Moon grid, small GPU pools; its datasets are imported here (once
+/// per folder and test run).
+pub fn sample_project(name: &str, dir: &std::path::Path) -> PathBuf {
+    use terrafuse::gpu::Scene;
+    use terrafuse::project::Project;
+    static LOCK: std::sync::OnceLock<std::sync::Mutex<()>> = std::sync::OnceLock::new();
+    let _guard = LOCK.get_or_init(Default::default).lock().unwrap_or_else(|p| p.into_inner());
+    let mut p = Project::load(&repo_path(&format!("projects/{name}.json"))).unwrap();
+    for d in &mut p.datasets {
+        d.store = dir.join(format!("{name}.gpkg"));
+        if let Some(s) = &mut d.source {
+            s.files = s.files.iter().map(|f| repo_path("projects").join(f)).collect();
+        }
+    }
+    // Keep the tests light: the global Moon grid only, small GPU pools.
+    p.datasets.retain(|d| d.name != "lola_north");
+    p.detail.gpu_cache_mib = 256;
+    std::fs::create_dir_all(dir).unwrap();
+    let path = dir.join(format!("{name}.json"));
+    p.save(&path).unwrap();
+    Scene::open(&Project::load(&path).unwrap()).unwrap();
+    path
+}

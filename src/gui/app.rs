@@ -1,0 +1,667 @@
+//! The workstation window: the viewport in the middle, the project's views, camera and visual
+//! settings on the left, what is under the cursor and what the frame cost at the bottom.
+
+use std::path::PathBuf;
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use glam::DVec3;
+
+use super::navigate;
+use super::viewport::{Viewport, frame_line};
+use crate::geodesy;
+use crate::gpu::scene::resolve_ramp;
+use crate::gpu::{Camera, FrameStats, Renderer};
+use crate::project::{CameraSpec, Project, Visuals};
+
+/// A screenshot the window is asked to take once its frame has settled, then close.
+pub struct ScreenshotJob {
+    /// Where to write the PNG.
+    pub path: PathBuf,
+    /// Give up (and report failure) after this long.
+    pub timeout: Duration,
+}
+
+/// What a screenshot run reports: the report, or why it failed.
+pub type Outcome = Arc<Mutex<Option<Result<String, String>>>>;
+
+/// How a drag moves the camera.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Drag {
+    /// The grabbed point follows the cursor.
+    Globe(DVec3),
+    /// Orbit about a point.
+    Orbit(DVec3),
+    /// Turn in place.
+    Look,
+}
+
+/// The workstation.
+pub struct App {
+    project: Project,
+    project_path: PathBuf,
+    renderer: Renderer,
+    camera: CameraSpec,
+    home: CameraSpec,
+    visuals: Visuals,
+    threshold_px: f64,
+    render_scale: f32,
+    viewport: Option<Viewport>,
+    stats: FrameStats,
+    dirty: bool,
+    started: Instant,
+    frames: u64,
+    last_frame_ms: f64,
+    drag: Option<Drag>,
+    hover: Option<(u32, u32)>,
+    view_name: String,
+    message: String,
+    unsaved: bool,
+    screenshot: Option<ScreenshotJob>,
+    shot: Arc<Mutex<Option<Arc<egui::ColorImage>>>>,
+    shot_requested: bool,
+    settled_frames: u32,
+    viewport_px: Option<egui::Rect>,
+    outcome: Outcome,
+    device: String,
+    /// Asking whether to save before closing.
+    confirm_close: bool,
+    /// The user chose how to close; let the window go.
+    closing: bool,
+}
+
+impl App {
+    /// The workstation on an opened project, at `camera`.
+    pub fn new(
+        project: Project,
+        project_path: PathBuf,
+        renderer: Renderer,
+        camera: CameraSpec,
+        screenshot: Option<ScreenshotJob>,
+        outcome: Outcome,
+        device: String,
+    ) -> App {
+        let visuals = renderer.scene().visuals.clone();
+        let threshold_px = renderer.scene().detail.lod_threshold_px;
+        App {
+            project,
+            project_path,
+            renderer,
+            camera,
+            home: camera,
+            visuals,
+            threshold_px,
+            render_scale: 1.0,
+            viewport: None,
+            stats: FrameStats::default(),
+            dirty: true,
+            started: Instant::now(),
+            frames: 0,
+            last_frame_ms: 0.0,
+            drag: None,
+            hover: None,
+            view_name: String::new(),
+            message: String::new(),
+            unsaved: false,
+            screenshot,
+            shot: Arc::new(Mutex::new(None)),
+            shot_requested: false,
+            settled_frames: 0,
+            viewport_px: None,
+            outcome,
+            device,
+            confirm_close: false,
+            closing: false,
+        }
+    }
+
+    fn placed(&self) -> Camera {
+        self.renderer.camera(&self.camera)
+    }
+
+    fn set_camera(&mut self, spec: CameraSpec) {
+        if spec.check().is_ok() && spec != self.camera {
+            self.camera = spec;
+            self.dirty = true;
+        }
+    }
+
+    /// Applies edited visuals (a new ramp only when the colour map changed).
+    fn apply_visuals(&mut self) {
+        if self.visuals == self.renderer.scene().visuals {
+            return;
+        }
+        let ramp = if self.visuals.colour_map == self.renderer.scene().visuals.colour_map {
+            Ok(self.renderer.scene().ramp.clone())
+        } else {
+            resolve_ramp(&self.project, &self.visuals.colour_map, self.renderer.scene().range_m)
+        };
+        match ramp {
+            Ok(ramp) => {
+                self.renderer.set_visuals(self.visuals.clone(), ramp);
+                self.dirty = true;
+                self.unsaved = true;
+            }
+            Err(e) => {
+                self.message = format!("colour map: {e}");
+                self.visuals.colour_map = self.renderer.scene().visuals.colour_map.clone();
+            }
+        }
+    }
+
+    fn save_project(&mut self) {
+        self.project.visuals = self.visuals.clone();
+        self.project.detail.lod_threshold_px = self.threshold_px;
+        match self.project.save(&self.project_path) {
+            Ok(()) => {
+                self.unsaved = false;
+                self.message = format!("saved {}", self.project_path.display());
+            }
+            Err(e) => self.message = e.to_string(),
+        }
+    }
+
+    fn save_view(&mut self) {
+        let name = self.view_name.trim().to_string();
+        if name.is_empty() {
+            self.message = "name the view first".into();
+            return;
+        }
+        self.project.views.insert(name.clone(), self.camera);
+        self.save_project();
+        if !self.unsaved {
+            self.message = format!("view '{name}' saved in {}", self.project_path.display());
+        }
+    }
+
+    fn side_panel(&mut self, ui: &mut egui::Ui) {
+        egui::ScrollArea::vertical().show(ui, |ui| {
+            ui.heading("Views");
+            let names: Vec<String> = self.project.views.keys().cloned().collect();
+            ui.horizontal_wrapped(|ui| {
+                for name in names {
+                    if ui.button(&name).clicked() {
+                        let spec = self.project.views[&name];
+                        self.set_camera(spec);
+                    }
+                }
+                if ui.button("home").on_hover_text("the view the window opened with (key H)").clicked() {
+                    self.set_camera(self.home);
+                }
+            });
+            ui.horizontal(|ui| {
+                ui.add(egui::TextEdit::singleline(&mut self.view_name).hint_text("name").desired_width(110.0));
+                if ui.button("save view").on_hover_text("adds the current camera to the project's views").clicked() {
+                    self.save_view();
+                }
+            });
+
+            ui.separator();
+            ui.heading("Camera");
+            let mut c = self.camera;
+            egui::Grid::new("camera").num_columns(2).show(ui, |ui| {
+                let row = |ui: &mut egui::Ui, label: &str, v: &mut f64, speed: f64, range: (f64, f64), unit: &str| {
+                    ui.label(label);
+                    ui.add(egui::DragValue::new(v).speed(speed).range(range.0..=range.1).suffix(unit).max_decimals(6));
+                    ui.end_row();
+                };
+                row(ui, "latitude", &mut c.lat, 0.01, (-90.0, 90.0), "°");
+                row(ui, "longitude", &mut c.lon, 0.01, (-180.0, 180.0), "°");
+                let alt_speed = (c.alt.abs() * 0.01).max(1.0);
+                row(ui, "altitude", &mut c.alt, alt_speed, (-1.0e5, 1.0e9), " m");
+                row(ui, "heading", &mut c.heading, 0.5, (0.0, 360.0), "°");
+                row(ui, "pitch", &mut c.pitch, 0.5, (-90.0, 90.0), "°");
+                row(ui, "field of view", &mut c.fov, 0.5, (1.0, 150.0), "°");
+            });
+            self.set_camera(c);
+            let text = format!(
+                "{:.6},{:.6},{:.1},{:.2},{:.2},{:.1}",
+                self.camera.lat,
+                self.camera.lon,
+                self.camera.alt,
+                self.camera.heading,
+                self.camera.pitch,
+                self.camera.fov
+            );
+            ui.label(egui::RichText::new(format!("--camera {text}")).monospace().small())
+                .on_hover_text("this camera for terrafuse render");
+
+            ui.separator();
+            ui.heading("Detail");
+            let t = self.threshold_px;
+            ui.add(egui::Slider::new(&mut self.threshold_px, 0.5..=8.0).logarithmic(true).text("t, pixels per sample"));
+            if t != self.threshold_px {
+                self.renderer.set_threshold(self.threshold_px);
+                self.dirty = true;
+                self.unsaved = true;
+            }
+            let s = self.render_scale;
+            ui.add(egui::Slider::new(&mut self.render_scale, 0.25..=1.0).text("render scale"))
+                .on_hover_text("renders fewer pixels and scales the image up (for software GPUs)");
+            if s != self.render_scale {
+                self.dirty = true;
+            }
+
+            ui.separator();
+            ui.heading("Colour");
+            let v = &mut self.visuals;
+            let current = match &v.colour_map.file {
+                Some(f) => format!("file {}", f.display()),
+                None => v.colour_map.preset.clone(),
+            };
+            egui::ComboBox::from_label("colour map").selected_text(current).show_ui(ui, |ui| {
+                for (name, _, _) in crate::colour::PRESETS {
+                    if ui.selectable_label(v.colour_map.file.is_none() && v.colour_map.preset == *name, *name).clicked()
+                    {
+                        v.colour_map.preset = (*name).to_string();
+                        v.colour_map.file = None;
+                    }
+                }
+            });
+            let data = self.renderer.scene().range_m;
+            let mut range = v.colour_map.range_m.unwrap_or([data.0, data.1]);
+            ui.horizontal(|ui| {
+                ui.label("range");
+                ui.add(egui::DragValue::new(&mut range[0]).speed(10.0).suffix(" m"));
+                ui.add(egui::DragValue::new(&mut range[1]).speed(10.0).suffix(" m"));
+                if ui.small_button("data").on_hover_text("the datasets' height range").clicked() {
+                    range = [data.0, data.1];
+                }
+            });
+            if range[1] > range[0] && Some(range) != v.colour_map.range_m && range != [data.0, data.1] {
+                v.colour_map.range_m = Some(range);
+            } else if range == [data.0, data.1] {
+                v.colour_map.range_m = None;
+            }
+            ui.add(egui::Slider::new(&mut v.exaggeration, 0.1..=50.0).logarithmic(true).text("exaggeration"));
+
+            ui.separator();
+            ui.heading("Isolines");
+            let iso = &mut v.isolines;
+            ui.checkbox(&mut iso.enabled, "show isolines");
+            egui::Grid::new("isolines").num_columns(2).show(ui, |ui| {
+                ui.label("interval");
+                ui.add(egui::DragValue::new(&mut iso.interval_m).speed(1.0).range(0.01..=1.0e6).suffix(" m"));
+                ui.end_row();
+                ui.label("offset");
+                ui.add(egui::DragValue::new(&mut iso.offset_m).speed(1.0).suffix(" m"));
+                ui.end_row();
+                ui.label("major every");
+                ui.add(egui::DragValue::new(&mut iso.major_every).range(0..=100));
+                ui.end_row();
+                ui.label("width");
+                ui.add(egui::DragValue::new(&mut iso.width_px).speed(0.05).range(0.1..=10.0).suffix(" px"));
+                ui.end_row();
+                ui.label("major width");
+                ui.add(egui::DragValue::new(&mut iso.major_width_px).speed(0.05).range(0.1..=10.0).suffix(" px"));
+                ui.end_row();
+            });
+
+            ui.separator();
+            ui.heading("Lighting");
+            let light = &mut v.lighting;
+            ui.checkbox(&mut light.enabled, "hillshade");
+            ui.add(egui::Slider::new(&mut light.sun_azimuth_deg, 0.0..=360.0).text("sun azimuth °"));
+            ui.add(egui::Slider::new(&mut light.sun_elevation_deg, 0.0..=90.0).text("sun elevation °"));
+            ui.add(egui::Slider::new(&mut light.strength, 0.0..=1.0).text("strength"));
+            self.apply_visuals();
+
+            ui.separator();
+            let label = if self.unsaved { "save project *" } else { "save project" };
+            if ui.button(label).on_hover_text("writes the visual settings and t into the project file").clicked() {
+                self.save_project();
+            }
+
+            ui.separator();
+            ui.heading("Project");
+            ui.label(self.project_path.display().to_string());
+            ui.label(format!("body: {}", self.project.body));
+            for (spec, info) in self.project.datasets.iter().zip(self.renderer.scene().datasets.iter()) {
+                ui.label(format!(
+                    "{}: levels 0–{}, {:.0} … {:.0} m",
+                    spec.name, info.finest_level, info.range_m.0, info.range_m.1
+                ));
+            }
+            ui.label(egui::RichText::new(&self.device).small());
+            ui.separator();
+            ui.label(
+                egui::RichText::new(
+                    "drag: move the globe · right drag or ctrl+drag: orbit · middle drag or shift+drag: look · \
+                     wheel: zoom to the cursor · W A S D / arrows: fly · Q E: down, up · N: north up · H: home",
+                )
+                .small(),
+            );
+        });
+    }
+
+    fn status_bar(&self, ui: &mut egui::Ui) {
+        ui.horizontal_wrapped(|ui| {
+            match self.viewport.as_ref().and_then(|v| v.hits[0]) {
+                Some(hit) => {
+                    let g = geodesy::geodetic_from_ecef(&self.renderer.scene().ellipsoid, hit.ecef);
+                    let (lat, lon) = (g.lat_rad.to_degrees(), g.lon_rad.to_degrees());
+                    let height = if hit.has_data { format!("{:.1} m", hit.height_m) } else { "no data".into() };
+                    let quad = hit.quad.map_or(String::new(), |q| format!(" · quad {q}"));
+                    ui.monospace(format!(
+                        "{:.5}°{} {:.5}°{} · {height}{quad}",
+                        lat.abs(),
+                        if lat >= 0.0 { "N" } else { "S" },
+                        lon.abs(),
+                        if lon >= 0.0 { "E" } else { "W" }
+                    ));
+                }
+                None => {
+                    ui.monospace("—");
+                }
+            }
+            ui.separator();
+            ui.label(format!("camera {:.0} m", self.camera.alt));
+            ui.separator();
+            ui.label(frame_line(&self.stats));
+            if let Some(ms) = self.viewport.as_ref().and_then(|v| v.gpu_ms) {
+                ui.separator();
+                ui.label(format!("GPU {ms:.2} ms"));
+            }
+            ui.separator();
+            ui.label(format!("CPU {:.0} ms", self.last_frame_ms))
+                .on_hover_text("preparing and recording the last drawn frame");
+            if !self.message.is_empty() {
+                ui.separator();
+                ui.label(&self.message);
+            }
+        });
+    }
+
+    /// Moves the camera from the viewport's input.
+    fn navigate(&mut self, ui: &egui::Ui, response: &egui::Response, rect: egui::Rect) {
+        let Some(vp) = &self.viewport else { return };
+        let ((w, h), hits) = (vp.size(), vp.hits);
+        let e = self.renderer.scene().ellipsoid;
+        let cam = self.placed();
+        let to_px = |p: egui::Pos2| {
+            (
+                f64::from((p.x - rect.min.x) / rect.width()) * f64::from(w),
+                f64::from((p.y - rect.min.y) / rect.height()) * f64::from(h),
+            )
+        };
+        // The terrain point under a pixel: the probe's when it is for that pixel, else the
+        // ellipsoid's mean sphere.
+        let under = |p: (f64, f64)| -> DVec3 {
+            let hit = hits[0]
+                .filter(|h| (f64::from(h.pixel.0) - p.0).abs() < 3.0 && (f64::from(h.pixel.1) - p.1).abs() < 3.0);
+            hit.map_or_else(|| navigate::fallback_target(&e, &cam, cam.ray(p.0, p.1, w, h)), |h| h.ecef)
+        };
+        let centre = hits[1].map(|h| h.ecef);
+        let modifiers = ui.input(|i| i.modifiers);
+        if let Some(pos) = response.hover_pos() {
+            let p = to_px(pos);
+            self.hover = Some((p.0 as u32, p.1 as u32));
+        } else {
+            self.hover = None;
+        }
+
+        if response.drag_started() {
+            let p = response.interact_pointer_pos().map(to_px).unwrap_or((0.5 * f64::from(w), 0.5 * f64::from(h)));
+            let primary = response.drag_started_by(egui::PointerButton::Primary);
+            self.drag =
+                Some(if response.drag_started_by(egui::PointerButton::Middle) || (primary && modifiers.shift) {
+                    Drag::Look
+                } else if response.drag_started_by(egui::PointerButton::Secondary) || (primary && modifiers.command) {
+                    Drag::Orbit(centre.unwrap_or_else(|| under(p)))
+                } else {
+                    Drag::Globe(under(p))
+                });
+        }
+        if response.dragged() {
+            let delta = response.drag_delta();
+            let (dx, dy) = (f64::from(delta.x), f64::from(delta.y));
+            let spec = match self.drag {
+                Some(Drag::Globe(anchor)) => response.interact_pointer_pos().map(|pos| {
+                    let p = to_px(pos);
+                    navigate::drag_globe(&e, &cam, anchor, cam.ray(p.0, p.1, w, h))
+                }),
+                Some(Drag::Orbit(pivot)) => Some(navigate::orbit(&e, &cam, pivot, dx * 0.3, dy * 0.3)),
+                Some(Drag::Look) => Some(navigate::look(&self.camera, dx * 0.1, -dy * 0.1)),
+                None => None,
+            };
+            if let Some(spec) = spec {
+                self.set_camera(spec);
+            }
+        }
+        if response.drag_stopped() {
+            self.drag = None;
+        }
+
+        if response.hovered() {
+            let (scroll, zoom) = ui.input(|i| (i.smooth_scroll_delta().y, i.zoom_delta()));
+            let mut factor = (-f64::from(scroll) * 0.003).exp() / f64::from(zoom);
+            if response.double_clicked() {
+                factor *= 0.5;
+            }
+            if (factor - 1.0).abs() > 1e-6 {
+                let p = response.hover_pos().map(to_px).unwrap_or((0.5 * f64::from(w), 0.5 * f64::from(h)));
+                self.set_camera(navigate::zoom(&e, &cam, under(p), factor));
+            }
+        }
+
+        if !ui.ctx().egui_wants_keyboard_input() {
+            let (dt, keys) = ui.input(|i| {
+                let k = |a: egui::Key, b: egui::Key| f64::from(u8::from(i.key_down(a) || i.key_down(b)));
+                (
+                    f64::from(i.stable_dt.min(0.1)),
+                    [
+                        k(egui::Key::W, egui::Key::ArrowUp) - k(egui::Key::S, egui::Key::ArrowDown),
+                        k(egui::Key::D, egui::Key::ArrowRight) - k(egui::Key::A, egui::Key::ArrowLeft),
+                        k(egui::Key::E, egui::Key::PageUp) - k(egui::Key::Q, egui::Key::PageDown),
+                        f64::from(u8::from(i.key_pressed(egui::Key::N))),
+                        f64::from(u8::from(i.key_pressed(egui::Key::H))),
+                    ],
+                )
+            });
+            if keys[..3].iter().any(|k| *k != 0.0) {
+                // A second crosses the distance to the terrain in view (or the height above it).
+                let scale = centre.map_or(self.camera.alt.abs(), |c| (c - cam.position).length()).max(10.0);
+                let v = scale * dt;
+                self.set_camera(navigate::fly(&e, &cam, keys[0] * v, keys[1] * v, keys[2] * v));
+                ui.ctx().request_repaint();
+            }
+            if keys[3] > 0.0 {
+                self.set_camera(CameraSpec { heading: 0.0, ..self.camera });
+            }
+            if keys[4] > 0.0 {
+                self.set_camera(self.home);
+            }
+        }
+    }
+
+    /// Prepares and draws the frame when anything changed or data are still arriving; probes
+    /// the cursor otherwise.
+    fn render(&mut self, frame: &eframe::Frame, size_px: (u32, u32)) {
+        let Some(rs) = frame.wgpu_render_state() else { return };
+        let scaled = (
+            ((size_px.0 as f32 * self.render_scale).round() as u32).max(1),
+            ((size_px.1 as f32 * self.render_scale).round() as u32).max(1),
+        );
+        let vp = self.viewport.get_or_insert_with(|| Viewport::new(rs, scaled.0, scaled.1));
+        if vp.resize(rs, scaled.0, scaled.1) {
+            self.dirty = true;
+        }
+        vp.collect(rs);
+        let (w, h) = vp.size();
+        let centre = (w / 2, h / 2);
+        // The hover pixel is in target pixels already (navigation maps onto the target's size).
+        let cursor = self.hover.map_or(centre, |(x, y)| (x.min(w - 1), y.min(h - 1)));
+        let streaming = self.stats.pending > 0 || self.stats.uploads > 0 || self.stats.requested > 0;
+        if self.dirty || streaming {
+            let t = Instant::now();
+            let stats = self.renderer.prepare(&self.camera, w, h);
+            for e in &stats.errors {
+                eprintln!("terrafuse: {e}");
+            }
+            if let Some(e) = stats.errors.last() {
+                self.message = e.clone();
+            }
+            let changed = self.dirty || stats.uploads > 0 || stats.selection.quads != self.stats.selection.quads;
+            self.stats = stats;
+            if changed {
+                if let Err(e) = vp.render(rs, &self.renderer, [cursor, centre]) {
+                    self.message = e;
+                }
+                self.frames += 1;
+                self.last_frame_ms = t.elapsed().as_secs_f64() * 1e3;
+            }
+            self.dirty = false;
+        } else if self.hover.is_some() && vp.hits[0].is_none_or(|h| h.pixel != cursor) {
+            vp.probe(rs, [cursor, centre]);
+        }
+    }
+
+    /// In screenshot mode: once the frame has settled and been shown, take the window's picture,
+    /// write it and close.
+    fn screenshot(&mut self, ui: &egui::Ui) {
+        let Some(job) = &self.screenshot else { return };
+        let ctx = ui.ctx();
+        let image = self.shot.lock().map(|mut s| s.take()).unwrap_or(None);
+        if let Some(image) = image {
+            let result = write_screenshot(&job.path, &image).map(|()| {
+                let r = self.viewport_px.unwrap_or(egui::Rect::NOTHING);
+                let (w, h) = self.viewport.as_ref().map_or((0, 0), |v| v.size());
+                format!(
+                    "window: {}x{} pixels, written to {}\nviewport: {} {} {} {} (x y width height, pixels; rendered {w}x{h})\ncamera: {:.6},{:.6},{:.3},{:.4},{:.4},{:.3}\nframe: {}\nframes rendered: {}, {:.1} s\n",
+                    image.size[0],
+                    image.size[1],
+                    job.path.display(),
+                    r.min.x,
+                    r.min.y,
+                    r.width(),
+                    r.height(),
+                    self.camera.lat,
+                    self.camera.lon,
+                    self.camera.alt,
+                    self.camera.heading,
+                    self.camera.pitch,
+                    self.camera.fov,
+                    frame_line(&self.stats),
+                    self.frames,
+                    self.started.elapsed().as_secs_f64()
+                )
+            });
+            if let Ok(mut o) = self.outcome.lock() {
+                *o = Some(result);
+            }
+            ctx.send_viewport_cmd(egui::ViewportCommand::Close);
+            return;
+        }
+        let settled = !self.dirty
+            && self.frames > 0
+            && self.stats.pending == 0
+            && self.stats.uploads == 0
+            && self.stats.requested == 0;
+        self.settled_frames = if settled { self.settled_frames + 1 } else { 0 };
+        if self.settled_frames >= 3 && !self.shot_requested {
+            let shot = self.shot.clone();
+            ctx.request_screenshot(move |image| {
+                if let Ok(mut s) = shot.lock() {
+                    *s = Some(image);
+                }
+            });
+            self.shot_requested = true;
+        }
+        if self.started.elapsed() > job.timeout
+            && let Ok(mut o) = self.outcome.lock()
+            && o.is_none()
+        {
+            *o = Some(Err(format!(
+                "the view did not settle within {:.0} s ({})",
+                job.timeout.as_secs_f64(),
+                frame_line(&self.stats)
+            )));
+            ctx.send_viewport_cmd(egui::ViewportCommand::Close);
+        }
+        ctx.request_repaint_after(Duration::from_millis(20));
+    }
+}
+
+impl App {
+    /// Closing with unsaved settings asks first: save, discard or stay.
+    fn close_guard(&mut self, ctx: &egui::Context) {
+        if ctx.input(|i| i.viewport().close_requested()) && self.unsaved && !self.closing && self.screenshot.is_none() {
+            ctx.send_viewport_cmd(egui::ViewportCommand::CancelClose);
+            self.confirm_close = true;
+        }
+        if !self.confirm_close {
+            return;
+        }
+        let mut choice = None;
+        egui::Modal::new(egui::Id::unique("unsaved")).show(ctx, |ui| {
+            ui.label(format!("Save the changed settings to {}?", self.project_path.display()));
+            ui.horizontal(|ui| {
+                if ui.button("save and close").clicked() {
+                    choice = Some(true);
+                }
+                if ui.button("close without saving").clicked() {
+                    choice = Some(false);
+                }
+                if ui.button("cancel").clicked() {
+                    self.confirm_close = false;
+                }
+            });
+        });
+        if let Some(save) = choice {
+            if save {
+                self.save_project();
+                if self.unsaved {
+                    // Saving failed: the message says why; stay open.
+                    self.confirm_close = false;
+                    return;
+                }
+            }
+            self.closing = true;
+            ctx.send_viewport_cmd(egui::ViewportCommand::Close);
+        }
+    }
+}
+
+/// Writes the window's picture as PNG, atomically.
+fn write_screenshot(path: &std::path::Path, image: &egui::ColorImage) -> Result<(), String> {
+    let rgba: Vec<u8> = image.pixels.iter().flat_map(|c| c.to_srgba_unmultiplied()).collect();
+    let picture = crate::gpu::RenderedImage {
+        width: image.size[0] as u32,
+        height: image.size[1] as u32,
+        rgba,
+        surface: None,
+        ids: None,
+        gpu_ms: None,
+    };
+    crate::cli::write_png(path, &picture)
+}
+
+impl eframe::App for App {
+    fn ui(&mut self, ui: &mut egui::Ui, frame: &mut eframe::Frame) {
+        egui::Panel::bottom("status").show(ui, |ui| self.status_bar(ui));
+        egui::Panel::left("settings").default_size(290.0).resizable(true).show(ui, |ui| self.side_panel(ui));
+        egui::CentralPanel::no_frame().show(ui, |ui| {
+            let ppp = ui.ctx().pixels_per_point();
+            // Whole physical pixels, so that the image maps 1:1 onto the window at scale 1.
+            let avail = ui.available_rect_before_wrap();
+            let rect = egui::Rect::from_min_max(
+                ((avail.min.to_vec2() * ppp).ceil() / ppp).to_pos2(),
+                ((avail.max.to_vec2() * ppp).floor() / ppp).to_pos2(),
+            );
+            let response = ui.allocate_rect(rect, egui::Sense::click_and_drag());
+            let size_px = ((rect.width() * ppp).round() as u32, (rect.height() * ppp).round() as u32);
+            self.viewport_px = Some(egui::Rect::from_min_size((rect.min.to_vec2() * ppp).to_pos2(), rect.size() * ppp));
+            self.navigate(ui, &response, rect);
+            self.render(frame, size_px);
+            if let Some(vp) = &self.viewport {
+                let uv = egui::Rect::from_min_max(egui::pos2(0.0, 0.0), egui::pos2(1.0, 1.0));
+                ui.painter().image(vp.texture, rect, uv, egui::Color32::WHITE);
+            }
+        });
+        if self.stats.pending > 0 || self.stats.uploads > 0 || self.stats.requested > 0 {
+            ui.ctx().request_repaint_after(Duration::from_millis(30));
+        }
+        self.screenshot(ui);
+        self.close_guard(ui.ctx());
+    }
+}

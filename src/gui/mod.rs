@@ -1,0 +1,148 @@
+//! The workstation: an eframe window whose viewport is the wgpu terrain renderer, embedded
+//! through egui-wgpu on eframe's own device.
+
+pub mod app;
+pub mod navigate;
+pub mod viewport;
+
+use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+
+use crate::gpu::{GpuContext, IMAGE_FORMAT, Renderer, Scene};
+use crate::project::Project;
+
+/// What `terrafuse view` opens.
+#[derive(Clone, Debug)]
+pub struct ViewOptions {
+    /// The project file.
+    pub project: PathBuf,
+    /// A named view of the project.
+    pub view: Option<String>,
+    /// Or an explicit camera `lat,lon,alt,heading,pitch[,fov]`.
+    pub camera: Option<String>,
+    /// Overrides the project's level-of-detail threshold.
+    pub lod_threshold: Option<f64>,
+    /// Window size, logical pixels.
+    pub width: u32,
+    /// Window size, logical pixels.
+    pub height: u32,
+    /// Take a picture of the window once the view has settled, write it here and close.
+    pub screenshot: Option<PathBuf>,
+    /// How long a screenshot run may wait for the view to settle.
+    pub timeout: Duration,
+}
+
+/// The device eframe asks for: the adapter's own limits (large storage buffers for the GPU
+/// cache) and timestamp queries where the adapter has them; egui-wgpu's default asks for
+/// `Limits::default()` and no features.
+fn device_descriptor(adapter: &wgpu::Adapter) -> wgpu::DeviceDescriptor<'static> {
+    wgpu::DeviceDescriptor {
+        label: Some("terrafuse window"),
+        required_features: adapter.features() & wgpu::Features::TIMESTAMP_QUERY,
+        required_limits: adapter.limits(),
+        ..Default::default()
+    }
+}
+
+/// Opens the workstation on a project; returns the screenshot run's report (empty when the
+/// user closed the window).
+pub fn run(opts: &ViewOptions) -> Result<String, String> {
+    if std::env::var_os("DISPLAY").is_none() {
+        return Err("terrafuse view needs an X11 display and DISPLAY is not set (on Wayland desktops XWayland \
+                    provides one; without a display use `xvfb-run terrafuse view … --screenshot OUT.png`, or \
+                    `terrafuse render` for images)"
+            .into());
+    }
+    if opts.width < 200 || opts.height < 150 || opts.width > 16384 || opts.height > 16384 {
+        return Err(format!("window size {}x{} must lie within 200x150 … 16384x16384", opts.width, opts.height));
+    }
+    // Check everything that can fail before a window opens.
+    let project = Project::load(&opts.project).map_err(|e| e.to_string())?;
+    let camera = crate::cli::request_camera(&project, opts.view.as_deref(), opts.camera.as_deref())?;
+    if let Some(t) = opts.lod_threshold
+        && !(t.is_finite() && t > 0.0)
+    {
+        return Err(format!("--lod-threshold {t} must be a positive number of pixels"));
+    }
+    if let Some(path) = &opts.screenshot {
+        check_writable(path)?;
+    }
+    let (mut scene, report) = Scene::open(&project).map_err(|e| format!("{}: {e}", opts.project.display()))?;
+    for line in &report.imported {
+        eprintln!("{line}");
+    }
+    if let Some(t) = opts.lod_threshold {
+        scene.detail.lod_threshold_px = t;
+    }
+
+    let outcome: app::Outcome = Arc::new(Mutex::new(None));
+    let setup = egui_wgpu::WgpuSetupCreateNew {
+        device_descriptor: Arc::new(device_descriptor),
+        ..egui_wgpu::WgpuSetupCreateNew::without_display_handle()
+    };
+    let name = opts.project.file_stem().map_or("project".into(), |s| s.to_string_lossy().into_owned());
+    let native = eframe::NativeOptions {
+        viewport: egui::ViewportBuilder::default()
+            .with_title(format!("Terrafuse — {name}"))
+            .with_inner_size([opts.width as f32, opts.height as f32])
+            .with_min_inner_size([400.0, 300.0]),
+        wgpu_options: egui_wgpu::WgpuConfiguration {
+            wgpu_setup: egui_wgpu::WgpuSetup::CreateNew(setup),
+            ..Default::default()
+        },
+        ..Default::default()
+    };
+    let shot = opts.screenshot.clone().map(|path| app::ScreenshotJob { path, timeout: opts.timeout });
+    let project_path = opts.project.clone();
+    let app_outcome = outcome.clone();
+    let failed: Arc<Mutex<Option<String>>> = Arc::new(Mutex::new(None));
+    let failed_in = failed.clone();
+    let result = eframe::run_native(
+        "terrafuse",
+        native,
+        Box::new(move |cc| {
+            let make = || -> Result<app::App, String> {
+                let rs = cc.wgpu_render_state.as_ref().ok_or("eframe started without its wgpu renderer")?;
+                let ctx = GpuContext {
+                    device: rs.device.clone(),
+                    queue: rs.queue.clone(),
+                    info: rs.adapter.get_info(),
+                    timestamps: rs.device.features().contains(wgpu::Features::TIMESTAMP_QUERY),
+                };
+                let device = format!("device: {}", ctx.describe());
+                eprintln!("{device}");
+                let renderer = Renderer::new(&ctx, scene, IMAGE_FORMAT)?;
+                Ok(app::App::new(project, project_path, renderer, camera, shot, app_outcome, device))
+            };
+            match make() {
+                Ok(app) => Ok(Box::new(app)),
+                Err(e) => {
+                    if let Ok(mut f) = failed_in.lock() {
+                        *f = Some(e.clone());
+                    }
+                    Err(e.into())
+                }
+            }
+        }),
+    );
+    if let Some(e) = failed.lock().ok().and_then(|mut f| f.take()) {
+        return Err(e);
+    }
+    result.map_err(|e| format!("the window could not be opened: {e}"))?;
+    let outcome = outcome.lock().ok().and_then(|mut o| o.take());
+    match outcome {
+        Some(result) => result,
+        None if opts.screenshot.is_some() => Err("the window was closed before the screenshot was taken".into()),
+        None => Ok(String::new()),
+    }
+}
+
+/// Fails early, naming the file, when a screenshot could not be written.
+fn check_writable(path: &Path) -> Result<(), String> {
+    let dir = path.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    if !dir.is_dir() {
+        return Err(format!("{}: the folder {} does not exist", path.display(), dir.display()));
+    }
+    Ok(())
+}
