@@ -115,6 +115,35 @@ impl App {
         }
     }
 
+    /// The current camera.
+    pub fn camera(&self) -> CameraSpec {
+        self.camera
+    }
+
+    /// Whether the view is drawn and nothing is loading.
+    pub fn settled(&self) -> bool {
+        !self.dirty
+            && self.frames > 0
+            && self.stats.pending == 0
+            && self.stats.uploads == 0
+            && self.stats.requested == 0
+    }
+
+    /// Whether settings changed since the project was saved.
+    pub fn unsaved(&self) -> bool {
+        self.unsaved
+    }
+
+    /// The last message in the status bar (saves, errors).
+    pub fn message(&self) -> &str {
+        &self.message
+    }
+
+    /// The probe under the cursor (or at the centre without one) of the last frame.
+    pub fn hit(&self) -> Option<super::viewport::Hit> {
+        self.viewport.as_ref().and_then(|v| v.hits[0])
+    }
+
     fn placed(&self) -> Camera {
         self.renderer.camera(&self.camera)
     }
@@ -201,8 +230,9 @@ impl App {
             let mut c = self.camera;
             egui::Grid::new("camera").num_columns(2).show(ui, |ui| {
                 let row = |ui: &mut egui::Ui, label: &str, v: &mut f64, speed: f64, range: (f64, f64), unit: &str| {
-                    ui.label(label);
-                    ui.add(egui::DragValue::new(v).speed(speed).range(range.0..=range.1).suffix(unit).max_decimals(6));
+                    let name = ui.label(label).id;
+                    ui.add(egui::DragValue::new(v).speed(speed).range(range.0..=range.1).suffix(unit).max_decimals(6))
+                        .labelled_by(name);
                     ui.end_row();
                 };
                 row(ui, "latitude", &mut c.lat, 0.01, (-90.0, 90.0), "°");
@@ -262,8 +292,10 @@ impl App {
             let mut range = v.colour_map.range_m.unwrap_or([data.0, data.1]);
             ui.horizontal(|ui| {
                 ui.label("range");
-                ui.add(egui::DragValue::new(&mut range[0]).speed(10.0).suffix(" m"));
-                ui.add(egui::DragValue::new(&mut range[1]).speed(10.0).suffix(" m"));
+                let low = ui.add(egui::DragValue::new(&mut range[0]).speed(10.0).suffix(" m"));
+                low.on_hover_text("the height of the ramp's first colour");
+                let high = ui.add(egui::DragValue::new(&mut range[1]).speed(10.0).suffix(" m"));
+                high.on_hover_text("the height of the ramp's last colour");
                 if ui.small_button("data").on_hover_text("the datasets' height range").clicked() {
                     range = [data.0, data.1];
                 }
@@ -280,21 +312,24 @@ impl App {
             let iso = &mut v.isolines;
             ui.checkbox(&mut iso.enabled, "show isolines");
             egui::Grid::new("isolines").num_columns(2).show(ui, |ui| {
-                ui.label("interval");
-                ui.add(egui::DragValue::new(&mut iso.interval_m).speed(1.0).range(0.01..=1.0e6).suffix(" m"));
-                ui.end_row();
-                ui.label("offset");
-                ui.add(egui::DragValue::new(&mut iso.offset_m).speed(1.0).suffix(" m"));
-                ui.end_row();
-                ui.label("major every");
-                ui.add(egui::DragValue::new(&mut iso.major_every).range(0..=100));
-                ui.end_row();
-                ui.label("width");
-                ui.add(egui::DragValue::new(&mut iso.width_px).speed(0.05).range(0.1..=10.0).suffix(" px"));
-                ui.end_row();
-                ui.label("major width");
-                ui.add(egui::DragValue::new(&mut iso.major_width_px).speed(0.05).range(0.1..=10.0).suffix(" px"));
-                ui.end_row();
+                let row = |ui: &mut egui::Ui, label: &str, value: egui::DragValue<'_>| {
+                    let name = ui.label(label).id;
+                    ui.add(value).labelled_by(name);
+                    ui.end_row();
+                };
+                row(
+                    ui,
+                    "interval",
+                    egui::DragValue::new(&mut iso.interval_m).speed(1.0).range(0.01..=1.0e6).suffix(" m"),
+                );
+                row(ui, "offset", egui::DragValue::new(&mut iso.offset_m).speed(1.0).suffix(" m"));
+                row(ui, "major every", egui::DragValue::new(&mut iso.major_every).range(0..=100));
+                row(ui, "width", egui::DragValue::new(&mut iso.width_px).speed(0.05).range(0.1..=10.0).suffix(" px"));
+                row(
+                    ui,
+                    "major width",
+                    egui::DragValue::new(&mut iso.major_width_px).speed(0.05).range(0.1..=10.0).suffix(" px"),
+                );
             });
 
             ui.separator();
@@ -552,11 +587,7 @@ impl App {
             ctx.send_viewport_cmd(egui::ViewportCommand::Close);
             return;
         }
-        let settled = !self.dirty
-            && self.frames > 0
-            && self.stats.pending == 0
-            && self.stats.uploads == 0
-            && self.stats.requested == 0;
+        let settled = self.settled();
         self.settled_frames = if settled { self.settled_frames + 1 } else { 0 };
         if self.settled_frames >= 3 && !self.shot_requested {
             let shot = self.shot.clone();

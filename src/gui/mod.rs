@@ -45,19 +45,21 @@ fn device_descriptor(adapter: &wgpu::Adapter) -> wgpu::DeviceDescriptor<'static>
     }
 }
 
-/// Opens the workstation on a project; returns the screenshot run's report (empty when the
-/// user closed the window).
-pub fn run(opts: &ViewOptions) -> Result<String, String> {
-    if std::env::var_os("DISPLAY").is_none() {
-        return Err("terrafuse view needs an X11 display and DISPLAY is not set (on Wayland desktops XWayland \
-                    provides one; without a display use `xvfb-run terrafuse view … --screenshot OUT.png`, or \
-                    `terrafuse render` for images)"
-            .into());
-    }
+/// A project checked and opened for the window (datasets imported), before any window exists.
+pub struct Opened {
+    project: Project,
+    project_path: PathBuf,
+    scene: Scene,
+    camera: crate::project::CameraSpec,
+    screenshot: Option<app::ScreenshotJob>,
+    outcome: app::Outcome,
+}
+
+/// Checks the request and opens the project: everything that can fail before a window opens.
+pub fn open(opts: &ViewOptions) -> Result<Opened, String> {
     if opts.width < 200 || opts.height < 150 || opts.width > 16384 || opts.height > 16384 {
         return Err(format!("window size {}x{} must lie within 200x150 … 16384x16384", opts.width, opts.height));
     }
-    // Check everything that can fail before a window opens.
     let project = Project::load(&opts.project).map_err(|e| e.to_string())?;
     let camera = crate::cli::request_camera(&project, opts.view.as_deref(), opts.camera.as_deref())?;
     if let Some(t) = opts.lod_threshold
@@ -75,54 +77,79 @@ pub fn run(opts: &ViewOptions) -> Result<String, String> {
     if let Some(t) = opts.lod_threshold {
         scene.detail.lod_threshold_px = t;
     }
+    Ok(Opened {
+        project,
+        project_path: opts.project.clone(),
+        scene,
+        camera,
+        screenshot: opts.screenshot.clone().map(|path| app::ScreenshotJob { path, timeout: opts.timeout }),
+        outcome: Arc::new(Mutex::new(None)),
+    })
+}
 
-    let outcome: app::Outcome = Arc::new(Mutex::new(None));
-    let setup = egui_wgpu::WgpuSetupCreateNew {
+/// The wgpu set-up of the window: eframe's, with [`device_descriptor`].
+pub fn wgpu_setup() -> egui_wgpu::WgpuSetup {
+    egui_wgpu::WgpuSetup::CreateNew(egui_wgpu::WgpuSetupCreateNew {
         device_descriptor: Arc::new(device_descriptor),
         ..egui_wgpu::WgpuSetupCreateNew::without_display_handle()
+    })
+}
+
+/// The workstation on the device eframe created (the renderer shares it).
+pub fn build_app(cc: &eframe::CreationContext<'_>, opened: Opened) -> Result<app::App, String> {
+    let rs = cc.wgpu_render_state.as_ref().ok_or("eframe started without its wgpu renderer")?;
+    let ctx = GpuContext {
+        device: rs.device.clone(),
+        queue: rs.queue.clone(),
+        info: rs.adapter.get_info(),
+        timestamps: rs.device.features().contains(wgpu::Features::TIMESTAMP_QUERY),
     };
+    let device = format!("device: {}", ctx.describe());
+    eprintln!("{device}");
+    let renderer = Renderer::new(&ctx, opened.scene, IMAGE_FORMAT)?;
+    Ok(app::App::new(
+        opened.project,
+        opened.project_path,
+        renderer,
+        opened.camera,
+        opened.screenshot,
+        opened.outcome,
+        device,
+    ))
+}
+
+/// Opens the workstation on a project; returns the screenshot run's report (empty when the
+/// user closed the window).
+pub fn run(opts: &ViewOptions) -> Result<String, String> {
+    if std::env::var_os("DISPLAY").is_none() {
+        return Err("terrafuse view needs an X11 display and DISPLAY is not set (on Wayland desktops XWayland \
+                    provides one; without a display use `xvfb-run terrafuse view … --screenshot OUT.png`, or \
+                    `terrafuse render` for images)"
+            .into());
+    }
+    let opened = open(opts)?;
+    let outcome = opened.outcome.clone();
     let name = opts.project.file_stem().map_or("project".into(), |s| s.to_string_lossy().into_owned());
     let native = eframe::NativeOptions {
         viewport: egui::ViewportBuilder::default()
             .with_title(format!("Terrafuse — {name}"))
             .with_inner_size([opts.width as f32, opts.height as f32])
             .with_min_inner_size([400.0, 300.0]),
-        wgpu_options: egui_wgpu::WgpuConfiguration {
-            wgpu_setup: egui_wgpu::WgpuSetup::CreateNew(setup),
-            ..Default::default()
-        },
+        wgpu_options: egui_wgpu::WgpuConfiguration { wgpu_setup: wgpu_setup(), ..Default::default() },
         ..Default::default()
     };
-    let shot = opts.screenshot.clone().map(|path| app::ScreenshotJob { path, timeout: opts.timeout });
-    let project_path = opts.project.clone();
-    let app_outcome = outcome.clone();
     let failed: Arc<Mutex<Option<String>>> = Arc::new(Mutex::new(None));
     let failed_in = failed.clone();
     let result = eframe::run_native(
         "terrafuse",
         native,
-        Box::new(move |cc| {
-            let make = || -> Result<app::App, String> {
-                let rs = cc.wgpu_render_state.as_ref().ok_or("eframe started without its wgpu renderer")?;
-                let ctx = GpuContext {
-                    device: rs.device.clone(),
-                    queue: rs.queue.clone(),
-                    info: rs.adapter.get_info(),
-                    timestamps: rs.device.features().contains(wgpu::Features::TIMESTAMP_QUERY),
-                };
-                let device = format!("device: {}", ctx.describe());
-                eprintln!("{device}");
-                let renderer = Renderer::new(&ctx, scene, IMAGE_FORMAT)?;
-                Ok(app::App::new(project, project_path, renderer, camera, shot, app_outcome, device))
-            };
-            match make() {
-                Ok(app) => Ok(Box::new(app)),
-                Err(e) => {
-                    if let Ok(mut f) = failed_in.lock() {
-                        *f = Some(e.clone());
-                    }
-                    Err(e.into())
+        Box::new(move |cc| match build_app(cc, opened) {
+            Ok(app) => Ok(Box::new(app)),
+            Err(e) => {
+                if let Ok(mut f) = failed_in.lock() {
+                    *f = Some(e.clone());
                 }
+                Err(e.into())
             }
         }),
     );
