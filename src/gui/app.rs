@@ -562,7 +562,7 @@ impl App {
                 let r = self.viewport_px.unwrap_or(egui::Rect::NOTHING);
                 let (w, h) = self.viewport.as_ref().map_or((0, 0), |v| v.size());
                 format!(
-                    "window: {}x{} pixels, written to {}\nviewport: {} {} {} {} (x y width height, pixels; rendered {w}x{h})\ncamera: {:.6},{:.6},{:.3},{:.4},{:.4},{:.3}\nframe: {}\nframes rendered: {}, {:.1} s\n",
+                    "window: {}x{} pixels, written to {}\nviewport: {} {} {} {} (x y width height, pixels; rendered {w}x{h})\ncamera: {:.6},{:.6},{:.3},{:.4},{:.4},{:.3}\nframe: {}\ngpu: {}\nframes rendered: {}, {:.1} s\n",
                     image.size[0],
                     image.size[1],
                     job.path.display(),
@@ -577,6 +577,10 @@ impl App {
                     self.camera.pitch,
                     self.camera.fov,
                     frame_line(&self.stats),
+                    self.viewport
+                        .as_ref()
+                        .and_then(|v| v.gpu_ms)
+                        .map_or("pass time unavailable".into(), |ms| format!("terrain pass {ms:.3} ms")),
                     self.frames,
                     self.started.elapsed().as_secs_f64()
                 )
