@@ -67,30 +67,16 @@ enum Command {
         /// Image height, pixels.
         #[arg(long, default_value_t = 1024)]
         height: u32,
-        /// A named view of the project (default: its default view).
-        #[arg(long, conflicts_with = "camera")]
-        view: Option<String>,
-        /// A camera: lat,lon,alt,heading,pitch[,fov] (degrees, metres above the ellipsoid).
-        #[arg(long, allow_hyphen_values = true)]
-        camera: Option<String>,
-        /// Split quads while a sample covers more than this many pixels (the project's default).
-        #[arg(long)]
-        lod_threshold: Option<f64>,
+        #[command(flatten)]
+        look: LookArgs,
     },
     /// Open the workstation: a window with the project's terrain, its views and its visual
     /// settings (needs an X11 display; `xvfb-run` provides one for screenshots).
     View {
         /// The project file (JSON).
         project: PathBuf,
-        /// A named view of the project (default: its default view).
-        #[arg(long, conflicts_with = "camera")]
-        view: Option<String>,
-        /// A camera: lat,lon,alt,heading,pitch[,fov] (degrees, metres above the ellipsoid).
-        #[arg(long, allow_hyphen_values = true)]
-        camera: Option<String>,
-        /// Split quads while a sample covers more than this many pixels (the project's default).
-        #[arg(long)]
-        lod_threshold: Option<f64>,
+        #[command(flatten)]
+        look: LookArgs,
         /// Window width, pixels.
         #[arg(long, default_value_t = 1280)]
         width: u32,
@@ -109,6 +95,20 @@ enum Command {
         #[command(subcommand)]
         bench: Bench,
     },
+}
+
+/// Where a frame looks from, and its level of detail.
+#[derive(clap::Args, Clone)]
+struct LookArgs {
+    /// A named view of the project (default: its default view).
+    #[arg(long, conflicts_with = "camera")]
+    view: Option<String>,
+    /// A camera: lat,lon,alt,heading,pitch[,fov] (degrees, metres above the ellipsoid).
+    #[arg(long, allow_hyphen_values = true)]
+    camera: Option<String>,
+    /// Split quads while a sample covers more than this many pixels (the project's default).
+    #[arg(long)]
+    lod_threshold: Option<f64>,
 }
 
 #[derive(clap::Args, Clone)]
@@ -440,28 +440,28 @@ fn run(args: Args) -> Result<ExitCode> {
                 cli::cutoff_report(&ellipsoid, tolerance_m, limit_fraction, max_level.min(30), samples.max(3));
             print!("{table}");
         }
-        Command::Render { project, out, width, height, view, camera, lod_threshold } => {
+        Command::Render { project, out, width, height, look } => {
             let report = cli::render(&cli::RenderRequest {
                 project: &project,
                 out: &out,
                 width,
                 height,
-                view: view.as_deref(),
-                camera: camera.as_deref(),
-                lod_threshold,
+                view: look.view.as_deref(),
+                camera: look.camera.as_deref(),
+                lod_threshold: look.lod_threshold,
             })
             .map_err(anyhow::Error::msg)?;
             print!("{report}");
         }
-        Command::View { project, view, camera, lod_threshold, width, height, screenshot, timeout } => {
+        Command::View { project, look, width, height, screenshot, timeout } => {
             if !(timeout.is_finite() && timeout > 0.0) {
                 anyhow::bail!("--timeout {timeout} must be a positive number of seconds");
             }
             let report = terrafuse::gui::run(&terrafuse::gui::ViewOptions {
                 project,
-                view,
-                camera,
-                lod_threshold,
+                view: look.view,
+                camera: look.camera,
+                lod_threshold: look.lod_threshold,
                 width,
                 height,
                 screenshot,
