@@ -398,7 +398,7 @@ impl App {
                 ui.label(format!("GPU {ms:.2} ms"));
             }
             ui.separator();
-            ui.label(format!("CPU {:.0} ms", self.last_frame_ms))
+            ui.label(format!("CPU {:.1} ms", self.last_frame_ms))
                 .on_hover_text("preparing and recording the last drawn frame");
             if !self.message.is_empty() {
                 ui.separator();
