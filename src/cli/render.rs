@@ -95,8 +95,7 @@ pub fn render(request: &RenderRequest) -> Result<String, String> {
 pub fn frame_report(stats: &FrameStats, gpu_ms: Option<f64>, threshold_px: f64) -> String {
     let mut out = String::new();
     let s = &stats.selection;
-    let levels: Vec<String> =
-        s.per_level().iter().enumerate().filter(|(_, n)| **n > 0).map(|(l, n)| format!("L{l}:{n}")).collect();
+    let levels: Vec<String> = s.per_level().iter().map(|(l, n)| format!("L{l}:{n}")).collect();
     let _ = writeln!(out, "quads: {} ({}), t = {threshold_px} px per sample", s.quads.len(), levels.join(" "));
     let _ = writeln!(
         out,

@@ -641,8 +641,9 @@ impl Renderer {
     }
 
     /// Changes how the terrain looks (colour ramp, isolines, lighting, exaggeration, background)
-    /// from the next prepared frame on. A new exaggeration changes the quads' bounds and the flat
-    /// rule, which are recomputed.
+    /// from the next prepared frame on. A new exaggeration changes the flat rule, recomputed here,
+    /// and the quads' bounds, which are cached under their exaggerated height range and so
+    /// recomputed when next asked for.
     pub fn set_visuals(&mut self, visuals: crate::project::Visuals, ramp: crate::colour::Ramp) {
         if ramp != self.scene.ramp {
             self.ramp_buffer = ramp_buffer(&self.device, &ramp);
@@ -663,7 +664,6 @@ impl Renderer {
         }
         if visuals.exaggeration != self.scene.visuals.exaggeration {
             self.flat = flat_rule_for(&self.scene.ellipsoid, exaggerated_range(&self.scene, visuals.exaggeration));
-            self.cache.infos.clear();
         }
         self.scene.visuals = visuals;
     }

@@ -66,14 +66,13 @@ pub struct Selection {
 }
 
 impl Selection {
-    /// Quads drawn per level, index = level.
-    pub fn per_level(&self) -> Vec<usize> {
-        let top = self.quads.iter().map(|q| q.level as usize).max().map_or(0, |l| l + 1);
-        let mut counts = vec![0; top];
+    /// Quads drawn per level, (level, count) for the levels drawn, coarsest first.
+    pub fn per_level(&self) -> Vec<(u8, usize)> {
+        let mut counts = std::collections::BTreeMap::new();
         for q in &self.quads {
-            counts[q.level as usize] += 1;
+            *counts.entry(q.level).or_insert(0) += 1;
         }
-        counts
+        counts.into_iter().collect()
     }
 }
 

@@ -291,14 +291,7 @@ fn targets(device: &wgpu::Device, width: u32, height: u32) -> FrameTargets {
 
 /// One line about a frame: quads by level, triangles, what is still loading.
 pub fn frame_line(stats: &FrameStats) -> String {
-    let levels: Vec<String> = stats
-        .selection
-        .per_level()
-        .iter()
-        .enumerate()
-        .filter(|(_, n)| **n > 0)
-        .map(|(l, n)| format!("L{l}×{n}"))
-        .collect();
+    let levels: Vec<String> = stats.selection.per_level().iter().map(|(l, n)| format!("L{l}×{n}")).collect();
     format!(
         "{} quads ({}), {:.2} M triangles, prepare {:.2} ms{}",
         stats.selection.quads.len(),
