@@ -104,19 +104,19 @@ pub fn bench_render(settings: &RenderBenchSettings) -> Result<(Vec<RenderBenchRo
         for (view, camera) in &project.views {
             renderer.set_threshold(finest);
             renderer.settle(camera, settings.width, settings.height, Duration::from_secs(600));
-            let reference = renderer.render_image(DrawMode::Probe)?;
+            let reference = renderer.render_image(DrawMode::Probe).map_err(|e| e.to_string())?;
             let focal = renderer.last_camera().map_or(1.0, |c| c.focal_px(settings.height));
             for &t in &settings.thresholds {
                 renderer.set_threshold(t);
                 let settled = renderer.settle(camera, settings.width, settings.height, Duration::from_secs(600));
-                let probe = renderer.render_image(DrawMode::Probe)?;
+                let probe = renderer.render_image(DrawMode::Probe).map_err(|e| e.to_string())?;
                 let (height_error_m, position_error_px, coverage_mismatch) = compare(&reference, &probe, focal);
                 let (mut cpu, mut select, mut gpu, mut wall) = (0.0, 0.0, 0.0, 0.0);
                 let frames = settings.frames.max(1);
                 for _ in 0..frames {
                     let start = Instant::now();
                     let stats = renderer.prepare(camera, settings.width, settings.height);
-                    let image = renderer.render_image(DrawMode::Colour)?;
+                    let image = renderer.render_image(DrawMode::Colour).map_err(|e| e.to_string())?;
                     wall += start.elapsed().as_secs_f64() * 1e3;
                     cpu += stats.prepare_ms;
                     select += stats.select_ms;

@@ -31,10 +31,10 @@ pub struct RenderRequest<'a> {
 pub fn open_renderer(project_path: &Path) -> Result<(Project, Renderer, Vec<String>), String> {
     let project = Project::load(project_path).map_err(|e| e.to_string())?;
     let (scene, report) = Scene::open(&project).map_err(|e| format!("{}: {e}", project_path.display()))?;
-    let ctx = GpuContext::headless()?;
+    let ctx = GpuContext::headless().map_err(|e| e.to_string())?;
     let mut lines = report.imported;
     lines.push(format!("device: {}", ctx.describe()));
-    let renderer = Renderer::new(&ctx, scene, IMAGE_FORMAT)?;
+    let renderer = Renderer::new(&ctx, scene, IMAGE_FORMAT).map_err(|e| e.to_string())?;
     Ok((project, renderer, lines))
 }
 
@@ -75,7 +75,7 @@ pub fn render(request: &RenderRequest) -> Result<String, String> {
         renderer.set_threshold(t);
     }
     let stats = renderer.settle(&camera, request.width, request.height, Duration::from_secs(300));
-    let image = renderer.render_image(DrawMode::Colour)?;
+    let image = renderer.render_image(DrawMode::Colour).map_err(|e| e.to_string())?;
     write_png(request.out, &image)?;
     let mut out = String::new();
     for l in lines {

@@ -3,12 +3,22 @@
 //! and [`crate::colour`].
 
 pub mod camera;
+pub mod context;
 pub mod data;
+mod quads;
 pub mod renderer;
 pub mod scene;
 pub mod select;
 pub mod shaders;
+mod slots;
+pub mod targets;
+mod terrain;
+mod uniforms;
 
 pub use camera::Camera;
-pub use renderer::{DrawMode, FrameStats, FrameTargets, GpuContext, IMAGE_FORMAT, RenderedImage, Renderer};
+pub use context::{GpuContext, GpuError};
+pub use renderer::{FrameStats, Renderer};
 pub use scene::Scene;
+pub use targets::{DrawMode, FrameTargets, ID_FORMAT, IMAGE_FORMAT, RenderedImage, SURFACE_FORMAT};
+pub use terrain::{MESH_EDGE, TRIANGLES_PER_QUAD};
+pub use uniforms::QuadInstance;

@@ -1,243 +1,31 @@
-//! The wgpu renderer: device set-up (headless, or the caller's device for a window), the terrain
-//! pipelines, the GPU cache (fixed pools of height and map slots, least recently used evicted,
+//! The renderer: the GPU cache (fixed pools of height and map slots, least recently used evicted,
 //! never one drawn this frame), per-frame preparation (arrivals, selection, uploads, requests,
-//! per-quad camera-relative values) and drawing to any colour target or to an image.
+//! per-quad camera-relative values) and drawing to any colour target or to an image. The device
+//! is in `context`, the targets and read-back in `targets`, the pipelines in `terrain`, the
+//! shader structs' twins in `uniforms`, the slot pools in `slots`, the selection's data side in
+//! `quads`.
 
 use std::collections::HashMap;
 use std::time::{Duration, Instant};
 
-use bytemuck::{Pod, Zeroable};
-use glam::DVec3;
-use wgpu::util::DeviceExt;
-
 use super::camera::Camera;
+use super::context::{GpuContext, GpuError};
 use super::data::{CpuCache, DataKey, Loaded, Loader, SAMPLES};
+use super::quads::{QuadCache, Source, exaggerated_range, flat_rule_for};
 use super::scene::Scene;
-use super::select::{self, QuadInfo, QuadSource, SelectParams, Selection};
-use crate::ecm::geometry::{FlatRule, HeightRange, MapSymmetry, QuadBounds, QuadFrame, QuadGeometry, Split};
+use super::select::{self, SelectParams, Selection};
+use super::slots::SlotPool;
+use super::targets::{DrawMode, FrameTargets, RenderedImage};
+use super::terrain::{MESH_EDGE, TRIANGLES_PER_QUAD, TerrainPass, ramp_buffer};
+use super::uniforms::{FrameUniform, NO_SLOT, QuadInstance, rgba, v4};
+use crate::ecm::geometry::{FlatRule, MapSymmetry, QuadFrame, QuadGeometry, Split};
 use crate::ecm::{CubeProjection, QuadId};
 use crate::project::CameraSpec;
 
-/// Vertices along a quad edge with the skirt ring.
-pub const MESH_EDGE: u32 = SAMPLES + 2;
-/// Triangles one quad draws (grid and skirts).
-pub const TRIANGLES_PER_QUAD: u64 = 2 * (MESH_EDGE as u64 - 1) * (MESH_EDGE as u64 - 1);
-/// The shader's "no slot".
-const NO_SLOT: u32 = u32::MAX;
 /// Stored for a sample without data (the shader tests `< -1e37`).
 const NODATA_STORED: f32 = -3.0e37;
-/// Quads without data are split down to this level at most: there the chord between two samples
-/// is within millimetres of the ellipsoid on Earth-sized bodies.
-const NODATA_MAX_LEVEL: u8 = 6;
 /// Most slots filled per frame, so that a burst of arrivals never stalls one.
 const UPLOADS_PER_FRAME: usize = 48;
-/// Samples per edge of the coarse geometry that bounds a quad.
-const BOUND_SAMPLES: u32 = 17;
-
-/// The colour format of images the renderer writes (the shader encodes sRGB itself, as a window
-/// surface of egui-wgpu needs).
-pub const IMAGE_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
-const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
-/// Probe target: camera-relative surface position (metres) and height.
-pub const SURFACE_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Float;
-/// Probe target: quad index + 1, sample i, j, flags.
-pub const ID_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Uint;
-
-/// A wgpu device and queue, and what the adapter can do.
-pub struct GpuContext {
-    /// The device.
-    pub device: wgpu::Device,
-    /// Its queue.
-    pub queue: wgpu::Queue,
-    /// The adapter (name, backend, type).
-    pub info: wgpu::AdapterInfo,
-    /// Whether GPU pass times can be measured.
-    pub timestamps: bool,
-}
-
-impl GpuContext {
-    /// A device without a window: the best adapter the environment allows (`WGPU_BACKEND`,
-    /// `WGPU_ADAPTER_NAME` select one, as in every wgpu program).
-    pub fn headless() -> Result<GpuContext, String> {
-        let instance = wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
-        let adapter = pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
-            power_preference: wgpu::PowerPreference::HighPerformance,
-            force_fallback_adapter: false,
-            compatible_surface: None,
-            apply_limit_buckets: false,
-        }))
-        .map_err(|e| {
-            format!("no GPU adapter ({e}); without a GPU install Mesa's lavapipe (scripts/install-deps) and set WGPU_BACKEND=vulkan")
-        })?;
-        GpuContext::from_adapter(&adapter)
-    }
-
-    /// A device on a given adapter, with the adapter's limits (large storage buffers) and
-    /// timestamp queries where it has them.
-    pub fn from_adapter(adapter: &wgpu::Adapter) -> Result<GpuContext, String> {
-        let features = adapter.features() & wgpu::Features::TIMESTAMP_QUERY;
-        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
-            label: Some("terrafuse"),
-            required_features: features,
-            required_limits: adapter.limits(),
-            ..Default::default()
-        }))
-        .map_err(|e| format!("cannot open the GPU device: {e}"))?;
-        Ok(GpuContext {
-            device,
-            queue,
-            info: adapter.get_info(),
-            timestamps: features.contains(wgpu::Features::TIMESTAMP_QUERY),
-        })
-    }
-
-    /// "name (backend, type)".
-    pub fn describe(&self) -> String {
-        format!("{} ({:?}, {:?})", self.info.name, self.info.backend, self.info.device_type)
-    }
-}
-
-#[repr(C)]
-#[derive(Clone, Copy, Pod, Zeroable)]
-struct FrameUniform {
-    view_proj: [[f32; 4]; 4],
-    viewport: [f32; 4],
-    sun: [f32; 4],
-    iso: [f32; 4],
-    iso_width: [f32; 4],
-    iso_colour: [f32; 4],
-    below: [f32; 4],
-    above: [f32; 4],
-    nodata: [f32; 4],
-}
-
-/// One quad's record for the shader (layout of `Quad` in terrain.wgsl).
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Pod, Zeroable)]
-pub struct QuadInstance {
-    anchor: [f32; 4],
-    corners: [[f32; 4]; 4],
-    normals: [[f32; 4]; 4],
-    sym: [[f32; 4]; 3],
-    slots: [u32; 4],
-    params: [f32; 4],
-}
-
-impl QuadInstance {
-    /// The reference height h₀ the quad was placed with (exaggerated metres).
-    pub fn reference_height_m(&self) -> f32 {
-        self.anchor[3]
-    }
-
-    /// The skirt depth, metres.
-    pub fn skirt_m(&self) -> f32 {
-        self.params[0]
-    }
-
-    /// Whether the quad was drawn with static maps.
-    pub fn has_maps(&self) -> bool {
-        self.slots[1] != NO_SLOT
-    }
-}
-
-/// The flat rule of a body and height range, fitted once per process (the fit scans thousands
-/// of quads).
-fn flat_rule_for(ellipsoid: &crate::geodesy::Ellipsoid, heights: HeightRange) -> FlatRule {
-    type Key = (u64, u64, u64, u64);
-    static RULES: std::sync::Mutex<Vec<(Key, FlatRule)>> = std::sync::Mutex::new(Vec::new());
-    let key = (ellipsoid.a_m().to_bits(), ellipsoid.b_m().to_bits(), heights.min_m.to_bits(), heights.max_m.to_bits());
-    let mut rules = RULES.lock().unwrap_or_else(|p| p.into_inner());
-    if let Some((_, rule)) = rules.iter().find(|(k, _)| *k == key) {
-        return *rule;
-    }
-    let rule = FlatRule::fit(ellipsoid, CubeProjection::Qsc, FlatRule::DEFAULT_TOLERANCE_M, heights);
-    rules.push((key, rule));
-    rule
-}
-
-fn v4(v: glam::Vec3, w: f32) -> [f32; 4] {
-    [v.x, v.y, v.z, w]
-}
-
-fn rgba(c: [u8; 4]) -> [f32; 4] {
-    c.map(|v| f32::from(v) / 255.0)
-}
-
-/// The heights the terrain may reach: the body's range, widened by the exaggerated data.
-fn exaggerated_range(scene: &Scene, exaggeration: f64) -> HeightRange {
-    let heights = HeightRange::for_body(&scene.ellipsoid);
-    HeightRange {
-        min_m: heights.min_m.min(scene.range_m.0 * exaggeration),
-        max_m: heights.max_m.max(scene.range_m.1 * exaggeration),
-    }
-}
-
-/// The ramp's stops for the shader: value, padding, linear RGBA.
-fn ramp_buffer(device: &wgpu::Device, ramp: &crate::colour::Ramp) -> wgpu::Buffer {
-    let stops: Vec<[f32; 8]> = ramp
-        .stops
-        .iter()
-        .map(|s| {
-            let c = rgba(s.rgba);
-            [s.value_m as f32, 0.0, 0.0, 0.0, c[0], c[1], c[2], c[3]]
-        })
-        .collect();
-    device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-        label: Some("ramp"),
-        contents: bytemuck::cast_slice(&stops),
-        usage: wgpu::BufferUsages::STORAGE,
-    })
-}
-
-/// The terrain bind group: frame, quads, heights, the three maps, the ramp.
-fn bind_group(device: &wgpu::Device, layout: &wgpu::BindGroupLayout, buffers: [&wgpu::Buffer; 7]) -> wgpu::BindGroup {
-    let entries: Vec<wgpu::BindGroupEntry> = buffers
-        .iter()
-        .enumerate()
-        .map(|(k, b)| wgpu::BindGroupEntry { binding: k as u32, resource: b.as_entire_binding() })
-        .collect();
-    device.create_bind_group(&wgpu::BindGroupDescriptor { label: Some("terrain"), layout, entries: &entries })
-}
-
-/// A fixed pool of equal slots in one GPU buffer, keyed by quad, least recently used reused.
-struct SlotPool {
-    capacity: u32,
-    slots: HashMap<QuadId, (u32, u64)>,
-    free: Vec<u32>,
-}
-
-impl SlotPool {
-    fn new(capacity: u32) -> SlotPool {
-        SlotPool { capacity, slots: HashMap::new(), free: (0..capacity).rev().collect() }
-    }
-
-    fn get(&self, quad: QuadId) -> Option<u32> {
-        self.slots.get(&quad).map(|s| s.0)
-    }
-
-    fn touch(&mut self, quad: QuadId, frame: u64) -> Option<u32> {
-        self.slots.get_mut(&quad).map(|s| {
-            s.1 = frame;
-            s.0
-        })
-    }
-
-    /// A slot for `quad`: a free one, or the least recently used one not used in `frame`.
-    fn allocate(&mut self, quad: QuadId, frame: u64) -> Option<u32> {
-        let slot = match self.free.pop() {
-            Some(s) => s,
-            None => {
-                let (&victim, &(slot, _)) =
-                    self.slots.iter().filter(|(_, (_, used))| *used < frame).min_by_key(|(_, (_, used))| *used)?;
-                self.slots.remove(&victim);
-                slot
-            }
-        };
-        self.slots.insert(quad, (slot, frame));
-        Some(slot)
-    }
-}
-
 /// What one frame drew and what it cost.
 #[derive(Clone, Debug, Default)]
 pub struct FrameStats {
@@ -266,190 +54,18 @@ pub struct FrameStats {
     /// Errors reading data (named), since the last frame.
     pub errors: Vec<String>,
 }
-
-/// An image read back from the GPU.
-#[derive(Clone, Debug)]
-pub struct RenderedImage {
-    /// Width, pixels.
-    pub width: u32,
-    /// Height, pixels.
-    pub height: u32,
-    /// RGBA8, sRGB-encoded, row 0 at the top.
-    pub rgba: Vec<u8>,
-    /// Per pixel: camera-relative surface position (metres) and height (metres); NaN-free zeros
-    /// where nothing was drawn. Only with the probe.
-    pub surface: Option<Vec<[f32; 4]>>,
-    /// Per pixel: quad index + 1 (0: nothing), sample i, sample j, flags (bit 0 data, bit 1
-    /// skirt). Only with the probe.
-    pub ids: Option<Vec<[u32; 4]>>,
-    /// GPU time of the terrain pass, milliseconds (where timestamps exist).
-    pub gpu_ms: Option<f64>,
-}
-
-/// The targets of one frame: the colour image ([`IMAGE_FORMAT`], sRGB-encoded), for probes the
-/// camera-relative surface position with height ([`SURFACE_FORMAT`]) and the ids
-/// ([`ID_FORMAT`]), and the depth buffer.
-pub struct FrameTargets {
-    /// Width, pixels.
-    pub width: u32,
-    /// Height, pixels.
-    pub height: u32,
-    /// The colour image.
-    pub colour: wgpu::Texture,
-    /// Surface position and height (probe targets only).
-    pub surface: Option<wgpu::Texture>,
-    /// Quad and sample ids (probe targets only).
-    pub ids: Option<wgpu::Texture>,
-    views: Vec<wgpu::TextureView>,
-    depth_view: wgpu::TextureView,
-}
-
-impl FrameTargets {
-    /// Targets of a size; `usage` is added to every colour target's (copying out, sampling in a
-    /// window).
-    pub fn new(
-        device: &wgpu::Device,
-        width: u32,
-        height: u32,
-        probe: bool,
-        usage: wgpu::TextureUsages,
-    ) -> FrameTargets {
-        let texture = |label: &str, format: wgpu::TextureFormat, usage: wgpu::TextureUsages| {
-            device.create_texture(&wgpu::TextureDescriptor {
-                label: Some(label),
-                size: wgpu::Extent3d { width: width.max(1), height: height.max(1), depth_or_array_layers: 1 },
-                mip_level_count: 1,
-                sample_count: 1,
-                dimension: wgpu::TextureDimension::D2,
-                format,
-                usage: wgpu::TextureUsages::RENDER_ATTACHMENT | usage,
-                view_formats: &[],
-            })
-        };
-        let colour = texture("colour", IMAGE_FORMAT, usage);
-        let surface = probe.then(|| texture("surface", SURFACE_FORMAT, usage));
-        let ids = probe.then(|| texture("ids", ID_FORMAT, usage));
-        let depth = texture("depth", DEPTH_FORMAT, wgpu::TextureUsages::empty());
-        let views = std::iter::once(&colour)
-            .chain(surface.iter())
-            .chain(ids.iter())
-            .map(|t| t.create_view(&Default::default()))
-            .collect();
-        let depth_view = depth.create_view(&Default::default());
-        FrameTargets { width, height, colour, surface, ids, views, depth_view }
-    }
-
-    /// The colour target's view.
-    pub fn colour_view(&self) -> &wgpu::TextureView {
-        &self.views[0]
-    }
-}
-
-/// How to draw: the normal pass, the probe (colour + surface + ids), or the probe drawing every
-/// vertex as a point (positions exactly as the vertex stage computed them).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum DrawMode {
-    /// Colour only.
-    Colour,
-    /// Colour, surface position and ids per pixel.
-    Probe,
-    /// Vertices as points, with surface and ids.
-    Points,
-}
-
-/// Per-quad geometry and bounds kept for selection and per-frame values.
-struct QuadCache {
-    geometry: HashMap<QuadId, QuadGeometry>,
-    infos: HashMap<QuadId, ((f32, f32), QuadInfo)>,
-    ranges: HashMap<QuadId, (f32, f32, f32)>,
-}
-
-/// The data side of selection, borrowing the renderer's parts.
-struct Source<'a> {
-    scene: &'a Scene,
-    cache: &'a mut QuadCache,
-    heights: &'a SlotPool,
-    maps: &'a SlotPool,
-    flat: &'a FlatRule,
-    exaggeration: f64,
-}
-
-impl QuadCache {
-    fn geometry(&mut self, scene: &Scene, quad: QuadId) -> &QuadGeometry {
-        self.geometry
-            .entry(quad)
-            .or_insert_with(|| QuadGeometry::compute(&scene.ellipsoid, CubeProjection::Qsc, quad, BOUND_SAMPLES))
-    }
-
-    /// The height range a quad may span (its own once loaded; the datasets' before), with 0
-    /// (where no-data samples are drawn), exaggerated.
-    fn range(&self, scene: &Scene, quad: QuadId, has_data: bool, exaggeration: f64) -> (f32, f32) {
-        let (lo, hi) = match self.ranges.get(&quad) {
-            Some(&(lo, hi, _)) => (f64::from(lo), f64::from(hi)),
-            None if has_data => scene.range_m,
-            None => (0.0, 0.0),
-        };
-        // No-data samples are drawn at height 0, so 0 is always in the range.
-        ((lo.min(0.0) * exaggeration) as f32, (hi.max(0.0) * exaggeration) as f32)
-    }
-}
-
-impl QuadSource for Source<'_> {
-    fn info(&mut self, quad: QuadId) -> QuadInfo {
-        let has = self.scene.has_data(quad);
-        let range = self.cache.range(self.scene, quad, has, self.exaggeration);
-        if let Some((r, info)) = self.cache.infos.get(&quad)
-            && *r == range
-        {
-            return *info;
-        }
-        let ellipsoid = self.scene.ellipsoid;
-        let g = self.cache.geometry(self.scene, quad);
-        let q = g.corners_ecef;
-        let edge_m =
-            [(q[1] - q[0]), (q[2] - q[0]), (q[3] - q[1]), (q[3] - q[2])].iter().map(|v| v.length()).fold(0.0, f64::max);
-        let mut bounds = QuadBounds::compute(g, f64::from(range.0), f64::from(range.1));
-        // The 257² surface between the coarse samples bulges by at most the sagitta of a coarse
-        // cell's diagonal on the most curved part of the ellipsoid.
-        let cell = edge_m / f64::from(BOUND_SAMPLES - 1) * std::f64::consts::SQRT_2;
-        let r_min = ellipsoid.b_m() * ellipsoid.b_m() / ellipsoid.a_m();
-        bounds.half_extents_m += DVec3::splat(1.5 * cell * cell / (8.0 * r_min));
-        let info = QuadInfo { bounds, edge_m };
-        self.cache.infos.insert(quad, (range, info));
-        info
-    }
-
-    fn ready(&self, quad: QuadId) -> bool {
-        let heights = !self.scene.has_data(quad) || self.heights.get(quad).is_some();
-        let maps = self.flat.is_flat(quad) || self.maps.get(MapSymmetry::of(quad).canonical).is_some();
-        heights && maps
-    }
-
-    fn refinable(&self, quad: QuadId) -> bool {
-        match self.scene.finest_level_at(quad) {
-            Some(f) => quad.level < f,
-            None => quad.level < NODATA_MAX_LEVEL,
-        }
-    }
-}
-
 /// The terrain renderer.
 pub struct Renderer {
     device: wgpu::Device,
     queue: wgpu::Queue,
     timestamps: bool,
-    pipeline: wgpu::RenderPipeline,
-    probe_pipeline: wgpu::RenderPipeline,
-    points_pipeline: wgpu::RenderPipeline,
-    bind_layout: wgpu::BindGroupLayout,
+    terrain: TerrainPass,
     bind_group: wgpu::BindGroup,
     ramp_buffer: wgpu::Buffer,
     frame_buffer: wgpu::Buffer,
     quad_buffer: wgpu::Buffer,
     heights_buffer: wgpu::Buffer,
     map_buffers: [wgpu::Buffer; 3],
-    index_buffer: wgpu::Buffer,
-    index_count: u32,
     heights_pool: SlotPool,
     maps_pool: SlotPool,
     scene: Scene,
@@ -467,14 +83,8 @@ pub struct Renderer {
 impl Renderer {
     /// A renderer of `scene` on a device, drawing into targets of `format` (the window's, or
     /// [`IMAGE_FORMAT`] for images).
-    pub fn new(ctx: &GpuContext, scene: Scene, format: wgpu::TextureFormat) -> Result<Renderer, String> {
+    pub fn new(ctx: &GpuContext, scene: Scene, format: wgpu::TextureFormat) -> Result<Renderer, GpuError> {
         let device = ctx.device.clone();
-        let source = super::shaders::composed("terrain.wgsl")?;
-        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("terrain.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(source.into()),
-        });
-
         // GPU cache: 15 % of the budget for heights (4 bytes a sample), the rest for the three
         // maps (36 bytes a sample), each buffer within the device's largest storage binding.
         let limit = device.limits().max_storage_buffer_binding_size.min(device.limits().max_buffer_size);
@@ -502,44 +112,9 @@ impl Renderer {
             mapped_at_creation: false,
         });
         let ramp_buffer = ramp_buffer(&device, &scene.ramp);
-        let mut indices = Vec::with_capacity(TRIANGLES_PER_QUAD as usize * 3);
-        for b in 0..MESH_EDGE - 1 {
-            for a in 0..MESH_EDGE - 1 {
-                let v00 = b * MESH_EDGE + a;
-                let (v10, v01) = (v00 + 1, v00 + MESH_EDGE);
-                indices.extend_from_slice(&[v00, v10, v01 + 1, v00, v01 + 1, v01]);
-            }
-        }
-        let index_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("quad mesh"),
-            contents: bytemuck::cast_slice(&indices),
-            usage: wgpu::BufferUsages::INDEX,
-        });
-
-        let entry =
-            |binding: u32, visibility: wgpu::ShaderStages, ty: wgpu::BufferBindingType| wgpu::BindGroupLayoutEntry {
-                binding,
-                visibility,
-                ty: wgpu::BindingType::Buffer { ty, has_dynamic_offset: false, min_binding_size: None },
-                count: None,
-            };
-        let read = wgpu::BufferBindingType::Storage { read_only: true };
-        let both = wgpu::ShaderStages::VERTEX | wgpu::ShaderStages::FRAGMENT;
-        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("terrain"),
-            entries: &[
-                entry(0, both, wgpu::BufferBindingType::Uniform),
-                entry(1, wgpu::ShaderStages::VERTEX, read),
-                entry(2, wgpu::ShaderStages::VERTEX, read),
-                entry(3, wgpu::ShaderStages::VERTEX, read),
-                entry(4, wgpu::ShaderStages::VERTEX, read),
-                entry(5, wgpu::ShaderStages::VERTEX, read),
-                entry(6, wgpu::ShaderStages::FRAGMENT, read),
-            ],
-        });
-        let bind_group = bind_group(
+        let terrain = TerrainPass::new(&device, format)?;
+        let bind_group = terrain.bind_group(
             &device,
-            &layout,
             [
                 &frame_buffer,
                 &quad_buffer,
@@ -550,50 +125,6 @@ impl Renderer {
                 &ramp_buffer,
             ],
         );
-        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("terrain"),
-            bind_group_layouts: &[Some(&layout)],
-            immediate_size: 0,
-        });
-        let make = |label: &str,
-                    fragment: &str,
-                    targets: &[Option<wgpu::ColorTargetState>],
-                    topology: wgpu::PrimitiveTopology| {
-            device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-                label: Some(label),
-                layout: Some(&pipeline_layout),
-                vertex: wgpu::VertexState {
-                    module: &module,
-                    entry_point: Some("vs_main"),
-                    compilation_options: Default::default(),
-                    buffers: &[],
-                },
-                primitive: wgpu::PrimitiveState { topology, cull_mode: None, ..Default::default() },
-                depth_stencil: Some(wgpu::DepthStencilState {
-                    format: DEPTH_FORMAT,
-                    depth_write_enabled: Some(true),
-                    depth_compare: Some(wgpu::CompareFunction::Greater),
-                    stencil: Default::default(),
-                    bias: Default::default(),
-                }),
-                multisample: Default::default(),
-                fragment: Some(wgpu::FragmentState {
-                    module: &module,
-                    entry_point: Some(fragment),
-                    compilation_options: Default::default(),
-                    targets,
-                }),
-                multiview_mask: None,
-                cache: None,
-            })
-        };
-        let target = |format: wgpu::TextureFormat| {
-            Some(wgpu::ColorTargetState { format, blend: None, write_mask: wgpu::ColorWrites::ALL })
-        };
-        let probe_targets = [target(IMAGE_FORMAT), target(SURFACE_FORMAT), target(ID_FORMAT)];
-        let pipeline = make("terrain", "fs_main", &[target(format)], wgpu::PrimitiveTopology::TriangleList);
-        let probe_pipeline = make("terrain probe", "fs_probe", &probe_targets, wgpu::PrimitiveTopology::TriangleList);
-        let points_pipeline = make("terrain points", "fs_probe", &probe_targets, wgpu::PrimitiveTopology::PointList);
 
         let flat = flat_rule_for(&scene.ellipsoid, exaggerated_range(&scene, scene.visuals.exaggeration));
         let threads = std::thread::available_parallelism().map_or(2, |n| n.get()).clamp(1, 4);
@@ -603,18 +134,13 @@ impl Renderer {
             device,
             queue: ctx.queue.clone(),
             timestamps: ctx.timestamps,
-            pipeline,
-            probe_pipeline,
-            points_pipeline,
-            bind_layout: layout,
+            terrain,
             bind_group,
             ramp_buffer,
             frame_buffer,
             quad_buffer,
             heights_buffer,
             map_buffers,
-            index_buffer,
-            index_count: indices.len() as u32,
             heights_pool: SlotPool::new(height_slots),
             maps_pool: SlotPool::new(map_slots),
             scene,
@@ -647,9 +173,8 @@ impl Renderer {
     pub fn set_visuals(&mut self, visuals: crate::project::Visuals, ramp: crate::colour::Ramp) {
         if ramp != self.scene.ramp {
             self.ramp_buffer = ramp_buffer(&self.device, &ramp);
-            self.bind_group = bind_group(
+            self.bind_group = self.terrain.bind_group(
                 &self.device,
-                &self.bind_layout,
                 [
                     &self.frame_buffer,
                     &self.quad_buffer,
@@ -1022,12 +547,16 @@ impl Renderer {
         pass.set_bind_group(0, &self.bind_group, &[]);
         match mode {
             DrawMode::Colour | DrawMode::Probe => {
-                pass.set_pipeline(if mode == DrawMode::Colour { &self.pipeline } else { &self.probe_pipeline });
-                pass.set_index_buffer(self.index_buffer.slice(..), wgpu::IndexFormat::Uint32);
-                pass.draw_indexed(0..self.index_count, 0, 0..n);
+                pass.set_pipeline(if mode == DrawMode::Colour {
+                    &self.terrain.pipeline
+                } else {
+                    &self.terrain.probe_pipeline
+                });
+                pass.set_index_buffer(self.terrain.index_buffer.slice(..), wgpu::IndexFormat::Uint32);
+                pass.draw_indexed(0..self.terrain.index_count, 0, 0..n);
             }
             DrawMode::Points => {
-                pass.set_pipeline(&self.points_pipeline);
+                pass.set_pipeline(&self.terrain.points_pipeline);
                 pass.draw(0..MESH_EDGE * MESH_EDGE, 0..n);
             }
         }
@@ -1042,10 +571,10 @@ impl Renderer {
         targets: &FrameTargets,
         mode: DrawMode,
         timestamps: Option<&wgpu::QuerySet>,
-    ) -> Result<(), String> {
+    ) -> Result<(), GpuError> {
         let probe = mode != DrawMode::Colour;
         if probe && targets.surface.is_none() {
-            return Err("a probe pass needs probe targets (FrameTargets::new with probe = true)".into());
+            return Err(GpuError::Targets("a probe pass needs probe targets (FrameTargets::new with probe = true)"));
         }
         let bg = self.scene.visuals.background.map(|c| crate::colour::srgb_to_linear(f64::from(c)));
         // The colour image is cleared to the background (the shader's output is already
@@ -1092,97 +621,19 @@ impl Renderer {
     }
 
     /// Draws the prepared frame into an image and reads it back.
-    pub fn render_image(&self, mode: DrawMode) -> Result<RenderedImage, String> {
+    pub fn render_image(&self, mode: DrawMode) -> Result<RenderedImage, GpuError> {
         let (width, height) = self.size;
-        let device = &self.device;
         let probe = mode != DrawMode::Colour;
-        let frame = FrameTargets::new(device, width, height, probe, wgpu::TextureUsages::COPY_SRC);
-        let mut targets = vec![(&frame.colour, 4u32)];
-        if let (Some(surface), Some(ids)) = (&frame.surface, &frame.ids) {
-            targets.push((surface, 16));
-            targets.push((ids, 16));
-        }
+        let frame = FrameTargets::new(&self.device, width, height, probe, wgpu::TextureUsages::COPY_SRC);
         let queries = self.timestamps.then(|| {
-            device.create_query_set(&wgpu::QuerySetDescriptor {
+            self.device.create_query_set(&wgpu::QuerySetDescriptor {
                 label: Some("pass time"),
                 ty: wgpu::QueryType::Timestamp,
                 count: 2,
             })
         });
-        let mut encoder = device.create_command_encoder(&Default::default());
+        let mut encoder = self.device.create_command_encoder(&Default::default());
         self.encode(&mut encoder, &frame, mode, queries.as_ref())?;
-        let readback = |bytes_per_pixel: u32| {
-            let row = (width * bytes_per_pixel).div_ceil(256) * 256;
-            let buffer = device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("readback"),
-                size: u64::from(row) * u64::from(height),
-                usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
-                mapped_at_creation: false,
-            });
-            (buffer, row)
-        };
-        let mut reads = Vec::new();
-        for (texture, bpp) in targets {
-            let (buffer, row) = readback(bpp);
-            encoder.copy_texture_to_buffer(
-                texture.as_image_copy(),
-                wgpu::TexelCopyBufferInfo {
-                    buffer: &buffer,
-                    layout: wgpu::TexelCopyBufferLayout {
-                        offset: 0,
-                        bytes_per_row: Some(row),
-                        rows_per_image: Some(height),
-                    },
-                },
-                wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
-            );
-            reads.push((buffer, row, bpp));
-        }
-        let time_buffers = queries.as_ref().map(|q| {
-            let resolve = device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("timestamps"),
-                size: 16,
-                usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
-                mapped_at_creation: false,
-            });
-            let read = device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("timestamps read"),
-                size: 16,
-                usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
-                mapped_at_creation: false,
-            });
-            encoder.resolve_query_set(q, 0..2, &resolve, 0);
-            encoder.copy_buffer_to_buffer(&resolve, 0, &read, 0, 16);
-            read
-        });
-        self.queue.submit([encoder.finish()]);
-        let mut mapped: Vec<&wgpu::Buffer> = reads.iter().map(|r| &r.0).collect();
-        mapped.extend(time_buffers.iter());
-        for b in &mapped {
-            b.slice(..).map_async(wgpu::MapMode::Read, |r| {
-                if let Err(e) = r {
-                    eprintln!("terrafuse: reading back from the GPU failed: {e}");
-                }
-            });
-        }
-        device.poll(wgpu::PollType::wait_indefinitely()).map_err(|e| format!("GPU did not finish: {e}"))?;
-        let unpad = |(buffer, row, bpp): &(wgpu::Buffer, u32, u32)| -> Vec<u8> {
-            let data = buffer.slice(..).get_mapped_range().expect("mapped above");
-            let mut out = Vec::with_capacity((width * height * bpp) as usize);
-            for y in 0..height as usize {
-                let start = y * *row as usize;
-                out.extend_from_slice(&data[start..start + (width * bpp) as usize]);
-            }
-            out
-        };
-        let rgba = unpad(&reads[0]);
-        let surface = probe.then(|| bytemuck::cast_slice::<u8, [f32; 4]>(&unpad(&reads[1])).to_vec());
-        let ids = probe.then(|| bytemuck::cast_slice::<u8, [u32; 4]>(&unpad(&reads[2])).to_vec());
-        let gpu_ms = time_buffers.map(|b| {
-            let data = b.slice(..).get_mapped_range().expect("mapped above");
-            let t: &[u64] = bytemuck::cast_slice(&data);
-            (t[1].saturating_sub(t[0])) as f64 * f64::from(self.queue.get_timestamp_period()) / 1e6
-        });
-        Ok(RenderedImage { width, height, rgba, surface, ids, gpu_ms })
+        frame.read_back(&self.device, &self.queue, encoder, queries.as_ref())
     }
 }

@@ -106,7 +106,7 @@ pub fn build_app(cc: &eframe::CreationContext<'_>, opened: Opened) -> Result<app
     };
     let device = format!("device: {}", ctx.describe());
     eprintln!("{device}");
-    let renderer = Renderer::new(&ctx, opened.scene, IMAGE_FORMAT)?;
+    let renderer = Renderer::new(&ctx, opened.scene, IMAGE_FORMAT).map_err(|e| e.to_string())?;
     Ok(app::App::new(
         opened.project,
         opened.project_path,

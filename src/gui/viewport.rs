@@ -171,7 +171,9 @@ impl Viewport {
         let mut encoder = rs.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("viewport") });
         let timed = self.timing.as_ref().is_some_and(|t| t.2.idle());
         let timing = self.timing.as_ref().filter(|_| timed);
-        renderer.encode(&mut encoder, &self.targets, DrawMode::Probe, timing.map(|t| &t.0))?;
+        renderer
+            .encode(&mut encoder, &self.targets, DrawMode::Probe, timing.map(|t| &t.0))
+            .map_err(|e| e.to_string())?;
         if let Some((set, resolve, read)) = timing {
             encoder.resolve_query_set(set, 0..2, resolve, 0);
             encoder.copy_buffer_to_buffer(resolve, 0, &read.buffer, 0, 16);

@@ -1,0 +1,62 @@
+//! The Pod twins of the terrain shader's uniform and storage structs. Keep in sync with
+//! `shaders/terrain.wgsl` (`Frame`, `Quad`): same fields, same order, explicit padding; the
+//! size assertions below fail the build when one side changes alone.
+
+use bytemuck::{Pod, Zeroable};
+
+/// The shader's "no slot".
+pub(crate) const NO_SLOT: u32 = u32::MAX;
+
+/// Per-frame values (`Frame` in terrain.wgsl; keep in sync).
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+pub(crate) struct FrameUniform {
+    pub(crate) view_proj: [[f32; 4]; 4],
+    pub(crate) viewport: [f32; 4],
+    pub(crate) sun: [f32; 4],
+    pub(crate) iso: [f32; 4],
+    pub(crate) iso_width: [f32; 4],
+    pub(crate) iso_colour: [f32; 4],
+    pub(crate) below: [f32; 4],
+    pub(crate) above: [f32; 4],
+    pub(crate) nodata: [f32; 4],
+}
+
+/// One quad's record for the shader (`Quad` in terrain.wgsl; keep in sync).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct QuadInstance {
+    pub(crate) anchor: [f32; 4],
+    pub(crate) corners: [[f32; 4]; 4],
+    pub(crate) normals: [[f32; 4]; 4],
+    pub(crate) sym: [[f32; 4]; 3],
+    pub(crate) slots: [u32; 4],
+    pub(crate) params: [f32; 4],
+}
+
+impl QuadInstance {
+    /// The reference height h₀ the quad was placed with (exaggerated metres).
+    pub fn reference_height_m(&self) -> f32 {
+        self.anchor[3]
+    }
+
+    /// The skirt depth, metres.
+    pub fn skirt_m(&self) -> f32 {
+        self.params[0]
+    }
+
+    /// Whether the quad was drawn with static maps.
+    pub fn has_maps(&self) -> bool {
+        self.slots[1] != NO_SLOT
+    }
+}
+pub(crate) fn v4(v: glam::Vec3, w: f32) -> [f32; 4] {
+    [v.x, v.y, v.z, w]
+}
+
+pub(crate) fn rgba(c: [u8; 4]) -> [f32; 4] {
+    c.map(|v| f32::from(v) / 255.0)
+}
+
+const _: () = assert!(std::mem::size_of::<FrameUniform>() == 64 + 8 * 16);
+const _: () = assert!(std::mem::size_of::<QuadInstance>() == 16 * (1 + 4 + 4 + 3 + 1 + 1));
