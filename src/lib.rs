@@ -12,5 +12,6 @@ pub mod files;
 pub mod geodesy;
 pub mod gpu;
 pub mod gui;
+pub mod layers;
 pub mod project;
 pub mod store;

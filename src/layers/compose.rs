@@ -1,0 +1,224 @@
+//! The composition of a quad's heights from its plan: the CPU reference of
+//! `shaders/compose/compose.wgsl` (keep in sync), in f64, deterministic (each sample alone; rows
+//! in parallel with rayon, which changes no result).
+//!
+//! Per sample each planned layer gives a value v (raw × scale + offset; no data where the raw
+//! value is NaN or v is outside `valid_range_m`) and a coverage α = opacity × extent mask; a
+//! layer with α = 0 at a sample leaves it unchanged. The running height h starts as no data and
+//! each layer folds in by its blend mode ([`fold`]); consecutive `mean` layers are gathered and
+//! applied together with `over` at the group's largest coverage.
+
+use glam::DVec3;
+use rayon::prelude::*;
+
+use super::noise;
+use super::spec::{BlendMode, LayerKind};
+use super::stack::{MaskPlan, QuadPlan, SAMPLES, Stack, sample_point};
+
+/// The running state at a sample.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Running {
+    /// Height, metres (NaN: no data yet).
+    pub h: f64,
+    /// Sample spacing of the finest dataset that gave h its value, metres (∞: none).
+    pub data_spacing_m: f64,
+}
+
+impl Running {
+    /// No data.
+    pub const EMPTY: Running = Running { h: f64::NAN, data_spacing_m: f64::INFINITY };
+}
+
+/// Folds a value v with coverage α (> 0) into h: the blend formulas of the README.
+pub fn fold(h: f64, blend: BlendMode, v: f64, alpha: f64) -> f64 {
+    match blend {
+        BlendMode::Over | BlendMode::Mean => {
+            if h.is_nan() {
+                v
+            } else {
+                h + alpha * (v - h)
+            }
+        }
+        BlendMode::Add => {
+            if h.is_nan() {
+                h
+            } else {
+                h + alpha * v
+            }
+        }
+        BlendMode::Min => {
+            if h.is_nan() {
+                v
+            } else {
+                h + alpha * (h.min(v) - h)
+            }
+        }
+        BlendMode::Max => {
+            if h.is_nan() {
+                v
+            } else {
+                h + alpha * (h.max(v) - h)
+            }
+        }
+    }
+}
+
+/// What one layer gives at one sample: value and coverage (coverage 0: nothing).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LayerSample {
+    /// Metres, after scale and offset.
+    pub value: f64,
+    /// α = opacity × mask (0 where the layer has no data).
+    pub alpha: f64,
+}
+
+/// Where a sample is: its exact point, longitude and latitude.
+#[derive(Clone, Copy, Debug)]
+pub struct SamplePoint {
+    /// ECEF metres.
+    pub ecef: DVec3,
+    /// Radians.
+    pub lon_rad: f64,
+    /// Radians.
+    pub lat_rad: f64,
+}
+
+/// The layer's value and coverage at a sample; `raw` is a dataset's raw value (NaN: none).
+pub fn layer_sample(
+    stack: &Stack,
+    plan: &QuadPlan,
+    k: usize,
+    at: &SamplePoint,
+    raw: f64,
+    below: &Running,
+) -> LayerSample {
+    let planned = &plan.layers[k];
+    let layer = &stack.layers[planned.index];
+    let spec = &layer.spec;
+    let base = match spec.kind {
+        LayerKind::Dataset => raw,
+        LayerKind::Constant => spec.height_m.unwrap_or(0.0),
+        LayerKind::Procedural => {
+            let n = spec.noise.as_ref().expect("a checked procedural layer has noise");
+            let mut weights = noise::octave_weights(n, plan.spacing_m, below.data_spacing_m);
+            weights.truncate(planned.octaves as usize);
+            noise::noise_at(n, at.ecef, &weights)
+        }
+    };
+    let value = base * spec.scale + spec.offset_m;
+    let valid = !value.is_nan() && spec.valid_range_m.is_none_or(|[lo, hi]| value >= lo && value <= hi);
+    if !valid {
+        return LayerSample { value: 0.0, alpha: 0.0 };
+    }
+    let mask = match (&planned.mask, &layer.extent) {
+        (MaskPlan::Partial(segments), Some(extent)) => {
+            extent.mask(extent.contains(at.lon_rad, at.lat_rad), extent.distance_m(at.ecef, segments))
+        }
+        _ => 1.0,
+    };
+    LayerSample { value, alpha: spec.opacity * mask }
+}
+
+/// The composed height at one sample; `raw(k)` is the raw value of the plan's k-th layer when it
+/// is a dataset (NaN where it has none).
+pub fn compose_sample(stack: &Stack, plan: &QuadPlan, at: &SamplePoint, raw: &dyn Fn(usize) -> f64) -> f64 {
+    let mut state = Running::EMPTY;
+    // The open mean group: Σ w·α·v, Σ w·α, max α, finest spacing.
+    let (mut sum, mut weight, mut alpha_max, mut group_spacing) = (0.0, 0.0, 0.0, f64::INFINITY);
+    for k in 0..plan.layers.len() {
+        let layer = &stack.layers[plan.layers[k].index];
+        let s = layer_sample(stack, plan, k, at, raw(k), &state);
+        let spacing = if layer.spec.kind == LayerKind::Dataset { layer.data_spacing_m } else { f64::INFINITY };
+        if layer.spec.blend == BlendMode::Mean {
+            if s.alpha > 0.0 {
+                let w = layer.spec.weight * s.alpha;
+                sum += w * s.value;
+                weight += w;
+                alpha_max = f64::max(alpha_max, s.alpha);
+                group_spacing = group_spacing.min(spacing);
+            }
+            let closes =
+                plan.layers.get(k + 1).is_none_or(|next| stack.layers[next.index].spec.blend != BlendMode::Mean);
+            if closes {
+                if weight > 0.0 {
+                    apply(&mut state, BlendMode::Over, sum / weight, alpha_max, group_spacing);
+                }
+                (sum, weight, alpha_max, group_spacing) = (0.0, 0.0, 0.0, f64::INFINITY);
+            }
+        } else if s.alpha > 0.0 {
+            apply(&mut state, layer.spec.blend, s.value, s.alpha, spacing);
+        }
+    }
+    state.h
+}
+
+fn apply(state: &mut Running, blend: BlendMode, value: f64, alpha: f64, spacing_m: f64) {
+    let had_data = !state.h.is_nan();
+    state.h = fold(state.h, blend, value, alpha);
+    // The data spacing follows the datasets that set or blend into h.
+    if !state.h.is_nan() && (blend != BlendMode::Add || !had_data) {
+        state.data_spacing_m = state.data_spacing_m.min(spacing_m);
+    }
+}
+
+/// A quad's composed 257² heights (row by row from the south, NaN where no data), from the raw
+/// tiles of its planned dataset layers: `tile(k)` for the plan's k-th layer.
+pub fn compose_quad<'a>(stack: &Stack, plan: &QuadPlan, tile: &dyn Fn(usize) -> Option<&'a [f32]>) -> Vec<f32> {
+    let n = SAMPLES as usize;
+    let tiles: Vec<Option<&[f32]>> = (0..plan.layers.len()).map(tile).collect();
+    let mut out = vec![f32::NAN; n * n];
+    out.par_chunks_mut(n).enumerate().for_each(|(j, row)| {
+        for (i, h) in row.iter_mut().enumerate() {
+            let (ecef, lon_rad, lat_rad) = sample_point(&stack.ellipsoid, plan.quad, SAMPLES, i as u32, j as u32);
+            let at = SamplePoint { ecef, lon_rad, lat_rad };
+            let raw = |k: usize| tiles[k].map_or(f64::NAN, |t| f64::from(t[j * n + i]));
+            *h = compose_sample(stack, plan, &at, &raw) as f32;
+        }
+    });
+    out
+}
+
+/// A conservative range of the composed heights of a quad, from each planned layer's value range
+/// (`range(k)`, e.g. its source tile's), by interval arithmetic through the blend modes; `None`
+/// where no layer can give data. A layer's coverage α lies in [α_lo, opacity], α_lo = opacity
+/// where it surely covers every sample (full mask, no data gaps possible), else 0. Over, mean,
+/// min and max stay in the hull of h and v (exactly v, min or max at α = 1); add widens h by α·v.
+pub fn range_bound(stack: &Stack, plan: &QuadPlan, range: &dyn Fn(usize) -> (f64, f64)) -> Option<(f64, f64)> {
+    let mut h: Option<(f64, f64)> = None;
+    let mut k = 0;
+    while k < plan.layers.len() {
+        let planned = &plan.layers[k];
+        let layer = &stack.layers[planned.index];
+        let spec = &layer.spec;
+        let (mut lo, mut hi) = range(k);
+        let full = planned.mask == MaskPlan::Full && spec.kind != LayerKind::Dataset && spec.valid_range_m.is_none();
+        let (mut a_lo, a_hi) = (if full { spec.opacity } else { 0.0 }, spec.opacity);
+        let mut blend = spec.blend;
+        if blend == BlendMode::Mean {
+            // The group's value lies in the hull of its members; it applies with over.
+            let mut j = k + 1;
+            while j < plan.layers.len() && stack.layers[plan.layers[j].index].spec.blend == BlendMode::Mean {
+                let (l, u) = range(j);
+                (lo, hi) = (lo.min(l), hi.max(u));
+                j += 1;
+            }
+            (a_lo, blend, k) = (0.0, BlendMode::Over, j - 1);
+        }
+        k += 1;
+        if lo > hi || a_hi <= 0.0 {
+            continue; // no valid value
+        }
+        h = match (blend, h) {
+            (BlendMode::Add, None) => None,
+            (BlendMode::Add, Some((a, b))) => Some((a + (a_lo * lo).min(a_hi * lo), b + (a_lo * hi).max(a_hi * hi))),
+            (_, None) => Some((lo, hi)),
+            (BlendMode::Min, Some((a, b))) if a_lo >= 1.0 => Some((a.min(lo), b.min(hi))),
+            (BlendMode::Max, Some((a, b))) if a_lo >= 1.0 => Some((a.max(lo), b.max(hi))),
+            (BlendMode::Over, Some(_)) if a_lo >= 1.0 => Some((lo, hi)),
+            (BlendMode::Min, Some((a, b))) => Some((a.min(lo), b)),
+            (BlendMode::Max, Some((a, b))) => Some((a, b.max(hi))),
+            (_, Some((a, b))) => Some((a.min(lo), b.max(hi))),
+        };
+    }
+    h
+}

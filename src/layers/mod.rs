@@ -1,0 +1,44 @@
+//! The layer stack (DESIGN.md, "The layer stack"): how elevation reaches the vertex stage. A
+//! project's layers run bottom to top; per sample each gives a value and a coverage and a blend
+//! mode folds it into the running height. Everything here is a CPU reference in plain Rust
+//! (rayon), written to read like the GPU kernels in `shaders/compose/` and
+//! `shaders/shared/noise.wgsl`; nothing here knows about the GPU.
+//!
+//! - [`spec`]: the layers as the project file holds them, checked field by field;
+//! - [`stack`]: the stack in memory, each layer's identity and revision, per-quad plans (which
+//!   layers a quad reads, their masks, its cache stamp);
+//! - [`extent`]: extents and feathered masks in metres on the ellipsoid;
+//! - [`noise`]: fBm and ridged multifractal on the ECEF position, with a split f64/f32 lattice;
+//! - [`compose`]: the blend formulas, per-sample and per-quad composition, height bounds.
+
+pub mod compose;
+pub mod extent;
+pub mod noise;
+pub mod spec;
+pub mod stack;
+
+pub use compose::{compose_quad, compose_sample, fold, range_bound};
+pub use spec::{BlendMode, DetailWhere, ExtentSpec, LayerKind, LayerSpec, NoiseSpec, NoiseType, SourceSpec};
+pub use stack::{Layer, MaskPlan, PlannedLayer, QuadPlan, Stack};
+
+/// A layer that cannot be used, naming the layer, the field and the problem.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("layer '{layer}': {field}: {problem}")]
+pub struct LayerError {
+    /// The layer's name.
+    pub layer: String,
+    /// The field (e.g. `opacity`, `noise.octaves`).
+    pub field: String,
+    /// What is wrong.
+    pub problem: String,
+}
+
+impl LayerError {
+    /// An error about one field of one layer.
+    pub fn field(layer: &str, field: &str, problem: String) -> LayerError {
+        LayerError { layer: layer.into(), field: field.into(), problem }
+    }
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,409 @@
+//! The layer stack as a project file holds it: one [`LayerSpec`] per layer, bottom to top.
+//!
+//! ```json
+//! { "name": "srtm", "kind": "dataset", "store": "stores/e.gpkg", "blend": "over",
+//!   "extent": { "box": [40.0, 39.2, 40.8, 40.0] }, "feather_m": 5000 }
+//! { "name": "detail", "kind": "procedural", "blend": "add",
+//!   "noise": { "type": "fbm", "seed": 7, "amplitude_m": 30, "wavelength_m": 2000, "octaves": 8 } }
+//! { "name": "sea", "kind": "constant", "height_m": 0, "blend": "max" }
+//! ```
+//!
+//! Every layer has the common fields; the kind-specific ones (`store`, `dataset`, `source` for
+//! datasets, `height_m` for constants, `noise` for procedural layers) are refused on other kinds,
+//! so a misplaced field is an error rather than silently ignored.
+
+use std::path::PathBuf;
+
+use serde::{Deserialize, Serialize};
+
+use super::LayerError;
+
+/// What a layer is.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum LayerKind {
+    /// A dataset of a tile store.
+    Dataset,
+    /// Procedural noise on the ellipsoid.
+    Procedural,
+    /// One height everywhere (a sea level, a datum plane).
+    Constant,
+}
+
+impl LayerKind {
+    /// The name used in files.
+    pub fn name(self) -> &'static str {
+        match self {
+            LayerKind::Dataset => "dataset",
+            LayerKind::Procedural => "procedural",
+            LayerKind::Constant => "constant",
+        }
+    }
+}
+
+/// How a layer folds into the running height h (v its value, α its coverage).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum BlendMode {
+    /// h = v where h has no data, else h + α(v − h).
+    #[default]
+    Over,
+    /// h + α·v where h has data (detail, offsets); nothing where it has none.
+    Add,
+    /// h + α(min(h, v) − h); h = v where h has no data.
+    Min,
+    /// h + α(max(h, v) − h); h = v where h has no data.
+    Max,
+    /// Consecutive `mean` layers form one group: Σ wᵢαᵢvᵢ / Σ wᵢαᵢ, applied with `over` at the
+    /// group's coverage max αᵢ.
+    Mean,
+}
+
+impl BlendMode {
+    /// Every mode, in the order the GUI lists them.
+    pub const ALL: [BlendMode; 5] = [BlendMode::Over, BlendMode::Add, BlendMode::Min, BlendMode::Max, BlendMode::Mean];
+
+    /// The name used in files.
+    pub fn name(self) -> &'static str {
+        match self {
+            BlendMode::Over => "over",
+            BlendMode::Add => "add",
+            BlendMode::Min => "min",
+            BlendMode::Max => "max",
+            BlendMode::Mean => "mean",
+        }
+    }
+}
+
+/// Where a layer applies: a longitude/latitude box or polygon, degrees. Edges are straight in
+/// longitude and latitude (a box's edges follow parallels and meridians).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
+pub enum ExtentSpec {
+    /// `[west, south, east, north]`, degrees (GDAL's xmin, ymin, xmax, ymax order); east < west
+    /// crosses the antimeridian.
+    Box([f64; 4]),
+    /// `[[lon, lat], …]`, degrees, at least three vertices, closed implicitly (GeoJSON order).
+    /// Longitudes may run past ±180 to cross the antimeridian continuously.
+    Polygon(Vec<[f64; 2]>),
+}
+
+/// Which fractal.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum NoiseType {
+    /// Fractional Brownian motion: Σ gainᵏ·n(P·lacunarityᵏ/λ), values in ±amplitude·Σ gainᵏ.
+    #[default]
+    Fbm,
+    /// Ridged multifractal (Musgrave): Σ gainᵏ·wₖ(1 − |nₖ|)², wₖ₊₁ = clamp(2·wₖ(1 − |nₖ|)², 0, 1);
+    /// values in [0, amplitude·Σ gainᵏ] (ridges raise the terrain).
+    Ridged,
+}
+
+/// Where procedural detail goes.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum DetailWhere {
+    /// Every octave everywhere.
+    #[default]
+    Everywhere,
+    /// Only octaves finer than the data below: an octave of wavelength λ has weight
+    /// 1 − clamp(λ/s − 1, 0, 1), with s the sample spacing of the finest dataset that gave the
+    /// running height its value (all octaves where there is no data).
+    BeyondData,
+}
+
+/// Procedural noise, a function of the position on the ellipsoid (not of the quad).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct NoiseSpec {
+    /// `fbm` or `ridged`.
+    #[serde(rename = "type", default)]
+    pub noise_type: NoiseType,
+    /// Seed: different seeds give unrelated noise.
+    #[serde(default)]
+    pub seed: u32,
+    /// Amplitude of the first octave, metres.
+    pub amplitude_m: f64,
+    /// Wavelength of the first octave, metres.
+    pub wavelength_m: f64,
+    /// Octaves.
+    #[serde(default = "default_octaves")]
+    pub octaves: u32,
+    /// Wavelength ratio between octaves (> 1).
+    #[serde(default = "default_lacunarity")]
+    pub lacunarity: f64,
+    /// Amplitude ratio between octaves (0 < gain < 1).
+    #[serde(default = "default_gain")]
+    pub gain: f64,
+    /// Where the detail goes.
+    #[serde(rename = "where", default)]
+    pub placement: DetailWhere,
+}
+
+fn default_octaves() -> u32 {
+    8
+}
+
+fn default_lacunarity() -> f64 {
+    2.0
+}
+
+fn default_gain() -> f64 {
+    0.5
+}
+
+/// Where a dataset's store comes from when it is not there yet: the source files to import.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SourceSpec {
+    /// DEM files (relative to the project file).
+    pub files: Vec<PathBuf>,
+    /// Finest level to import (default: the level that matches the source's resolution).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub max_level: Option<u8>,
+    /// Vertical datum of the source: `ellipsoidal` (default), `egm96`, `egm2008`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub vertical_datum: Option<String>,
+}
+
+/// One layer of the stack.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LayerSpec {
+    /// Unique within the project.
+    pub name: String,
+    /// `dataset`, `procedural` or `constant`.
+    pub kind: LayerKind,
+    /// Hidden layers cost nothing and change nothing.
+    #[serde(default = "yes")]
+    pub visible: bool,
+    /// How the layer folds into the heights below.
+    #[serde(default)]
+    pub blend: BlendMode,
+    /// 0–1.
+    #[serde(default = "one")]
+    pub opacity: f64,
+    /// Weight in a `mean` group (≥ 0).
+    #[serde(default = "one")]
+    pub weight: f64,
+    /// Raw value × scale + offset (datum and unit fixes).
+    #[serde(default = "one")]
+    pub scale: f64,
+    /// Metres added after scaling.
+    #[serde(default)]
+    pub offset_m: f64,
+    /// Values (after scale and offset) outside `[min, max]` metres are no data.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub valid_range_m: Option<[f64; 2]>,
+    /// Where the layer applies (default: everywhere).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub extent: Option<ExtentSpec>,
+    /// Fade-in distance inside the extent's edge, metres on the ellipsoid.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub feather_m: f64,
+    /// Dataset: the tile store (GeoPackage), relative to the project file.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub store: Option<PathBuf>,
+    /// Dataset: its name in the store (default: `name`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub dataset: Option<String>,
+    /// Dataset: sources to import from when the store lacks it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub source: Option<SourceSpec>,
+    /// Constant: the height, metres.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub height_m: Option<f64>,
+    /// Procedural: the noise.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub noise: Option<NoiseSpec>,
+}
+
+fn yes() -> bool {
+    true
+}
+
+fn one() -> f64 {
+    1.0
+}
+
+fn is_zero(v: &f64) -> bool {
+    *v == 0.0
+}
+
+/// The finest wavelength procedural noise may have, as a fraction of the semi-major axis: the
+/// GPU's lattice indices are 32-bit integers (|P|/λ < 2³¹).
+pub const MIN_WAVELENGTH_OF_RADIUS: f64 = 1.0 / (1u64 << 30) as f64;
+
+/// Most octaves a procedural layer may have.
+pub const MAX_OCTAVES: u32 = 24;
+
+impl LayerSpec {
+    /// A dataset layer with the defaults.
+    pub fn dataset(name: &str, store: impl Into<PathBuf>) -> LayerSpec {
+        LayerSpec { store: Some(store.into()), ..LayerSpec::bare(name, LayerKind::Dataset) }
+    }
+
+    /// A constant layer with the defaults.
+    pub fn constant(name: &str, height_m: f64) -> LayerSpec {
+        LayerSpec { height_m: Some(height_m), ..LayerSpec::bare(name, LayerKind::Constant) }
+    }
+
+    /// A procedural layer with the defaults (blend `add`).
+    pub fn procedural(name: &str, noise: NoiseSpec) -> LayerSpec {
+        LayerSpec { noise: Some(noise), blend: BlendMode::Add, ..LayerSpec::bare(name, LayerKind::Procedural) }
+    }
+
+    fn bare(name: &str, kind: LayerKind) -> LayerSpec {
+        LayerSpec {
+            name: name.into(),
+            kind,
+            visible: true,
+            blend: BlendMode::Over,
+            opacity: 1.0,
+            weight: 1.0,
+            scale: 1.0,
+            offset_m: 0.0,
+            valid_range_m: None,
+            extent: None,
+            feather_m: 0.0,
+            store: None,
+            dataset: None,
+            source: None,
+            height_m: None,
+            noise: None,
+        }
+    }
+
+    /// The dataset's name inside its store.
+    pub fn store_dataset(&self) -> &str {
+        self.dataset.as_deref().unwrap_or(&self.name)
+    }
+
+    /// Checks what serde cannot: ranges, and that each kind has its fields and no other kind's.
+    /// `radius_m` is the body's semi-major axis (it bounds the finest noise wavelength).
+    pub fn check(&self, radius_m: f64) -> Result<(), LayerError> {
+        let bad = |field: &str, problem: String| Err(LayerError::field(&self.name, field, problem));
+        if self.name.trim().is_empty() {
+            return bad("name", "must not be empty".into());
+        }
+        if !(0.0..=1.0).contains(&self.opacity) {
+            return bad("opacity", format!("{} must lie in [0, 1]", self.opacity));
+        }
+        if !(self.weight.is_finite() && self.weight >= 0.0) {
+            return bad("weight", format!("{} must be a finite number ≥ 0", self.weight));
+        }
+        if !self.scale.is_finite() {
+            return bad("scale", format!("{} must be finite", self.scale));
+        }
+        if !self.offset_m.is_finite() {
+            return bad("offset_m", format!("{} must be finite", self.offset_m));
+        }
+        if let Some([lo, hi]) = self.valid_range_m
+            && !(lo <= hi && !lo.is_nan() && !hi.is_nan())
+        {
+            return bad("valid_range_m", format!("[{lo}, {hi}] must be increasing"));
+        }
+        if !(self.feather_m.is_finite() && self.feather_m >= 0.0) {
+            return bad("feather_m", format!("{} must be a distance ≥ 0 in metres", self.feather_m));
+        }
+        if self.feather_m > 0.0 && self.extent.is_none() {
+            return bad("feather_m", "feathers the extent's edge, but the layer has no extent".into());
+        }
+        if let Some(extent) = &self.extent {
+            check_extent(extent).map_err(|p| LayerError::field(&self.name, "extent", p))?;
+        }
+        let wrong_kind = |field: &str| {
+            Err(LayerError::field(&self.name, field, format!("is not a field of a {} layer", self.kind.name())))
+        };
+        let dataset = self.kind == LayerKind::Dataset;
+        if !dataset && self.store.is_some() {
+            return wrong_kind("store");
+        }
+        if !dataset && self.dataset.is_some() {
+            return wrong_kind("dataset");
+        }
+        if !dataset && self.source.is_some() {
+            return wrong_kind("source");
+        }
+        if self.kind != LayerKind::Constant && self.height_m.is_some() {
+            return wrong_kind("height_m");
+        }
+        if self.kind != LayerKind::Procedural && self.noise.is_some() {
+            return wrong_kind("noise");
+        }
+        match self.kind {
+            LayerKind::Dataset if self.store.is_none() => bad("store", "a dataset layer needs its store".into()),
+            LayerKind::Constant => match self.height_m {
+                Some(h) if h.is_finite() => Ok(()),
+                Some(h) => bad("height_m", format!("{h} must be finite")),
+                None => bad("height_m", "a constant layer needs its height".into()),
+            },
+            LayerKind::Procedural => match &self.noise {
+                Some(n) => {
+                    check_noise(n, radius_m).map_err(|(f, p)| LayerError::field(&self.name, &format!("noise.{f}"), p))
+                }
+                None => bad("noise", "a procedural layer needs its noise settings".into()),
+            },
+            LayerKind::Dataset => Ok(()),
+        }
+    }
+}
+
+fn check_extent(extent: &ExtentSpec) -> Result<(), String> {
+    let lat_ok = |lat: f64| (-90.0..=90.0).contains(&lat);
+    match extent {
+        ExtentSpec::Box([w, s, e, n]) => {
+            if ![w, s, e, n].iter().all(|v| v.is_finite()) {
+                return Err("box values must be finite".into());
+            }
+            if !(lat_ok(*s) && lat_ok(*n) && s < n) {
+                return Err(format!("box south {s} and north {n} must lie in [-90, 90] with south < north"));
+            }
+            if !((-360.0..=360.0).contains(w) && (-360.0..=360.0).contains(e)) || w == e {
+                return Err(format!("box west {w} and east {e} must be distinct longitudes in degrees"));
+            }
+            Ok(())
+        }
+        ExtentSpec::Polygon(ring) => {
+            if ring.len() < 3 {
+                return Err(format!("a polygon needs at least 3 vertices, not {}", ring.len()));
+            }
+            for (k, [lon, lat]) in ring.iter().enumerate() {
+                if !(lon.is_finite() && lat_ok(*lat) && (-540.0..=540.0).contains(lon)) {
+                    return Err(format!("vertex {k} [{lon}, {lat}] is not a [lon, lat] pair in degrees"));
+                }
+            }
+            Ok(())
+        }
+    }
+}
+
+fn check_noise(n: &NoiseSpec, radius_m: f64) -> Result<(), (&'static str, String)> {
+    if !(n.amplitude_m.is_finite() && n.amplitude_m >= 0.0) {
+        return Err(("amplitude_m", format!("{} must be a height ≥ 0 in metres", n.amplitude_m)));
+    }
+    if !(n.wavelength_m.is_finite() && n.wavelength_m > 0.0) {
+        return Err(("wavelength_m", format!("{} must be a positive length in metres", n.wavelength_m)));
+    }
+    if !(1..=MAX_OCTAVES).contains(&n.octaves) {
+        return Err(("octaves", format!("{} must lie in 1..={MAX_OCTAVES}", n.octaves)));
+    }
+    if !(n.lacunarity.is_finite() && n.lacunarity > 1.0 && n.lacunarity <= 16.0) {
+        return Err(("lacunarity", format!("{} must lie in (1, 16]", n.lacunarity)));
+    }
+    if !(n.gain.is_finite() && n.gain > 0.0 && n.gain < 1.0) {
+        return Err(("gain", format!("{} must lie in (0, 1)", n.gain)));
+    }
+    let finest = n.wavelength_m / n.lacunarity.powi(n.octaves as i32 - 1);
+    if finest < radius_m * MIN_WAVELENGTH_OF_RADIUS {
+        return Err((
+            "octaves",
+            format!(
+                "the finest octave's wavelength {finest:.3e} m is below {:.3e} m (the body's radius / 2³⁰)",
+                radius_m * MIN_WAVELENGTH_OF_RADIUS
+            ),
+        ));
+    }
+    Ok(())
+}

@@ -1,0 +1,262 @@
+//! The layer stack in memory: each layer's spec, compiled extent, identity and revision, and per
+//! quad the plan of what composing it reads. A layer's revision is bumped by every change to it;
+//! a quad's stamp is a hash over the identities, revisions and order of the layers that touch it,
+//! so a composed quad is stale exactly when a layer that touches it changed (or one that touches
+//! it was added, removed or moved past another).
+
+use glam::DVec3;
+
+use super::LayerError;
+use super::extent::{Extent, Relation};
+use super::noise;
+use super::spec::{BlendMode, LayerKind, LayerSpec};
+use crate::ecm::{CubeProjection, FacePoint, QuadId};
+use crate::geodesy::{Ellipsoid, Geodetic, ecef_from_geodetic};
+use crate::store::grid::{GRID, spacing_m};
+
+/// One layer of a stack.
+#[derive(Clone, Debug)]
+pub struct Layer {
+    /// As the project file has it.
+    pub spec: LayerSpec,
+    /// Identity, stable while the stack is open (moves keep it).
+    pub uid: u64,
+    /// Bumped by every change.
+    pub revision: u64,
+    /// The compiled extent.
+    pub extent: Option<Extent>,
+    /// Dataset layers: the raw value range of the data (before scale and offset), metres.
+    pub raw_range_m: (f64, f64),
+    /// Dataset layers: the sample spacing of the dataset's finest level, metres (∞ otherwise).
+    pub data_spacing_m: f64,
+}
+
+impl Layer {
+    /// Whether the layer can change any height: visible, with opacity, and (in a mean group)
+    /// with weight.
+    pub fn active(&self) -> bool {
+        self.spec.visible && self.spec.opacity > 0.0 && !(self.spec.blend == BlendMode::Mean && self.spec.weight == 0.0)
+    }
+
+    /// The layer's value range after scale, offset and valid range, metres (before coverage).
+    pub fn value_range_m(&self) -> (f64, f64) {
+        let raw = match self.spec.kind {
+            LayerKind::Dataset => self.raw_range_m,
+            LayerKind::Constant => {
+                let h = self.spec.height_m.unwrap_or(0.0);
+                (h, h)
+            }
+            LayerKind::Procedural => self.spec.noise.as_ref().map_or((0.0, 0.0), noise::noise_range_m),
+        };
+        let (a, b) = (raw.0 * self.spec.scale + self.spec.offset_m, raw.1 * self.spec.scale + self.spec.offset_m);
+        let (lo, hi) = (a.min(b), a.max(b));
+        match self.spec.valid_range_m {
+            Some([vlo, vhi]) => (lo.max(vlo), hi.min(vhi)),
+            None => (lo, hi),
+        }
+    }
+}
+
+/// How one layer enters a quad's composition.
+#[derive(Clone, Debug, PartialEq)]
+pub enum MaskPlan {
+    /// Mask 1 at every sample (no extent, or the quad deep inside it).
+    Full,
+    /// The extent's edge is near: evaluate the mask per sample against these segments.
+    Partial(Vec<u32>),
+}
+
+/// One layer of a quad's plan.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PlannedLayer {
+    /// Its index in the stack.
+    pub index: usize,
+    /// Its mask.
+    pub mask: MaskPlan,
+    /// Procedural layers: octaves the quad evaluates (finer ones are below its sample spacing).
+    pub octaves: u32,
+}
+
+/// What composing a quad reads, and the stamp it is cached under.
+#[derive(Clone, Debug, PartialEq)]
+pub struct QuadPlan {
+    /// The quad.
+    pub quad: QuadId,
+    /// Hash of (position, identity, revision) of every layer that touches the quad, active or not.
+    pub stamp: u64,
+    /// The active layers that touch it, bottom to top: the only ones read.
+    pub layers: Vec<PlannedLayer>,
+    /// Sample spacing of the quad, metres.
+    pub spacing_m: f64,
+}
+
+impl QuadPlan {
+    /// Indices of the dataset layers the plan reads (their source tiles must be loaded).
+    pub fn datasets<'a>(&'a self, stack: &'a Stack) -> impl Iterator<Item = usize> + 'a {
+        self.layers.iter().map(|l| l.index).filter(|&i| stack.layers[i].spec.kind == LayerKind::Dataset)
+    }
+}
+
+/// The stack.
+#[derive(Clone, Debug)]
+pub struct Stack {
+    /// The body.
+    pub ellipsoid: Ellipsoid,
+    /// Bottom to top.
+    pub layers: Vec<Layer>,
+    next_uid: u64,
+}
+
+/// A point of a quad's sample grid: ECEF and (lon, lat) radians, exact (f64).
+pub fn sample_point(ellipsoid: &Ellipsoid, quad: QuadId, n: u32, i: u32, j: u32) -> (DVec3, f64, f64) {
+    let (x, y) = quad.sample_xy(n, i, j);
+    let (lat, lon) = CubeProjection::Qsc
+        .geodetic_from_face_point(ellipsoid, FacePoint { face: quad.face, x, y })
+        .unwrap_or((0.0, 0.0));
+    (ecef_from_geodetic(ellipsoid, Geodetic { lat_rad: lat, lon_rad: lon, height_m: 0.0 }), lon, lat)
+}
+
+/// A ball around every sample of a quad: its centre sample and a radius, metres.
+pub fn quad_ball(ellipsoid: &Ellipsoid, quad: QuadId) -> (DVec3, (f64, f64), f64) {
+    let (centre, lon, lat) = sample_point(ellipsoid, quad, 3, 1, 1);
+    let mut radius = 0f64;
+    for (i, j) in [(0, 0), (2, 0), (0, 2), (2, 2), (1, 0), (0, 1), (2, 1), (1, 2)] {
+        radius = radius.max((sample_point(ellipsoid, quad, 3, i, j).0 - centre).length());
+    }
+    // The edges bulge beyond the chord between their samples by less than 2 % at level 0.
+    (centre, (lon, lat), radius * 1.05)
+}
+
+fn mix(stamp: u64, value: u64) -> u64 {
+    // FNV-1a over the value's bytes.
+    value.to_le_bytes().iter().fold(stamp, |h, b| (h ^ u64::from(*b)).wrapping_mul(0x100_0000_01b3))
+}
+
+impl Stack {
+    /// A stack of checked specs on a body. Dataset ranges and spacings are filled in by the
+    /// caller that opens the stores ([`Stack::set_dataset_info`]).
+    pub fn new(ellipsoid: Ellipsoid, specs: &[LayerSpec]) -> Result<Stack, LayerError> {
+        let mut stack = Stack { ellipsoid, layers: Vec::new(), next_uid: 1 };
+        for spec in specs {
+            stack.insert(stack.layers.len(), spec.clone())?;
+        }
+        Ok(stack)
+    }
+
+    fn compile(&self, spec: &LayerSpec) -> Result<Option<Extent>, LayerError> {
+        spec.check(self.ellipsoid.a_m())?;
+        Ok(spec.extent.as_ref().map(|e| Extent::new(e, spec.feather_m, &self.ellipsoid)))
+    }
+
+    /// Inserts a layer at `index` (0: bottom). Names must stay unique.
+    pub fn insert(&mut self, index: usize, spec: LayerSpec) -> Result<(), LayerError> {
+        if self.layers.iter().any(|l| l.spec.name == spec.name) {
+            return Err(LayerError::field(&spec.name, "name", "is used by another layer".into()));
+        }
+        let extent = self.compile(&spec)?;
+        let uid = self.next_uid;
+        self.next_uid += 1;
+        let layer = Layer { spec, uid, revision: 1, extent, raw_range_m: (0.0, 0.0), data_spacing_m: f64::INFINITY };
+        self.layers.insert(index.min(self.layers.len()), layer);
+        Ok(())
+    }
+
+    /// Replaces a layer's spec (its identity stays; its revision is bumped).
+    pub fn set(&mut self, index: usize, spec: LayerSpec) -> Result<(), LayerError> {
+        if self.layers.iter().enumerate().any(|(k, l)| k != index && l.spec.name == spec.name) {
+            return Err(LayerError::field(&spec.name, "name", "is used by another layer".into()));
+        }
+        let extent = self.compile(&spec)?;
+        let layer = &mut self.layers[index];
+        if layer.spec != spec {
+            layer.spec = spec;
+            layer.extent = extent;
+            layer.revision += 1;
+        }
+        Ok(())
+    }
+
+    /// Removes a layer.
+    pub fn remove(&mut self, index: usize) -> Layer {
+        self.layers.remove(index)
+    }
+
+    /// Moves a layer from one position to another (0: bottom).
+    pub fn move_layer(&mut self, from: usize, to: usize) {
+        let layer = self.layers.remove(from);
+        self.layers.insert(to.min(self.layers.len()), layer);
+    }
+
+    /// Records what a dataset layer's store says: raw height range and finest sample spacing.
+    pub fn set_dataset_info(&mut self, index: usize, raw_range_m: (f64, f64), data_spacing_m: f64) {
+        let layer = &mut self.layers[index];
+        layer.raw_range_m = raw_range_m;
+        layer.data_spacing_m = data_spacing_m;
+    }
+
+    /// The specs, bottom to top (what a project saves).
+    pub fn specs(&self) -> Vec<LayerSpec> {
+        self.layers.iter().map(|l| l.spec.clone()).collect()
+    }
+
+    /// The plan of a quad: `covers(i)` says whether dataset layer i has data at the quad (its own
+    /// tile or an ancestor's). `octave_skipping` off evaluates every octave at every level (the
+    /// reference the skipping's error is measured against).
+    pub fn plan(&self, quad: QuadId, covers: &dyn Fn(usize) -> bool, octave_skipping: bool) -> QuadPlan {
+        let spacing = spacing_m(&self.ellipsoid, quad.level);
+        let ball =
+            if self.layers.iter().any(|l| l.extent.is_some()) { Some(quad_ball(&self.ellipsoid, quad)) } else { None };
+        let mut stamp = 0xcbf2_9ce4_8422_2325u64;
+        let mut layers = Vec::new();
+        for (index, layer) in self.layers.iter().enumerate() {
+            if layer.spec.kind == LayerKind::Dataset && !covers(index) {
+                continue;
+            }
+            let mask = match (&layer.extent, ball) {
+                (Some(extent), Some((centre, lon_lat, radius))) => match extent.relation(centre, lon_lat, radius) {
+                    Relation::Outside => continue,
+                    Relation::Inside => MaskPlan::Full,
+                    Relation::Partial(segments) => MaskPlan::Partial(segments),
+                },
+                _ => MaskPlan::Full,
+            };
+            stamp = mix(mix(mix(stamp, index as u64), layer.uid), layer.revision);
+            if !layer.active() {
+                continue;
+            }
+            let octaves = match &layer.spec.noise {
+                Some(n) if octave_skipping => noise::octaves_resolved(n, spacing),
+                Some(n) => n.octaves,
+                None => 0,
+            };
+            if layer.spec.kind == LayerKind::Procedural && octaves == 0 {
+                continue;
+            }
+            layers.push(PlannedLayer { index, mask, octaves });
+        }
+        QuadPlan { quad, stamp, layers, spacing_m: if octave_skipping { spacing } else { 0.0 } }
+    }
+
+    /// Whether splitting `quad` adds detail that the layers make beyond the datasets: a child
+    /// resolves more octaves of an active procedural layer that touches the quad than the quad
+    /// does (so refinement stops where the remaining octaves are below the grid's spacing).
+    pub fn refines_below_data(&self, quad: QuadId) -> bool {
+        let spacing = spacing_m(&self.ellipsoid, quad.level);
+        let child_spacing = spacing / 2.0;
+        let mut ball = None;
+        self.layers.iter().any(|l| {
+            l.active()
+                && l.spec
+                    .noise
+                    .as_ref()
+                    .is_some_and(|n| noise::octaves_resolved(n, child_spacing) > noise::octaves_resolved(n, spacing))
+                && l.extent.as_ref().is_none_or(|e| {
+                    let (c, ll, r) = *ball.get_or_insert_with(|| quad_ball(&self.ellipsoid, quad));
+                    e.relation(c, ll, r) != Relation::Outside
+                })
+        })
+    }
+}
+
+/// Samples along a quad's edge.
+pub const SAMPLES: u32 = GRID;

@@ -1,0 +1,240 @@
+//! The stack's semantics checked against an independent evaluation of the README's formulas,
+//! written out by hand per case (not through `fold`).
+
+use super::compose::{SamplePoint, compose_sample, range_bound};
+use super::spec::{BlendMode, ExtentSpec, LayerSpec, NoiseSpec};
+use super::stack::{Stack, sample_point};
+use crate::ecm::{Face, QuadId};
+use crate::geodesy::Ellipsoid;
+
+fn constant(name: &str, h: f64, blend: BlendMode, opacity: f64) -> LayerSpec {
+    LayerSpec { blend, opacity, ..LayerSpec::constant(name, h) }
+}
+
+fn at(stack: &Stack, quad: QuadId, i: u32, j: u32) -> SamplePoint {
+    let (ecef, lon_rad, lat_rad) = sample_point(&stack.ellipsoid, quad, 257, i, j);
+    SamplePoint { ecef, lon_rad, lat_rad }
+}
+
+/// Composes constant layers (and datasets given by `raw`) at the centre of a front-face quad.
+fn compose(specs: &[LayerSpec], raw: &[f64]) -> f64 {
+    let mut stack = Stack::new(Ellipsoid::MOON, specs).unwrap();
+    for (k, l) in specs.iter().enumerate() {
+        if l.kind == super::LayerKind::Dataset {
+            stack.set_dataset_info(k, (0.0, 1.0), 100.0);
+        }
+    }
+    let quad = QuadId { face: Face::Front, level: 3, x: 2, y: 5 };
+    let plan = stack.plan(quad, &|_| true, true);
+    let raw_of = |k: usize| {
+        let index = plan.layers[k].index;
+        raw.get(index).copied().unwrap_or(f64::NAN)
+    };
+    compose_sample(&stack, &plan, &at(&stack, quad, 128, 128), &raw_of)
+}
+
+#[test]
+fn each_blend_mode_follows_its_formula() {
+    let base = constant("base", 100.0, BlendMode::Over, 1.0);
+    // over: h + α(v − h) = 100 + 0.25·(300 − 100)
+    assert_eq!(compose(&[base.clone(), constant("v", 300.0, BlendMode::Over, 0.25)], &[]), 150.0);
+    // add: h + α·v = 100 + 0.5·40
+    assert_eq!(compose(&[base.clone(), constant("v", 40.0, BlendMode::Add, 0.5)], &[]), 120.0);
+    // min: h + α(min(h, v) − h) = 100 + 0.5·(60 − 100)
+    assert_eq!(compose(&[base.clone(), constant("v", 60.0, BlendMode::Min, 0.5)], &[]), 80.0);
+    assert_eq!(compose(&[base.clone(), constant("v", 160.0, BlendMode::Min, 0.5)], &[]), 100.0);
+    // max: h + α(max(h, v) − h) = 100 + 0.5·(160 − 100)
+    assert_eq!(compose(&[base.clone(), constant("v", 160.0, BlendMode::Max, 0.5)], &[]), 130.0);
+    // Where h has no data: over, min and max set h = v (whatever α); add gives nothing.
+    assert_eq!(compose(&[constant("v", 7.0, BlendMode::Over, 0.1)], &[]), 7.0);
+    assert_eq!(compose(&[constant("v", 7.0, BlendMode::Min, 0.1)], &[]), 7.0);
+    assert!(compose(&[constant("v", 7.0, BlendMode::Add, 1.0)], &[]).is_nan());
+    // Nothing at all: no data.
+    assert!(compose(&[], &[]).is_nan());
+}
+
+#[test]
+fn a_mean_group_is_a_weighted_mean_applied_with_over_at_its_largest_coverage() {
+    let base = constant("base", 0.0, BlendMode::Over, 1.0);
+    let member = |name: &str, h: f64, opacity: f64, weight: f64| LayerSpec {
+        weight,
+        ..constant(name, h, BlendMode::Mean, opacity)
+    };
+    // Σ wαv / Σ wα = (1·1·100 + 3·0.5·200) / (1 + 1.5) = 160; over with α = max(1, 0.5) = 1.
+    let h = compose(&[base.clone(), member("a", 100.0, 1.0, 1.0), member("b", 200.0, 0.5, 3.0)], &[]);
+    assert!((h - 160.0).abs() < 1e-12, "{h}");
+    // Group coverage below 1: over at α = 0.5 → 0 + 0.5·(mean 100) = 50.
+    let h = compose(&[base.clone(), member("a", 100.0, 0.5, 1.0)], &[]);
+    assert_eq!(h, 50.0);
+    // A member without data does not count: datasets given raw values (NaN: none).
+    let d = |name: &str| LayerSpec { blend: BlendMode::Mean, ..LayerSpec::dataset(name, "s.gpkg") };
+    let h = compose(&[d("x"), d("y"), d("z")], &[10.0, f64::NAN, 40.0]);
+    assert_eq!(h, 25.0);
+    // Two groups separated by another layer are two means.
+    let h = compose(
+        &[
+            member("a", 100.0, 1.0, 1.0),
+            member("b", 300.0, 1.0, 1.0),
+            constant("c", 0.0, BlendMode::Add, 1.0),
+            member("d", 50.0, 1.0, 1.0),
+        ],
+        &[],
+    );
+    assert_eq!(h, 50.0, "the second group replaces (over, α 1) the first's 200");
+}
+
+#[test]
+fn scale_offset_and_valid_range_apply_to_the_value() {
+    let d = LayerSpec {
+        scale: 0.5,
+        offset_m: 10.0,
+        valid_range_m: Some([0.0, 100.0]),
+        ..LayerSpec::dataset("d", "s.gpkg")
+    };
+    assert_eq!(compose(&[d.clone()], &[100.0]), 60.0);
+    assert!(compose(&[d.clone()], &[300.0]).is_nan(), "160 m is outside [0, 100]: no data");
+    let base = constant("base", 5.0, BlendMode::Over, 1.0);
+    assert_eq!(compose(&[base, d], &[300.0]), 5.0, "an invalid value leaves h as it was");
+}
+
+#[test]
+fn invisible_and_transparent_layers_are_not_read_but_still_stamp_the_quad() {
+    let quad = QuadId { face: Face::Front, level: 3, x: 2, y: 5 };
+    let mut specs = vec![constant("a", 1.0, BlendMode::Over, 1.0), constant("b", 2.0, BlendMode::Over, 1.0)];
+    specs[1].visible = false;
+    let mut stack = Stack::new(Ellipsoid::MOON, &specs).unwrap();
+    let plan = stack.plan(quad, &|_| true, true);
+    assert_eq!(plan.layers.len(), 1);
+    let mut b = specs[1].clone();
+    b.visible = true;
+    stack.set(1, b).unwrap();
+    let plan2 = stack.plan(quad, &|_| true, true);
+    assert_eq!(plan2.layers.len(), 2);
+    assert_ne!(plan.stamp, plan2.stamp, "making a touching layer visible changes the stamp");
+    // A layer whose extent misses the quad neither stamps it nor is read.
+    let far = LayerSpec {
+        extent: Some(ExtentSpec::Box([100.0, 10.0, 110.0, 20.0])),
+        ..constant("far", 9.0, BlendMode::Over, 1.0)
+    };
+    stack.insert(2, far.clone()).unwrap();
+    let plan3 = stack.plan(quad, &|_| true, true);
+    assert_eq!(plan3.layers.len(), 2);
+    let mut far2 = far;
+    far2.offset_m = 5.0;
+    stack.set(2, far2).unwrap();
+    assert_eq!(stack.plan(quad, &|_| true, true).stamp, plan3.stamp, "an edit far away does not stale this quad");
+}
+
+#[test]
+fn the_feather_follows_the_distance_on_the_ellipsoid_across_a_face_edge() {
+    // A box on the Moon whose western edge (lon −45.5°) lies half a degree west of the
+    // front/left face edge (lon −45°), so its 30 km (≈ 1°) feather straddles the face edge: the
+    // mask at samples of quads on both faces follows smoothstep(d / feather), with d the
+    // great-circle distance to the meridian, R·asin(sin Δλ·cos φ) on a sphere.
+    let r = Ellipsoid::MOON.a_m();
+    let feather = 30_000.0;
+    let layer = LayerSpec {
+        extent: Some(ExtentSpec::Box([-45.5, -20.0, 20.0, 20.0])),
+        feather_m: feather,
+        ..constant("box", 100.0, BlendMode::Over, 1.0)
+    };
+    let stack = Stack::new(Ellipsoid::MOON, &[constant("base", 0.0, BlendMode::Over, 1.0), layer]).unwrap();
+    let mut checked = 0;
+    for quad in
+        [QuadId { face: Face::Front, level: 5, x: 0, y: 15 }, QuadId { face: Face::Left, level: 5, x: 31, y: 15 }]
+    {
+        let plan = stack.plan(quad, &|_| true, true);
+        for (i, j) in [(0u32, 128u32), (64, 100), (200, 50), (256, 256)] {
+            let p = at(&stack, quad, i, j);
+            let h = compose_sample(&stack, &plan, &p, &|_| f64::NAN);
+            let dlon = p.lon_rad + 45.5f64.to_radians();
+            let d = r * (dlon.sin() * p.lat_rad.cos()).asin();
+            let expected = if dlon < 0.0 { 0.0 } else { 100.0 * super::extent::smoothstep(d / feather) };
+            // The chord's sag (0.05° chords on the Moon: 0.17 m) and chord-vs-arc (< 0.01 m at
+            // 30 km) move d by < 0.2 m: 100 m × 1.5/30 km × 0.2 m = 0.001 m.
+            assert!((h - expected).abs() < 2e-3, "{quad} ({i},{j}): {h} vs {expected} (d {d})");
+            checked += 1;
+        }
+    }
+    assert_eq!(checked, 8);
+}
+
+#[test]
+fn bounds_hold_every_composed_sample() {
+    let noise = NoiseSpec {
+        noise_type: super::NoiseType::Fbm,
+        seed: 3,
+        amplitude_m: 50.0,
+        wavelength_m: 20_000.0,
+        octaves: 6,
+        lacunarity: 2.0,
+        gain: 0.5,
+        placement: super::DetailWhere::Everywhere,
+    };
+    let specs = [
+        constant("base", 100.0, BlendMode::Over, 1.0),
+        LayerSpec::procedural("detail", noise),
+        constant("raise", 5000.0, BlendMode::Add, 1.0),
+        constant("cap", 5120.0, BlendMode::Min, 0.7),
+    ];
+    let stack = Stack::new(Ellipsoid::MOON, &specs).unwrap();
+    let quad = QuadId { face: Face::Top, level: 6, x: 20, y: 40 };
+    let plan = stack.plan(quad, &|_| true, true);
+    let (lo, hi) = range_bound(&stack, &plan, &|k| stack.layers[plan.layers[k].index].value_range_m()).unwrap();
+    let heights = super::compose_quad(&stack, &plan, &|_| None);
+    for h in heights {
+        assert!(h as f64 >= lo - 1e-3 && h as f64 <= hi + 1e-3, "{h} outside [{lo}, {hi}]");
+    }
+    assert!(lo >= 5000.0 - 100.0 && hi <= 5200.0, "[{lo}, {hi}]");
+}
+
+#[test]
+fn bad_layers_name_the_layer_and_the_field() {
+    let cases: Vec<(LayerSpec, &str)> = vec![
+        (LayerSpec { opacity: 1.5, ..LayerSpec::constant("c", 0.0) }, "layer 'c': opacity: 1.5 must lie in [0, 1]"),
+        (
+            LayerSpec { feather_m: 10.0, ..LayerSpec::constant("c", 0.0) },
+            "layer 'c': feather_m: feathers the extent's edge",
+        ),
+        (
+            LayerSpec { height_m: Some(1.0), ..LayerSpec::dataset("d", "s") },
+            "layer 'd': height_m: is not a field of a dataset layer",
+        ),
+        (
+            LayerSpec { store: None, ..LayerSpec::dataset("d", "s") },
+            "layer 'd': store: a dataset layer needs its store",
+        ),
+        (
+            LayerSpec { extent: Some(ExtentSpec::Box([0.0, 10.0, 5.0, 5.0])), ..LayerSpec::constant("c", 0.0) },
+            "layer 'c': extent: box south 10 and north 5",
+        ),
+        (
+            LayerSpec {
+                extent: Some(ExtentSpec::Polygon(vec![[0.0, 0.0], [1.0, 1.0]])),
+                ..LayerSpec::constant("c", 0.0)
+            },
+            "a polygon needs at least 3 vertices",
+        ),
+    ];
+    for (spec, expected) in cases {
+        let e = spec.check(6.4e6).unwrap_err().to_string();
+        assert!(e.contains(expected), "{e}\n  expected: {expected}");
+    }
+    let mut n = NoiseSpec {
+        noise_type: super::NoiseType::Ridged,
+        seed: 0,
+        amplitude_m: 1.0,
+        wavelength_m: 1.0,
+        octaves: 24,
+        lacunarity: 2.0,
+        gain: 0.5,
+        placement: super::DetailWhere::Everywhere,
+    };
+    let e = LayerSpec::procedural("n", n.clone()).check(6.4e6).unwrap_err().to_string();
+    assert!(e.contains("layer 'n': noise.octaves: the finest octave's wavelength"), "{e}");
+    n.gain = 1.0;
+    let e = LayerSpec::procedural("n", n).check(6.4e6).unwrap_err().to_string();
+    assert!(e.contains("noise.gain"), "{e}");
+    let dup = Stack::new(Ellipsoid::MOON, &[LayerSpec::constant("a", 0.0), LayerSpec::constant("a", 1.0)]);
+    assert!(dup.unwrap_err().to_string().contains("layer 'a': name: is used by another layer"));
+}
