@@ -1,9 +1,9 @@
-//! The project file: a versioned JSON scene (body, datasets, visual settings, named views).
+//! The project file: a versioned JSON scene (body, layer stack, visual settings, named views).
 //!
 //! ```json
-//! { "format": "terrafuse-project", "version": 1, "body": "moon",
-//!   "datasets": [ { "name": "lola", "store": "stores/moon.gpkg", "dataset": "lola",
-//!                   "source": { "files": ["data/moon.tif"] } } ],
+//! { "format": "terrafuse-project", "version": 2, "body": "moon",
+//!   "layers": [ { "name": "lola", "kind": "dataset", "store": "stores/moon.gpkg",
+//!                 "source": { "files": ["data/moon.tif"] } } ],
 //!   "visuals": { "colour_map": { "preset": "hypsometric" }, "isolines": { "interval_m": 500 } },
 //!   "views": { "overview": { "lat": 0, "lon": 0, "alt": 4e6, "heading": 0, "pitch": -90 } } }
 //! ```
@@ -11,7 +11,10 @@
 //! Every field past `format`, `version` and `body` has a default, unknown fields are refused (a
 //! typo must not be silently ignored), and relative paths resolve against the file's folder. The
 //! version is checked on load: a file of a newer version is refused by name, older ones are
-//! migrated here when a later version arrives.
+//! migrated on load ([`Project::parse`]) and saved in the current version.
+//!
+//! Versions: 1 had `datasets` (first listed wins per sample); 2 has `layers`, bottom to top
+//! (a version-1 file's datasets become `over` dataset layers, the first listed on top).
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -19,11 +22,13 @@ use std::path::{Path, PathBuf};
 use serde::{Deserialize, Serialize};
 
 use crate::geodesy::Ellipsoid;
+pub use crate::layers::SourceSpec;
+use crate::layers::{LayerKind, LayerSpec};
 
 /// The `format` value of every project file.
 pub const FORMAT: &str = "terrafuse-project";
-/// The version this build writes and reads.
-pub const VERSION: u32 = 1;
+/// The version this build writes (and the newest it reads).
+pub const VERSION: u32 = 2;
 
 /// A project file that could not be used, naming the file and the problem.
 #[derive(Debug, thiserror::Error)]
@@ -112,21 +117,7 @@ impl CameraSpec {
     }
 }
 
-/// Where a dataset's store comes from when it is not there yet: the source files to import.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct SourceSpec {
-    /// DEM files (relative to the project file).
-    pub files: Vec<PathBuf>,
-    /// Finest level to import (default: the level that matches the source's resolution).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub max_level: Option<u8>,
-    /// Vertical datum of the source: `ellipsoidal` (default), `egm96`, `egm2008`.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub vertical_datum: Option<String>,
-}
-
-/// One dataset of the scene: a dataset of a tile store.
+/// One dataset of a version-1 project (read for migration only).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct DatasetSpec {
@@ -143,9 +134,9 @@ pub struct DatasetSpec {
 }
 
 impl DatasetSpec {
-    /// The dataset's name inside the store.
-    pub fn store_dataset(&self) -> &str {
-        self.dataset.as_deref().unwrap_or(&self.name)
+    /// The version-2 layer: an `over` dataset layer with the same fields.
+    pub fn into_layer(self) -> LayerSpec {
+        LayerSpec { dataset: self.dataset, source: self.source, ..LayerSpec::dataset(&self.name, self.store) }
     }
 }
 
@@ -299,9 +290,9 @@ pub struct Project {
     pub version: u32,
     /// The body: `wgs84`, `moon`, `mars`.
     pub body: String,
-    /// The datasets, in order: where an earlier one has no data a later one shows.
+    /// The layer stack, bottom to top.
     #[serde(default)]
-    pub datasets: Vec<DatasetSpec>,
+    pub layers: Vec<LayerSpec>,
     /// How the terrain looks.
     #[serde(default)]
     pub visuals: Visuals,
@@ -326,7 +317,7 @@ impl Project {
             format: FORMAT.into(),
             version: VERSION,
             body: body.into(),
-            datasets: Vec::new(),
+            layers: Vec::new(),
             visuals: Visuals::default(),
             detail: DetailSpec::default(),
             views: BTreeMap::new(),
@@ -360,6 +351,10 @@ impl Project {
                 "version {version} is not supported: this build reads versions 1 to {VERSION}; a newer Terrafuse wrote it?"
             ));
         }
+        let mut value = value;
+        if version == 1 {
+            migrate_v1(&mut value)?;
+        }
         let project: Project = serde_json::from_value(value).map_err(|e| format!("{e}"))?;
         project.check()?;
         Ok(project)
@@ -377,10 +372,12 @@ impl Project {
             return Err(format!("default_view '{v}' is not one of the views"));
         }
         let mut names = std::collections::HashSet::new();
-        for d in &self.datasets {
-            if !names.insert(&d.name) {
-                return Err(format!("dataset '{}' is listed twice", d.name));
+        let radius_m = self.ellipsoid()?.a_m();
+        for (k, layer) in self.layers.iter().enumerate() {
+            if !names.insert(&layer.name) {
+                return Err(format!("layers[{k}]: layer '{}' is listed twice", layer.name));
             }
+            layer.check(radius_m).map_err(|e| format!("layers[{k}]: {e}"))?;
         }
         let v = &self.visuals;
         if !(v.exaggeration.is_finite() && v.exaggeration > 0.0) {
@@ -416,6 +413,11 @@ impl Project {
         self.body.parse::<Ellipsoid>().map_err(|e| format!("body: {e}"))
     }
 
+    /// The dataset layers, bottom to top.
+    pub fn dataset_layers(&self) -> impl Iterator<Item = &LayerSpec> {
+        self.layers.iter().filter(|l| l.kind == LayerKind::Dataset)
+    }
+
     /// A path of the project, resolved against the project file's folder.
     pub fn resolve(&self, path: &Path) -> PathBuf {
         if path.is_absolute() { path.to_path_buf() } else { self.base_dir.join(path) }
@@ -446,6 +448,22 @@ impl Project {
     }
 }
 
+/// Version 1 → 2: `datasets` (first listed wins) become `over` dataset layers, bottom to top.
+fn migrate_v1(value: &mut serde_json::Value) -> Result<(), String> {
+    let object = value.as_object_mut().ok_or("a project is a JSON object")?;
+    if object.contains_key("layers") {
+        return Err("a version-1 project has \"datasets\", not \"layers\" (layers are version 2)".into());
+    }
+    let datasets: Vec<DatasetSpec> = match object.remove("datasets") {
+        Some(d) => serde_json::from_value(d).map_err(|e| format!("datasets: {e}"))?,
+        None => Vec::new(),
+    };
+    let layers: Vec<LayerSpec> = datasets.into_iter().rev().map(DatasetSpec::into_layer).collect();
+    object.insert("layers".into(), serde_json::to_value(layers).map_err(|e| e.to_string())?);
+    object.insert("version".into(), VERSION.into());
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -466,14 +484,14 @@ mod tests {
         let dir = std::env::temp_dir().join(format!("terrafuse-project-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         let mut p = Project::new("wgs84");
-        p.datasets.push(DatasetSpec { name: "srtm".into(), store: "s/e.gpkg".into(), dataset: None, source: None });
+        p.layers.push(LayerSpec::dataset("srtm", "s/e.gpkg"));
         p.views.insert("near".into(), CameraSpec::parse("39.9,41.3,2000,30,-20").unwrap());
         let path = dir.join("p.json");
         p.save(&path).unwrap();
         let q = Project::load(&path).unwrap();
-        assert_eq!(q.datasets, p.datasets);
+        assert_eq!(q.layers, p.layers);
         assert_eq!(q.views, p.views);
-        assert_eq!(q.resolve(&q.datasets[0].store), dir.join("s/e.gpkg"));
+        assert_eq!(q.resolve(q.layers[0].store.as_ref().unwrap()), dir.join("s/e.gpkg"));
         assert_eq!(q.view(None).unwrap().heading, 30.0);
         std::fs::remove_dir_all(&dir).unwrap();
     }
@@ -503,6 +521,37 @@ mod tests {
         }
         let e = Project::load(Path::new("/nonexistent/p.json")).unwrap_err().to_string();
         assert!(e.starts_with("/nonexistent/p.json: cannot read"), "{e}");
+    }
+
+    #[test]
+    fn version_1_files_migrate_to_layers_first_listed_on_top() {
+        let v1 = r#"{"format": "terrafuse-project", "version": 1, "body": "moon",
+            "datasets": [{"name": "north", "store": "s.gpkg", "source": {"files": ["n.tif"]}},
+                         {"name": "global", "store": "s.gpkg", "dataset": "lola"}]}"#;
+        let p = Project::parse(v1).unwrap();
+        assert_eq!(p.version, VERSION);
+        let names: Vec<&str> = p.layers.iter().map(|l| l.name.as_str()).collect();
+        assert_eq!(names, ["global", "north"], "bottom to top: the first listed ends on top");
+        assert!(p.layers.iter().all(|l| l.kind == LayerKind::Dataset && l.blend == crate::layers::BlendMode::Over));
+        assert_eq!(p.layers[0].store_dataset(), "lola");
+        assert_eq!(p.layers[1].source.as_ref().unwrap().files, [PathBuf::from("n.tif")]);
+        let text = serde_json::to_string(&p).unwrap();
+        assert!(text.contains("\"version\":2") && text.contains("\"layers\"") && !text.contains("\"datasets\""));
+        // A version-2 file with datasets is refused (the field is gone), naming it.
+        let e = Project::parse(r#"{"format": "terrafuse-project", "version": 2, "body": "moon", "datasets": []}"#);
+        assert!(e.unwrap_err().contains("unknown field `datasets`"));
+    }
+
+    #[test]
+    fn layers_are_checked_with_their_index_and_name() {
+        let bad = r#"{"format": "terrafuse-project", "version": 2, "body": "moon",
+            "layers": [{"name": "sea", "kind": "constant", "height_m": 0},
+                       {"name": "n", "kind": "procedural", "noise": {"amplitude_m": 5, "wavelength_m": -1}}]}"#;
+        let e = Project::parse(bad).unwrap_err();
+        assert!(e.contains("layers[1]: layer 'n': noise.wavelength_m: -1 must be a positive length"), "{e}");
+        let bad = r#"{"format": "terrafuse-project", "version": 2, "body": "moon",
+            "layers": [{"name": "sea", "kind": "constant", "height_m": 0, "blend": "screen"}]}"#;
+        assert!(Project::parse(bad).unwrap_err().contains("unknown variant `screen`"));
     }
 
     #[test]

@@ -59,6 +59,7 @@ fn vertex_positions_match_the_cpu_reference_and_the_f64_truth() {
     let levels: std::collections::BTreeSet<u8> = drawn.iter().map(|q| q.level).collect();
     assert!(levels.len() >= 3, "levels {levels:?}");
     let mut geometries = std::collections::HashMap::new();
+    let mut composed = std::collections::HashMap::new();
     let (mut checked, mut worst_cpu, mut worst_truth) = (0usize, 0f64, 0f64);
     for (k, id) in ids.iter().enumerate() {
         if id[0] == 0 || id[3] & 2 != 0 {
@@ -72,9 +73,9 @@ fn vertex_positions_match_the_cpu_reference_and_the_f64_truth() {
         let quad = drawn[index];
         let (i, j) = (id[1], id[2]);
         let g = geometries.entry(quad).or_insert_with(|| r.reference_geometry(quad));
-        let heights = r.cpu_heights(quad);
+        let heights = composed.entry(quad).or_insert_with(|| r.read_heights(quad).unwrap());
         let h = heights.as_ref().map_or(0.0, |hs| {
-            let v = hs.grid[(j * 257 + i) as usize];
+            let v = hs[(j * 257 + i) as usize];
             if v.is_nan() { 0.0 } else { v }
         });
         let frame: QuadFrame = g.frame(cam.position, f64::from(instances[index].reference_height_m()));
@@ -362,8 +363,8 @@ fn the_render_command_writes_the_png_and_reports_what_it_drew() {
     let no_file = terrafuse(&["render", missing.to_str().unwrap(), "--out", "/tmp/x.png"], "");
     assert!(String::from_utf8_lossy(&no_file.stderr).contains("missing.json: cannot read"));
     let mut p = Project::load(&moon).unwrap();
-    p.datasets[0].store = out_dir().join("absent.gpkg");
-    p.datasets[0].source = None;
+    p.layers[0].store = Some(out_dir().join("absent.gpkg"));
+    p.layers[0].source = None;
     let orphan = out_dir().join("orphan.json");
     p.save(&orphan).unwrap();
     let o = terrafuse(&["render", orphan.to_str().unwrap(), "--out", "/tmp/x.png"], "");
@@ -401,21 +402,42 @@ fn quads_wait_for_their_data_and_the_parent_stands_in() {
 
 #[test]
 fn datasets_fill_each_other_and_show_below_their_finest_level() {
-    use terrafuse::gpu::data::{compose_heights, upsample};
+    use terrafuse::gpu::data::{read_source, upsample};
+    use terrafuse::layers::compose_quad;
     use terrafuse::store::Store;
-    // Both Moon grids: the polar one (levels 0–3) first, the global one (levels 0–1) after.
+    // Both Moon grids: the polar one (levels 0–3) on top of the global one (levels 0–1).
     let mut p = Project::load(&repo_path("projects/moon-lola.json")).unwrap();
-    for d in &mut p.datasets {
-        d.store = out_dir().join("moon-fusion.gpkg");
+    for d in &mut p.layers {
+        if d.store.is_some() {
+            d.store = Some(out_dir().join("moon-fusion.gpkg"));
+        }
         if let Some(s) = &mut d.source {
             s.files = s.files.iter().map(|f| repo_path("projects").join(f)).collect();
         }
+        d.extent = None; // plain `over`: the polar samples win exactly where they exist
+        d.feather_m = 0.0;
     }
+    p.layers.retain(|l| l.store.is_some());
     let (scene, _) = Scene::open(&p).unwrap();
-    let (north, global) = (&scene.datasets[0], &scene.datasets[1]);
+    let north_layer = scene.stack.layers.iter().position(|l| l.spec.name == "lola_north").unwrap();
+    let global_layer = scene.stack.layers.iter().position(|l| l.spec.name == "lola_global").unwrap();
+    assert!(north_layer > global_layer, "the polar grid is above the global one");
+    let north = &scene.datasets[scene.dataset_of_layer(north_layer).unwrap()];
+    let global = &scene.datasets[scene.dataset_of_layer(global_layer).unwrap()];
     assert_eq!((north.finest_level, global.finest_level), (3, 1));
-    let mut stores = vec![None, None];
     let store = Store::open_read_only(&north.store).unwrap();
+    let fuse = |quad: QuadId| {
+        let plan = scene.plan(quad);
+        let tiles: Vec<Vec<f32>> = plan
+            .layers
+            .iter()
+            .map(|l| {
+                let d = &scene.datasets[scene.dataset_of_layer(l.index).unwrap()];
+                read_source(quad, d, &mut None).unwrap().grid
+            })
+            .collect();
+        compose_quad(&scene.stack, &plan, &|k| Some(&tiles[k][..]))
+    };
     // A level-2 quad the polar grid only partly covers: the global grid (upsampled from level 1)
     // fills the rest, and the polar samples stay as they are.
     let partial = north.present[2]
@@ -424,9 +446,9 @@ fn datasets_fill_each_other_and_show_below_their_finest_level() {
         .find(|q| store.read_grid(&north.dataset, *q).unwrap().unwrap().values.iter().any(|h| h.is_nan()))
         .expect("a level-2 quad at the polar grid's edge");
     let polar = store.read_grid(&north.dataset, partial).unwrap().unwrap();
-    let fused = compose_heights(partial, &scene.datasets, &mut stores).unwrap();
-    assert!(fused.grid.iter().all(|h| h.is_finite()), "{partial}: no data left");
-    for (f, n) in fused.grid.iter().zip(&polar.values) {
+    let fused = fuse(partial);
+    assert!(fused.iter().all(|h| h.is_finite()), "{partial}: no data left");
+    for (f, n) in fused.iter().zip(&polar.values) {
         if !n.is_nan() {
             assert_eq!(f.to_bits(), n.to_bits());
         }
@@ -438,8 +460,8 @@ fn datasets_fill_each_other_and_show_below_their_finest_level() {
     let ancestor = global.source_quad(equator);
     assert_eq!(ancestor.level, 1);
     let coarse = store.read_grid(&global.dataset, ancestor).unwrap().unwrap();
-    let fused = compose_heights(equator, &scene.datasets, &mut stores).unwrap();
+    let fused = fuse(equator);
     let expected = upsample(&coarse.values, ancestor, equator);
-    assert!(fused.grid.iter().zip(&expected).all(|(a, b)| a.to_bits() == b.to_bits()));
-    assert!(fused.grid.iter().all(|h| h.is_finite()));
+    assert!(fused.iter().zip(&expected).all(|(a, b)| a.to_bits() == b.to_bits()));
+    assert!(fused.iter().all(|h| h.is_finite()));
 }

@@ -1,6 +1,8 @@
 //! Terrain data for the renderer: which quads have data (known up front from the stores), the
-//! asynchronous loader (worker threads that read heights from the stores and compute static
-//! maps), and the bounded CPU cache (least recently used, byte budget) the loader fills.
+//! asynchronous loader (worker threads that fetch raw source tiles per dataset and quad from the
+//! stores, upsampled from an ancestor below a dataset's finest level, and compute static maps),
+//! and the bounded CPU cache (least recently used, byte budget) the loader fills. The loader
+//! composes nothing: composition is the GPU's (`compose`).
 //!
 //! Nothing here blocks a frame: the renderer asks for what it wants, takes whatever has arrived
 //! since the last frame, and draws what it has.
@@ -19,10 +21,10 @@ use crate::store::grid::GRID;
 /// Samples along a quad edge, in the store and on the GPU.
 pub const SAMPLES: u32 = GRID;
 
-/// One quad's composed heights (all datasets, first with data wins per sample).
+/// One dataset's raw heights at one quad (a source tile), with what bounds need.
 #[derive(Debug)]
 pub struct QuadHeights {
-    /// 257² heights, row by row from the south, NaN where no dataset has data.
+    /// 257² heights, row by row from the south, NaN where the dataset has no data.
     pub grid: Vec<f32>,
     /// Lowest and highest height with data, metres.
     pub range_m: (f32, f32),
@@ -122,16 +124,16 @@ impl DatasetInfo {
 /// What the loader is asked for.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum DataKey {
-    /// A quad's composed heights.
-    Heights(QuadId),
+    /// A dataset's raw heights at a quad (the dataset's index in the scene).
+    Source(u32, QuadId),
     /// The static maps of a canonical quad.
     Maps(QuadId),
 }
 
 /// What the loader sends back.
 pub enum Loaded {
-    /// Heights (or a read error, named).
-    Heights(QuadId, Result<Arc<QuadHeights>, String>),
+    /// A source tile (or a read error, named).
+    Source(u32, QuadId, Result<Arc<QuadHeights>, String>),
     /// Static maps.
     Maps(QuadId, Arc<StaticMaps>),
 }
@@ -244,7 +246,9 @@ fn worker(
                 let symmetry = crate::ecm::geometry::MapSymmetry::of(quad);
                 Loaded::Maps(quad, maps.get(ellipsoid, CubeProjection::Qsc, symmetry, SAMPLES))
             }
-            DataKey::Heights(quad) => Loaded::Heights(quad, compose_heights(quad, datasets, &mut stores).map(Arc::new)),
+            DataKey::Source(d, quad) => {
+                Loaded::Source(d, quad, read_source(quad, &datasets[d as usize], &mut stores[d as usize]).map(Arc::new))
+            }
         };
         queue.0.lock().unwrap_or_else(|p| p.into_inner()).in_flight.remove(&key);
         if tx.send(result).is_err() {
@@ -253,40 +257,23 @@ fn worker(
     }
 }
 
-/// A quad's heights from every dataset that has a tile there, the first with data winning per
-/// sample.
-pub fn compose_heights(
-    quad: QuadId,
-    datasets: &[DatasetInfo],
-    stores: &mut [Option<Store>],
-) -> Result<QuadHeights, String> {
-    let mut grid: Option<Vec<f32>> = None;
-    for (d, store) in datasets.iter().zip(stores.iter_mut()) {
-        if !d.covers(quad) {
-            continue;
-        }
-        if store.is_none() {
-            *store = Some(Store::open_read_only(&d.store).map_err(|e| e.to_string())?);
-        }
-        let s = store.as_ref().expect("opened above");
-        let source = d.source_quad(quad);
-        let Some(tile) = s.read_grid(&d.dataset, source).map_err(|e| e.to_string())? else { continue };
-        let values = if source == quad { tile.values } else { upsample(&tile.values, source, quad) };
-        match &mut grid {
-            None => grid = Some(values),
-            Some(g) => {
-                for (h, t) in g.iter_mut().zip(&values) {
-                    if h.is_nan() {
-                        *h = *t;
-                    }
-                }
-            }
-        }
-        if grid.as_ref().is_some_and(|g| !g.iter().any(|h| h.is_nan())) {
-            break;
-        }
+/// A dataset's raw heights at `quad`: its tile there, or below its finest level its tile at the
+/// finest level upsampled; all no data where it has no tile.
+pub fn read_source(quad: QuadId, dataset: &DatasetInfo, store: &mut Option<Store>) -> Result<QuadHeights, String> {
+    let n = (SAMPLES * SAMPLES) as usize;
+    if !dataset.covers(quad) {
+        return Ok(QuadHeights::new(vec![f32::NAN; n]));
     }
-    let grid = grid.unwrap_or_else(|| vec![f32::NAN; (SAMPLES * SAMPLES) as usize]);
+    if store.is_none() {
+        *store = Some(Store::open_read_only(&dataset.store).map_err(|e| e.to_string())?);
+    }
+    let s = store.as_ref().expect("opened above");
+    let source = dataset.source_quad(quad);
+    let grid = match s.read_grid(&dataset.dataset, source).map_err(|e| e.to_string())? {
+        Some(tile) if source == quad => tile.values,
+        Some(tile) => upsample(&tile.values, source, quad),
+        None => vec![f32::NAN; n],
+    };
     Ok(QuadHeights::new(grid))
 }
 
@@ -324,7 +311,7 @@ pub struct CpuCache {
     budget_bytes: usize,
     used_bytes: usize,
     clock: u64,
-    heights: HashMap<QuadId, (Arc<QuadHeights>, u64)>,
+    heights: HashMap<(u32, QuadId), (Arc<QuadHeights>, u64)>,
     maps: HashMap<QuadId, (Arc<StaticMaps>, u64)>,
 }
 
@@ -353,13 +340,13 @@ impl CpuCache {
     pub fn insert(&mut self, loaded: Loaded) {
         self.clock += 1;
         match loaded {
-            Loaded::Heights(quad, Ok(h)) => {
+            Loaded::Source(d, quad, Ok(h)) => {
                 self.used_bytes += h.bytes();
-                if let Some((old, _)) = self.heights.insert(quad, (h, self.clock)) {
+                if let Some((old, _)) = self.heights.insert((d, quad), (h, self.clock)) {
                     self.used_bytes -= old.bytes();
                 }
             }
-            Loaded::Heights(_, Err(_)) => {}
+            Loaded::Source(_, _, Err(_)) => {}
             Loaded::Maps(quad, m) => {
                 self.used_bytes += m.size_bytes();
                 if let Some((old, _)) = self.maps.insert(quad, (m, self.clock)) {
@@ -369,11 +356,11 @@ impl CpuCache {
         }
         while self.used_bytes > self.budget_bytes {
             let oldest_h =
-                self.heights.iter().min_by_key(|(_, (_, t))| *t).map(|(k, (_, t))| (*t, DataKey::Heights(*k)));
+                self.heights.iter().min_by_key(|(_, (_, t))| *t).map(|(k, (_, t))| (*t, DataKey::Source(k.0, k.1)));
             let oldest_m = self.maps.iter().min_by_key(|(_, (_, t))| *t).map(|(k, (_, t))| (*t, DataKey::Maps(*k)));
             let Some((_, key)) = [oldest_h, oldest_m].into_iter().flatten().min_by_key(|(t, _)| *t) else { break };
             match key {
-                DataKey::Heights(q) => self.used_bytes -= self.heights.remove(&q).map_or(0, |(h, _)| h.bytes()),
+                DataKey::Source(d, q) => self.used_bytes -= self.heights.remove(&(d, q)).map_or(0, |(h, _)| h.bytes()),
                 DataKey::Maps(q) => self.used_bytes -= self.maps.remove(&q).map_or(0, |(m, _)| m.size_bytes()),
             }
         }
@@ -382,16 +369,16 @@ impl CpuCache {
     /// Whether the cache holds `key` (without marking it used).
     pub fn contains(&self, key: DataKey) -> bool {
         match key {
-            DataKey::Heights(q) => self.heights.contains_key(&q),
+            DataKey::Source(d, q) => self.heights.contains_key(&(d, q)),
             DataKey::Maps(q) => self.maps.contains_key(&q),
         }
     }
 
-    /// Heights of a quad, marking them used.
-    pub fn heights(&mut self, quad: QuadId) -> Option<Arc<QuadHeights>> {
+    /// A dataset's source tile at a quad, marking it used.
+    pub fn source(&mut self, dataset: u32, quad: QuadId) -> Option<Arc<QuadHeights>> {
         self.clock += 1;
         let clock = self.clock;
-        self.heights.get_mut(&quad).map(|(h, t)| {
+        self.heights.get_mut(&(dataset, quad)).map(|(h, t)| {
             *t = clock;
             h.clone()
         })
@@ -423,15 +410,15 @@ mod tests {
         let mut cache = CpuCache::new(3 * one);
         let q = |x| QuadId { face: Face::Front, level: 3, x, y: 0 };
         for x in 0..3 {
-            cache.insert(Loaded::Heights(q(x), Ok(heights(x as f32))));
+            cache.insert(Loaded::Source(0, q(x), Ok(heights(x as f32))));
         }
         assert_eq!(cache.used_bytes(), 3 * one);
-        assert!(cache.heights(q(0)).is_some()); // 0 is now the most recently used
-        cache.insert(Loaded::Heights(q(3), Ok(heights(3.0))));
+        assert!(cache.source(0, q(0)).is_some()); // 0 is now the most recently used
+        cache.insert(Loaded::Source(0, q(3), Ok(heights(3.0))));
         assert_eq!(cache.len(), 3);
         assert!(cache.used_bytes() <= 3 * one);
-        assert!(cache.heights(q(1)).is_none(), "1 was the least recently used");
-        assert!(cache.heights(q(0)).is_some() && cache.heights(q(3)).is_some());
+        assert!(cache.source(0, q(1)).is_none(), "1 was the least recently used");
+        assert!(cache.source(0, q(0)).is_some() && cache.source(0, q(3)).is_some());
     }
 
     #[test]

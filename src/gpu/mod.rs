@@ -3,6 +3,7 @@
 //! and [`crate::colour`].
 
 pub mod camera;
+pub mod compose;
 pub mod context;
 pub mod data;
 mod quads;
@@ -17,7 +18,7 @@ mod uniforms;
 
 pub use camera::Camera;
 pub use context::{GpuContext, GpuError};
-pub use renderer::{FrameStats, Renderer};
+pub use renderer::{ComposeCounters, FrameStats, Renderer};
 pub use scene::Scene;
 pub use targets::{DrawMode, FrameTargets, ID_FORMAT, IMAGE_FORMAT, RenderedImage, SURFACE_FORMAT};
 pub use terrain::{MESH_EDGE, TRIANGLES_PER_QUAD};

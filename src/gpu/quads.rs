@@ -2,6 +2,7 @@
 //! they were computed for), readiness and refinability, borrowed from the renderer's parts.
 
 use std::collections::HashMap;
+use std::sync::Arc;
 
 use glam::DVec3;
 
@@ -10,6 +11,7 @@ use super::select::{QuadInfo, QuadSource};
 use super::slots::SlotPool;
 use crate::ecm::geometry::{FlatRule, HeightRange, MapSymmetry, QuadBounds, QuadGeometry};
 use crate::ecm::{CubeProjection, QuadId};
+use crate::layers::{LayerKind, MaskPlan, QuadPlan, noise, range_bound};
 
 /// Quads without data are split down to this level at most: there the chord between two samples
 /// is within millimetres of the ellipsoid on Earth-sized bodies.
@@ -41,11 +43,15 @@ pub(crate) fn exaggerated_range(scene: &Scene, exaggeration: f64) -> HeightRange
     }
 }
 
-/// Per-quad geometry and bounds kept for selection and per-frame values.
+/// Per-quad geometry, plans and bounds kept for selection and per-frame values.
+#[derive(Default)]
 pub(crate) struct QuadCache {
     pub(crate) geometry: HashMap<QuadId, QuadGeometry>,
     pub(crate) infos: HashMap<QuadId, ((f32, f32), QuadInfo)>,
-    pub(crate) ranges: HashMap<QuadId, (f32, f32, f32)>,
+    /// Per quad, what composing it reads (dropped when the stack changes).
+    pub(crate) plans: HashMap<QuadId, Arc<QuadPlan>>,
+    /// Per loaded source tile (dataset, quad): its height range and edge roughness, metres.
+    pub(crate) tile_ranges: HashMap<(u32, QuadId), (f32, f32, f32)>,
 }
 
 /// The data side of selection, borrowing the renderer's parts.
@@ -65,23 +71,65 @@ impl QuadCache {
             .or_insert_with(|| QuadGeometry::compute(&scene.ellipsoid, CubeProjection::Qsc, quad, BOUND_SAMPLES))
     }
 
-    /// The height range a quad may span (its own once loaded; the datasets' before), with 0
-    /// (where no-data samples are drawn), exaggerated.
-    pub(crate) fn range(&self, scene: &Scene, quad: QuadId, has_data: bool, exaggeration: f64) -> (f32, f32) {
-        let (lo, hi) = match self.ranges.get(&quad) {
-            Some(&(lo, hi, _)) => (f64::from(lo), f64::from(hi)),
-            None if has_data => scene.range_m,
-            None => (0.0, 0.0),
-        };
+    /// The quad's plan (cached until the stack changes).
+    pub(crate) fn plan(&mut self, scene: &Scene, quad: QuadId) -> Arc<QuadPlan> {
+        self.plans.entry(quad).or_insert_with(|| Arc::new(scene.plan(quad))).clone()
+    }
+
+    /// The value range of the plan's k-th layer at its quad: a dataset's loaded tile's, else the
+    /// layer's own bound.
+    fn layer_range(&self, scene: &Scene, plan: &QuadPlan, k: usize) -> (f64, f64) {
+        let index = plan.layers[k].index;
+        let layer = &scene.stack.layers[index];
+        if let Some(d) = scene.dataset_of_layer(index)
+            && let Some(&(lo, hi, _)) = self.tile_ranges.get(&(d as u32, plan.quad))
+        {
+            let mut l = layer.clone();
+            l.raw_range_m = (f64::from(lo), f64::from(hi));
+            return l.value_range_m();
+        }
+        layer.value_range_m()
+    }
+
+    /// The height range a quad may span (interval arithmetic through its plan, with the loaded
+    /// tiles' ranges where known), with 0 (where no-data samples are drawn), exaggerated.
+    pub(crate) fn range(&self, scene: &Scene, plan: &QuadPlan, exaggeration: f64) -> (f32, f32) {
+        let (lo, hi) = range_bound(&scene.stack, plan, &|k| self.layer_range(scene, plan, k)).unwrap_or((0.0, 0.0));
         // No-data samples are drawn at height 0, so 0 is always in the range.
         ((lo.min(0.0) * exaggeration) as f32, (hi.max(0.0) * exaggeration) as f32)
+    }
+
+    /// A bound on the height difference between neighbouring samples along the quad's edges,
+    /// metres (sizes the skirt): the sum over the plan's layers of what each can change there:
+    /// a dataset its tile's edge roughness (its range before the tile arrives), noise its
+    /// slope bound over one sample, a feathered mask its value span × the mask's slope.
+    pub(crate) fn roughness(&self, scene: &Scene, plan: &QuadPlan, spacing_m: f64) -> f64 {
+        let mut total = 0.0;
+        for (k, planned) in plan.layers.iter().enumerate() {
+            let layer = &scene.stack.layers[planned.index];
+            let spec = &layer.spec;
+            let (lo, hi) = self.layer_range(scene, plan, k);
+            total += match (spec.kind, scene.dataset_of_layer(planned.index)) {
+                (LayerKind::Dataset, Some(d)) => {
+                    self.tile_ranges.get(&(d as u32, plan.quad)).map_or(hi - lo, |t| f64::from(t.2) * spec.scale.abs())
+                }
+                (LayerKind::Procedural, _) => {
+                    spec.noise.as_ref().map_or(0.0, |n| noise::noise_change_bound_m(n, spacing_m)) * spec.scale.abs()
+                }
+                _ => 0.0,
+            } * spec.opacity;
+            if let (MaskPlan::Partial(_), true) = (&planned.mask, spec.feather_m > 0.0) {
+                total += (hi - lo).abs().max(hi.abs()) * (1.5 * spacing_m / spec.feather_m).min(1.0);
+            }
+        }
+        total
     }
 }
 
 impl QuadSource for Source<'_> {
     fn info(&mut self, quad: QuadId) -> QuadInfo {
-        let has = self.scene.has_data(quad);
-        let range = self.cache.range(self.scene, quad, has, self.exaggeration);
+        let plan = self.cache.plan(self.scene, quad);
+        let range = self.cache.range(self.scene, &plan, self.exaggeration);
         if let Some((r, info)) = self.cache.infos.get(&quad)
             && *r == range
         {
@@ -104,15 +152,20 @@ impl QuadSource for Source<'_> {
     }
 
     fn ready(&self, quad: QuadId) -> bool {
-        let heights = !self.scene.has_data(quad) || self.heights.get(quad).is_some();
+        let stack = &self.scene.stack;
+        let has =
+            self.cache.plans.get(&quad).map_or_else(|| self.scene.plan(quad).has_data(stack), |p| p.has_data(stack));
+        let heights = !has || self.heights.get(quad).is_some();
         let maps = self.flat.is_flat(quad) || self.maps.get(MapSymmetry::of(quad).canonical).is_some();
         heights && maps
     }
 
     fn refinable(&self, quad: QuadId) -> bool {
-        match self.scene.finest_level_at(quad) {
+        let plan = self.cache.plans.get(&quad).cloned().unwrap_or_else(|| Arc::new(self.scene.plan(quad)));
+        let data = match self.scene.finest_level_in(&plan) {
             Some(f) => quad.level < f,
             None => quad.level < NODATA_MAX_LEVEL,
-        }
+        };
+        data || self.scene.stack.refines_below_data(quad)
     }
 }

@@ -1,13 +1,17 @@
-//! A project opened for rendering: the body, the datasets' coverage (importing a dataset from its
-//! listed sources when its store lacks it), the colour ramp, and the settings.
+//! A project opened for rendering: the body, the layer stack with its datasets' coverage
+//! (importing a dataset from its listed sources when its store lacks it), the colour ramp, and
+//! the settings.
 
+use std::collections::HashMap;
 use std::sync::Arc;
 
 use super::data::DatasetInfo;
 use crate::colour::Ramp;
 use crate::ecm::QuadId;
 use crate::geodesy::Ellipsoid;
+use crate::layers::{LayerKind, QuadPlan, Stack};
 use crate::project::{ColourMapSpec, DetailSpec, Project, Visuals};
+use crate::store::grid::spacing_m;
 use crate::store::{ImportOptions, LevelChoice, Resampling, Store, VerticalDatum};
 
 /// Everything the renderer needs from a project.
@@ -15,8 +19,15 @@ use crate::store::{ImportOptions, LevelChoice, Resampling, Store, VerticalDatum}
 pub struct Scene {
     /// The body.
     pub ellipsoid: Ellipsoid,
-    /// The datasets, in priority order.
+    /// The layer stack, bottom to top.
+    pub stack: Stack,
+    /// The distinct datasets the stack's dataset layers read (one per store and dataset name).
     pub datasets: Arc<Vec<DatasetInfo>>,
+    /// Per dataset layer (by its uid), its index in `datasets`.
+    pub dataset_of: HashMap<u64, usize>,
+    /// Whether composition skips octaves finer than a quad's samples (on by default; off only
+    /// to measure what skipping costs).
+    pub octave_skipping: bool,
     /// How the terrain looks.
     pub visuals: Visuals,
     /// Level of detail and caches.
@@ -35,23 +46,40 @@ pub struct OpenReport {
 }
 
 impl Scene {
-    /// Whether any dataset has heights at `quad` (its own tile or upsampled from its finest level).
-    pub fn has_data(&self, quad: QuadId) -> bool {
-        self.datasets.iter().any(|d| d.covers(quad))
+    /// The dataset a stack layer reads, if it is a dataset layer.
+    pub fn dataset_of_layer(&self, index: usize) -> Option<usize> {
+        self.dataset_of.get(&self.stack.layers[index].uid).copied()
     }
 
-    /// The finest level of the datasets with heights at `quad`, if any has.
-    pub fn finest_level_at(&self, quad: QuadId) -> Option<u8> {
-        self.datasets.iter().filter(|d| d.covers(quad)).map(|d| d.finest_level).max()
+    /// Whether stack layer `index` has data at `quad` (a dataset's tile there or at an ancestor;
+    /// always for layers of other kinds).
+    pub fn covers(&self, index: usize, quad: QuadId) -> bool {
+        self.dataset_of_layer(index).is_none_or(|d| self.datasets[d].covers(quad))
     }
 
-    /// Opens a project's datasets, importing those whose store lacks them and that list sources.
+    /// What composing `quad` reads.
+    pub fn plan(&self, quad: QuadId) -> QuadPlan {
+        self.stack.plan(quad, &|i| self.covers(i, quad), self.octave_skipping)
+    }
+
+    /// The finest level of the datasets a plan reads, if it reads any.
+    pub fn finest_level_in(&self, plan: &QuadPlan) -> Option<u8> {
+        plan.datasets(&self.stack).filter_map(|i| self.dataset_of_layer(i)).map(|d| self.datasets[d].finest_level).max()
+    }
+
+    /// Opens a project's layers, importing datasets whose store lacks them and that list sources.
     pub fn open(project: &Project) -> Result<(Scene, OpenReport), String> {
         let ellipsoid = project.ellipsoid()?;
         let mut report = OpenReport::default();
-        let mut datasets = Vec::new();
-        for d in &project.datasets {
-            let store_path = project.resolve(&d.store);
+        let mut stack = Stack::new(ellipsoid, &project.layers).map_err(|e| e.to_string())?;
+        let mut datasets: Vec<DatasetInfo> = Vec::new();
+        let mut dataset_of = HashMap::new();
+        for (index, d) in project.layers.iter().enumerate() {
+            if d.kind != LayerKind::Dataset {
+                continue;
+            }
+            let Some(store) = &d.store else { continue };
+            let store_path = project.resolve(store);
             let name = d.store_dataset();
             let has = store_path.exists()
                 && Store::open_read_only(&store_path)
@@ -107,17 +135,53 @@ impl Scene {
                     ellipsoid.name()
                 ));
             }
-            datasets.push(info);
+            stack.set_dataset_info(index, info.range_m, spacing_m(&ellipsoid, info.finest_level));
+            let k = match datasets.iter().position(|o| o.store == info.store && o.dataset == info.dataset) {
+                Some(k) => k,
+                None => {
+                    datasets.push(info);
+                    datasets.len() - 1
+                }
+            };
+            dataset_of.insert(stack.layers[index].uid, k);
         }
-        let range_m =
-            datasets.iter().map(|d| d.range_m).reduce(|a, b| (a.0.min(b.0), a.1.max(b.1))).unwrap_or((0.0, 0.0));
+        let range_m = stack_range(&stack);
         let visuals = project.visuals.clone();
         let ramp = resolve_ramp(project, &visuals.colour_map, range_m)?;
         Ok((
-            Scene { ellipsoid, datasets: Arc::new(datasets), visuals, detail: project.detail.clone(), ramp, range_m },
+            Scene {
+                ellipsoid,
+                stack,
+                datasets: Arc::new(datasets),
+                dataset_of,
+                octave_skipping: true,
+                visuals,
+                detail: project.detail.clone(),
+                ramp,
+                range_m,
+            },
             report,
         ))
     }
+}
+
+/// The heights the visible layers can give, metres: the hull of the active layers' value ranges,
+/// widened by what additive layers add ((0, 0) without any).
+pub fn stack_range(stack: &Stack) -> (f64, f64) {
+    let mut range: Option<(f64, f64)> = None;
+    let mut added = (0.0, 0.0);
+    for layer in stack.layers.iter().filter(|l| l.active()) {
+        let (lo, hi) = layer.value_range_m();
+        if lo > hi {
+            continue;
+        }
+        if layer.spec.blend == crate::layers::BlendMode::Add {
+            added = (added.0 + lo.min(0.0) * layer.spec.opacity, added.1 + hi.max(0.0) * layer.spec.opacity);
+        } else {
+            range = Some(range.map_or((lo, hi), |(a, b)| (a.min(lo), b.max(hi))));
+        }
+    }
+    range.map_or((0.0, 0.0), |(a, b)| (a + added.0, b + added.1))
 }
 
 /// The colour ramp a colour-map setting names: a user's file (relative to the project) or a

@@ -6,6 +6,8 @@ pub const FILES: &[(&str, &str)] = &[
     ("terrain.wgsl", include_str!("../../shaders/terrain.wgsl")),
     ("shared/ecm.wgsl", include_str!("../../shaders/shared/ecm.wgsl")),
     ("shared/shading.wgsl", include_str!("../../shaders/shared/shading.wgsl")),
+    ("shared/noise.wgsl", include_str!("../../shaders/shared/noise.wgsl")),
+    ("compose/compose.wgsl", include_str!("../../shaders/compose/compose.wgsl")),
 ];
 
 /// A shader with its includes expanded. Panics only on a missing include, which the naga test
@@ -49,11 +51,11 @@ mod tests {
         // Every file on disk is embedded (none forgotten) ...
         let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("shaders");
         let mut on_disk = Vec::new();
-        for sub in ["", "shared"] {
+        for sub in ["", "shared", "compose"] {
             for entry in std::fs::read_dir(dir.join(sub)).unwrap() {
                 let path = entry.unwrap().path();
                 if path.extension().is_some_and(|e| e == "wgsl") {
-                    on_disk.push(path.strip_prefix(&dir).unwrap().to_string_lossy().into_owned());
+                    on_disk.push(path.strip_prefix(&dir).unwrap().to_string_lossy().replace('\\', "/"));
                 }
             }
         }
@@ -67,6 +69,9 @@ mod tests {
             let entries = super::validate(name, &source).unwrap_or_else(|e| panic!("{e}"));
             if *name == "terrain.wgsl" {
                 assert_eq!(entries, ["vs_main", "fs_main", "fs_probe"]);
+            }
+            if *name == "compose/compose.wgsl" {
+                assert_eq!(entries, ["compose"]);
             }
         }
         // The validator does catch errors.

@@ -30,6 +30,9 @@ impl<K: Eq + Hash + Copy> SlotPool<K> {
 
     /// A slot for `quad`: a free one, or the least recently used one not used in `frame`.
     pub(crate) fn allocate(&mut self, quad: K, frame: u64) -> Option<u32> {
+        if let Some(slot) = self.touch(quad, frame) {
+            return Some(slot); // rewritten in place
+        }
         let slot = match self.free.pop() {
             Some(s) => s,
             None => {
@@ -56,5 +59,8 @@ mod tests {
         assert!(pool.allocate(12, 2).is_some(), "10 (frame 1) is reused in frame 2");
         assert_eq!(pool.get(10), None);
         assert_eq!(pool.allocate(13, 2), None, "both slots are used in frame 2");
+        let eleven = pool.get(11);
+        assert_eq!(pool.allocate(11, 3), eleven, "a key that has a slot keeps it");
+        assert_eq!(pool.slots.len(), 2);
     }
 }

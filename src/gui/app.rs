@@ -342,6 +342,17 @@ impl App {
             self.apply_visuals();
 
             ui.separator();
+            ui.heading("Layers");
+            let change = super::layers_panel::layers_ui(ui, &mut self.renderer, &mut self.project);
+            if change.changed {
+                self.dirty = true;
+                self.unsaved = true;
+            }
+            if let Some(e) = change.error {
+                ui.colored_label(egui::Color32::LIGHT_RED, e);
+            }
+
+            ui.separator();
             let label = if self.unsaved { "save project *" } else { "save project" };
             if ui.button(label).on_hover_text("writes the visual settings and t into the project file").clicked() {
                 self.save_project();
@@ -351,10 +362,10 @@ impl App {
             ui.heading("Project");
             ui.label(self.project_path.display().to_string());
             ui.label(format!("body: {}", self.project.body));
-            for (spec, info) in self.project.datasets.iter().zip(self.renderer.scene().datasets.iter()) {
+            for info in self.renderer.scene().datasets.iter() {
                 ui.label(format!(
                     "{}: levels 0–{}, {:.0} … {:.0} m",
-                    spec.name, info.finest_level, info.range_m.0, info.range_m.1
+                    info.dataset, info.finest_level, info.range_m.0, info.range_m.1
                 ));
             }
             ui.label(egui::RichText::new(&self.device).small());

@@ -2,6 +2,7 @@
 //! through egui-wgpu on eframe's own device.
 
 pub mod app;
+pub mod layers_panel;
 pub mod navigate;
 pub mod viewport;
 

@@ -20,23 +20,27 @@ use super::stack::{MaskPlan, QuadPlan, SAMPLES, Stack, sample_point};
 pub struct Running {
     /// Height, metres (NaN: no data yet).
     pub h: f64,
-    /// Sample spacing of the finest dataset that gave h its value, metres (∞: none).
+    /// Sample spacing of the finest dataset that contributed to h, metres (∞: none).
     pub data_spacing_m: f64,
+    /// The share of h that comes from datasets, 0–1 (each layer that folds in with coverage α
+    /// replaces that share of it: c ← (1 − α)·c + α·[the layer is a dataset]).
+    pub data_coverage: f64,
 }
 
 impl Running {
     /// No data.
-    pub const EMPTY: Running = Running { h: f64::NAN, data_spacing_m: f64::INFINITY };
+    pub const EMPTY: Running = Running { h: f64::NAN, data_spacing_m: f64::INFINITY, data_coverage: 0.0 };
 }
 
-/// Folds a value v with coverage α (> 0) into h: the blend formulas of the README.
+/// Folds a value v with coverage α (> 0) into h: the blend formulas of the README, with
+/// h + α(x − h) computed as (1 − α)·h + α·x so that α = 1 gives x exactly (on the GPU in f32 too).
 pub fn fold(h: f64, blend: BlendMode, v: f64, alpha: f64) -> f64 {
     match blend {
         BlendMode::Over | BlendMode::Mean => {
             if h.is_nan() {
                 v
             } else {
-                h + alpha * (v - h)
+                (1.0 - alpha) * h + alpha * v
             }
         }
         BlendMode::Add => {
@@ -50,14 +54,14 @@ pub fn fold(h: f64, blend: BlendMode, v: f64, alpha: f64) -> f64 {
             if h.is_nan() {
                 v
             } else {
-                h + alpha * (h.min(v) - h)
+                (1.0 - alpha) * h + alpha * h.min(v)
             }
         }
         BlendMode::Max => {
             if h.is_nan() {
                 v
             } else {
-                h + alpha * (h.max(v) - h)
+                (1.0 - alpha) * h + alpha * h.max(v)
             }
         }
     }
@@ -100,7 +104,7 @@ pub fn layer_sample(
         LayerKind::Constant => spec.height_m.unwrap_or(0.0),
         LayerKind::Procedural => {
             let n = spec.noise.as_ref().expect("a checked procedural layer has noise");
-            let mut weights = noise::octave_weights(n, plan.spacing_m, below.data_spacing_m);
+            let mut weights = noise::octave_weights(n, plan.spacing_m, below.data_spacing_m, below.data_coverage);
             weights.truncate(planned.octaves as usize);
             noise::noise_at(n, at.ecef, &weights)
         }
@@ -123,17 +127,21 @@ pub fn layer_sample(
 /// is a dataset (NaN where it has none).
 pub fn compose_sample(stack: &Stack, plan: &QuadPlan, at: &SamplePoint, raw: &dyn Fn(usize) -> f64) -> f64 {
     let mut state = Running::EMPTY;
-    // The open mean group: Σ w·α·v, Σ w·α, max α, finest spacing.
-    let (mut sum, mut weight, mut alpha_max, mut group_spacing) = (0.0, 0.0, 0.0, f64::INFINITY);
+    // The open mean group: Σ w·α·v, Σ w·α, Σ w·α over its datasets, max α, finest spacing.
+    let (mut sum, mut weight, mut data_weight, mut alpha_max, mut group_spacing) = (0.0, 0.0, 0.0, 0.0, f64::INFINITY);
     for k in 0..plan.layers.len() {
         let layer = &stack.layers[plan.layers[k].index];
         let s = layer_sample(stack, plan, k, at, raw(k), &state);
-        let spacing = if layer.spec.kind == LayerKind::Dataset { layer.data_spacing_m } else { f64::INFINITY };
+        let dataset = layer.spec.kind == LayerKind::Dataset;
+        let spacing = if dataset { layer.data_spacing_m } else { f64::INFINITY };
         if layer.spec.blend == BlendMode::Mean {
             if s.alpha > 0.0 {
                 let w = layer.spec.weight * s.alpha;
                 sum += w * s.value;
                 weight += w;
+                if dataset {
+                    data_weight += w;
+                }
                 alpha_max = f64::max(alpha_max, s.alpha);
                 group_spacing = group_spacing.min(spacing);
             }
@@ -141,22 +149,28 @@ pub fn compose_sample(stack: &Stack, plan: &QuadPlan, at: &SamplePoint, raw: &dy
                 plan.layers.get(k + 1).is_none_or(|next| stack.layers[next.index].spec.blend != BlendMode::Mean);
             if closes {
                 if weight > 0.0 {
-                    apply(&mut state, BlendMode::Over, sum / weight, alpha_max, group_spacing);
+                    apply(&mut state, BlendMode::Over, sum / weight, alpha_max, group_spacing, data_weight / weight);
                 }
-                (sum, weight, alpha_max, group_spacing) = (0.0, 0.0, 0.0, f64::INFINITY);
+                (sum, weight, data_weight, alpha_max, group_spacing) = (0.0, 0.0, 0.0, 0.0, f64::INFINITY);
             }
         } else if s.alpha > 0.0 {
-            apply(&mut state, layer.spec.blend, s.value, s.alpha, spacing);
+            apply(&mut state, layer.spec.blend, s.value, s.alpha, spacing, if dataset { 1.0 } else { 0.0 });
         }
     }
     state.h
 }
 
-fn apply(state: &mut Running, blend: BlendMode, value: f64, alpha: f64, spacing_m: f64) {
+/// Folds a value into the running state: the height by its blend mode; the data coverage and
+/// spacing by the share the layer replaces (all of it where h had no data; none for `add`).
+fn apply(state: &mut Running, blend: BlendMode, value: f64, alpha: f64, spacing_m: f64, data_share: f64) {
     let had_data = !state.h.is_nan();
     state.h = fold(state.h, blend, value, alpha);
-    // The data spacing follows the datasets that set or blend into h.
-    if !state.h.is_nan() && (blend != BlendMode::Add || !had_data) {
+    if state.h.is_nan() || blend == BlendMode::Add {
+        return;
+    }
+    let a = if had_data { alpha } else { 1.0 };
+    state.data_coverage = (1.0 - a) * state.data_coverage + a * data_share;
+    if data_share > 0.0 {
         state.data_spacing_m = state.data_spacing_m.min(spacing_m);
     }
 }

@@ -31,6 +31,9 @@ pub struct Extent {
     pub segments: Vec<[DVec3; 2]>,
     /// The fade-in distance, metres.
     pub feather_m: f64,
+    /// For a box: west, south, east (≥ west, unwrapped), north in radians, tested directly
+    /// (so a cap up to a pole contains the pole).
+    pub box_rad: Option<[f64; 4]>,
 }
 
 /// How an extent meets a quad.
@@ -71,9 +74,16 @@ impl Extent {
         };
         let ring_rad: Vec<[f64; 2]> = ring_deg.iter().map(|[lon, lat]| [lon.to_radians(), lat.to_radians()]).collect();
         let lon_min_rad = ring_rad.iter().map(|v| v[0]).fold(f64::INFINITY, f64::min);
+        // A box around the whole parallel is a latitude band: its meridian sides are no edge.
+        let band = matches!(spec, ExtentSpec::Box(_)) && ring_deg[1][0] - ring_deg[0][0] >= 360.0;
         let mut segments = Vec::new();
         for k in 0..ring_deg.len() {
             let (a, b) = (ring_deg[k], ring_deg[(k + 1) % ring_deg.len()]);
+            let on_pole = a[1] == b[1] && a[1].abs() == 90.0;
+            let meridian_of_band = band && a[0] == b[0];
+            if on_pole || meridian_of_band {
+                continue; // a pole is a point, not an edge
+            }
             let steps = ((b[0] - a[0]).abs().max((b[1] - a[1]).abs()) / DENSIFY_DEG).ceil().max(1.0) as usize;
             let point = |t: f64| {
                 let (lon, lat) = (a[0] + (b[0] - a[0]) * t, a[1] + (b[1] - a[1]) * t);
@@ -86,13 +96,21 @@ impl Extent {
                 prev = next;
             }
         }
-        Extent { ring_rad, lon_min_rad, segments, feather_m }
+        let box_rad = match spec {
+            ExtentSpec::Box(_) => Some([ring_rad[0][0], ring_rad[0][1], ring_rad[2][0], ring_rad[2][1]]),
+            ExtentSpec::Polygon(_) => None,
+        };
+        Extent { ring_rad, lon_min_rad, segments, feather_m, box_rad }
     }
 
-    /// Whether a point (radians) is inside (even–odd rule in longitude and latitude).
+    /// Whether a point (radians) is inside: a box by its bounds (edges included), a polygon by
+    /// the even–odd rule in longitude and latitude.
     pub fn contains(&self, lon_rad: f64, lat_rad: f64) -> bool {
         let tau = std::f64::consts::TAU;
         let lon = self.lon_min_rad + (lon_rad - self.lon_min_rad).rem_euclid(tau);
+        if let Some([w, s, e, n]) = self.box_rad {
+            return lat_rad >= s && lat_rad <= n && lon >= w && lon <= e;
+        }
         let mut inside = false;
         let n = self.ring_rad.len();
         for k in 0..n {
@@ -106,6 +124,19 @@ impl Extent {
             }
         }
         inside
+    }
+
+    /// +1 where the ring runs counter-clockwise in (longitude, latitude), so that the inside is
+    /// on the left of each edge; −1 otherwise (the GPU's side test near the edge needs it).
+    pub fn orientation(&self) -> f64 {
+        let n = self.ring_rad.len();
+        let area: f64 = (0..n)
+            .map(|k| {
+                let ([x0, y0], [x1, y1]) = (self.ring_rad[k], self.ring_rad[(k + 1) % n]);
+                x0 * y1 - x1 * y0
+            })
+            .sum();
+        if area >= 0.0 { 1.0 } else { -1.0 }
     }
 
     /// The distance from `p` to the nearest of the given segments, metres (∞ for none).
@@ -194,6 +225,23 @@ mod tests {
             let g = geodetic_from_ecef(&wgs, p);
             assert!(e.contains(g.lon_rad, g.lat_rad));
         }
+    }
+
+    #[test]
+    fn a_polar_cap_has_one_edge_its_parallel() {
+        let cap = Extent::new(&ExtentSpec::Box([-180.0, 70.0, 180.0, 90.0]), 30_000.0, &Ellipsoid::MOON);
+        let all: Vec<u32> = (0..cap.segments.len() as u32).collect();
+        let moon = Ellipsoid::MOON;
+        let p = |lat: f64, lon: f64| ecef_from_geodetic(&moon, Geodetic::from_degrees(lat, lon, 0.0));
+        // The pole and the antimeridian are deep inside; the distance is to the 70° parallel.
+        let arc = |lat: f64| moon.a_m() * (lat - 70.0f64).to_radians();
+        for (lat, lon) in [(90.0, 0.0), (80.0, 180.0), (80.0, -179.99), (71.0, 45.0)] {
+            let d = cap.distance_m(p(lat, lon), &all);
+            let chord = 2.0 * moon.a_m() * ((lat - 70.0f64).to_radians() / 2.0).sin();
+            assert!((d - chord).abs() < 1.0, "({lat}, {lon}): {d} vs chord {chord} (arc {})", arc(lat));
+            assert!(cap.contains(lon.to_radians(), lat.to_radians()));
+        }
+        assert!(!cap.contains(0.0, 69f64.to_radians()));
     }
 
     #[test]

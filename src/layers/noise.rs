@@ -103,14 +103,16 @@ pub fn beyond_data_weight(wavelength_m: f64, data_spacing_m: f64) -> f64 {
 }
 
 /// The octave weights at a sample: resolved by the grid (`spacing_m`, 0 for all) and, for
-/// `beyond_data`, missing from the data below. Octaves past the last nonzero weight are skipped.
-pub fn octave_weights(noise: &NoiseSpec, spacing_m: f64, data_spacing_m: f64) -> Vec<f64> {
+/// `beyond_data`, missing from the data below: (1 − c) + c·[`beyond_data_weight`], with c the
+/// share of the running height that comes from datasets (so the detail fades in with a
+/// dataset's feather instead of jumping where its coverage reaches 0).
+pub fn octave_weights(noise: &NoiseSpec, spacing_m: f64, data_spacing_m: f64, data_coverage: f64) -> Vec<f64> {
     (0..noise.octaves)
         .map(|k| {
             let lambda = octave_wavelength_m(noise, k);
             let mut w = resolved_weight(lambda, spacing_m);
             if noise.placement == DetailWhere::BeyondData {
-                w *= beyond_data_weight(lambda, data_spacing_m);
+                w *= (1.0 - data_coverage) + data_coverage * beyond_data_weight(lambda, data_spacing_m);
             }
             w
         })
@@ -286,15 +288,19 @@ mod tests {
     fn octaves_finer_than_the_grid_are_weighted_out() {
         let n = spec(NoiseType::Fbm); // 1000, 500, 250, 125, 62.5, 31.25 m
         assert_eq!(octaves_resolved(&n, 100.0), 4); // 125 m: weight 0.25; 62.5 m: 0
-        let w = octave_weights(&n, 100.0, f64::INFINITY);
+        let w = octave_weights(&n, 100.0, f64::INFINITY, 0.0);
         assert_eq!(w, vec![1.0, 1.0, 1.0, 0.25, 0.0, 0.0]);
         assert_eq!(octaves_resolved(&n, 0.0), 6);
         // Beyond the data: a dataset of 300 m spacing already has 1000 m and 500 m (≥ 600 m).
         let mut b = spec(NoiseType::Fbm);
         b.placement = DetailWhere::BeyondData;
-        let w = octave_weights(&b, 0.0, 300.0);
+        let w = octave_weights(&b, 0.0, 300.0, 1.0);
         assert_eq!(w[0], 0.0, "1000 m ≥ 2 × 300 m: in the data");
         assert!((w[1] - (1.0 - (500.0 / 300.0 - 1.0))).abs() < 1e-12, "500 m: partly");
         assert_eq!(&w[2..], &[1.0; 4], "250 m and finer: all missing from the data");
+        // Half covered by data (a feather): halfway between all octaves and the data's gap.
+        let half = octave_weights(&b, 0.0, 300.0, 0.5);
+        assert_eq!(half[0], 0.5);
+        assert_eq!(octave_weights(&b, 0.0, 300.0, 0.0), vec![1.0; 6]);
     }
 }

@@ -91,6 +91,12 @@ pub struct QuadPlan {
 }
 
 impl QuadPlan {
+    /// Whether composing the quad can give data: a planned layer other than `add` (which adds
+    /// only where there is data already).
+    pub fn has_data(&self, stack: &Stack) -> bool {
+        self.layers.iter().any(|l| stack.layers[l.index].spec.blend != BlendMode::Add)
+    }
+
     /// Indices of the dataset layers the plan reads (their source tiles must be loaded).
     pub fn datasets<'a>(&'a self, stack: &'a Stack) -> impl Iterator<Item = usize> + 'a {
         self.layers.iter().map(|l| l.index).filter(|&i| stack.layers[i].spec.kind == LayerKind::Dataset)

@@ -238,3 +238,30 @@ fn bad_layers_name_the_layer_and_the_field() {
     let dup = Stack::new(Ellipsoid::MOON, &[LayerSpec::constant("a", 0.0), LayerSpec::constant("a", 1.0)]);
     assert!(dup.unwrap_err().to_string().contains("layer 'a': name: is used by another layer"));
 }
+
+#[test]
+fn detail_beyond_the_data_leaves_what_the_data_resolve() {
+    // A dataset of 100 m spacing under fBm whose octaves (800 … 100 m) the data already have
+    // (λ ≥ 2 × 100 m) except the finest: only that one adds; without data, all of them do.
+    let n = NoiseSpec {
+        noise_type: super::NoiseType::Fbm,
+        seed: 5,
+        amplitude_m: 20.0,
+        wavelength_m: 800.0,
+        octaves: 4,
+        lacunarity: 2.0,
+        gain: 0.5,
+        placement: super::DetailWhere::BeyondData,
+    };
+    let specs = [LayerSpec::dataset("d", "s.gpkg"), LayerSpec::procedural("detail", n.clone())];
+    let mut stack = Stack::new(Ellipsoid::MOON, &specs).unwrap();
+    stack.set_dataset_info(0, (0.0, 1.0), 100.0);
+    let quad = QuadId { face: Face::Front, level: 12, x: 2000, y: 2100 };
+    let plan = stack.plan(quad, &|_| true, false);
+    let p = at(&stack, quad, 100, 100);
+    let with_data = compose_sample(&stack, &plan, &p, &|k| if k == 0 { 1000.0 } else { f64::NAN });
+    let weights = super::noise::octave_weights(&n, 0.0, 100.0, 1.0);
+    assert_eq!(weights, vec![0.0, 0.0, 0.0, 1.0]);
+    let expected = 1000.0 + super::noise::noise_at(&n, p.ecef, &weights);
+    assert!((with_data - expected).abs() < 1e-9, "{with_data} vs {expected}");
+}

@@ -61,14 +61,16 @@ pub fn sample_project(name: &str, dir: &std::path::Path) -> PathBuf {
     static LOCK: std::sync::OnceLock<std::sync::Mutex<()>> = std::sync::OnceLock::new();
     let _guard = LOCK.get_or_init(Default::default).lock().unwrap_or_else(|p| p.into_inner());
     let mut p = Project::load(&repo_path(&format!("projects/{name}.json"))).unwrap();
-    for d in &mut p.datasets {
-        d.store = dir.join(format!("{name}.gpkg"));
+    for d in &mut p.layers {
+        if d.store.is_some() {
+            d.store = Some(dir.join(format!("{name}.gpkg")));
+        }
         if let Some(s) = &mut d.source {
             s.files = s.files.iter().map(|f| repo_path("projects").join(f)).collect();
         }
     }
-    // Keep the tests light: the global Moon grid only, small GPU pools.
-    p.datasets.retain(|d| d.name != "lola_north");
+    // Keep the tests light: the global Moon grid only, no procedural detail, small GPU pools.
+    p.layers.retain(|d| d.name != "lola_north" && d.kind == terrafuse::layers::LayerKind::Dataset);
     p.detail.gpu_cache_mib = 256;
     std::fs::create_dir_all(dir).unwrap();
     let path = dir.join(format!("{name}.json"));

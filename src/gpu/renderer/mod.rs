@@ -3,12 +3,15 @@
 //! per-quad camera-relative values) and drawing to any colour target or to an image. The device
 //! is in `context`, the targets and read-back in `targets`, the pipelines in `terrain`, the
 //! shader structs' twins in `uniforms`, the slot pools in `slots`, the selection's data side in
-//! `quads`.
+//! `quads`; the layer stack's side of the renderer (composition, layer edits) in `stack`.
 
 use std::collections::HashMap;
 use std::time::{Duration, Instant};
 
+mod stack;
+
 use super::camera::Camera;
+use super::compose::{ComposeBatch, ComposePass};
 use super::context::{GpuContext, GpuError};
 use super::data::{CpuCache, DataKey, Loaded, Loader, SAMPLES};
 use super::quads::{QuadCache, Source, exaggerated_range, flat_rule_for};
@@ -20,7 +23,9 @@ use super::terrain::{MESH_EDGE, TRIANGLES_PER_QUAD, TerrainPass, ramp_buffer};
 use super::uniforms::{FrameUniform, NO_SLOT, QuadInstance, rgba, v4};
 use crate::ecm::geometry::{FlatRule, MapSymmetry, QuadFrame, QuadGeometry, Split};
 use crate::ecm::{CubeProjection, QuadId};
+use crate::layers::{LayerError, LayerSpec};
 use crate::project::CameraSpec;
+use crate::store::grid::spacing_m;
 
 /// Stored for a sample without data (the shader tests `< -1e37`).
 const NODATA_STORED: f32 = -3.0e37;
@@ -51,8 +56,23 @@ pub struct FrameStats {
     pub gpu_slots: (usize, u32, usize, u32),
     /// CPU cache bytes in use.
     pub cpu_bytes: usize,
+    /// Quads composed this frame.
+    pub composed: Vec<QuadId>,
+    /// Layers those compositions read (invisible, transparent and distant layers are not).
+    pub layers_read: usize,
     /// Errors reading data (named), since the last frame.
     pub errors: Vec<String>,
+}
+
+/// What composition has done since the renderer started (tests prove caching with these).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct ComposeCounters {
+    /// Quads composed.
+    pub quads: u64,
+    /// Layers read over those compositions.
+    pub layers_read: u64,
+    /// Source tiles uploaded to the GPU.
+    pub sources_uploaded: u64,
 }
 /// The terrain renderer.
 pub struct Renderer {
@@ -65,9 +85,15 @@ pub struct Renderer {
     frame_buffer: wgpu::Buffer,
     quad_buffer: wgpu::Buffer,
     heights_buffer: wgpu::Buffer,
+    sources_buffer: wgpu::Buffer,
     map_buffers: [wgpu::Buffer; 3],
     heights_pool: SlotPool,
+    sources_pool: SlotPool<(u32, QuadId)>,
     maps_pool: SlotPool,
+    /// Per composed height slot, the stamp of the plan it was composed from.
+    composed: HashMap<QuadId, u64>,
+    compose: ComposePass,
+    counters: ComposeCounters,
     scene: Scene,
     loader: Loader,
     cpu: CpuCache,
@@ -85,14 +111,15 @@ impl Renderer {
     /// [`IMAGE_FORMAT`] for images).
     pub fn new(ctx: &GpuContext, scene: Scene, format: wgpu::TextureFormat) -> Result<Renderer, GpuError> {
         let device = ctx.device.clone();
-        // GPU cache: 15 % of the budget for heights (4 bytes a sample), the rest for the three
-        // maps (36 bytes a sample), each buffer within the device's largest storage binding.
+        // GPU cache: 10 % of the budget for composed heights and 10 % for raw source tiles (4
+        // bytes a sample each), the rest for the three maps (36 bytes a sample), each buffer
+        // within the device's largest storage binding.
         let limit = device.limits().max_storage_buffer_binding_size.min(device.limits().max_buffer_size);
         let budget = scene.detail.gpu_cache_mib.max(16) << 20;
         let height_slot = u64::from(SAMPLES * SAMPLES) * 4;
         let map_slot = u64::from(SAMPLES * SAMPLES) * 12;
-        let height_slots = ((budget * 15 / 100) / height_slot).min(limit / height_slot).max(8) as u32;
-        let map_slots = ((budget * 85 / 100) / (3 * map_slot)).min(limit / map_slot).max(8) as u32;
+        let height_slots = ((budget * 10 / 100) / height_slot).min(limit / height_slot).max(8) as u32;
+        let map_slots = ((budget * 80 / 100) / (3 * map_slot)).min(limit / map_slot).max(8) as u32;
         let storage = |label: &str, size: u64| {
             device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some(label),
@@ -101,7 +128,14 @@ impl Renderer {
                 mapped_at_creation: false,
             })
         };
-        let heights_buffer = storage("heights", u64::from(height_slots) * height_slot);
+        // Composed heights are read back by tools and tests (`read_heights`).
+        let heights_buffer = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("heights"),
+            size: u64::from(height_slots) * height_slot,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        let sources_buffer = storage("sources", u64::from(height_slots) * height_slot);
         let map_buffers = ["map o", "map n", "map dn"].map(|l| storage(l, u64::from(map_slots) * map_slot));
         let max_quads = scene.detail.max_quads.max(6);
         let quad_buffer = storage("quads", (max_quads * std::mem::size_of::<QuadInstance>()) as u64);
@@ -113,6 +147,7 @@ impl Renderer {
         });
         let ramp_buffer = ramp_buffer(&device, &scene.ramp);
         let terrain = TerrainPass::new(&device, format)?;
+        let compose = ComposePass::new(&device)?;
         let bind_group = terrain.bind_group(
             &device,
             [
@@ -140,13 +175,18 @@ impl Renderer {
             frame_buffer,
             quad_buffer,
             heights_buffer,
+            sources_buffer,
             map_buffers,
             heights_pool: SlotPool::new(height_slots),
+            sources_pool: SlotPool::new(height_slots),
             maps_pool: SlotPool::new(map_slots),
+            composed: HashMap::new(),
+            compose,
+            counters: ComposeCounters::default(),
             scene,
             loader,
             cpu,
-            cache: QuadCache { geometry: HashMap::new(), infos: HashMap::new(), ranges: HashMap::new() },
+            cache: QuadCache::default(),
             flat,
             frame: 0,
             instances: Vec::new(),
@@ -226,11 +266,6 @@ impl Renderer {
         )
     }
 
-    /// The heights a quad was drawn with, if still cached on the CPU.
-    pub fn cpu_heights(&mut self, quad: QuadId) -> Option<std::sync::Arc<super::data::QuadHeights>> {
-        self.cpu.heights(quad)
-    }
-
     /// The flat rule in use.
     pub fn flat_rule(&self) -> &FlatRule {
         &self.flat
@@ -247,10 +282,12 @@ impl Renderer {
 
     fn absorb(&mut self, item: Loaded, errors: &mut Vec<String>) {
         match &item {
-            Loaded::Heights(q, Ok(h)) => {
-                self.cache.ranges.insert(*q, (h.range_m.0, h.range_m.1, h.edge_roughness_m));
+            Loaded::Source(d, q, Ok(h)) => {
+                self.cache.tile_ranges.insert((*d, *q), (h.range_m.0, h.range_m.1, h.edge_roughness_m));
             }
-            Loaded::Heights(q, Err(e)) => errors.push(format!("quad {q}: {e}")),
+            Loaded::Source(d, q, Err(e)) => {
+                errors.push(format!("dataset '{}', quad {q}: {e}", self.scene.datasets[*d as usize].dataset))
+            }
             Loaded::Maps(..) => {}
         }
         self.cpu.insert(item);
@@ -259,12 +296,13 @@ impl Renderer {
     /// Fills a GPU slot from the CPU cache; false if the data are not there or no slot is free.
     fn upload(&mut self, key: DataKey) -> bool {
         match key {
-            DataKey::Heights(q) => {
-                let Some(h) = self.cpu.heights(q) else { return false };
-                let Some(slot) = self.heights_pool.allocate(q, self.frame) else { return false };
+            DataKey::Source(d, q) => {
+                let Some(h) = self.cpu.source(d, q) else { return false };
+                let Some(slot) = self.sources_pool.allocate((d, q), self.frame) else { return false };
                 let values: Vec<f32> = h.grid.iter().map(|&v| if v.is_nan() { NODATA_STORED } else { v }).collect();
                 let offset = u64::from(slot) * u64::from(SAMPLES * SAMPLES) * 4;
-                self.queue.write_buffer(&self.heights_buffer, offset, bytemuck::cast_slice(&values));
+                self.queue.write_buffer(&self.sources_buffer, offset, bytemuck::cast_slice(&values));
+                self.counters.sources_uploaded += 1;
                 true
             }
             DataKey::Maps(q) => {
@@ -279,17 +317,10 @@ impl Renderer {
         }
     }
 
-    /// What a quad still needs on the GPU.
-    fn missing_keys(&self, quad: QuadId) -> Vec<DataKey> {
-        let mut keys = Vec::new();
-        if self.scene.has_data(quad) && self.heights_pool.get(quad).is_none() {
-            keys.push(DataKey::Heights(quad));
-        }
+    /// The quad's static maps, if it needs them and they are not on the GPU.
+    fn missing_maps(&self, quad: QuadId) -> Option<DataKey> {
         let canonical = MapSymmetry::of(quad).canonical;
-        if !self.flat.is_flat(quad) && self.maps_pool.get(canonical).is_none() {
-            keys.push(DataKey::Maps(canonical));
-        }
-        keys
+        (!self.flat.is_flat(quad) && self.maps_pool.get(canonical).is_none()).then_some(DataKey::Maps(canonical))
     }
 
     /// Prepares a frame without waiting for anything: takes the data that arrived, selects the
@@ -356,8 +387,13 @@ impl Renderer {
         let mut free_heights = self.heights_pool.capacity.saturating_sub(heights_pinned);
         let mut free_maps = self.maps_pool.capacity.saturating_sub(maps_counted.len() as u32);
         let mut requests = Vec::new();
+        let mut batch = ComposeBatch::default();
+        // Drawn quads whose layers changed are recomposed first (they stay drawn meanwhile).
+        for q in &selection.quads {
+            self.ensure_heights(*q, &mut batch, &mut stats, &mut requests);
+        }
         for q in &selection.wanted {
-            let has = self.scene.has_data(*q);
+            let has = self.cache.plan(&self.scene, *q).has_data(&self.scene.stack);
             let canonical = MapSymmetry::of(*q).canonical;
             let new_map = !self.flat.is_flat(*q) && !maps_counted.contains(&canonical);
             if u32::from(has) > free_heights || u32::from(new_map) > free_maps {
@@ -370,10 +406,7 @@ impl Renderer {
                 maps_counted.insert(canonical);
                 self.maps_pool.touch(canonical, self.frame);
             }
-            if has {
-                self.heights_pool.touch(*q, self.frame);
-            }
-            for key in self.missing_keys(*q) {
+            if let Some(key) = self.missing_maps(*q) {
                 if !self.cpu.contains(key) {
                     if !requests.contains(&key) {
                         requests.push(key);
@@ -382,10 +415,31 @@ impl Renderer {
                     stats.uploads += 1;
                 }
             }
+            if has {
+                self.heights_pool.touch(*q, self.frame);
+                self.ensure_heights(*q, &mut batch, &mut stats, &mut requests);
+            }
         }
+        stats.composed = batch.quads().to_vec();
+        stats.layers_read = batch.layers_read;
+        self.counters.quads += batch.len() as u64;
+        self.counters.layers_read += batch.layers_read as u64;
         stats.requested = requests.len();
         self.loader.request(&requests);
-        if stats.uploads > 0 {
+        if !batch.is_empty() {
+            let mut encoder = self.device.create_command_encoder(&Default::default());
+            let heights = &self.heights_buffer;
+            self.compose.encode(
+                &self.device,
+                &mut encoder,
+                &batch,
+                &self.sources_buffer,
+                &self.map_buffers[0],
+                heights,
+            );
+            self.queue.submit([encoder.finish()]);
+        }
+        if stats.uploads > 0 || !batch.is_empty() {
             // Hand the writes to the GPU now, so that their staging memory is released even when
             // frames are prepared without being drawn.
             self.queue.submit([]);
@@ -395,9 +449,10 @@ impl Renderer {
         // Per-quad values, camera-relative, from f64.
         self.instances.clear();
         for &quad in &selection.quads {
-            let has = self.scene.has_data(quad);
-            let range = self.cache.range(&self.scene, quad, has, exaggeration);
-            let roughness = self.cache.ranges.get(&quad).map_or(0.0, |r| f64::from(r.2));
+            let plan = self.cache.plan(&self.scene, quad);
+            let has = plan.has_data(&self.scene.stack);
+            let range = self.cache.range(&self.scene, &plan, exaggeration);
+            let roughness = self.cache.roughness(&self.scene, &plan, spacing_m(&e, quad.level));
             let info = self.cache.infos.get(&quad).map(|i| i.1);
             let g = self.cache.geometry(&self.scene, quad);
             let h0 = spec.alt.clamp(f64::from(range.0), f64::from(range.1));

@@ -1,0 +1,299 @@
+// Composition of a quad's heights from its layer stack: one invocation per sample of a 257²
+// grid, one workgroup layer (z) per quad. The GPU twin of terrafuse::layers::compose (keep in
+// sync): per layer a value and a coverage, folded by the blend modes; consecutive mean layers
+// gathered and applied with over. Reads the quads' raw source tiles and static maps; writes the
+// composed heights into the height pool the terrain's vertex stage reads.
+//!include shared/ecm.wgsl
+//!include shared/noise.wgsl
+
+const N: u32 = 257u;
+const NO_SLOT: u32 = 0xffffffffu;
+// A sample without data, in the source and height pools (the terrain shader tests < -1e37).
+const NODATA_STORED: f32 = -3.0e37;
+const NODATA_BELOW: f32 = -1.0e37;
+const FAR: f32 = 3.0e38;
+const TAU: f32 = 6.283185307179586;
+
+// One quad to compose (ComposeJob in src/gpu/compose.rs; keep in sync).
+struct Job {
+    // Corners (SW, SE, NW, NE) on the ellipsoid relative to the origin O, metres.
+    corners: array<vec4<f32>, 4>,
+    // Columns of the signed permutation from the canonical quad's axes to this quad's.
+    sym: array<vec4<f32>, 3>,
+    // O in ECEF metres (f32: used only for longitude and latitude); w: the body's e².
+    origin: vec4<f32>,
+    // Output height slot, split code, map slot (NO_SLOT: flat patch), symmetry flags.
+    slots: vec4<u32>,
+    // First layer, layer count, unused, unused.
+    layers: vec4<u32>,
+    // Sample spacing for octave weights (0: every octave), unused ×3.
+    params: vec4<f32>,
+}
+
+// One planned layer of a job (JobLayer in src/gpu/compose.rs; keep in sync).
+struct JobLayer {
+    // Kind (0 dataset, 1 procedural, 2 constant), blend (0 over, 1 add, 2 min, 3 max, 4 mean),
+    // source slot (datasets), mask (0 full, 1 partial).
+    head: vec4<u32>,
+    // First segment, segment count, first ring vertex, ring count (in `shapes`; a box has no
+    // ring: its bounds west, south, east, north are the one entry at the ring's start).
+    mask: vec4<u32>,
+    // First octave, octave count, noise type (0 fBm, 1 ridged), placement (0 everywhere, 1
+    // beyond the data).
+    noise: vec4<u32>,
+    // Opacity, weight, scale, offset (metres).
+    value: vec4<f32>,
+    // Valid range low, high (metres; ±FAR: none), feather (metres), smallest ring longitude.
+    range: vec4<f32>,
+    // Constant height or noise amplitude (metres), gain, data spacing (datasets; FAR: none),
+    // the ring's orientation (+1: counter-clockwise in longitude and latitude).
+    extra: vec4<f32>,
+}
+
+// One octave of one procedural layer at one quad: the lattice cell of O (xyz) and the octave's
+// seed (w); the fraction of O/λ (xyz) and the wavelength λ (w, metres).
+struct Octave {
+    cell: vec4<u32>,
+    frac: vec4<f32>,
+}
+
+@group(0) @binding(0) var<storage, read> jobs: array<Job>;
+@group(0) @binding(1) var<storage, read> job_layers: array<JobLayer>;
+@group(0) @binding(2) var<storage, read> octaves: array<Octave>;
+// Extent edges: segments (two entries each, relative to the job's O) and ring vertices
+// (longitude, latitude in radians).
+@group(0) @binding(3) var<storage, read> shapes: array<vec4<f32>>;
+@group(0) @binding(4) var<storage, read> sources: array<f32>;
+@group(0) @binding(5) var<storage, read> map_o: array<f32>;
+@group(0) @binding(6) var<storage, read_write> heights: array<f32>;
+
+fn turn(job: Job, v: vec3<f32>) -> vec3<f32> {
+    return job.sym[0].xyz * v.x + job.sym[1].xyz * v.y + job.sym[2].xyz * v.z;
+}
+
+// The sample's point on the ellipsoid relative to O: patch + oₑ (the patch alone past the flat
+// rule, where it is within its tolerance).
+fn sample_local(job: Job, i: u32, j: u32) -> vec3<f32> {
+    let s = f32(i) / f32(N - 1u);
+    let t = f32(j) / f32(N - 1u);
+    let base = ecm_interpolate(job.slots.y, job.corners[0].xyz, job.corners[1].xyz, job.corners[2].xyz, job.corners[3].xyz, s, t);
+    if job.slots.z == NO_SLOT {
+        return base;
+    }
+    let c = ecm_canonical_sample(job.slots.w, N, i, j);
+    let k = 3u * (job.slots.z * N * N + c.y * N + c.x);
+    return base + turn(job, vec3<f32>(map_o[k], map_o[k + 1u], map_o[k + 2u]));
+}
+
+fn segment_distance(p: vec3<f32>, a: vec3<f32>, b: vec3<f32>) -> f32 {
+    let ab = b - a;
+    let len2 = dot(ab, ab);
+    var t = 0.0;
+    if len2 > 0.0 {
+        t = clamp(dot(p - a, ab) / len2, 0.0, 1.0);
+    }
+    return length(p - (a + ab * t));
+}
+
+// Closer to the edge than this, inside/outside is the side of the nearest edge segment
+// (quad-local f32: millimetres) rather than the longitude/latitude test (f32 absolute positions:
+// ≈ 0.5 m on Earth), so the two agree with the CPU's exact test everywhere but within this
+// distance of a vertex.
+const SIDE_TEST_M: f32 = 8.0;
+
+// layers::extent::Extent::{contains, distance_m, mask}.
+fn extent_mask(l: JobLayer, job: Job, local: vec3<f32>, lon: f32, lat: f32) -> f32 {
+    if l.head.w == 0u {
+        return 1.0;
+    }
+    var d = FAR;
+    var nearest = 0u;
+    for (var k = 0u; k < l.mask.y; k++) {
+        let s = l.mask.x + 2u * k;
+        let dk = segment_distance(local, shapes[s].xyz, shapes[s + 1u].xyz);
+        if dk < d {
+            d = dk;
+            nearest = s;
+        }
+    }
+    var inside = false;
+    if d < SIDE_TEST_M {
+        let a = shapes[nearest].xyz;
+        let up = normalize(job.origin.xyz + a);
+        let left = cross(up, shapes[nearest + 1u].xyz - a);
+        inside = dot(local - a, left) * l.extra.w > 0.0;
+    } else {
+        let lon_min = l.range.w;
+        let x = lon_min + (lon - lon_min) - TAU * floor((lon - lon_min) / TAU);
+        let first = l.mask.z;
+        let count = l.mask.w;
+        if count == 0u {
+            // A box: west, south, east (unwrapped), north.
+            let b = shapes[first];
+            inside = lat >= b.y && lat <= b.w && x >= b.x && x <= b.z;
+        }
+        for (var k = 0u; k < count; k++) {
+            let v0 = shapes[first + k].xy;
+            let v1 = shapes[first + (k + 1u) % count].xy;
+            if (v0.y > lat) != (v1.y > lat) {
+                let cross_lon = v0.x + (lat - v0.y) / (v1.y - v0.y) * (v1.x - v0.x);
+                if x < cross_lon {
+                    inside = !inside;
+                }
+            }
+        }
+    }
+    if !inside {
+        return 0.0;
+    }
+    let feather = l.range.z;
+    if feather <= 0.0 {
+        return 1.0;
+    }
+    return smoothstep(0.0, 1.0, d / feather);
+}
+
+// layers::noise::{octave_weights, fractal}.
+fn procedural(l: JobLayer, job: Job, local: vec3<f32>, data_spacing: f32, data_coverage: f32) -> f32 {
+    var sum = 0.0;
+    var amplitude = l.extra.x;
+    var ridge_weight = 1.0;
+    for (var k = 0u; k < l.noise.y; k++) {
+        let o = octaves[l.noise.x + k];
+        let wavelength = o.frac.w;
+        var w = noise_resolved_weight(wavelength, job.params.x);
+        if l.noise.w == 1u {
+            w = w * ((1.0 - data_coverage) + data_coverage * noise_beyond_data_weight(wavelength, data_spacing));
+        }
+        if l.noise.z == 0u {
+            if w > 0.0 {
+                sum += amplitude * w * noise_octave(o.cell.xyz, o.frac.xyz, local, wavelength, o.cell.w);
+            }
+        } else {
+            let n = noise_octave(o.cell.xyz, o.frac.xyz, local, wavelength, o.cell.w);
+            let s = (1.0 - abs(n)) * (1.0 - abs(n)) * ridge_weight;
+            ridge_weight = clamp(2.0 * s, 0.0, 1.0);
+            sum += amplitude * w * s;
+        }
+        amplitude *= l.extra.y;
+    }
+    return sum;
+}
+
+// The running height: value, whether it has data, the data's sample spacing and share.
+struct Running {
+    h: f32,
+    has: bool,
+    spacing: f32,
+    coverage: f32,
+}
+
+// layers::compose::fold and apply ((1 − α)·h + α·x, so that α = 1 gives x exactly).
+fn apply(r: Running, blend: u32, v: f32, a: f32, spacing: f32, data_share: f32) -> Running {
+    var out = r;
+    switch blend {
+        case 1u: {
+            if r.has {
+                out.h = r.h + a * v;
+            }
+        }
+        case 2u: {
+            out.h = select(v, (1.0 - a) * r.h + a * min(r.h, v), r.has);
+            out.has = true;
+        }
+        case 3u: {
+            out.h = select(v, (1.0 - a) * r.h + a * max(r.h, v), r.has);
+            out.has = true;
+        }
+        default: {
+            out.h = select(v, (1.0 - a) * r.h + a * v, r.has);
+            out.has = true;
+        }
+    }
+    if !out.has || blend == 1u {
+        return out;
+    }
+    let share = select(1.0, a, r.has);
+    out.coverage = (1.0 - share) * r.coverage + share * data_share;
+    if data_share > 0.0 {
+        out.spacing = min(out.spacing, spacing);
+    }
+    return out;
+}
+
+@compute @workgroup_size(16, 16, 1)
+fn compose(@builtin(global_invocation_id) id: vec3<u32>) {
+    let i = id.x;
+    let j = id.y;
+    if i >= N || j >= N {
+        return;
+    }
+    let job = jobs[id.z];
+    let local = sample_local(job, i, j);
+    let p = job.origin.xyz + local;
+    let lon = atan2(p.y, p.x);
+    let lat = atan2(p.z, (1.0 - job.origin.w) * length(p.xy));
+
+    var r = Running(0.0, false, FAR, 0.0);
+    var group_sum = 0.0;
+    var group_weight = 0.0;
+    var group_data_weight = 0.0;
+    var group_alpha = 0.0;
+    var group_spacing = FAR;
+    let first = job.layers.x;
+    let count = job.layers.y;
+    for (var k = 0u; k < count; k++) {
+        let l = job_layers[first + k];
+        var base = 0.0;
+        var valid = true;
+        switch l.head.x {
+            case 0u: {
+                base = sources[l.head.z * N * N + j * N + i];
+                valid = base > NODATA_BELOW;
+            }
+            case 1u: {
+                base = procedural(l, job, local, r.spacing, r.coverage);
+            }
+            default: {
+                base = l.extra.x;
+            }
+        }
+        let v = base * l.value.z + l.value.w;
+        valid = valid && v >= l.range.x && v <= l.range.y;
+        var alpha = 0.0;
+        if valid {
+            alpha = l.value.x * extent_mask(l, job, local, lon, lat);
+        }
+        let dataset = l.head.x == 0u;
+        let spacing = select(FAR, l.extra.z, dataset);
+        if l.head.y == 4u {
+            if alpha > 0.0 {
+                let w = l.value.y * alpha;
+                group_sum += w * v;
+                group_weight += w;
+                if dataset {
+                    group_data_weight += w;
+                }
+                group_alpha = max(group_alpha, alpha);
+                group_spacing = min(group_spacing, spacing);
+            }
+            var closes = k + 1u == count;
+            if !closes {
+                closes = job_layers[first + k + 1u].head.y != 4u;
+            }
+            if closes {
+                if group_weight > 0.0 {
+                    r = apply(r, 0u, group_sum / group_weight, group_alpha, group_spacing, group_data_weight / group_weight);
+                }
+                group_sum = 0.0;
+                group_weight = 0.0;
+                group_data_weight = 0.0;
+                group_alpha = 0.0;
+                group_spacing = FAR;
+            }
+        } else if alpha > 0.0 {
+            r = apply(r, l.head.y, v, alpha, spacing, select(0.0, 1.0, dataset));
+        }
+    }
+    heights[job.slots.x * N * N + j * N + i] = select(NODATA_STORED, r.h, r.has);
+}

@@ -1,0 +1,295 @@
+//! The composition pass: per quad that needs it, a compute dispatch of `shaders/compose/
+//! compose.wgsl` that folds the quad's planned layers into its 257² heights in the height pool
+//! (the GPU twin of [`crate::layers::compose`]). The structs below are the Pod twins of the
+//! shader's `Job`, `JobLayer` and `Octave` (keep in sync; sizes asserted at compile time). All
+//! positions a job carries are relative to the quad's origin O, cast from f64: the kernel works
+//! in quad-local f32, and procedural lattices are addressed from per-octave f64 origins.
+
+use bytemuck::{Pod, Zeroable};
+use glam::DVec3;
+use wgpu::util::DeviceExt;
+
+use super::context::GpuError;
+use super::terrain::bind_buffers;
+use super::uniforms::NO_SLOT;
+use crate::ecm::geometry::{MapSymmetry, QuadGeometry, Split};
+use crate::layers::spec::{BlendMode, DetailWhere, LayerKind, NoiseType};
+use crate::layers::{MaskPlan, QuadPlan, Stack, noise};
+
+/// Stands for "no bound" and "no data spacing" in the shader (its `FAR`).
+const FAR: f32 = 3.0e38;
+/// Samples along a quad edge, and the workgroup edge.
+const N: u32 = 257;
+const WORKGROUP: u32 = 16;
+
+/// One quad to compose (`Job` in compose.wgsl; keep in sync).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct ComposeJob {
+    corners: [[f32; 4]; 4],
+    sym: [[f32; 4]; 3],
+    origin: [f32; 4],
+    slots: [u32; 4],
+    layers: [u32; 4],
+    params: [f32; 4],
+}
+
+/// One planned layer of a job (`JobLayer` in compose.wgsl; keep in sync).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct JobLayer {
+    head: [u32; 4],
+    mask: [u32; 4],
+    noise: [u32; 4],
+    value: [f32; 4],
+    range: [f32; 4],
+    extra: [f32; 4],
+}
+
+/// One octave at one quad (`Octave` in compose.wgsl; keep in sync).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct OctaveOrigin {
+    cell: [u32; 4],
+    frac: [f32; 4],
+}
+
+const _: () = assert!(std::mem::size_of::<ComposeJob>() == 16 * 11);
+const _: () = assert!(std::mem::size_of::<JobLayer>() == 16 * 6);
+const _: () = assert!(std::mem::size_of::<OctaveOrigin>() == 32);
+
+/// The jobs of one dispatch and everything they index.
+#[derive(Default)]
+pub struct ComposeBatch {
+    quads: Vec<crate::ecm::QuadId>,
+    jobs: Vec<ComposeJob>,
+    layers: Vec<JobLayer>,
+    octaves: Vec<OctaveOrigin>,
+    shapes: Vec<[f32; 4]>,
+    /// Planned layers over all jobs (what the batch reads).
+    pub layers_read: usize,
+}
+
+fn v4(v: DVec3, w: f32) -> [f32; 4] {
+    [v.x as f32, v.y as f32, v.z as f32, w]
+}
+
+impl ComposeBatch {
+    /// Quads in the batch.
+    pub fn len(&self) -> usize {
+        self.jobs.len()
+    }
+
+    /// The quads, in job order.
+    pub fn quads(&self) -> &[crate::ecm::QuadId] {
+        &self.quads
+    }
+
+    /// Whether the batch is empty.
+    pub fn is_empty(&self) -> bool {
+        self.jobs.is_empty()
+    }
+
+    /// Adds a quad: its plan, geometry, the height slot it writes, its map slot (None: flat
+    /// patch) and the source slot of each planned dataset layer (`source_slot(k)`).
+    pub fn push(
+        &mut self,
+        stack: &Stack,
+        plan: &QuadPlan,
+        geometry: &QuadGeometry,
+        height_slot: u32,
+        map_slot: Option<u32>,
+        source_slot: &dyn Fn(usize) -> u32,
+    ) {
+        let quad = plan.quad;
+        let origin = geometry.corners_ecef.iter().copied().sum::<DVec3>() / 4.0;
+        let symmetry = MapSymmetry::of(quad);
+        let m = symmetry.matrix();
+        let flags = u32::from(symmetry.swap) | u32::from(symmetry.flip_x) << 1 | u32::from(symmetry.flip_y) << 2;
+        let first_layer = self.layers.len() as u32;
+        for (k, planned) in plan.layers.iter().enumerate() {
+            let layer = &stack.layers[planned.index];
+            let spec = &layer.spec;
+            let kind = match spec.kind {
+                LayerKind::Dataset => 0,
+                LayerKind::Procedural => 1,
+                LayerKind::Constant => 2,
+            };
+            let blend = match spec.blend {
+                BlendMode::Over => 0,
+                BlendMode::Add => 1,
+                BlendMode::Min => 2,
+                BlendMode::Max => 3,
+                BlendMode::Mean => 4,
+            };
+            let mut mask = [0u32; 4];
+            let mut lon_min = 0.0f32;
+            let mut orientation = 1.0f32;
+            let partial = match (&planned.mask, &layer.extent) {
+                (MaskPlan::Partial(segments), Some(extent)) => {
+                    mask[0] = self.shapes.len() as u32;
+                    mask[1] = segments.len() as u32;
+                    for &s in segments {
+                        let [a, b] = extent.segments[s as usize];
+                        self.shapes.push(v4(a - origin, 0.0));
+                        self.shapes.push(v4(b - origin, 0.0));
+                    }
+                    mask[2] = self.shapes.len() as u32;
+                    match extent.box_rad {
+                        // A box: no ring, its bounds in one entry.
+                        Some(b) => self.shapes.push(b.map(|v| v as f32)),
+                        None => {
+                            mask[3] = extent.ring_rad.len() as u32;
+                            self.shapes
+                                .extend(extent.ring_rad.iter().map(|[lon, lat]| [*lon as f32, *lat as f32, 0.0, 0.0]));
+                        }
+                    }
+                    lon_min = extent.lon_min_rad as f32;
+                    orientation = extent.orientation() as f32;
+                    1
+                }
+                _ => 0,
+            };
+            let mut noise_head = [0u32; 4];
+            let mut extra = [0.0f32, 0.0, FAR, 0.0];
+            if let Some(n) = &spec.noise {
+                noise_head = [
+                    self.octaves.len() as u32,
+                    planned.octaves,
+                    u32::from(n.noise_type == NoiseType::Ridged),
+                    u32::from(n.placement == DetailWhere::BeyondData),
+                ];
+                for o in 0..planned.octaves {
+                    let wavelength = noise::octave_wavelength_m(n, o);
+                    let (cell, frac) = noise::lattice_origin(origin, wavelength);
+                    self.octaves.push(OctaveOrigin {
+                        cell: [cell[0], cell[1], cell[2], noise::octave_seed(n.seed, o)],
+                        frac: [frac[0] as f32, frac[1] as f32, frac[2] as f32, wavelength as f32],
+                    });
+                }
+                extra[0] = n.amplitude_m as f32;
+                extra[1] = n.gain as f32;
+            }
+            if let Some(h) = spec.height_m {
+                extra[0] = h as f32;
+            }
+            if spec.kind == LayerKind::Dataset && layer.data_spacing_m.is_finite() {
+                extra[2] = layer.data_spacing_m as f32;
+            }
+            extra[3] = orientation;
+            let [lo, hi] = spec.valid_range_m.map_or([-FAR, FAR], |[a, b]| [a as f32, b as f32]);
+            let source = if spec.kind == LayerKind::Dataset { source_slot(k) } else { NO_SLOT };
+            self.layers.push(JobLayer {
+                head: [kind, blend, source, partial],
+                mask,
+                noise: noise_head,
+                value: [spec.opacity as f32, spec.weight as f32, spec.scale as f32, spec.offset_m as f32],
+                range: [lo, hi, spec.feather_m as f32, lon_min],
+                extra,
+            });
+        }
+        self.layers_read += plan.layers.len();
+        self.quads.push(quad);
+        self.jobs.push(ComposeJob {
+            corners: geometry.corners_ecef.map(|c| v4(c - origin, 0.0)),
+            sym: [m.x_axis, m.y_axis, m.z_axis].map(|c| v4(c, 0.0)),
+            origin: v4(origin, stack.ellipsoid.e2() as f32),
+            slots: [height_slot, Split::of(quad).code(), map_slot.unwrap_or(NO_SLOT), flags],
+            layers: [first_layer, plan.layers.len() as u32, 0, 0],
+            params: [plan.spacing_m as f32, 0.0, 0.0, 0.0],
+        });
+    }
+}
+
+/// The compose pipeline.
+pub(crate) struct ComposePass {
+    pipeline: wgpu::ComputePipeline,
+    layout: wgpu::BindGroupLayout,
+}
+
+impl ComposePass {
+    pub(crate) fn new(device: &wgpu::Device) -> Result<ComposePass, GpuError> {
+        let source = super::shaders::composed("compose/compose.wgsl").map_err(GpuError::Shader)?;
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("compose.wgsl"),
+            source: wgpu::ShaderSource::Wgsl(source.into()),
+        });
+        let entry = |binding: u32, read_only: bool| wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility: wgpu::ShaderStages::COMPUTE,
+            ty: wgpu::BindingType::Buffer {
+                ty: wgpu::BufferBindingType::Storage { read_only },
+                has_dynamic_offset: false,
+                min_binding_size: None,
+            },
+            count: None,
+        };
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("compose"),
+            entries: &[
+                entry(0, true),
+                entry(1, true),
+                entry(2, true),
+                entry(3, true),
+                entry(4, true),
+                entry(5, true),
+                entry(6, false),
+            ],
+        });
+        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("compose"),
+            bind_group_layouts: &[Some(&layout)],
+            immediate_size: 0,
+        });
+        let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some("compose"),
+            layout: Some(&pipeline_layout),
+            module: &module,
+            entry_point: Some("compose"),
+            compilation_options: Default::default(),
+            cache: None,
+        });
+        Ok(ComposePass { pipeline, layout })
+    }
+
+    /// Records the batch's dispatch into `encoder` (nothing for an empty batch).
+    pub(crate) fn encode(
+        &self,
+        device: &wgpu::Device,
+        encoder: &mut wgpu::CommandEncoder,
+        batch: &ComposeBatch,
+        sources: &wgpu::Buffer,
+        map_o: &wgpu::Buffer,
+        heights: &wgpu::Buffer,
+    ) {
+        if batch.is_empty() {
+            return;
+        }
+        let storage = |label: &str, bytes: &[u8]| {
+            // Bindings may not be empty: one zeroed element stands in.
+            let contents = if bytes.is_empty() { &[0u8; 32][..] } else { bytes };
+            device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(label),
+                contents,
+                usage: wgpu::BufferUsages::STORAGE,
+            })
+        };
+        let jobs = storage("compose jobs", bytemuck::cast_slice(&batch.jobs));
+        let layers = storage("compose layers", bytemuck::cast_slice(&batch.layers));
+        let octaves = storage("compose octaves", bytemuck::cast_slice(&batch.octaves));
+        let shapes = storage("compose shapes", bytemuck::cast_slice(&batch.shapes));
+        let bind = bind_buffers(
+            device,
+            &self.layout,
+            "compose",
+            &[&jobs, &layers, &octaves, &shapes, sources, map_o, heights],
+        );
+        let mut pass =
+            encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("compose"), timestamp_writes: None });
+        pass.set_pipeline(&self.pipeline);
+        pass.set_bind_group(0, &bind, &[]);
+        let groups = N.div_ceil(WORKGROUP);
+        // At most 65 535 workgroups along z: batches are far smaller (one job per quad).
+        pass.dispatch_workgroups(groups, groups, batch.jobs.len() as u32);
+    }
+}

@@ -1,0 +1,183 @@
+//! The layer stack's side of the renderer: keeping composed heights current (a quad is
+//! recomposed when its plan's stamp differs from its slot's), layer edits, the composition
+//! counters, and composing or reading heights on demand for tools and tests.
+
+use super::*;
+use crate::gpu::data::read_source;
+
+impl Renderer {
+    /// Replaces layer `index`'s settings (its identity stays, its revision is bumped): the
+    /// resident quads it touches are recomposed from the next prepared frame on, and no others.
+    /// A dataset layer keeps its store and dataset (a different one needs the scene reopened).
+    pub fn update_layer(&mut self, index: usize, spec: LayerSpec) -> Result<(), LayerError> {
+        let Some(old) = self.scene.stack.layers.get(index) else {
+            return Err(LayerError::field(&spec.name, "index", format!("{index} is not a layer of the stack")));
+        };
+        if (old.spec.store.as_ref(), old.spec.store_dataset()) != (spec.store.as_ref(), spec.store_dataset())
+            || old.spec.kind != spec.kind
+        {
+            return Err(LayerError::field(
+                &spec.name,
+                "store",
+                "a layer's kind, store and dataset are fixed once open".into(),
+            ));
+        }
+        self.scene.stack.set(index, spec)?;
+        self.cache.plans.clear();
+        Ok(())
+    }
+
+    /// Moves layer `from` to position `to` (0: bottom); the quads both touch are recomposed.
+    pub fn move_layer(&mut self, from: usize, to: usize) {
+        self.scene.stack.move_layer(from, to);
+        self.cache.plans.clear();
+    }
+
+    /// What composition has done so far.
+    pub fn compose_counters(&self) -> ComposeCounters {
+        self.counters
+    }
+
+    /// The composed heights of a resident quad, read back from the GPU (NaN where no data), or
+    /// `None` when the quad has no composed slot. Waits for the GPU: for tests and tools.
+    pub fn read_heights(&self, quad: QuadId) -> Result<Option<Vec<f32>>, GpuError> {
+        let Some(slot) = self.heights_pool.get(quad) else { return Ok(None) };
+        let bytes = u64::from(SAMPLES * SAMPLES) * 4;
+        let read = self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("heights read"),
+            size: bytes,
+            usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+            mapped_at_creation: false,
+        });
+        let mut encoder = self.device.create_command_encoder(&Default::default());
+        encoder.copy_buffer_to_buffer(&self.heights_buffer, u64::from(slot) * bytes, &read, 0, bytes);
+        self.queue.submit([encoder.finish()]);
+        read.slice(..).map_async(wgpu::MapMode::Read, |_| {});
+        self.device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map_err(|e| GpuError::Readback(format!("the GPU did not finish: {e}")))?;
+        let data = read.slice(..).get_mapped_range().map_err(|e| GpuError::Readback(e.to_string()))?;
+        let values: &[f32] = bytemuck::cast_slice(&data);
+        Ok(Some(values.iter().map(|&v| if v < -1e37 { f32::NAN } else { v }).collect()))
+    }
+
+    /// Makes sure a quad's composed heights are current: nothing to do when its slot holds its
+    /// plan's stamp; else, once its maps and every source tile it reads are on the GPU, a job
+    /// for the batch (source tiles in the CPU cache are uploaded within the frame's budget, the
+    /// rest asked of the loader). Returns whether the quad has current heights (or needs none).
+    pub(super) fn ensure_heights(
+        &mut self,
+        quad: QuadId,
+        batch: &mut ComposeBatch,
+        stats: &mut FrameStats,
+        requests: &mut Vec<DataKey>,
+    ) -> bool {
+        let plan = self.cache.plan(&self.scene, quad);
+        if !plan.has_data(&self.scene.stack) {
+            return true;
+        }
+        if self.composed.get(&quad) == Some(&plan.stamp) && self.heights_pool.touch(quad, self.frame).is_some() {
+            return true;
+        }
+        let mut ready = self.missing_maps(quad).is_none();
+        let mut slots = Vec::with_capacity(plan.layers.len());
+        for planned in &plan.layers {
+            let Some(d) = self.scene.dataset_of_layer(planned.index) else {
+                slots.push(NO_SLOT);
+                continue;
+            };
+            let key = (d as u32, quad);
+            if let Some(slot) = self.sources_pool.touch(key, self.frame) {
+                slots.push(slot);
+                continue;
+            }
+            let data = DataKey::Source(key.0, key.1);
+            if self.cpu.contains(data) && stats.uploads < UPLOADS_PER_FRAME && self.upload(data) {
+                stats.uploads += 1;
+                slots.push(self.sources_pool.get(key).unwrap_or(NO_SLOT));
+                continue;
+            }
+            if !self.cpu.contains(data) && !requests.contains(&data) {
+                requests.push(data);
+            }
+            ready = false;
+        }
+        if !ready {
+            return false;
+        }
+        let Some(height_slot) = self.heights_pool.allocate(quad, self.frame) else { return false };
+        let map_slot =
+            (!self.flat.is_flat(quad)).then(|| self.maps_pool.get(MapSymmetry::of(quad).canonical)).flatten();
+        let geometry = self.reference_corners(quad);
+        batch.push(&self.scene.stack, &plan, &geometry, height_slot, map_slot, &|k| slots[k]);
+        self.composed.insert(quad, plan.stamp);
+        true
+    }
+
+    /// The quad's corner geometry (the bounding geometry's corners are the exact ones).
+    pub(super) fn reference_corners(&mut self, quad: QuadId) -> QuadGeometry {
+        self.cache.geometry(&self.scene, quad).clone()
+    }
+
+    /// Composes `quads` now, waiting for their maps and source tiles (read on this thread):
+    /// for the command line (`export`, `bench compose`) and tests, never for a frame. Returns the
+    /// composition's statistics; [`Renderer::read_heights`] then reads each quad back.
+    pub fn compose_now(&mut self, quads: &[QuadId]) -> Result<FrameStats, GpuError> {
+        self.frame += 1;
+        let mut stats = FrameStats::default();
+        let mut batch = ComposeBatch::default();
+        let mut stores: Vec<Option<crate::store::Store>> = self.scene.datasets.iter().map(|_| None).collect();
+        for &quad in quads {
+            let canonical = MapSymmetry::of(quad).canonical;
+            if !self.flat.is_flat(quad) && self.maps_pool.touch(canonical, self.frame).is_none() {
+                let maps = crate::ecm::geometry::MapCache::new().get(
+                    &self.scene.ellipsoid,
+                    CubeProjection::Qsc,
+                    MapSymmetry::of(quad),
+                    SAMPLES,
+                );
+                self.cpu.insert(Loaded::Maps(canonical, maps));
+                if !self.upload(DataKey::Maps(canonical)) {
+                    return Err(GpuError::Stack(format!("no free map slot for {quad}: compose fewer quads at once")));
+                }
+            }
+            let plan = self.cache.plan(&self.scene, quad);
+            for planned in &plan.layers {
+                let Some(d) = self.scene.dataset_of_layer(planned.index) else { continue };
+                if self.sources_pool.touch((d as u32, quad), self.frame).is_some() {
+                    continue;
+                }
+                let tile = read_source(quad, &self.scene.datasets[d], &mut stores[d]).map_err(GpuError::Stack)?;
+                self.cache
+                    .tile_ranges
+                    .insert((d as u32, quad), (tile.range_m.0, tile.range_m.1, tile.edge_roughness_m));
+                self.cpu.insert(Loaded::Source(d as u32, quad, Ok(std::sync::Arc::new(tile))));
+                if !self.upload(DataKey::Source(d as u32, quad)) {
+                    return Err(GpuError::Stack(format!(
+                        "no free source slot for {quad}: compose fewer quads at once"
+                    )));
+                }
+            }
+            let mut requests = Vec::new();
+            stats.uploads = 0; // the budget per frame does not apply here
+            if !self.ensure_heights(quad, &mut batch, &mut stats, &mut requests) {
+                return Err(GpuError::Stack(format!("{quad} could not be composed (GPU cache full?)")));
+            }
+        }
+        stats.composed = batch.quads().to_vec();
+        stats.layers_read = batch.layers_read;
+        self.counters.quads += batch.len() as u64;
+        self.counters.layers_read += batch.layers_read as u64;
+        let mut encoder = self.device.create_command_encoder(&Default::default());
+        self.compose.encode(
+            &self.device,
+            &mut encoder,
+            &batch,
+            &self.sources_buffer,
+            &self.map_buffers[0],
+            &self.heights_buffer,
+        );
+        self.queue.submit([encoder.finish()]);
+        Ok(stats)
+    }
+}

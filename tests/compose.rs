@@ -1,0 +1,282 @@
+//! The layer stack composed on the GPU (Mesa's lavapipe in CI) against the CPU reference, on
+//! every layer kind and blend mode, with feathers across a cube face edge and a cube corner; the
+//! cache's counters (a composed quad is recomposed only when a layer touching it changes; hidden,
+//! transparent and distant layers are not read); and bounds that stay right when a layer raises
+//! the terrain by 5 km.
+
+mod common;
+
+use std::path::PathBuf;
+use std::time::Duration;
+
+use terrafuse::ecm::{CubeProjection, QuadId};
+use terrafuse::geodesy::Ellipsoid;
+use terrafuse::gpu::{DrawMode, GpuContext, IMAGE_FORMAT, Renderer, Scene};
+use terrafuse::layers::{BlendMode, DetailWhere, ExtentSpec, LayerSpec, NoiseSpec, NoiseType, compose_quad};
+use terrafuse::project::{CameraSpec, Project};
+
+fn renderer(project: &Project) -> Renderer {
+    let (scene, _) = Scene::open(project).unwrap();
+    let ctx =
+        GpuContext::headless().expect("a GPU adapter (lavapipe in CI: scripts/install-deps, WGPU_BACKEND=vulkan)");
+    Renderer::new(&ctx, scene, IMAGE_FORMAT).unwrap()
+}
+
+fn noise(noise_type: NoiseType, amplitude_m: f64, wavelength_m: f64, octaves: u32) -> NoiseSpec {
+    NoiseSpec {
+        noise_type,
+        seed: 42,
+        amplitude_m,
+        wavelength_m,
+        octaves,
+        lacunarity: 2.0,
+        gain: 0.5,
+        placement: DetailWhere::Everywhere,
+    }
+}
+
+fn layer(spec: LayerSpec, blend: BlendMode, opacity: f64) -> LayerSpec {
+    LayerSpec { blend, opacity, ..spec }
+}
+
+/// The quad of `level` containing a geodetic point (degrees).
+fn quad_at(e: &Ellipsoid, lat: f64, lon: f64, level: u8) -> QuadId {
+    let p = CubeProjection::Qsc.face_point_from_geodetic(e, lat.to_radians(), lon.to_radians());
+    QuadId::containing(p, level).unwrap()
+}
+
+/// Composes `quads` on the GPU and on the CPU; returns the largest difference, metres, and the
+/// number of samples with data, after checking that both agree on where there is data.
+fn gpu_against_cpu(
+    r: &mut Renderer,
+    quads: &[QuadId],
+    tiles: &dyn Fn(&Scene, QuadId, usize) -> Option<Vec<f32>>,
+) -> (f64, usize) {
+    r.compose_now(quads).unwrap();
+    let (mut worst, mut with_data) = (0f64, 0usize);
+    for &quad in quads {
+        let gpu = r.read_heights(quad).unwrap().expect("composed");
+        let scene = r.scene();
+        let plan = scene.plan(quad);
+        let sources: Vec<Option<Vec<f32>>> = (0..plan.layers.len()).map(|k| tiles(scene, quad, k)).collect();
+        let cpu = compose_quad(&scene.stack, &plan, &|k| sources[k].as_deref());
+        for (k, (g, c)) in gpu.iter().zip(&cpu).enumerate() {
+            assert_eq!(g.is_nan(), c.is_nan(), "{quad} sample {k}: GPU {g}, CPU {c}");
+            if !c.is_nan() {
+                worst = worst.max(f64::from((g - c).abs()));
+                with_data += 1;
+            }
+        }
+    }
+    (worst, with_data)
+}
+
+#[test]
+fn every_kind_and_blend_mode_composes_on_the_gpu_as_on_the_cpu_across_a_cube_corner() {
+    // The Moon's cube corner between the front, right and top faces (35.26°N, 45°E), with a
+    // stack that uses every blend mode, both fractals and both extent shapes: a 30°N cap
+    // feathered over 300 km and a box whose western edge runs 0.3° east of the front/right face
+    // edge, feathered over 40 km, so both feathers cross face edges and the corner.
+    let mut p = Project::new("moon");
+    p.layers = vec![
+        LayerSpec::constant("base", 1000.0),
+        layer(LayerSpec::procedural("hills", noise(NoiseType::Fbm, 400.0, 60_000.0, 8)), BlendMode::Add, 1.0),
+        LayerSpec {
+            extent: Some(ExtentSpec::Box([-180.0, 30.0, 180.0, 90.0])),
+            feather_m: 300_000.0,
+            ..layer(LayerSpec::constant("plateau", 1600.0), BlendMode::Max, 0.9)
+        },
+        LayerSpec {
+            weight: 2.0,
+            ..layer(LayerSpec::procedural("ridges", noise(NoiseType::Ridged, 300.0, 40_000.0, 6)), BlendMode::Mean, 1.0)
+        },
+        LayerSpec { offset_m: 900.0, ..layer(LayerSpec::constant("level", 0.0), BlendMode::Mean, 0.7) },
+        LayerSpec {
+            extent: Some(ExtentSpec::Box([45.3, 0.0, 70.0, 60.0])),
+            feather_m: 40_000.0,
+            ..layer(LayerSpec::constant("cut", 200.0), BlendMode::Min, 0.8)
+        },
+        LayerSpec {
+            extent: Some(ExtentSpec::Polygon(vec![[40.0, 30.0], [50.0, 30.0], [45.0, 40.0]])),
+            feather_m: 20_000.0,
+            ..layer(LayerSpec::constant("crater", 2500.0), BlendMode::Over, 0.6)
+        },
+        layer(LayerSpec::procedural("grit", noise(NoiseType::Fbm, 5.0, 2000.0, 4)), BlendMode::Add, 1.0),
+    ];
+    let mut r = renderer(&p);
+    let e = Ellipsoid::MOON;
+    let (lat_c, lon_c) = (35.264_389_682_754_654, 45.0);
+    let mut quads = Vec::new();
+    for level in [3u8, 6] {
+        for (dlat, dlon) in [(-0.2, -0.2), (-0.2, 0.2), (0.3, 0.0)] {
+            quads.push(quad_at(&e, lat_c + dlat, lon_c + dlon, level));
+        }
+    }
+    let faces: std::collections::BTreeSet<_> = quads.iter().map(|q| q.face as u8).collect();
+    assert_eq!(faces.len(), 3, "three faces meet at the corner: {quads:?}");
+    // Each layer is planned somewhere, with a partial mask somewhere.
+    let plans: Vec<_> = quads.iter().map(|q| r.scene().plan(*q)).collect();
+    for k in 0..p.layers.len() {
+        assert!(
+            plans.iter().any(|pl| pl.layers.iter().any(|l| l.index == k)),
+            "layer {} never planned",
+            p.layers[k].name
+        );
+    }
+    let (worst, with_data) = gpu_against_cpu(&mut r, &quads, &|_, _, _| None);
+    assert_eq!(with_data, quads.len() * 257 * 257);
+    // Tolerance: heights ≈ 1–3 km in f32 (half an ulp 1.2·10⁻⁴ m per operation, ~30 operations
+    // per layer), quad-local f32 positions of level-3 quads (≈ 340 km across: 0.02 m) moving the
+    // noise by amplitude × 2.5 × 0.02 m / λ (≤ 4·10⁻⁴ m) and the masks by ≤ 1.5 × 0.02 m /
+    // feather × the value step (≤ 2·10⁻³ m): 0.02 m bounds it with room.
+    println!("GPU − CPU: worst {worst:.2e} m over {with_data} samples");
+    assert!(worst < 0.02, "worst GPU − CPU difference {worst} m");
+}
+
+fn erzurum() -> PathBuf {
+    let dir = common::repo_path("tests/out/compose");
+    common::sample_project("erzurum", &dir)
+}
+
+#[test]
+fn datasets_with_scale_offset_valid_range_and_feathers_compose_on_the_gpu_as_on_the_cpu() {
+    // The SRTM tile over a constant base: scaled, offset, a valid range that cuts its lowest
+    // valleys, inside a box feathered by 5 km, under procedural detail beyond the data (the
+    // octaves finer than SRTM's 90 m that a level-10 quad resolves).
+    let mut p = Project::load(&erzurum()).unwrap();
+    let srtm = p.layers[0].clone();
+    p.layers = vec![
+        LayerSpec::constant("base", 1500.0),
+        LayerSpec {
+            scale: 1.1,
+            offset_m: -50.0,
+            valid_range_m: Some([1300.0, 4000.0]),
+            extent: Some(ExtentSpec::Box([40.1, 39.2, 40.7, 39.9])),
+            feather_m: 5000.0,
+            ..srtm
+        },
+        LayerSpec {
+            noise: Some(NoiseSpec { placement: DetailWhere::BeyondData, ..noise(NoiseType::Fbm, 20.0, 800.0, 8) }),
+            ..layer(LayerSpec::procedural("detail", noise(NoiseType::Fbm, 1.0, 1.0, 1)), BlendMode::Add, 1.0)
+        },
+    ];
+    let mut r = renderer(&p);
+    let e = Ellipsoid::WGS84;
+    let quads: Vec<QuadId> = [(39.2, 40.1, 9u8), (39.5, 40.4, 9), (39.9, 40.7, 10), (39.6, 40.3, 11), (39.0, 40.4, 8)]
+        .iter()
+        .map(|&(lat, lon, level)| quad_at(&e, lat, lon, level))
+        .collect();
+    let tiles = |scene: &Scene, quad: QuadId, k: usize| {
+        let index = scene.plan(quad).layers[k].index;
+        scene
+            .dataset_of_layer(index)
+            .map(|d| terrafuse::gpu::data::read_source(quad, &scene.datasets[d], &mut None).unwrap().grid)
+    };
+    let (worst, with_data) = gpu_against_cpu(&mut r, &quads, &tiles);
+    assert!(with_data > 4 * 257 * 257);
+    // Heights ≈ 2–3 km in f32 (≈ 2·10⁻⁴ m per operation) and quad-local positions of level-8
+    // quads (≈ 40 km: 2·10⁻³ m) moving the 5 km feather's mask by ≤ 1.5 × 2·10⁻³ / 5000 × 1.5
+    // km: 0.01 m bounds it.
+    println!("GPU − CPU with datasets: worst {worst:.2e} m over {with_data} samples");
+    assert!(worst < 0.01, "worst GPU − CPU difference {worst} m");
+}
+
+fn cam(lat: f64, lon: f64, alt: f64, heading: f64, pitch: f64) -> CameraSpec {
+    CameraSpec { lat, lon, alt, heading, pitch, fov: 50.0 }
+}
+
+#[test]
+fn a_composed_quad_is_recomposed_only_when_a_layer_touching_it_changes() {
+    let mut p = Project::load(&erzurum()).unwrap();
+    let srtm = p.layers[0].clone();
+    p.layers = vec![
+        srtm,
+        // Touches the east of the tile only.
+        LayerSpec {
+            extent: Some(ExtentSpec::Box([40.6, 39.0, 41.0, 40.2])),
+            feather_m: 2000.0,
+            ..layer(LayerSpec::constant("east", 3000.0), BlendMode::Max, 0.5)
+        },
+        // Far away: never touches the view.
+        LayerSpec { extent: Some(ExtentSpec::Box([-10.0, -10.0, 0.0, 0.0])), ..LayerSpec::constant("far", 0.0) },
+        LayerSpec { visible: false, ..layer(LayerSpec::constant("hidden", 100.0), BlendMode::Add, 1.0) },
+        layer(LayerSpec::constant("clear", 100.0), BlendMode::Add, 0.0),
+    ];
+    let mut r = renderer(&p);
+    let camera = cam(39.3, 40.42, 30_000.0, 0.0, -45.0);
+    let settled = r.settle(&camera, 320, 240, Duration::from_secs(120));
+    assert_eq!(settled.pending, 0);
+    let first = r.compose_counters();
+    assert!(first.quads > 0);
+    // Hidden, transparent and distant layers are never read: at most 2 layers per quad.
+    assert!(first.layers_read <= 2 * first.quads, "{first:?}");
+    // Nothing changed: nothing is recomposed.
+    for _ in 0..3 {
+        r.prepare(&camera, 320, 240);
+    }
+    assert_eq!(r.compose_counters().quads, first.quads, "an unchanged stack recomposes nothing");
+    // The far layer changes: it touches no drawn quad.
+    let mut far = p.layers[2].clone();
+    far.offset_m = 10.0;
+    r.update_layer(2, far).unwrap();
+    let s = r.prepare(&camera, 320, 240);
+    assert!(s.composed.is_empty(), "{s:?}");
+    // The east layer changes: exactly the drawn quads it touches are recomposed (the view is
+    // settled, so the frame draws the same quads and composes no new ones).
+    let touches = |r: &Renderer, q: &QuadId, layer: usize| r.scene().plan(*q).layers.iter().any(|l| l.index == layer);
+    let mut east = p.layers[1].clone();
+    east.opacity = 0.9;
+    r.update_layer(1, east).unwrap();
+    let s = r.prepare(&camera, 320, 240);
+    let drawn = r.drawn().to_vec();
+    let mut touching: Vec<QuadId> = drawn.iter().copied().filter(|q| touches(&r, q, 1)).collect();
+    assert!(!touching.is_empty() && touching.len() < drawn.len(), "{} of {}", touching.len(), drawn.len());
+    let mut composed = s.composed.clone();
+    composed.sort();
+    touching.sort();
+    assert_eq!(composed, touching, "recomposed exactly the drawn quads the edited layer touches");
+    // Showing the hidden layer recomposes every drawn quad with data (it has no extent).
+    let mut hidden = p.layers[3].clone();
+    hidden.visible = true;
+    r.update_layer(3, hidden).unwrap();
+    let s = r.prepare(&camera, 320, 240);
+    assert!(s.composed.iter().all(|q| touches(&r, q, 3)));
+    let stack = &r.scene().stack;
+    let with_data: Vec<QuadId> = r.drawn().iter().copied().filter(|q| r.scene().plan(*q).has_data(stack)).collect();
+    assert!(
+        !with_data.is_empty() && with_data.iter().all(|q| s.composed.contains(q)),
+        "{with_data:?} vs {:?}",
+        s.composed
+    );
+}
+
+#[test]
+fn raising_the_terrain_by_5_km_culls_and_cracks_nothing() {
+    let p = Project::load(&common::sample_project("moon-lola", &common::repo_path("tests/out/compose"))).unwrap();
+    let mut p2 = p.clone();
+    p2.layers.push(layer(LayerSpec::constant("raise", 5000.0), BlendMode::Add, 0.0));
+    let mut r = renderer(&p2);
+    // Looking towards the horizon from low over Tycho (the horizon dips 10.6° at 30 km):
+    // terrain fills the lower half of the image.
+    let camera = cam(-43.3, -11.2, 30_000.0, 0.0, -22.0);
+    let coverage = |r: &mut Renderer| {
+        let s = r.settle(&camera, 240, 180, Duration::from_secs(120));
+        assert_eq!(s.pending, 0);
+        let image = r.render_image(DrawMode::Probe).unwrap();
+        let (ids, surface) = (image.ids.unwrap(), image.surface.unwrap());
+        let lower = &ids[ids.len() / 2..];
+        let holes = lower.iter().filter(|id| id[0] == 0).count();
+        let heights: Vec<f32> =
+            lower.iter().zip(&surface[ids.len() / 2..]).filter(|(id, _)| id[0] != 0).map(|(_, s)| s[3]).collect();
+        (holes, heights.iter().copied().fold(f32::INFINITY, f32::min), r.drawn().len())
+    };
+    let (holes, low, _) = coverage(&mut r);
+    assert_eq!(holes, 0);
+    let mut raise = p2.layers.last().unwrap().clone();
+    raise.opacity = 1.0;
+    r.update_layer(p2.layers.len() - 1, raise).unwrap();
+    let (holes, raised_low, quads) = coverage(&mut r);
+    assert_eq!(holes, 0, "no quad culled or cracked after raising by 5 km ({quads} quads)");
+    // Every sample is 5 km higher; the lowest visible one may be another place: ≥ 2.5 km higher.
+    assert!(raised_low > low + 2500.0, "lowest visible height {low} → {raised_low}");
+}
