@@ -70,6 +70,30 @@ enum Command {
         #[command(flatten)]
         look: LookArgs,
     },
+    /// Write a project's composed elevation (every visible layer, as drawn) as a GeoTIFF in any
+    /// CRS: float32, NaN nodata, written atomically.
+    Export {
+        /// The project file (JSON).
+        project: PathBuf,
+        /// The GeoTIFF to write.
+        out: PathBuf,
+        /// Output CRS (EPSG:4326, EPSG:32637, a PROJ string, WKT).
+        #[arg(long)]
+        crs: String,
+        /// xmin,ymin,xmax,ymax in the output CRS.
+        #[arg(long, allow_hyphen_values = true)]
+        bounds: String,
+        /// Pixel size in CRS units: one value, or x,y.
+        #[arg(long)]
+        resolution: String,
+        /// Level to compose (default: the output's pixel size, no finer than the finest dataset
+        /// unless procedural layers add detail).
+        #[arg(long)]
+        level: Option<u8>,
+        /// Where to compose: gpu (the renderer's pass) or cpu (the reference, bit for bit).
+        #[arg(long, default_value = "gpu", value_parser = ["gpu", "cpu"])]
+        compose: String,
+    },
     /// Open the workstation: a window with the project's terrain, its views and its visual
     /// settings (needs an X11 display; `xvfb-run` provides one for screenshots).
     View {
@@ -190,6 +214,23 @@ enum StoreCommand {
 
 #[derive(Subcommand)]
 enum Bench {
+    /// The layer stack's composition: samples per second on the GPU against the CPU reference
+    /// for 1, 2, 4, 8 layers and each kind, the GPU − CPU difference, octave skipping (time and
+    /// error), and recomposition after a one-layer change; writes compose.csv.
+    Compose {
+        /// The Erzurum sample project (or another with one dataset layer over Erzurum).
+        #[arg(long, default_value = "projects/erzurum.json")]
+        project: PathBuf,
+        /// Level-9 quads per measurement.
+        #[arg(long, default_value_t = 16)]
+        quads: usize,
+        /// Repetitions (the median is reported).
+        #[arg(long, default_value_t = 5)]
+        repeats: usize,
+        /// Folder for compose.csv.
+        #[arg(long, default_value = "out/bench")]
+        out: PathBuf,
+    },
     /// Import against gdalwarp into the same QSC grid: throughput, peak memory, difference.
     Import {
         #[command(flatten)]
@@ -453,6 +494,36 @@ fn run(args: Args) -> Result<ExitCode> {
             .map_err(anyhow::Error::msg)?;
             print!("{report}");
         }
+        Command::Export { project, out, crs, bounds, resolution, level, compose } => {
+            let b = parse_numbers(&bounds, "--bounds")?;
+            anyhow::ensure!(b.len() == 4, "--bounds takes xmin,ymin,xmax,ymax");
+            let r = parse_numbers(&resolution, "--resolution")?;
+            let resolution = match r.as_slice() {
+                [v] => (*v, *v),
+                [x, y] => (*x, *y),
+                _ => anyhow::bail!("--resolution takes one value or x,y"),
+            };
+            let opts = cli::ComposedExport {
+                project,
+                out,
+                crs,
+                bounds: [b[0], b[1], b[2], b[3]],
+                resolution,
+                level,
+                compose_on: if compose == "cpu" { cli::ComposeOn::Cpu } else { cli::ComposeOn::Gpu },
+            };
+            let report = cli::export_composed(&opts).map_err(anyhow::Error::msg)?;
+            println!(
+                "wrote {} ({}×{} pixels, level {}, {} quads composed on the {}, {} pixels with data)",
+                opts.out.display(),
+                report.size.0,
+                report.size.1,
+                report.level,
+                report.quads,
+                report.composer,
+                report.valid
+            );
+        }
         Command::View { project, look, width, height, screenshot, timeout } => {
             if !(timeout.is_finite() && timeout > 0.0) {
                 anyhow::bail!("--timeout {timeout} must be a positive number of seconds");
@@ -522,6 +593,13 @@ fn run(args: Args) -> Result<ExitCode> {
                 report.level,
                 report.valid
             );
+        }
+        Command::Bench { bench: Bench::Compose { project, quads, repeats, out } } => {
+            anyhow::ensure!(quads > 0 && repeats > 0, "--quads and --repeats must be at least 1");
+            let settings = cli::ComposeBenchSettings { project, quads, repeats, out: out.clone() };
+            let (_, report) = cli::bench_compose(&settings).map_err(anyhow::Error::msg)?;
+            print!("{report}");
+            println!("wrote {}", out.join("compose.csv").display());
         }
         Command::Bench { bench: Bench::Render { projects, thresholds, width, height, frames, out } } => {
             anyhow::ensure!(thresholds.iter().all(|t| t.is_finite() && *t > 0.0), "--thresholds must be positive");

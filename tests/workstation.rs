@@ -156,9 +156,10 @@ fn the_workstation_draws_probes_navigates_and_saves() {
     // A colour map chosen in the panel is drawn and, once saved, is in the project file. (The
     // combo box and the save button are pressed through accesskit, as a screen reader does:
     // kittest's pointer clicks did not reach them inside the scrolled panel.)
-    h.get_by_role(egui::accesskit::Role::ComboBox).scroll_to_me();
+    let colour_map = || (egui::accesskit::Role::ComboBox, "colour map");
+    h.get_by_role_and_label(colour_map().0, colour_map().1).scroll_to_me();
     h.run_steps(2);
-    h.get_by_role(egui::accesskit::Role::ComboBox).click_accesskit();
+    h.get_by_role_and_label(colour_map().0, colour_map().1).click_accesskit();
     h.run_steps(2);
     h.get_by_label("grey").click();
     h.step();
@@ -170,4 +171,24 @@ fn the_workstation_draws_probes_navigates_and_saves() {
     let saved = Project::load(&project).unwrap();
     assert_eq!(saved.visuals.colour_map.preset, "grey");
     assert_eq!(saved.views.get("tycho-again"), Some(&tycho), "the saved view is kept");
+
+    // The layers panel: hiding the (only) layer takes it out of the renderer's stack at once
+    // and, saved, is in the project file; shown again, the terrain comes back. (The view is not
+    // settled while the layer is hidden: without data, quads refine to level 6 for the shape of
+    // the ellipsoid, which takes lavapipe minutes to draw.)
+    h.get_by_label("visible").click_accesskit();
+    h.step();
+    assert!(h.state().unsaved());
+    assert!(!h.state().stack().layers[0].spec.visible);
+    h.get_by_label("save project *").click_accesskit();
+    h.step();
+    let saved = Project::load(&project).unwrap();
+    assert!(!saved.layers[0].visible);
+    assert_eq!(saved.version, 2);
+    h.get_by_label("visible").click_accesskit();
+    h.step();
+    assert!(h.state().stack().layers[0].spec.visible);
+    settle(&mut h);
+    let hit = h.state().hit().expect("terrain under the probe");
+    assert!(hit.has_data, "{hit:?}");
 }

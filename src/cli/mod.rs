@@ -1,14 +1,18 @@
 //! The logic behind the `terrafuse` subcommands, kept out of `main.rs` so it can be tested:
 //! batch coordinate conversion in the manner of PROJ's `cct` and the analysis reports.
 
+mod bench_compose;
 mod bench_render;
+mod export;
 mod geo;
 mod geometry;
 mod render;
 mod report;
 mod store;
 
+pub use bench_compose::{ComposeBenchRow, ComposeBenchSettings, bench_compose};
 pub use bench_render::{RenderBenchRow, RenderBenchSettings, bench_render, render_bench_csv, write_render_bench};
+pub use export::{ComposeOn, ComposedExport, ComposedReport, compose_on_cpu, export_composed};
 pub use geo::{BatchReport, GeoOperation, run_batch};
 pub use geometry::{
     AccuracyBench, accuracy_bench, accuracy_csv, accuracy_plot, cutoff_report, fitted_rule, timing_report,

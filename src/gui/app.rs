@@ -120,13 +120,15 @@ impl App {
         self.camera
     }
 
-    /// Whether the view is drawn and nothing is loading.
+    /// Whether the view is drawn and nothing is loading: every wanted quad is there, or the
+    /// GPU cache is full of this frame's quads (nothing more can arrive).
     pub fn settled(&self) -> bool {
         !self.dirty
             && self.frames > 0
-            && self.stats.pending == 0
+            && (self.stats.pending == 0 || self.stats.blocked > 0)
             && self.stats.uploads == 0
             && self.stats.requested == 0
+            && self.stats.composed.is_empty()
     }
 
     /// Whether settings changed since the project was saved.
@@ -137,6 +139,11 @@ impl App {
     /// The last message in the status bar (saves, errors).
     pub fn message(&self) -> &str {
         &self.message
+    }
+
+    /// The layer stack the renderer composes.
+    pub fn stack(&self) -> &crate::layers::Stack {
+        &self.renderer.scene().stack
     }
 
     /// The probe under the cursor (or at the centre without one) of the last frame.
@@ -537,7 +544,9 @@ impl App {
         let centre = (w / 2, h / 2);
         // The hover pixel is in target pixels already (navigation maps onto the target's size).
         let cursor = self.hover.map_or(centre, |(x, y)| (x.min(w - 1), y.min(h - 1)));
-        let streaming = self.stats.pending > 0 || self.stats.uploads > 0 || self.stats.requested > 0;
+        let waiting = self.stats.pending > 0 && self.stats.blocked == 0;
+        let streaming =
+            waiting || self.stats.uploads > 0 || self.stats.requested > 0 || !self.stats.composed.is_empty();
         if self.dirty || streaming {
             let t = Instant::now();
             let stats = self.renderer.prepare(&self.camera, w, h);
@@ -547,7 +556,10 @@ impl App {
             if let Some(e) = stats.errors.last() {
                 self.message = e.clone();
             }
-            let changed = self.dirty || stats.uploads > 0 || stats.selection.quads != self.stats.selection.quads;
+            let changed = self.dirty
+                || stats.uploads > 0
+                || !stats.composed.is_empty()
+                || stats.selection.quads != self.stats.selection.quads;
             self.stats = stats;
             if changed {
                 if let Err(e) = vp.render(rs, &self.renderer, [cursor, centre]) {

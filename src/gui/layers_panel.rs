@@ -29,13 +29,13 @@ pub fn layers_ui(ui: &mut egui::Ui, renderer: &mut Renderer, project: &mut Proje
         let before = spec.clone();
         ui.push_id(index, |ui| {
             ui.horizontal(|ui| {
-                ui.checkbox(&mut spec.visible, "").on_hover_text("visible");
+                ui.checkbox(&mut spec.visible, "visible");
                 ui.label(egui::RichText::new(&spec.name).strong());
                 ui.label(egui::RichText::new(spec.kind.name()).small());
-                if ui.small_button("▲").on_hover_text("move up the stack").clicked() && index + 1 < count {
+                if ui.small_button("up").on_hover_text("move up the stack").clicked() && index + 1 < count {
                     swap = Some((index, index + 1));
                 }
-                if ui.small_button("▼").on_hover_text("move down the stack").clicked() && index > 0 {
+                if ui.small_button("down").on_hover_text("move down the stack").clicked() && index > 0 {
                     swap = Some((index, index - 1));
                 }
             });

@@ -46,31 +46,138 @@ pub struct ExportReport {
     pub valid: u64,
 }
 
+/// An output raster: its CRS, size and geotransform, checked.
+pub struct RasterSpec {
+    /// The output CRS (traditional GIS axis order).
+    pub srs: SpatialRef,
+    /// Width, height in pixels.
+    pub size: (usize, usize),
+    /// GDAL geotransform (north up).
+    pub geotransform: [f64; 6],
+}
+
+impl RasterSpec {
+    /// Checks a CRS, bounds (xmin, ymin, xmax, ymax) and pixel size; errors name `out`.
+    pub fn new(crs: &str, bounds: [f64; 4], resolution: (f64, f64), out: &Path) -> Result<RasterSpec, StoreError> {
+        let out_err = |m: String| StoreError::new(out, m);
+        let mut srs = SpatialRef::from_definition(crs).map_err(|e| out_err(format!("unknown CRS '{crs}': {e}")))?;
+        srs.set_axis_mapping_strategy(AxisMappingStrategy::TraditionalGisOrder);
+        let [x0, y0, x1, y1] = bounds;
+        let (rx, ry) = resolution;
+        if !(x1 > x0 && y1 > y0 && rx > 0.0 && ry > 0.0 && [x0, y0, x1, y1, rx, ry].iter().all(|v| v.is_finite())) {
+            return Err(out_err(format!(
+                "bounds {bounds:?} and resolution {rx},{ry} do not make a raster (need xmin<xmax, ymin<ymax, resolution > 0)"
+            )));
+        }
+        let (w, h) = (((x1 - x0) / rx).round().max(1.0), ((y1 - y0) / ry).round().max(1.0));
+        if w * h > 4e9 {
+            return Err(out_err(format!("{w}×{h} pixels is too large an export (more than 4·10⁹ pixels)")));
+        }
+        Ok(RasterSpec { srs, size: (w as usize, h as usize), geotransform: [x0, rx, 0.0, y1, 0.0, -ry] })
+    }
+
+    /// The ground size of a pixel at the raster's centre on a body, metres (through PROJ).
+    pub fn pixel_ground_m(&self, crs: &str, body: &crate::geodesy::Ellipsoid, out: &Path) -> Result<f64, StoreError> {
+        let out_err = |m: String| StoreError::new(out, m);
+        let geo = body_geographic(body).map_err(|e| out_err(e.to_string()))?;
+        let to_geo = CoordTransform::new(&self.srs, &geo)
+            .map_err(|e| out_err(format!("PROJ cannot go from {crs} to the body: {e}")))?;
+        let [x0, rx, _, y1, _, ry] = self.geotransform;
+        let (cx, cy) = (x0 + rx * self.size.0 as f64 / 2.0, y1 + ry * self.size.1 as f64 / 2.0);
+        let (mut xs, mut ys) = (vec![cx, cx + rx, cx], vec![cy, cy, cy - ry]);
+        to_geo
+            .transform_coords(&mut xs, &mut ys, &mut [])
+            .map_err(|e| out_err(format!("the bounds' centre is not on the body: {e}")))?;
+        let p = |k: usize| geodesy::ecef_from_geodetic(body, Geodetic::from_degrees(ys[k], xs[k], 0.0));
+        Ok(((p(1) - p(0)).length() * (p(2) - p(0)).length()).sqrt())
+    }
+
+    /// Per pixel centre, row by row from the north: (lat, lon) in radians on the body, NaN where
+    /// the point is not on it. Rows in parallel, each worker with its own PROJ transform.
+    pub fn pixel_lat_lon(
+        &self,
+        crs: &str,
+        body: &crate::geodesy::Ellipsoid,
+        out: &Path,
+    ) -> Result<Vec<(f64, f64)>, StoreError> {
+        let out_err = |m: String| StoreError::new(out, m);
+        let (w, h) = self.size;
+        let [x0, rx, _, y1, _, ry] = self.geotransform;
+        let rows: Vec<Vec<(f64, f64)>> = (0..h)
+            .into_par_iter()
+            .map_init(
+                || -> Result<CoordTransform, StoreError> {
+                    let mut srs = SpatialRef::from_definition(crs).map_err(|e| out_err(e.to_string()))?;
+                    srs.set_axis_mapping_strategy(AxisMappingStrategy::TraditionalGisOrder);
+                    let geo = body_geographic(body).map_err(|e| out_err(e.to_string()))?;
+                    CoordTransform::new(&srs, &geo).map_err(|e| out_err(e.to_string()))
+                },
+                |t, r| -> Result<Vec<(f64, f64)>, StoreError> {
+                    let t = t.as_mut().map_err(|e| e.clone())?;
+                    let y = y1 + (r as f64 + 0.5) * ry;
+                    let mut xs: Vec<f64> = (0..w).map(|c| x0 + (c as f64 + 0.5) * rx).collect();
+                    let mut ys = vec![y; w];
+                    let ok = t.transform_coords(&mut xs, &mut ys, &mut []).is_ok();
+                    Ok((0..w)
+                        .map(|c| {
+                            if !ok || !xs[c].is_finite() || !ys[c].is_finite() || ys[c].abs() > 90.0 {
+                                (f64::NAN, f64::NAN)
+                            } else {
+                                (ys[c].to_radians(), xs[c].to_radians())
+                            }
+                        })
+                        .collect())
+                },
+            )
+            .collect::<Result<_, _>>()?;
+        Ok(rows.into_iter().flatten().collect())
+    }
+
+    /// Writes `data` (row by row from the north, NaN no data) as a float32 GeoTIFF with the
+    /// metadata items, atomically: a temporary file beside `out`, synced, renamed.
+    pub fn write(&self, out: &Path, metadata: &[(&str, String)], mut data: Vec<f32>) -> Result<(), StoreError> {
+        let out_err = |m: String| StoreError::new(out, m);
+        let (w, h) = self.size;
+        let dir = out.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
+        if !dir.is_dir() {
+            return Err(out_err(format!("folder {} does not exist", dir.display())));
+        }
+        let name = out.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+        let tmp = dir.join(format!(".{name}.tmp-{}.tif", std::process::id()));
+        let result = (|| -> Result<(), StoreError> {
+            let driver = DriverManager::get_driver_by_name("GTiff").map_err(|e| out_err(e.to_string()))?;
+            let options = RasterCreationOptions::from_iter(["COMPRESS=DEFLATE", "TILED=YES", "BIGTIFF=IF_SAFER"]);
+            let mut ds = driver
+                .create_with_band_type_with_options::<f32, _>(&tmp, w, h, 1, &options)
+                .map_err(|e| out_err(format!("cannot create the GeoTIFF: {e}")))?;
+            ds.set_geo_transform(&self.geotransform).map_err(|e| out_err(e.to_string()))?;
+            ds.set_spatial_ref(&self.srs).map_err(|e| out_err(e.to_string()))?;
+            for (k, v) in metadata {
+                ds.set_metadata_item(k, v, "").map_err(|e| out_err(e.to_string()))?;
+            }
+            let mut band = ds.rasterband(1).map_err(|e| out_err(e.to_string()))?;
+            band.set_no_data_value(Some(f64::NAN)).map_err(|e| out_err(e.to_string()))?;
+            let mut buffer = Buffer::new((w, h), std::mem::take(&mut data));
+            band.write((0, 0), (w, h), &mut buffer).map_err(|e| out_err(format!("cannot write pixels: {e}")))?;
+            ds.flush_cache().map_err(|e| out_err(e.to_string()))?;
+            drop(ds);
+            std::fs::File::open(&tmp).and_then(|f| f.sync_all()).map_err(|e| out_err(e.to_string()))?;
+            std::fs::rename(&tmp, out).map_err(|e| out_err(format!("cannot move the export into place: {e}")))
+        })();
+        if result.is_err() {
+            let _ = std::fs::remove_file(&tmp);
+        }
+        result
+    }
+}
+
 /// Exports a dataset. Errors name the store, the CRS or the output file.
 pub fn export(opts: &ExportOptions) -> Result<ExportReport, StoreError> {
     let store = Store::open_read_only(&opts.store)?;
     let body = *store.body();
     let record = store.resolve_dataset(opts.dataset.as_deref())?;
-    let out_err = |m: String| StoreError::new(&opts.out, m);
-    let mut srs =
-        SpatialRef::from_definition(&opts.crs).map_err(|e| out_err(format!("unknown CRS '{}': {e}", opts.crs)))?;
-    srs.set_axis_mapping_strategy(AxisMappingStrategy::TraditionalGisOrder);
-    let [x0, y0, x1, y1] = opts.bounds;
-    let (rx, ry) = opts.resolution;
-    if !(x1 > x0 && y1 > y0 && rx > 0.0 && ry > 0.0 && [x0, y0, x1, y1, rx, ry].iter().all(|v| v.is_finite())) {
-        return Err(out_err(format!(
-            "bounds {:?} and resolution {rx},{ry} do not make a raster (need xmin<xmax, ymin<ymax, resolution > 0)",
-            opts.bounds
-        )));
-    }
-    let (w, h) = (((x1 - x0) / rx).round().max(1.0), ((y1 - y0) / ry).round().max(1.0));
-    if w * h > 4e9 {
-        return Err(out_err(format!("{w}×{h} pixels is too large an export (more than 4·10⁹ pixels)")));
-    }
-    let (w, h) = (w as usize, h as usize);
-    let geo = body_geographic(&body).map_err(|e| out_err(e.to_string()))?;
-    let to_geo = CoordTransform::new(&srs, &geo)
-        .map_err(|e| out_err(format!("PROJ cannot go from {} to the body: {e}", opts.crs)))?;
+    let raster = RasterSpec::new(&opts.crs, opts.bounds, opts.resolution, &opts.out)?;
+    let (w, h) = raster.size;
     let level = match opts.level {
         Some(l) if l > record.settings.finest_level => {
             return Err(StoreError::new(
@@ -80,83 +187,40 @@ pub fn export(opts: &ExportOptions) -> Result<ExportReport, StoreError> {
         }
         Some(l) => l,
         None => {
-            // Ground size of an output pixel at the centre, through PROJ.
-            let (cx, cy) = ((x0 + x1) / 2.0, (y0 + y1) / 2.0);
-            let (mut xs, mut ys) = (vec![cx, cx + rx, cx], vec![cy, cy, cy + ry]);
-            to_geo
-                .transform_coords(&mut xs, &mut ys, &mut [])
-                .map_err(|e| out_err(format!("the bounds' centre is not on the body: {e}")))?;
-            let p = |k: usize| geodesy::ecef_from_geodetic(&body, Geodetic::from_degrees(ys[k], xs[k], 0.0));
-            let r = ((p(1) - p(0)).length() * (p(2) - p(0)).length()).sqrt();
+            let r = raster.pixel_ground_m(&opts.crs, &body, &opts.out)?;
             grid::level_for_resolution(&body, r).min(record.settings.finest_level)
         }
     };
-    // Rows in parallel, each worker with its own store connection and PROJ transform.
-    let rows: Vec<Vec<f32>> = (0..h)
-        .into_par_iter()
-        .map_init(
-            || -> Result<(GridReader, CoordTransform), StoreError> {
-                let reader = GridReader::new(Store::open_read_only(&opts.store)?, &record.name)?;
-                let mut srs = SpatialRef::from_definition(&opts.crs).map_err(|e| out_err(e.to_string()))?;
-                srs.set_axis_mapping_strategy(AxisMappingStrategy::TraditionalGisOrder);
-                let geo = body_geographic(&body).map_err(|e| out_err(e.to_string()))?;
-                let t = CoordTransform::new(&srs, &geo).map_err(|e| out_err(e.to_string()))?;
-                Ok((reader, t))
-            },
-            |state, r| -> Result<Vec<f32>, StoreError> {
-                let (reader, t) = state.as_mut().map_err(|e| e.clone())?;
-                let y = y1 - (r as f64 + 0.5) * ry;
-                let mut xs: Vec<f64> = (0..w).map(|c| x0 + (c as f64 + 0.5) * rx).collect();
-                let mut ys = vec![y; w];
-                let ok = t.transform_coords(&mut xs, &mut ys, &mut []).is_ok();
-                (0..w)
-                    .map(|c| {
-                        if !ok || !xs[c].is_finite() || !ys[c].is_finite() || ys[c].abs() > 90.0 {
-                            return Ok(f32::NAN);
-                        }
-                        reader.height_at(ys[c].to_radians(), xs[c].to_radians(), level).map(|v| v as f32)
-                    })
-                    .collect()
-            },
-        )
-        .collect::<Result<_, _>>()?;
-    let mut data: Vec<f32> = rows.into_iter().flatten().collect();
+    let points = raster.pixel_lat_lon(&opts.crs, &body, &opts.out)?;
+    // Rows in parallel, each worker with its own store connection.
+    let rows: Vec<Vec<f32>> =
+        points
+            .par_chunks(w)
+            .map_init(
+                || GridReader::new(Store::open_read_only(&opts.store)?, &record.name),
+                |reader, row| -> Result<Vec<f32>, StoreError> {
+                    let reader = reader.as_mut().map_err(|e| e.clone())?;
+                    row.iter()
+                        .map(|&(lat, lon)| {
+                            if lat.is_nan() {
+                                Ok(f32::NAN)
+                            } else {
+                                reader.height_at(lat, lon, level).map(|v| v as f32)
+                            }
+                        })
+                        .collect()
+                },
+            )
+            .collect::<Result<_, _>>()?;
+    let data: Vec<f32> = rows.into_iter().flatten().collect();
     let valid = data.iter().filter(|v| !v.is_nan()).count() as u64;
-
-    let dir = opts.out.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
-    if !dir.is_dir() {
-        return Err(out_err(format!("folder {} does not exist", dir.display())));
-    }
-    let name = opts.out.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
-    let tmp = dir.join(format!(".{name}.tmp-{}.tif", std::process::id()));
-    let result = (|| -> Result<(), StoreError> {
-        let driver = DriverManager::get_driver_by_name("GTiff").map_err(|e| out_err(e.to_string()))?;
-        let options = RasterCreationOptions::from_iter(["COMPRESS=DEFLATE", "TILED=YES", "BIGTIFF=IF_SAFER"]);
-        let mut ds = driver
-            .create_with_band_type_with_options::<f32, _>(&tmp, w, h, 1, &options)
-            .map_err(|e| out_err(format!("cannot create the GeoTIFF: {e}")))?;
-        ds.set_geo_transform(&[x0, rx, 0.0, y1, 0.0, -ry]).map_err(|e| out_err(e.to_string()))?;
-        ds.set_spatial_ref(&srs).map_err(|e| out_err(e.to_string()))?;
-        for (k, v) in [
-            ("TERRAFUSE_STORE", opts.store.to_string_lossy().into_owned()),
-            ("TERRAFUSE_DATASET", record.name.clone()),
-            ("TERRAFUSE_LEVEL", level.to_string()),
-            ("TERRAFUSE_VERTICAL_DATUM", record.settings.vertical_datum.clone()),
-        ] {
-            ds.set_metadata_item(k, &v, "").map_err(|e| out_err(e.to_string()))?;
-        }
-        let mut band = ds.rasterband(1).map_err(|e| out_err(e.to_string()))?;
-        band.set_no_data_value(Some(f64::NAN)).map_err(|e| out_err(e.to_string()))?;
-        let mut buffer = Buffer::new((w, h), std::mem::take(&mut data));
-        band.write((0, 0), (w, h), &mut buffer).map_err(|e| out_err(format!("cannot write pixels: {e}")))?;
-        ds.flush_cache().map_err(|e| out_err(e.to_string()))?;
-        drop(ds);
-        std::fs::File::open(&tmp).and_then(|f| f.sync_all()).map_err(|e| out_err(e.to_string()))?;
-        std::fs::rename(&tmp, &opts.out).map_err(|e| out_err(format!("cannot move the export into place: {e}")))
-    })();
-    if result.is_err() {
-        let _ = std::fs::remove_file(&tmp);
-    }
-    result?;
+    let metadata = [
+        ("TERRAFUSE_STORE", opts.store.to_string_lossy().into_owned()),
+        ("TERRAFUSE_DATASET", record.name.clone()),
+        ("TERRAFUSE_LEVEL", level.to_string()),
+        ("TERRAFUSE_VERTICAL_DATUM", record.settings.vertical_datum.clone()),
+    ];
+    raster.write(&opts.out, &metadata, data)?;
+    debug_assert_eq!(h, points.len() / w.max(1));
     Ok(ExportReport { size: (w, h), level, valid })
 }

@@ -33,6 +33,20 @@ impl Renderer {
         self.cache.plans.clear();
     }
 
+    /// Forgets which stamp every composed slot holds, so that each resident quad is recomposed
+    /// when next needed (its sources stay on the GPU): for benchmarks of the kernel.
+    pub fn invalidate_composed(&mut self) {
+        self.composed.clear();
+    }
+
+    /// Waits until the GPU has finished everything submitted (benchmarks time with it).
+    pub fn wait_idle(&self) -> Result<(), GpuError> {
+        self.device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map(|_| ())
+            .map_err(|e| GpuError::Readback(format!("the GPU did not finish: {e}")))
+    }
+
     /// What composition has done so far.
     pub fn compose_counters(&self) -> ComposeCounters {
         self.counters
