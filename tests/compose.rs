@@ -280,3 +280,26 @@ fn raising_the_terrain_by_5_km_culls_and_cracks_nothing() {
     // Every sample is 5 km higher; the lowest visible one may be another place: ≥ 2.5 km higher.
     assert!(raised_low > low + 2500.0, "lowest visible height {low} → {raised_low}");
 }
+
+#[test]
+fn a_settled_view_stays_settled_when_detail_fills_the_gpu_cache() {
+    // Procedural detail refines far below SRTM's finest level and fills a small GPU cache. Split
+    // quads whose children are all culled must keep their slots: evicting them once made every
+    // other frame collapse to a few coarse quads (and `settle` stop on the collapsed one).
+    let mut p = Project::load(&erzurum()).unwrap();
+    p.detail.gpu_cache_mib = 256;
+    p.layers.push(LayerSpec {
+        noise: Some(NoiseSpec { placement: DetailWhere::BeyondData, ..noise(NoiseType::Fbm, 14.0, 140.0, 7) }),
+        ..layer(LayerSpec::procedural("detail", noise(NoiseType::Fbm, 1.0, 1.0, 1)), BlendMode::Add, 1.0)
+    });
+    let mut r = renderer(&p);
+    let camera = cam(39.55, 40.3, 2600.0, 60.0, -25.0);
+    let settled = r.settle(&camera, 400, 300, Duration::from_secs(300));
+    let deepest = settled.selection.quads.iter().map(|q| q.level).max().unwrap();
+    assert!(deepest > 9, "detail refines below the data's level 9: {:?}", settled.selection.per_level());
+    let drawn = r.drawn().to_vec();
+    for _ in 0..6 {
+        let s = r.prepare(&camera, 400, 300);
+        assert_eq!(s.selection.quads, drawn, "the drawn set stays the same frame after frame");
+    }
+}

@@ -55,6 +55,10 @@ pub struct Selection {
     pub quads: Vec<QuadId>,
     /// Quads that would be drawn if their data were ready, coarsest and largest first.
     pub wanted: Vec<QuadId>,
+    /// Quads split this frame: the next frame splits them again only if they are still ready,
+    /// so their data must stay on the GPU even when nothing under them is drawn (all their
+    /// children culled).
+    pub split: Vec<QuadId>,
     /// Quads dropped outside the frustum.
     pub culled_frustum: usize,
     /// Quads dropped behind the horizon.
@@ -172,6 +176,7 @@ pub fn select(camera: &Camera, params: &SelectParams, source: &mut impl QuadSour
             out.capped = true;
             out.quads.push(quad);
         } else {
+            out.split.push(quad);
             queue.extend(children);
         }
     }

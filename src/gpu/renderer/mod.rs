@@ -363,7 +363,13 @@ impl Renderer {
         // Ancestors stay too: selection walks down through them every frame, and they stand in
         // at once when the view pulls back (a 4-ary tree has at most a third as many inner
         // quads as leaves).
+        // Split quads stay too, also those whose children are all culled (nothing drawn under
+        // them), and the six roots, which selection always visits: evicting either made the
+        // next frame unable to split them, so the view collapsed and recovered frame after frame
+        // once the GPU cache was full.
         let mut kept: std::collections::HashSet<QuadId> = selection.quads.iter().copied().collect();
+        kept.extend(selection.split.iter().copied());
+        kept.extend(crate::ecm::Face::ALL.map(QuadId::root));
         for q in &selection.quads {
             let mut p = q.parent();
             while let Some(a) = p {
@@ -572,7 +578,7 @@ impl Renderer {
                 stats.errors = errors;
                 return stats;
             }
-            if stats.uploads == 0 && stats.requested == 0 && self.loader.busy() == 0 {
+            if stats.uploads == 0 && stats.requested == 0 && stats.composed.is_empty() && self.loader.busy() == 0 {
                 // Nothing arriving and nothing fits: the GPU cache is full of this frame's quads.
                 stalls += 1;
                 if stalls > 2 {
