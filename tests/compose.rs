@@ -303,3 +303,36 @@ fn a_settled_view_stays_settled_when_detail_fills_the_gpu_cache() {
         assert_eq!(s.selection.quads, drawn, "the drawn set stays the same frame after frame");
     }
 }
+
+#[test]
+fn a_feathered_max_layer_beside_a_dataset_agrees_on_where_there_is_data() {
+    // The bench's two-layer stack: SRTM under a feathered `max` plateau that reaches past the
+    // tile, so at some samples the plateau alone gives data.
+    let mut p = Project::load(&erzurum()).unwrap();
+    p.layers.push(LayerSpec {
+        blend: BlendMode::Max,
+        opacity: 0.6,
+        extent: Some(ExtentSpec::Box([40.3, 39.3, 40.9, 40.1])),
+        feather_m: 8000.0,
+        ..LayerSpec::constant("plateau", 2600.0)
+    });
+    let mut r = renderer(&p);
+    let e = Ellipsoid::WGS84;
+    let mut quads = Vec::new();
+    for row in 0..8 {
+        for c in 0..8 {
+            let q = quad_at(&e, 39.2 + 0.1 * f64::from(row), 40.05 + 0.1 * f64::from(c), 9);
+            if !quads.contains(&q) && quads.len() < 16 {
+                quads.push(q);
+            }
+        }
+    }
+    let tiles = |scene: &Scene, quad: QuadId, k: usize| {
+        let index = scene.plan(quad).layers[k].index;
+        scene
+            .dataset_of_layer(index)
+            .map(|d| terrafuse::gpu::data::read_source(quad, &scene.datasets[d], &mut None).unwrap().grid)
+    };
+    let (worst, _) = gpu_against_cpu(&mut r, &quads, &tiles);
+    assert!(worst < 0.01, "{worst}");
+}

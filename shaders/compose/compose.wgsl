@@ -85,6 +85,42 @@ fn sample_local(job: Job, i: u32, j: u32) -> vec3<f32> {
     return base + turn(job, vec3<f32>(map_o[k], map_o[k + 1u], map_o[k + 2u]));
 }
 
+// atan2 to ≈ 2 ulp (Cephes' atanf: range reduction by tan(π/8) and tan(3π/8), then a degree-9
+// odd polynomial). WGSL's built-in may err by thousands of ulp (Vulkan allows 4096 for atan;
+// lavapipe's was 30 ulp off at 0.7 rad, 9 m on Earth), which moved samples across extent edges.
+fn precise_atan(v: f32) -> f32 {
+    let a = abs(v);
+    var base = 0.0;
+    var x = a;
+    if a > 2.414213562373095 {
+        base = 1.5707963267948966;
+        x = -1.0 / a;
+    } else if a > 0.4142135623730950 {
+        base = 0.7853981633974483;
+        x = (a - 1.0) / (a + 1.0);
+    }
+    let z = x * x;
+    let r = base + ((((8.05374449538e-2 * z - 1.38776856032e-1) * z + 1.99777106478e-1) * z - 3.33329491539e-1) * z * x + x);
+    return select(r, -r, v < 0.0);
+}
+
+fn precise_atan2(y: f32, x: f32) -> f32 {
+    if x > 0.0 {
+        return precise_atan(y / x);
+    }
+    if x < 0.0 {
+        let t = precise_atan(y / x);
+        return select(t - 3.141592653589793, t + 3.141592653589793, y >= 0.0);
+    }
+    if y > 0.0 {
+        return 1.5707963267948966;
+    }
+    if y < 0.0 {
+        return -1.5707963267948966;
+    }
+    return 0.0;
+}
+
 fn segment_distance(p: vec3<f32>, a: vec3<f32>, b: vec3<f32>) -> f32 {
     let ab = b - a;
     let len2 = dot(ab, ab);
@@ -231,8 +267,8 @@ fn compose(@builtin(global_invocation_id) id: vec3<u32>) {
     let job = jobs[id.z];
     let local = sample_local(job, i, j);
     let p = job.origin.xyz + local;
-    let lon = atan2(p.y, p.x);
-    let lat = atan2(p.z, (1.0 - job.origin.w) * length(p.xy));
+    let lon = precise_atan2(p.y, p.x);
+    let lat = precise_atan2(p.z, (1.0 - job.origin.w) * length(p.xy));
 
     var r = Running(0.0, false, FAR, 0.0);
     var group_sum = 0.0;
