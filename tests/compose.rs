@@ -45,13 +45,12 @@ fn quad_at(e: &Ellipsoid, lat: f64, lon: f64, level: u8) -> QuadId {
     QuadId::containing(p, level).unwrap()
 }
 
+/// The raw tile of a quad's k-th planned layer (datasets; `None` for other kinds).
+type SourceTiles = dyn Fn(&Scene, QuadId, usize) -> Option<Vec<f32>>;
+
 /// Composes `quads` on the GPU and on the CPU; returns the largest difference, metres, and the
 /// number of samples with data, after checking that both agree on where there is data.
-fn gpu_against_cpu(
-    r: &mut Renderer,
-    quads: &[QuadId],
-    tiles: &dyn Fn(&Scene, QuadId, usize) -> Option<Vec<f32>>,
-) -> (f64, usize) {
+fn gpu_against_cpu(r: &mut Renderer, quads: &[QuadId], tiles: &SourceTiles) -> (f64, usize) {
     r.compose_now(quads).unwrap();
     let (mut worst, mut with_data) = (0f64, 0usize);
     for &quad in quads {
@@ -335,4 +334,22 @@ fn a_feathered_max_layer_beside_a_dataset_agrees_on_where_there_is_data() {
     };
     let (worst, _) = gpu_against_cpu(&mut r, &quads, &tiles);
     assert!(worst < 0.01, "{worst}");
+}
+
+#[test]
+fn the_version_1_moon_project_loads_as_over_layers_first_listed_on_top_and_saves_as_version_2() {
+    let v1 = common::repo_path("tests/fixtures/moon-lola-v1.json");
+    assert!(std::fs::read_to_string(&v1).unwrap().contains("\"datasets\""));
+    let p = Project::load(&v1).unwrap();
+    assert_eq!(p.version, 2);
+    let names: Vec<&str> = p.layers.iter().map(|l| l.name.as_str()).collect();
+    assert_eq!(names, ["lola_global", "lola_north"], "the first listed (north) wins, so it is on top");
+    assert!(p.layers.iter().all(|l| l.blend == BlendMode::Over && l.extent.is_none()));
+    let out = common::repo_path("tests/out/compose");
+    std::fs::create_dir_all(&out).unwrap();
+    let saved = out.join("moon-v2.json");
+    p.save(&saved).unwrap();
+    let text = std::fs::read_to_string(&saved).unwrap();
+    assert!(text.contains("\"version\": 2") && text.contains("\"layers\"") && !text.contains("\"datasets\""));
+    assert_eq!(Project::load(&saved).unwrap().layers, p.layers);
 }

@@ -48,7 +48,7 @@ fn a_single_dataset_exports_as_the_store_does_and_gpu_matches_cpu() {
 
     let info = run_tool("gdalinfo", &[composed.to_str().unwrap()], "");
     assert!(info.contains("UTM zone 37N") && info.contains("NoData Value=nan"), "{info}");
-    assert!(info.contains("TERRAFUSE_LAYERS=srtm") && info.contains("TERRAFUSE_LEVEL=9"), "{info}");
+    assert!(info.contains("TERRAFUSE_LAYERS=srtm") && info.contains("TERRAFUSE_LEVEL=8"), "{info}");
     let (g, c, s) = (read_f32(&composed), read_f32(&cpu), read_f32(&single));
     assert_eq!((g.len(), c.len()), (s.len(), s.len()));
     let (mut worst_store, mut worst_gpu, mut valid) = (0f32, 0f32, 0);

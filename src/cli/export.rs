@@ -59,6 +59,9 @@ pub struct ComposedReport {
     pub composer: String,
 }
 
+/// Where a pixel falls: the quad, the sample cell (i, j) inside it and the fractions in the cell.
+type Cell = (QuadId, usize, usize, f64, f64);
+
 /// Quads composed per batch on the GPU (within the renderer's smallest pools).
 const GPU_BATCH: usize = 16;
 
@@ -87,7 +90,7 @@ pub fn export_composed(opts: &ComposedExport) -> Result<ComposedReport, String> 
 
     // Where each pixel falls: the quad, and the sample cell inside it.
     let m = intervals_per_face_edge(level);
-    let cells: Vec<Option<(QuadId, usize, usize, f64, f64)>> = points
+    let cells: Vec<Option<Cell>> = points
         .iter()
         .map(|&(lat, lon)| {
             if lat.is_nan() {

@@ -91,8 +91,8 @@ fn scale_offset_and_valid_range_apply_to_the_value() {
         valid_range_m: Some([0.0, 100.0]),
         ..LayerSpec::dataset("d", "s.gpkg")
     };
-    assert_eq!(compose(&[d.clone()], &[100.0]), 60.0);
-    assert!(compose(&[d.clone()], &[300.0]).is_nan(), "160 m is outside [0, 100]: no data");
+    assert_eq!(compose(std::slice::from_ref(&d), &[100.0]), 60.0);
+    assert!(compose(std::slice::from_ref(&d), &[300.0]).is_nan(), "160 m is outside [0, 100]: no data");
     let base = constant("base", 5.0, BlendMode::Over, 1.0);
     assert_eq!(compose(&[base, d], &[300.0]), 5.0, "an invalid value leaves h as it was");
 }
