@@ -353,3 +353,32 @@ fn the_version_1_moon_project_loads_as_over_layers_first_listed_on_top_and_saves
     assert!(text.contains("\"version\": 2") && text.contains("\"layers\"") && !text.contains("\"datasets\""));
     assert_eq!(Project::load(&saved).unwrap().layers, p.layers);
 }
+
+#[test]
+fn hiding_and_showing_the_only_layer_brings_the_terrain_back() {
+    let mut p = Project::load(&common::sample_project("moon-lola", &common::repo_path("tests/out/compose"))).unwrap();
+    p.detail.gpu_cache_mib = 256;
+    let mut r = renderer(&p);
+    let camera = cam(15.0, -20.0, 3_500_000.0, 0.0, -90.0);
+    let with_data = |r: &mut Renderer| {
+        let s = r.settle(&camera, 160, 120, Duration::from_secs(300));
+        let image = r.render_image(DrawMode::Probe).unwrap();
+        let ids = image.ids.unwrap();
+        (ids.iter().filter(|id| id[0] != 0 && id[3] & 1 == 1).count(), ids.iter().filter(|id| id[0] != 0).count(), s)
+    };
+    let (data, drawn, _) = with_data(&mut r);
+    assert!(data > 0 && data == drawn, "{data} of {drawn}");
+    let mut layer = p.layers[0].clone();
+    layer.visible = false;
+    r.update_layer(0, layer.clone()).unwrap();
+    let (data, drawn, _) = with_data(&mut r);
+    assert!(data == 0 && drawn > 0, "hidden: {data} of {drawn} pixels with data");
+    layer.visible = true;
+    r.update_layer(0, layer).unwrap();
+    let (data, drawn, s) = with_data(&mut r);
+    assert!(
+        data > 0 && data == drawn,
+        "shown again: {data} of {drawn} pixels with data ({} quads)",
+        s.selection.quads.len()
+    );
+}

@@ -189,6 +189,29 @@ fn the_workstation_draws_probes_navigates_and_saves() {
     h.step();
     assert!(h.state().stack().layers[0].spec.visible);
     settle(&mut h);
-    let hit = h.state().hit().expect("terrain under the probe");
-    assert!(hit.has_data, "{hit:?}");
+    // (What the terrain shows once the layer is back is tested on the renderer itself:
+    // tests/compose.rs, hiding_and_showing_the_only_layer_brings_the_terrain_back.)
+
+    // Procedural detail added from the panel goes on top of the stack, into the renderer and,
+    // saved, into the project; removed again, it is gone from both.
+    h.get_by_label("add detail").click_accesskit();
+    // Two frames: the new layer's widgets appear in the second, moving the save button's id.
+    h.run_steps(2);
+    let stack = h.state().stack();
+    assert_eq!(stack.layers.len(), 2);
+    assert_eq!(stack.layers[1].spec.name, "detail");
+    assert_eq!(stack.layers[1].spec.blend, terrafuse::layers::BlendMode::Add);
+    h.get_by_label("save project *").click_accesskit();
+    h.step();
+    let saved = Project::load(&project).unwrap();
+    assert_eq!(
+        saved.layers.iter().map(|l| l.name.as_str()).collect::<Vec<_>>(),
+        ["lola_global", "detail"],
+        "{} (unsaved {})",
+        h.state().message(),
+        h.state().unsaved()
+    );
+    h.get_by_label("remove").click_accesskit();
+    h.step();
+    assert_eq!(h.state().stack().layers.len(), 1);
 }

@@ -1,9 +1,10 @@
 //! The layers panel: the stack top to bottom as a person reads it, each layer's visibility,
 //! blend mode, opacity and parameters edited live (the renderer recomposes only the quads the
-//! changed layer touches), and order changed with the arrows.
+//! changed layer touches), order changed with up/down, constant and procedural layers added and
+//! removed.
 
 use crate::gpu::Renderer;
-use crate::layers::{BlendMode, LayerKind, LayerSpec};
+use crate::layers::{BlendMode, DetailWhere, LayerKind, LayerSpec, NoiseSpec, NoiseType};
 use crate::project::Project;
 
 /// What the panel did this frame.
@@ -20,9 +21,33 @@ pub fn layers_ui(ui: &mut egui::Ui, renderer: &mut Renderer, project: &mut Proje
     let mut change = LayersChange::default();
     let count = project.layers.len();
     if count == 0 {
-        ui.label("no layers: add datasets, constants or procedural detail in the project file");
+        ui.label("no layers yet: add a constant or detail here, datasets in the project file");
     }
+    ui.horizontal(|ui| {
+        if ui.small_button("add constant").on_hover_text("a constant height on top of the stack").clicked() {
+            let spec = LayerSpec {
+                blend: BlendMode::Max,
+                opacity: 0.5,
+                ..LayerSpec::constant(&unique_name(project, "constant"), 0.0)
+            };
+            insert(renderer, project, spec, &mut change);
+        }
+        if ui.small_button("add detail").on_hover_text("fBm noise added on top of the stack").clicked() {
+            let noise = NoiseSpec {
+                noise_type: NoiseType::Fbm,
+                seed: 1,
+                amplitude_m: 20.0,
+                wavelength_m: 2000.0,
+                octaves: 8,
+                lacunarity: 2.0,
+                gain: 0.5,
+                placement: DetailWhere::Everywhere,
+            };
+            insert(renderer, project, LayerSpec::procedural(&unique_name(project, "detail"), noise), &mut change);
+        }
+    });
     let mut swap: Option<(usize, usize)> = None;
+    let mut remove: Option<usize> = None;
     // Top of the stack first, as in every layer panel.
     for index in (0..count).rev() {
         let mut spec = project.layers[index].clone();
@@ -38,6 +63,9 @@ pub fn layers_ui(ui: &mut egui::Ui, renderer: &mut Renderer, project: &mut Proje
                 if ui.small_button("down").on_hover_text("move down the stack").clicked() && index > 0 {
                     swap = Some((index, index - 1));
                 }
+                if spec.kind != LayerKind::Dataset && ui.small_button("remove").clicked() {
+                    remove = Some(index);
+                }
             });
             layer_settings_ui(ui, &mut spec);
         });
@@ -52,6 +80,15 @@ pub fn layers_ui(ui: &mut egui::Ui, renderer: &mut Renderer, project: &mut Proje
         }
         ui.separator();
     }
+    if let Some(index) = remove {
+        match renderer.remove_layer(index) {
+            Ok(()) => {
+                project.layers.remove(index);
+                change.changed = true;
+            }
+            Err(e) => change.error = Some(e.to_string()),
+        }
+    }
     if let Some((from, to)) = swap {
         renderer.move_layer(from, to);
         let layer = project.layers.remove(from);
@@ -59,6 +96,27 @@ pub fn layers_ui(ui: &mut egui::Ui, renderer: &mut Renderer, project: &mut Proje
         change.changed = true;
     }
     change
+}
+
+/// A layer name not used yet: `base`, else `base 2`, `base 3`, …
+fn unique_name(project: &Project, base: &str) -> String {
+    let used = |n: &str| project.layers.iter().any(|l| l.name == n);
+    if !used(base) {
+        return base.to_string();
+    }
+    (2..).map(|k| format!("{base} {k}")).find(|n| !used(n)).unwrap_or_else(|| base.to_string())
+}
+
+/// Puts a new layer on top of the stack, in the renderer and the project.
+fn insert(renderer: &mut Renderer, project: &mut Project, spec: LayerSpec, change: &mut LayersChange) {
+    let top = project.layers.len();
+    match renderer.insert_layer(top, spec.clone()) {
+        Ok(()) => {
+            project.layers.push(spec);
+            change.changed = true;
+        }
+        Err(e) => change.error = Some(e.to_string()),
+    }
 }
 
 fn layer_settings_ui(ui: &mut egui::Ui, spec: &mut LayerSpec) {

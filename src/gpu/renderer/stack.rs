@@ -27,6 +27,32 @@ impl Renderer {
         Ok(())
     }
 
+    /// Inserts a constant or procedural layer at `index` (0: bottom); the quads it touches are
+    /// recomposed. Dataset layers need their store opened with the scene (reopen the project).
+    pub fn insert_layer(&mut self, index: usize, spec: LayerSpec) -> Result<(), LayerError> {
+        if spec.kind == crate::layers::LayerKind::Dataset {
+            return Err(LayerError::field(
+                &spec.name,
+                "kind",
+                "a dataset layer is added to the project file and opened with it".into(),
+            ));
+        }
+        self.scene.stack.insert(index, spec)?;
+        self.cache.plans.clear();
+        Ok(())
+    }
+
+    /// Removes layer `index`; the quads it touched are recomposed.
+    pub fn remove_layer(&mut self, index: usize) -> Result<(), LayerError> {
+        if index >= self.scene.stack.layers.len() {
+            return Err(LayerError::field("?", "index", format!("{index} is not a layer of the stack")));
+        }
+        let layer = self.scene.stack.remove(index);
+        self.scene.dataset_of.remove(&layer.uid);
+        self.cache.plans.clear();
+        Ok(())
+    }
+
     /// Moves layer `from` to position `to` (0: bottom); the quads both touch are recomposed.
     pub fn move_layer(&mut self, from: usize, to: usize) {
         self.scene.stack.move_layer(from, to);
