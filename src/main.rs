@@ -77,15 +77,8 @@ enum Command {
         project: PathBuf,
         /// The GeoTIFF to write.
         out: PathBuf,
-        /// Output CRS (EPSG:4326, EPSG:32637, a PROJ string, WKT).
-        #[arg(long)]
-        crs: String,
-        /// xmin,ymin,xmax,ymax in the output CRS.
-        #[arg(long, allow_hyphen_values = true)]
-        bounds: String,
-        /// Pixel size in CRS units: one value, or x,y.
-        #[arg(long)]
-        resolution: String,
+        #[command(flatten)]
+        raster: RasterArgs,
         /// Level to compose (default: the output's pixel size, no finer than the finest dataset
         /// unless procedural layers add detail).
         #[arg(long)]
@@ -194,15 +187,8 @@ enum StoreCommand {
         store: PathBuf,
         /// The GeoTIFF to write.
         out: PathBuf,
-        /// Output CRS (EPSG:4326, EPSG:32637, a PROJ string, WKT).
-        #[arg(long)]
-        crs: String,
-        /// xmin,ymin,xmax,ymax in the output CRS.
-        #[arg(long, allow_hyphen_values = true)]
-        bounds: String,
-        /// Pixel size in CRS units: one value, or x,y.
-        #[arg(long)]
-        resolution: String,
+        #[command(flatten)]
+        raster: RasterArgs,
         /// Dataset (needed when the store has several).
         #[arg(long)]
         dataset: Option<String>,
@@ -210,6 +196,35 @@ enum StoreCommand {
         #[arg(long)]
         level: Option<u8>,
     },
+}
+
+/// The output raster of `export` and `store export`.
+#[derive(clap::Args)]
+struct RasterArgs {
+    /// Output CRS (EPSG:4326, EPSG:32637, a PROJ string, WKT).
+    #[arg(long)]
+    crs: String,
+    /// xmin,ymin,xmax,ymax in the output CRS.
+    #[arg(long, allow_hyphen_values = true)]
+    bounds: String,
+    /// Pixel size in CRS units: one value, or x,y.
+    #[arg(long)]
+    resolution: String,
+}
+
+impl RasterArgs {
+    /// The CRS, the bounds and the pixel size (x, y), checked for shape.
+    fn parse(self) -> anyhow::Result<(String, [f64; 4], (f64, f64))> {
+        let b = parse_numbers(&self.bounds, "--bounds")?;
+        anyhow::ensure!(b.len() == 4, "--bounds takes xmin,ymin,xmax,ymax");
+        let r = parse_numbers(&self.resolution, "--resolution")?;
+        let resolution = match r.as_slice() {
+            [v] => (*v, *v),
+            [x, y] => (*x, *y),
+            _ => anyhow::bail!("--resolution takes one value or x,y"),
+        };
+        Ok((self.crs, [b[0], b[1], b[2], b[3]], resolution))
+    }
 }
 
 #[derive(Subcommand)]
@@ -494,20 +509,13 @@ fn run(args: Args) -> Result<ExitCode> {
             .map_err(anyhow::Error::msg)?;
             print!("{report}");
         }
-        Command::Export { project, out, crs, bounds, resolution, level, compose } => {
-            let b = parse_numbers(&bounds, "--bounds")?;
-            anyhow::ensure!(b.len() == 4, "--bounds takes xmin,ymin,xmax,ymax");
-            let r = parse_numbers(&resolution, "--resolution")?;
-            let resolution = match r.as_slice() {
-                [v] => (*v, *v),
-                [x, y] => (*x, *y),
-                _ => anyhow::bail!("--resolution takes one value or x,y"),
-            };
+        Command::Export { project, out, raster, level, compose } => {
+            let (crs, bounds, resolution) = raster.parse()?;
             let opts = cli::ComposedExport {
                 project,
                 out,
                 crs,
-                bounds: [b[0], b[1], b[2], b[3]],
+                bounds,
                 resolution,
                 level,
                 compose_on: if compose == "cpu" { cli::ComposeOn::Cpu } else { cli::ComposeOn::Gpu },
@@ -566,24 +574,9 @@ fn run(args: Args) -> Result<ExitCode> {
                 return Ok(ExitCode::FAILURE);
             }
         }
-        Command::Store { command: StoreCommand::Export { store, out, crs, bounds, resolution, dataset, level } } => {
-            let b = parse_numbers(&bounds, "--bounds")?;
-            anyhow::ensure!(b.len() == 4, "--bounds takes xmin,ymin,xmax,ymax");
-            let r = parse_numbers(&resolution, "--resolution")?;
-            let resolution = match r.as_slice() {
-                [v] => (*v, *v),
-                [x, y] => (*x, *y),
-                _ => anyhow::bail!("--resolution takes one value or x,y"),
-            };
-            let opts = terrafuse::store::export::ExportOptions {
-                store,
-                dataset,
-                crs,
-                bounds: [b[0], b[1], b[2], b[3]],
-                resolution,
-                level,
-                out,
-            };
+        Command::Store { command: StoreCommand::Export { store, out, raster, dataset, level } } => {
+            let (crs, bounds, resolution) = raster.parse()?;
+            let opts = terrafuse::store::export::ExportOptions { store, dataset, crs, bounds, resolution, level, out };
             let report = terrafuse::store::export::export(&opts)?;
             println!(
                 "wrote {} ({}×{} pixels, level {}, {} with data)",

@@ -426,25 +426,9 @@ impl Renderer {
                 self.ensure_heights(*q, &mut batch, &mut stats, &mut requests);
             }
         }
-        stats.composed = batch.quads().to_vec();
-        stats.layers_read = batch.layers_read;
-        self.counters.quads += batch.len() as u64;
-        self.counters.layers_read += batch.layers_read as u64;
+        self.submit_composition(&batch, &mut stats);
         stats.requested = requests.len();
         self.loader.request(&requests);
-        if !batch.is_empty() {
-            let mut encoder = self.device.create_command_encoder(&Default::default());
-            let heights = &self.heights_buffer;
-            self.compose.encode(
-                &self.device,
-                &mut encoder,
-                &batch,
-                &self.sources_buffer,
-                &self.map_buffers[0],
-                heights,
-            );
-            self.queue.submit([encoder.finish()]);
-        }
         if stats.uploads > 0 || !batch.is_empty() {
             // Hand the writes to the GPU now, so that their staging memory is released even when
             // frames are prepared without being drawn.

@@ -204,20 +204,28 @@ impl Renderer {
                 return Err(GpuError::Stack(format!("{quad} could not be composed (GPU cache full?)")));
             }
         }
+        self.submit_composition(&batch, &mut stats);
+        Ok(stats)
+    }
+
+    /// Records the batch in the frame's statistics and the counters, and submits its dispatch.
+    pub(super) fn submit_composition(&mut self, batch: &ComposeBatch, stats: &mut FrameStats) {
         stats.composed = batch.quads().to_vec();
         stats.layers_read = batch.layers_read;
         self.counters.quads += batch.len() as u64;
         self.counters.layers_read += batch.layers_read as u64;
+        if batch.is_empty() {
+            return;
+        }
         let mut encoder = self.device.create_command_encoder(&Default::default());
         self.compose.encode(
             &self.device,
             &mut encoder,
-            &batch,
+            batch,
             &self.sources_buffer,
             &self.map_buffers[0],
             &self.heights_buffer,
         );
         self.queue.submit([encoder.finish()]);
-        Ok(stats)
     }
 }
