@@ -202,6 +202,11 @@ pub struct LayerSpec {
     /// Fade-in distance inside the extent's edge, metres on the ellipsoid.
     #[serde(default, skip_serializing_if = "is_zero")]
     pub feather_m: f64,
+    /// Dataset: fade-in distance from the dataset's own no-data edge, metres on the surface.
+    /// Reserved: only 0 is accepted until it is implemented (an extent with `feather_m` fades a
+    /// dataset in meanwhile).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub feather_edge_m: f64,
     /// Dataset: the tile store (GeoPackage), relative to the project file.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub store: Option<PathBuf>,
@@ -267,6 +272,7 @@ impl LayerSpec {
             valid_range_m: None,
             extent: None,
             feather_m: 0.0,
+            feather_edge_m: 0.0,
             store: None,
             dataset: None,
             source: None,
@@ -312,6 +318,16 @@ impl LayerSpec {
         }
         if let Some(extent) = &self.extent {
             check_extent(extent).map_err(|p| LayerError::field(&self.name, "extent", p))?;
+        }
+        if self.feather_edge_m != 0.0 {
+            return bad(
+                "feather_edge_m",
+                format!(
+                    "{}: fading in from a dataset's own no-data edge is not implemented yet; \
+                     give the layer an extent with feather_m instead",
+                    self.feather_edge_m
+                ),
+            );
         }
         let wrong_kind = |field: &str| {
             Err(LayerError::field(&self.name, field, format!("is not a field of a {} layer", self.kind.name())))

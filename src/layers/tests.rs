@@ -205,6 +205,10 @@ fn bad_layers_name_the_layer_and_the_field() {
             "layer 'd': store: a dataset layer needs its store",
         ),
         (
+            LayerSpec { feather_edge_m: 500.0, ..LayerSpec::dataset("d", "s") },
+            "layer 'd': feather_edge_m: 500: fading in from a dataset's own no-data edge is not implemented yet",
+        ),
+        (
             LayerSpec { extent: Some(ExtentSpec::Box([0.0, 10.0, 5.0, 5.0])), ..LayerSpec::constant("c", 0.0) },
             "layer 'c': extent: box south 10 and north 5",
         ),
