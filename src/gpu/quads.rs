@@ -84,9 +84,7 @@ impl QuadCache {
         if let Some(d) = scene.dataset_of_layer(index)
             && let Some(&(lo, hi, _)) = self.tile_ranges.get(&(d as u32, plan.quad))
         {
-            let mut l = layer.clone();
-            l.raw_range_m = (f64::from(lo), f64::from(hi));
-            return l.value_range_m();
+            return layer.value_range_from_raw_m((f64::from(lo), f64::from(hi)));
         }
         layer.value_range_m()
     }

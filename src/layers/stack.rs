@@ -40,8 +40,14 @@ impl Layer {
 
     /// The layer's value range after scale, offset and valid range, metres (before coverage).
     pub fn value_range_m(&self) -> (f64, f64) {
+        self.value_range_from_raw_m(self.raw_range_m)
+    }
+
+    /// The same, for a dataset whose raw values span `dataset_raw_m` (e.g. one loaded tile's
+    /// range instead of the whole dataset's); other kinds ignore it.
+    pub fn value_range_from_raw_m(&self, dataset_raw_m: (f64, f64)) -> (f64, f64) {
         let raw = match self.spec.kind {
-            LayerKind::Dataset => self.raw_range_m,
+            LayerKind::Dataset => dataset_raw_m,
             LayerKind::Constant => {
                 let h = self.spec.height_m.unwrap_or(0.0);
                 (h, h)
