@@ -9,10 +9,13 @@ mod common;
 use std::path::PathBuf;
 use std::time::Duration;
 
-use terrafuse::ecm::{CubeProjection, QuadId};
+use terrafuse::ecm::{CubeProjection, Edge, QuadId};
 use terrafuse::geodesy::Ellipsoid;
+use terrafuse::gpu::data::{EdgeFields, read_tile};
 use terrafuse::gpu::{DrawMode, GpuContext, IMAGE_FORMAT, Renderer, Scene};
-use terrafuse::layers::{BlendMode, DetailWhere, ExtentSpec, LayerSpec, NoiseSpec, NoiseType, compose_quad};
+use terrafuse::layers::{
+    BlendMode, DetailWhere, ExtentSpec, LayerSpec, LayerTiles, NoiseSpec, NoiseType, compose_quad,
+};
 use terrafuse::project::{CameraSpec, Project};
 
 fn renderer(project: &Project) -> Renderer {
@@ -45,8 +48,18 @@ fn quad_at(e: &Ellipsoid, lat: f64, lon: f64, level: u8) -> QuadId {
     QuadId::containing(p, level).unwrap()
 }
 
-/// The raw tile of a quad's k-th planned layer (datasets; `None` for other kinds).
-type SourceTiles = dyn Fn(&Scene, QuadId, usize) -> Option<Vec<f32>>;
+/// The raw and edge tiles of a quad's k-th planned layer (datasets; `None` for other kinds).
+type SourceTiles = dyn Fn(&Scene, QuadId, usize) -> (Option<Vec<f32>>, Option<Vec<f32>>);
+
+/// The tiles the stores give (read here, on the test's thread).
+fn store_tiles(scene: &Scene, quad: QuadId, k: usize) -> (Option<Vec<f32>>, Option<Vec<f32>>) {
+    let index = scene.plan(quad).layers[k].index;
+    let Some((source, edge)) = scene.layer_tiles(index, quad) else { return (None, None) };
+    let mut stores: Vec<_> = scene.datasets.iter().map(|_| None).collect();
+    let fields = EdgeFields::default();
+    let mut read = |key| read_tile(key, &scene.datasets, &mut stores, &fields).unwrap().grid;
+    (Some(read(source)), edge.map(read))
+}
 
 /// Composes `quads` on the GPU and on the CPU; returns the largest difference, metres, and the
 /// number of samples with data, after checking that both agree on where there is data.
@@ -57,8 +70,11 @@ fn gpu_against_cpu(r: &mut Renderer, quads: &[QuadId], tiles: &SourceTiles) -> (
         let gpu = r.read_heights(quad).unwrap().expect("composed");
         let scene = r.scene();
         let plan = scene.plan(quad);
-        let sources: Vec<Option<Vec<f32>>> = (0..plan.layers.len()).map(|k| tiles(scene, quad, k)).collect();
-        let cpu = compose_quad(&scene.stack, &plan, &|k| sources[k].as_deref());
+        let sources: Vec<_> = (0..plan.layers.len()).map(|k| tiles(scene, quad, k)).collect();
+        let cpu = compose_quad(&scene.stack, &plan, &|k| LayerTiles {
+            raw: sources[k].0.as_deref(),
+            edge_m: sources[k].1.as_deref(),
+        });
         for (k, (g, c)) in gpu.iter().zip(&cpu).enumerate() {
             assert_eq!(g.is_nan(), c.is_nan(), "{quad} sample {k}: GPU {g}, CPU {c}");
             if !c.is_nan() {
@@ -122,7 +138,7 @@ fn every_kind_and_blend_mode_composes_on_the_gpu_as_on_the_cpu_across_a_cube_cor
             p.layers[k].name
         );
     }
-    let (worst, with_data) = gpu_against_cpu(&mut r, &quads, &|_, _, _| None);
+    let (worst, with_data) = gpu_against_cpu(&mut r, &quads, &|_, _, _| (None, None));
     assert_eq!(with_data, quads.len() * 257 * 257);
     // Tolerance: heights ≈ 1–3 km in f32 (half an ulp 1.2·10⁻⁴ m per operation, ~30 operations
     // per layer), quad-local f32 positions of level-3 quads (≈ 340 km across: 0.02 m) moving the
@@ -165,13 +181,7 @@ fn datasets_with_scale_offset_valid_range_and_feathers_compose_on_the_gpu_as_on_
         .iter()
         .map(|&(lat, lon, level)| quad_at(&e, lat, lon, level))
         .collect();
-    let tiles = |scene: &Scene, quad: QuadId, k: usize| {
-        let index = scene.plan(quad).layers[k].index;
-        scene
-            .dataset_of_layer(index)
-            .map(|d| terrafuse::gpu::data::read_source(quad, &scene.datasets[d], &mut None).unwrap().grid)
-    };
-    let (worst, with_data) = gpu_against_cpu(&mut r, &quads, &tiles);
+    let (worst, with_data) = gpu_against_cpu(&mut r, &quads, &store_tiles);
     assert!(with_data > 4 * 257 * 257);
     // Heights ≈ 2–3 km in f32 (≈ 2·10⁻⁴ m per operation) and quad-local positions of level-8
     // quads (≈ 40 km: 2·10⁻³ m) moving the 5 km feather's mask by ≤ 1.5 × 2·10⁻³ / 5000 × 1.5
@@ -326,13 +336,7 @@ fn a_feathered_max_layer_beside_a_dataset_agrees_on_where_there_is_data() {
             }
         }
     }
-    let tiles = |scene: &Scene, quad: QuadId, k: usize| {
-        let index = scene.plan(quad).layers[k].index;
-        scene
-            .dataset_of_layer(index)
-            .map(|d| terrafuse::gpu::data::read_source(quad, &scene.datasets[d], &mut None).unwrap().grid)
-    };
-    let (worst, _) = gpu_against_cpu(&mut r, &quads, &tiles);
+    let (worst, _) = gpu_against_cpu(&mut r, &quads, &store_tiles);
     assert!(worst < 0.01, "{worst}");
 }
 
@@ -381,4 +385,86 @@ fn hiding_and_showing_the_only_layer_brings_the_terrain_back() {
         "shown again: {data} of {drawn} pixels with data ({} quads)",
         s.selection.quads.len()
     );
+}
+
+#[test]
+fn a_dataset_fades_in_from_its_own_no_data_edge_by_the_distance_on_the_surface_without_seams() {
+    // The SRTM tile (40°E to 40°50'E) over a constant 0 m with feather_edge_m = 5 km: the
+    // composed height is α·v, so α = h / v at every sample with data, and α must be
+    // smoothstep(d / 5 km) with d the distance to the raster's west edge along the parallel,
+    // N(φ)·cos φ·Δλ (independent of the distance field: geodesy on the raster's bounds).
+    let feather = 5000.0;
+    let mut p = Project::load(&erzurum()).unwrap();
+    let srtm = p.layers[0].clone();
+    p.layers = vec![LayerSpec::constant("base", 0.0), LayerSpec { feather_edge_m: feather, ..srtm }];
+    let mut r = renderer(&p);
+    let e = Ellipsoid::WGS84;
+    let a = quad_at(&e, 39.5, 40.02, 10);
+    let level9 = quad_at(&e, 39.5, 40.02, 9);
+    let mut quads = vec![a, level9];
+    for q in [a, level9] {
+        quads.extend(Edge::ALL.map(|edge| q.neighbour(edge).quad));
+    }
+    let (worst, with_data) = gpu_against_cpu(&mut r, &quads, &store_tiles);
+    println!("GPU − CPU with an edge feather: worst {worst:.2e} m over {with_data} samples");
+    assert!(worst < 0.01, "worst GPU − CPU difference {worst} m");
+
+    // The mask against the independent distance.
+    let scene = r.scene();
+    let plan = scene.plan(a);
+    let raw = store_tiles(scene, a, 1).0.unwrap();
+    let composed = r.read_heights(a).unwrap().unwrap();
+    let (mut worst_alpha, mut in_band) = (0f64, 0);
+    for k in 0..257 * 257 {
+        let (v, h) = (f64::from(raw[k]), f64::from(composed[k]));
+        if v.is_nan() || v.abs() < 100.0 {
+            continue;
+        }
+        let (_, lon, lat) = terrafuse::layers::stack::sample_point(&e, a, 257, (k % 257) as u32, (k / 257) as u32);
+        let n = e.a_m() / (1.0 - e.e2() * lat.sin().powi(2)).sqrt();
+        let d = n * lat.cos() * (lon - 40f64.to_radians());
+        let expected = terrafuse::layers::extent::smoothstep(d / feather);
+        worst_alpha = worst_alpha.max((h / v - expected).abs());
+        in_band += usize::from(d < feather);
+    }
+    assert_eq!(plan.layers.len(), 2);
+    assert!(in_band > 10_000, "the quad should cross the feather band: {in_band} samples in it");
+    // d is known to about 150 m (the store's edge within a sample of the raster's, the field's
+    // level-9 spacing of 70 m, bilinear resampling to level 10): 1.5 × 150 / 5000 = 0.045.
+    println!("edge mask against smoothstep(d / F): worst {worst_alpha:.4} over {in_band} samples in the band");
+    assert!(worst_alpha < 0.05, "edge mask off by {worst_alpha}");
+
+    // No seam: neighbouring quads agree on their shared edges, at level 10 (fields resampled
+    // from level-9 ancestors, two of them across the edges to other parents) and at level 9
+    // (fields of their own), where the band crosses the edge.
+    let mut crossed = 0;
+    for q in [a, level9] {
+        let ours = r.read_heights(q).unwrap().unwrap();
+        let raw = store_tiles(r.scene(), q, 1).0.unwrap();
+        for edge in Edge::ALL {
+            let theirs_quad = q.neighbour(edge).quad;
+            assert_eq!(theirs_quad.face, q.face, "the test's quads are inside one face");
+            let theirs = r.read_heights(theirs_quad).unwrap().unwrap();
+            let (mut seam, mut fading) = (0f32, 0);
+            for t in 0..257 {
+                let (k_ours, k_theirs) = match edge {
+                    Edge::East => (t * 257 + 256, t * 257),
+                    Edge::West => (t * 257, t * 257 + 256),
+                    Edge::North => (256 * 257 + t, t),
+                    Edge::South => (t, 256 * 257 + t),
+                };
+                let (o, n) = (ours[k_ours], theirs[k_theirs]);
+                assert_eq!(o.is_nan(), n.is_nan());
+                if !o.is_nan() {
+                    seam = seam.max((o - n).abs());
+                }
+                let v = raw[k_ours];
+                fading += usize::from(v > 100.0 && o < 0.99 * v && o > 0.0);
+            }
+            println!("seam between {q} and {theirs_quad}: {seam:.2e} m, {fading} edge samples fading");
+            assert!(seam < 0.01, "a seam of {seam} m between {q} and {theirs_quad}");
+            crossed += usize::from(fading > 0);
+        }
+    }
+    assert!(crossed >= 2, "the feather band should cross shared edges");
 }

@@ -403,7 +403,7 @@ fn quads_wait_for_their_data_and_the_parent_stands_in() {
 #[test]
 fn datasets_fill_each_other_and_show_below_their_finest_level() {
     use terrafuse::gpu::data::{read_source, upsample};
-    use terrafuse::layers::compose_quad;
+    use terrafuse::layers::{LayerTiles, compose_quad};
     use terrafuse::store::Store;
     // Both Moon grids: the polar one (levels 0–3) on top of the global one (levels 0–1).
     let mut p = Project::load(&repo_path("projects/moon-lola.json")).unwrap();
@@ -436,7 +436,7 @@ fn datasets_fill_each_other_and_show_below_their_finest_level() {
                 read_source(quad, d, &mut None).unwrap().grid
             })
             .collect();
-        compose_quad(&scene.stack, &plan, &|k| Some(&tiles[k][..]))
+        compose_quad(&scene.stack, &plan, &|k| LayerTiles { raw: Some(&tiles[k][..]), edge_m: None })
     };
     // A level-2 quad the polar grid only partly covers: the global grid (upsampled from level 1)
     // fills the rest, and the polar samples stay as they are.

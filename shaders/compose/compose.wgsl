@@ -38,15 +38,17 @@ struct JobLayer {
     // First segment, segment count, first ring vertex, ring count (in `shapes`; a box has no
     // ring: its bounds west, south, east, north are the one entry at the ring's start).
     mask: vec4<u32>,
-    // First octave, octave count, noise type (0 fBm, 1 ridged), placement (0 everywhere, 1
-    // beyond the data).
+    // Procedural: first octave, octave count, noise type (0 fBm, 1 ridged), placement (0
+    // everywhere, 1 beyond the data). Datasets: x is the edge slot (no-data edge distances,
+    // metres, in the source pool; NO_SLOT: no edge feather).
     noise: vec4<u32>,
     // Opacity, weight, scale, offset (metres).
     value: vec4<f32>,
     // Valid range low, high (metres; ±FAR: none), feather (metres), smallest ring longitude.
     range: vec4<f32>,
-    // Constant height or noise amplitude (metres), gain, data spacing (datasets; FAR: none),
-    // the ring's orientation (+1: counter-clockwise in longitude and latitude).
+    // Constant height or noise amplitude (metres), gain (datasets: feather_edge_m), data
+    // spacing (datasets; FAR: none), the ring's orientation (+1: counter-clockwise in longitude
+    // and latitude).
     extra: vec4<f32>,
 }
 
@@ -299,6 +301,10 @@ fn compose(@builtin(global_invocation_id) id: vec3<u32>) {
         var alpha = 0.0;
         if valid {
             alpha = l.value.x * extent_mask(l, job, local, lon, lat);
+            if l.head.x == 0u && l.noise.x != NO_SLOT {
+                // layers::edge::edge_mask: smoothstep(d / F) of the distance to the no-data edge.
+                alpha *= smoothstep(0.0, 1.0, sources[l.noise.x * N * N + j * N + i] / l.extra.y);
+            }
         }
         let dataset = l.head.x == 0u;
         let spacing = select(FAR, l.extra.z, dataset);

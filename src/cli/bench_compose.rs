@@ -197,6 +197,9 @@ pub fn bench_compose(settings: &ComposeBenchSettings) -> Result<(Vec<ComposeBenc
         vec![constant.clone(), LayerSpec { feather_m: 8000.0, ..pool[1].clone() }],
         true,
     )?;
+    let faded = LayerSpec { feather_edge_m: 5000.0, ..srtm.clone() };
+    row("dataset, 5 km edge feather".into(), vec![constant.clone(), faded.clone()], true)?;
+    let fields = edge_field_cost(&base, faded, &quads)?;
     // Octave skipping: 16 octaves from 20 km down to 0.6 m; level 9 resolves those ≥ 70 m.
     let detail = vec![srtm.clone(), LayerSpec::procedural("detail", noise(NoiseType::Fbm, 40.0, 20_000.0, 16))];
     let skipped = row("fbm 16 octaves, skipping".into(), detail.clone(), true)?;
@@ -248,9 +251,30 @@ pub fn bench_compose(settings: &ComposeBenchSettings) -> Result<(Vec<ComposeBenc
             rows[k + 1].cpu_ms / rows[k].cpu_ms
         );
     }
+    report.push_str(&fields);
     report.push_str(&recompose);
     write_csv(&settings.out, &rows)?;
     Ok((rows, report))
+}
+
+/// What the loader spends on no-data edge distances: one field per level-9 quad (the edge
+/// level of a 5 km feather on Earth), each over the quad's 3 × 3 neighbourhood.
+fn edge_field_cost(base: &Project, faded: LayerSpec, quads: &[QuadId]) -> Result<String, String> {
+    let mut p = base.clone();
+    p.layers = vec![faded];
+    let (scene, _) = Scene::open(&p)?;
+    let fields = crate::gpu::data::EdgeFields::default();
+    let mut stores: Vec<_> = scene.datasets.iter().map(|_| None).collect();
+    let t = Instant::now();
+    for &q in quads {
+        if let Some((_, Some(edge))) = scene.layer_tiles(0, q) {
+            crate::gpu::data::read_tile(edge, &scene.datasets, &mut stores, &fields)?;
+        }
+    }
+    let ms = t.elapsed().as_secs_f64() * 1e3 / quads.len().max(1) as f64;
+    Ok(format!(
+        "no-data edge distances (5 km feather, level-9 fields over 3 × 3 quads, CPU, loader side): {ms:.1} ms per quad\n"
+    ))
 }
 
 /// A settled 30 km view of Erzurum with the four first layers and a small feathered patch: the

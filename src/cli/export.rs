@@ -8,9 +8,9 @@ use std::collections::{BTreeSet, HashMap};
 use std::path::PathBuf;
 
 use crate::ecm::{CubeProjection, QuadId};
-use crate::gpu::data::read_source;
+use crate::gpu::data::{EdgeFields, read_tile};
 use crate::gpu::{GpuContext, IMAGE_FORMAT, Renderer, Scene};
-use crate::layers::compose_quad;
+use crate::layers::{LayerTiles, compose_quad};
 use crate::project::Project;
 use crate::store::export::RasterSpec;
 use crate::store::grid::{intervals_per_face_edge, level_for_resolution};
@@ -152,20 +152,26 @@ pub fn export_composed(opts: &ComposedExport) -> Result<ComposedReport, String> 
     Ok(ComposedReport { size: raster.size, level, quads: quads.len(), valid, composer })
 }
 
+type Grid = Vec<f32>;
+
 /// Composes quads with the CPU reference (the source tiles read here).
 pub fn compose_on_cpu(scene: &Scene, quads: &[QuadId]) -> Result<HashMap<QuadId, Vec<f32>>, String> {
     let mut stores: Vec<Option<crate::store::Store>> = scene.datasets.iter().map(|_| None).collect();
+    let fields = EdgeFields::default();
     let mut grids = HashMap::new();
     for &quad in quads {
         let plan = scene.plan(quad);
-        let mut tiles = Vec::with_capacity(plan.layers.len());
+        // Per planned layer: its raw and edge tiles (datasets).
+        let mut tiles: Vec<(Option<Grid>, Option<Grid>)> = Vec::with_capacity(plan.layers.len());
         for l in &plan.layers {
-            tiles.push(match scene.dataset_of_layer(l.index) {
-                Some(d) => Some(read_source(quad, &scene.datasets[d], &mut stores[d])?.grid),
-                None => None,
+            let mut read = |key| read_tile(key, &scene.datasets, &mut stores, &fields).map(|t| t.grid);
+            tiles.push(match scene.layer_tiles(l.index, quad) {
+                Some((source, edge)) => (Some(read(source)?), edge.map(&mut read).transpose()?),
+                None => (None, None),
             });
         }
-        grids.insert(quad, compose_quad(&scene.stack, &plan, &|k| tiles[k].as_deref()));
+        let layer_tiles = |k: usize| LayerTiles { raw: tiles[k].0.as_deref(), edge_m: tiles[k].1.as_deref() };
+        grids.insert(quad, compose_quad(&scene.stack, &plan, &layer_tiles));
     }
     Ok(grids)
 }

@@ -91,7 +91,8 @@ impl ComposeBatch {
     }
 
     /// Adds a quad: its plan, geometry, the height slot it writes, its map slot (None: flat
-    /// patch) and the source slot of each planned dataset layer (`source_slot(k)`).
+    /// patch) and the source and edge slots of each planned dataset layer (`tile_slots(k)`;
+    /// NO_SLOT for the edge where the layer does not fade in from its no-data edge).
     pub fn push(
         &mut self,
         stack: &Stack,
@@ -99,7 +100,7 @@ impl ComposeBatch {
         geometry: &QuadGeometry,
         height_slot: u32,
         map_slot: Option<u32>,
-        source_slot: &dyn Fn(usize) -> u32,
+        tile_slots: &dyn Fn(usize) -> (u32, u32),
     ) {
         let quad = plan.quad;
         let origin = geometry.corners_ecef.iter().copied().sum::<DVec3>() / 4.0;
@@ -173,12 +174,17 @@ impl ComposeBatch {
             if let Some(h) = spec.height_m {
                 extra[0] = h as f32;
             }
-            if spec.kind == LayerKind::Dataset && layer.data_spacing_m.is_finite() {
-                extra[2] = layer.data_spacing_m as f32;
+            if spec.kind == LayerKind::Dataset {
+                // The edge slot where the noise head would be, the feather where the gain would.
+                noise_head[0] = tile_slots(k).1;
+                extra[1] = spec.feather_edge_m as f32;
+                if layer.data_spacing_m.is_finite() {
+                    extra[2] = layer.data_spacing_m as f32;
+                }
             }
             extra[3] = orientation;
             let [lo, hi] = spec.valid_range_m.map_or([-FAR, FAR], |[a, b]| [a as f32, b as f32]);
-            let source = if spec.kind == LayerKind::Dataset { source_slot(k) } else { NO_SLOT };
+            let source = if spec.kind == LayerKind::Dataset { tile_slots(k).0 } else { NO_SLOT };
             self.layers.push(JobLayer {
                 head: [kind, blend, source, partial],
                 mask,

@@ -126,14 +126,37 @@ impl DatasetInfo {
 pub enum DataKey {
     /// A dataset's raw heights at a quad (the dataset's index in the scene).
     Source(u32, QuadId),
+    /// A dataset's distances to its no-data edge at a quad, metres, for feathers of one edge
+    /// level (`layers::edge`): the dataset, the quad, the edge level.
+    Edge(u32, QuadId, u8),
     /// The static maps of a canonical quad.
     Maps(QuadId),
 }
 
+impl std::fmt::Display for DataKey {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            DataKey::Source(_, q) => write!(f, "quad {q}"),
+            DataKey::Edge(_, q, level) => write!(f, "no-data edge distances at quad {q} (edge level {level})"),
+            DataKey::Maps(q) => write!(f, "static maps of quad {q}"),
+        }
+    }
+}
+
+impl DataKey {
+    /// The dataset a source or edge tile belongs to.
+    pub fn dataset(self) -> Option<u32> {
+        match self {
+            DataKey::Source(d, _) | DataKey::Edge(d, _, _) => Some(d),
+            DataKey::Maps(_) => None,
+        }
+    }
+}
+
 /// What the loader sends back.
 pub enum Loaded {
-    /// A source tile (or a read error, named).
-    Source(u32, QuadId, Result<Arc<QuadHeights>, String>),
+    /// A source or edge tile (or a read error, named).
+    Tile(DataKey, Result<Arc<QuadHeights>, String>),
     /// Static maps.
     Maps(QuadId, Arc<StaticMaps>),
 }
@@ -163,12 +186,14 @@ impl Loader {
         ));
         let (tx, rx) = std::sync::mpsc::channel();
         let maps = Arc::new(MapCache::new());
+        let fields = Arc::new(EdgeFields::default());
         let workers = (0..threads.max(1))
             .map(|k| {
                 let (queue, tx, datasets, maps) = (queue.clone(), tx.clone(), datasets.clone(), maps.clone());
+                let fields = fields.clone();
                 std::thread::Builder::new()
                     .name(format!("terrafuse-loader-{k}"))
-                    .spawn(move || worker(&queue, &tx, &datasets, &ellipsoid, &maps))
+                    .spawn(move || worker(&queue, &tx, &datasets, &ellipsoid, &maps, &fields))
                     .expect("spawning a loader thread")
             })
             .collect();
@@ -223,6 +248,7 @@ fn worker(
     datasets: &[DatasetInfo],
     ellipsoid: &Ellipsoid,
     maps: &MapCache,
+    fields: &EdgeFields,
 ) {
     // Each worker has its own connections (SQLite handles are not shared between threads).
     let mut stores: Vec<Option<Store>> = datasets.iter().map(|_| None).collect();
@@ -246,14 +272,28 @@ fn worker(
                 let symmetry = crate::ecm::geometry::MapSymmetry::of(quad);
                 Loaded::Maps(quad, maps.get(ellipsoid, CubeProjection::Qsc, symmetry, SAMPLES))
             }
-            DataKey::Source(d, quad) => {
-                Loaded::Source(d, quad, read_source(quad, &datasets[d as usize], &mut stores[d as usize]).map(Arc::new))
-            }
+            tile => Loaded::Tile(tile, read_tile(tile, datasets, &mut stores, fields).map(Arc::new)),
         };
         queue.0.lock().unwrap_or_else(|p| p.into_inner()).in_flight.remove(&key);
         if tx.send(result).is_err() {
             return;
         }
+    }
+}
+
+/// A source or edge tile, read on this thread (`stores` per dataset, opened when first needed).
+pub fn read_tile(
+    key: DataKey,
+    datasets: &[DatasetInfo],
+    stores: &mut [Option<Store>],
+    fields: &EdgeFields,
+) -> Result<QuadHeights, String> {
+    match key {
+        DataKey::Source(d, quad) => read_source(quad, &datasets[d as usize], &mut stores[d as usize]),
+        DataKey::Edge(d, quad, level) => {
+            read_edge(quad, level, &datasets[d as usize], &mut stores[d as usize], fields, d)
+        }
+        DataKey::Maps(quad) => Err(format!("the static maps of {quad} are not a tile")),
     }
 }
 
@@ -274,6 +314,73 @@ pub fn read_source(quad: QuadId, dataset: &DatasetInfo, store: &mut Option<Store
         Some(tile) => upsample(&tile.values, source, quad),
         None => vec![f32::NAN; n],
     };
+    Ok(QuadHeights::new(grid))
+}
+
+/// Distance fields computed lately, shared by the loader's workers: one field serves every quad
+/// below its quad (keyed by dataset, quad and edge level; the oldest dropped past a count).
+#[derive(Default)]
+pub struct EdgeFields {
+    fields: Mutex<VecDeque<(FieldKey, Arc<Vec<f32>>)>>,
+}
+
+/// A field's dataset (tag), quad and edge level.
+type FieldKey = (u32, QuadId, u8);
+
+/// Fields kept (each 257² f32, 264 kB).
+const EDGE_FIELDS_KEPT: usize = 64;
+
+impl EdgeFields {
+    fn get(&self, key: FieldKey) -> Option<Arc<Vec<f32>>> {
+        let fields = self.fields.lock().unwrap_or_else(|p| p.into_inner());
+        fields.iter().find(|(k, _)| *k == key).map(|(_, f)| f.clone())
+    }
+
+    fn put(&self, key: FieldKey, field: Arc<Vec<f32>>) {
+        let mut fields = self.fields.lock().unwrap_or_else(|p| p.into_inner());
+        if fields.len() >= EDGE_FIELDS_KEPT {
+            fields.pop_front();
+        }
+        fields.push_back((key, field));
+    }
+}
+
+/// A dataset's distances to its own no-data edge at `quad` for feathers of edge level
+/// `edge_level` (`layers::edge`): the field of the quad's ancestor at the field level, resampled
+/// bilinearly below it. `fields` keeps fields for the next quads (`tag` names the dataset in it).
+pub fn read_edge(
+    quad: QuadId,
+    edge_level: u8,
+    dataset: &DatasetInfo,
+    store: &mut Option<Store>,
+    fields: &EdgeFields,
+    tag: u32,
+) -> Result<QuadHeights, String> {
+    let level = crate::layers::edge::field_level(quad.level, edge_level, dataset.finest_level);
+    let mut at = quad;
+    while at.level > level {
+        at = at.parent().expect("a quad below level 0 has a parent");
+    }
+    let field = match fields.get((tag, at, edge_level)) {
+        Some(f) => f,
+        None => {
+            if store.is_none() {
+                *store = Some(Store::open_read_only(&dataset.store).map_err(|e| e.to_string())?);
+            }
+            let s = store.as_ref().expect("opened above");
+            let cap = crate::layers::edge::quad_width_m(dataset.body.a_m(), edge_level);
+            let tile = |q: QuadId| -> Result<Option<Arc<Vec<f32>>>, String> {
+                if !dataset.has(q) {
+                    return Ok(None);
+                }
+                Ok(s.read_grid(&dataset.dataset, q).map_err(|e| e.to_string())?.map(|t| Arc::new(t.values)))
+            };
+            let f = Arc::new(crate::layers::edge::distance_field(&dataset.body, at, cap, tile)?);
+            fields.put((tag, at, edge_level), f.clone());
+            f
+        }
+    };
+    let grid = if at == quad { field.as_ref().clone() } else { upsample(&field, at, quad) };
     Ok(QuadHeights::new(grid))
 }
 
@@ -311,7 +418,7 @@ pub struct CpuCache {
     budget_bytes: usize,
     used_bytes: usize,
     clock: u64,
-    heights: HashMap<(u32, QuadId), (Arc<QuadHeights>, u64)>,
+    heights: HashMap<DataKey, (Arc<QuadHeights>, u64)>,
     maps: HashMap<QuadId, (Arc<StaticMaps>, u64)>,
 }
 
@@ -340,13 +447,13 @@ impl CpuCache {
     pub fn insert(&mut self, loaded: Loaded) {
         self.clock += 1;
         match loaded {
-            Loaded::Source(d, quad, Ok(h)) => {
+            Loaded::Tile(key, Ok(h)) => {
                 self.used_bytes += h.bytes();
-                if let Some((old, _)) = self.heights.insert((d, quad), (h, self.clock)) {
+                if let Some((old, _)) = self.heights.insert(key, (h, self.clock)) {
                     self.used_bytes -= old.bytes();
                 }
             }
-            Loaded::Source(_, _, Err(_)) => {}
+            Loaded::Tile(_, Err(_)) => {}
             Loaded::Maps(quad, m) => {
                 self.used_bytes += m.size_bytes();
                 if let Some((old, _)) = self.maps.insert(quad, (m, self.clock)) {
@@ -355,13 +462,12 @@ impl CpuCache {
             }
         }
         while self.used_bytes > self.budget_bytes {
-            let oldest_h =
-                self.heights.iter().min_by_key(|(_, (_, t))| *t).map(|(k, (_, t))| (*t, DataKey::Source(k.0, k.1)));
+            let oldest_h = self.heights.iter().min_by_key(|(_, (_, t))| *t).map(|(k, (_, t))| (*t, *k));
             let oldest_m = self.maps.iter().min_by_key(|(_, (_, t))| *t).map(|(k, (_, t))| (*t, DataKey::Maps(*k)));
             let Some((_, key)) = [oldest_h, oldest_m].into_iter().flatten().min_by_key(|(t, _)| *t) else { break };
             match key {
-                DataKey::Source(d, q) => self.used_bytes -= self.heights.remove(&(d, q)).map_or(0, |(h, _)| h.bytes()),
                 DataKey::Maps(q) => self.used_bytes -= self.maps.remove(&q).map_or(0, |(m, _)| m.size_bytes()),
+                tile => self.used_bytes -= self.heights.remove(&tile).map_or(0, |(h, _)| h.bytes()),
             }
         }
     }
@@ -369,16 +475,16 @@ impl CpuCache {
     /// Whether the cache holds `key` (without marking it used).
     pub fn contains(&self, key: DataKey) -> bool {
         match key {
-            DataKey::Source(d, q) => self.heights.contains_key(&(d, q)),
             DataKey::Maps(q) => self.maps.contains_key(&q),
+            tile => self.heights.contains_key(&tile),
         }
     }
 
-    /// A dataset's source tile at a quad, marking it used.
-    pub fn source(&mut self, dataset: u32, quad: QuadId) -> Option<Arc<QuadHeights>> {
+    /// A source or edge tile, marking it used.
+    pub fn tile(&mut self, key: DataKey) -> Option<Arc<QuadHeights>> {
         self.clock += 1;
         let clock = self.clock;
-        self.heights.get_mut(&(dataset, quad)).map(|(h, t)| {
+        self.heights.get_mut(&key).map(|(h, t)| {
             *t = clock;
             h.clone()
         })
@@ -410,15 +516,15 @@ mod tests {
         let mut cache = CpuCache::new(3 * one);
         let q = |x| QuadId { face: Face::Front, level: 3, x, y: 0 };
         for x in 0..3 {
-            cache.insert(Loaded::Source(0, q(x), Ok(heights(x as f32))));
+            cache.insert(Loaded::Tile(DataKey::Source(0, q(x)), Ok(heights(x as f32))));
         }
         assert_eq!(cache.used_bytes(), 3 * one);
-        assert!(cache.source(0, q(0)).is_some()); // 0 is now the most recently used
-        cache.insert(Loaded::Source(0, q(3), Ok(heights(3.0))));
+        assert!(cache.tile(DataKey::Source(0, q(0))).is_some()); // 0 is now the most recently used
+        cache.insert(Loaded::Tile(DataKey::Source(0, q(3)), Ok(heights(3.0))));
         assert_eq!(cache.len(), 3);
         assert!(cache.used_bytes() <= 3 * one);
-        assert!(cache.source(0, q(1)).is_none(), "1 was the least recently used");
-        assert!(cache.source(0, q(0)).is_some() && cache.source(0, q(3)).is_some());
+        assert!(cache.tile(DataKey::Source(0, q(1))).is_none(), "1 was the least recently used");
+        assert!(cache.tile(DataKey::Source(0, q(0))).is_some() && cache.tile(DataKey::Source(0, q(3))).is_some());
     }
 
     #[test]

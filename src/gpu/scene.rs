@@ -5,7 +5,7 @@
 use std::collections::HashMap;
 use std::sync::Arc;
 
-use super::data::DatasetInfo;
+use super::data::{DataKey, DatasetInfo};
 use crate::colour::Ramp;
 use crate::ecm::QuadId;
 use crate::geodesy::Ellipsoid;
@@ -49,6 +49,16 @@ impl Scene {
     /// The dataset a stack layer reads, if it is a dataset layer.
     pub fn dataset_of_layer(&self, index: usize) -> Option<usize> {
         self.dataset_of.get(&self.stack.layers[index].uid).copied()
+    }
+
+    /// The tiles stack layer `index` reads at `quad`, if it is a dataset: its source tile, and
+    /// where it fades in from its no-data edge, its edge tile.
+    pub fn layer_tiles(&self, index: usize, quad: QuadId) -> Option<(DataKey, Option<DataKey>)> {
+        let d = self.dataset_of_layer(index)? as u32;
+        let feather = self.stack.layers[index].spec.feather_edge_m;
+        let edge = (feather > 0.0)
+            .then(|| DataKey::Edge(d, quad, crate::layers::edge::edge_level(self.ellipsoid.a_m(), feather)));
+        Some((DataKey::Source(d, quad), edge))
     }
 
     /// Whether stack layer `index` has data at `quad` (a dataset's tile there or at an ancestor;

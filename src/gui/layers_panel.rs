@@ -161,6 +161,15 @@ fn layer_settings_ui(ui: &mut egui::Ui, spec: &mut LayerSpec) {
                 ui.add(egui::DragValue::new(&mut n.seed).prefix("seed "));
             }
         }
-        LayerKind::Dataset => {}
+        LayerKind::Dataset => {
+            ui.add(
+                egui::DragValue::new(&mut spec.feather_edge_m)
+                    .speed(100.0)
+                    .range(0.0..=1e6)
+                    .prefix("edge feather ")
+                    .suffix(" m"),
+            )
+            .on_hover_text("fade the dataset in from its own no-data edge over this distance on the surface");
+        }
     }
 }

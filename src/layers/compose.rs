@@ -3,7 +3,8 @@
 //! in parallel with rayon, which changes no result).
 //!
 //! Per sample each planned layer gives a value v (raw × scale + offset; no data where the raw
-//! value is NaN or v is outside `valid_range_m`) and a coverage α = opacity × extent mask; a
+//! value is NaN or v is outside `valid_range_m`) and a coverage α = opacity × extent mask × edge
+//! mask (datasets fading in from their no-data edge, [`edge`]); a
 //! layer with α = 0 at a sample leaves it unchanged. The running height h starts as no data and
 //! each layer folds in by its blend mode ([`fold`]); consecutive `mean` layers are gathered and
 //! applied together with `over` at the group's largest coverage.
@@ -11,9 +12,9 @@
 use glam::DVec3;
 use rayon::prelude::*;
 
-use super::noise;
 use super::spec::{BlendMode, LayerKind};
 use super::stack::{MaskPlan, QuadPlan, SAMPLES, Stack, sample_point};
+use super::{edge, noise};
 
 /// The running state at a sample.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -87,20 +88,46 @@ pub struct SamplePoint {
     pub lat_rad: f64,
 }
 
-/// The layer's value and coverage at a sample; `raw` is a dataset's raw value (NaN: none).
+/// What a dataset layer's tiles hold at a sample.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DataAt {
+    /// The raw value (NaN: no data).
+    pub raw: f64,
+    /// The distance to the dataset's no-data edge, metres (∞ where the layer has no edge
+    /// feather; see [`super::edge`]).
+    pub edge_m: f64,
+}
+
+impl DataAt {
+    /// A raw value, far from any edge.
+    pub fn raw(raw: f64) -> DataAt {
+        DataAt { raw, edge_m: f64::INFINITY }
+    }
+}
+
+/// The tiles a planned dataset layer reads at a quad (257², row by row from the south).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct LayerTiles<'a> {
+    /// Raw heights (None: not a dataset, or no data).
+    pub raw: Option<&'a [f32]>,
+    /// Distances to the no-data edge, metres (None: no edge feather).
+    pub edge_m: Option<&'a [f32]>,
+}
+
+/// The layer's value and coverage at a sample; `data` is what a dataset's tiles hold there.
 pub fn layer_sample(
     stack: &Stack,
     plan: &QuadPlan,
     k: usize,
     at: &SamplePoint,
-    raw: f64,
+    data: DataAt,
     below: &Running,
 ) -> LayerSample {
     let planned = &plan.layers[k];
     let layer = &stack.layers[planned.index];
     let spec = &layer.spec;
     let base = match spec.kind {
-        LayerKind::Dataset => raw,
+        LayerKind::Dataset => data.raw,
         LayerKind::Constant => spec.height_m.unwrap_or(0.0),
         LayerKind::Procedural => {
             let n = spec.noise.as_ref().expect("a checked procedural layer has noise");
@@ -120,18 +147,19 @@ pub fn layer_sample(
         }
         _ => 1.0,
     };
-    LayerSample { value, alpha: spec.opacity * mask }
+    let edge = if spec.kind == LayerKind::Dataset { edge::edge_mask(data.edge_m, spec.feather_edge_m) } else { 1.0 };
+    LayerSample { value, alpha: spec.opacity * mask * edge }
 }
 
-/// The composed height at one sample; `raw(k)` is the raw value of the plan's k-th layer when it
-/// is a dataset (NaN where it has none).
-pub fn compose_sample(stack: &Stack, plan: &QuadPlan, at: &SamplePoint, raw: &dyn Fn(usize) -> f64) -> f64 {
+/// The composed height at one sample; `data(k)` is what the plan's k-th layer's tiles hold there
+/// when it is a dataset (raw NaN where it has no data).
+pub fn compose_sample(stack: &Stack, plan: &QuadPlan, at: &SamplePoint, data: &dyn Fn(usize) -> DataAt) -> f64 {
     let mut state = Running::EMPTY;
     // The open mean group: Σ w·α·v, Σ w·α, Σ w·α over its datasets, max α, finest spacing.
     let (mut sum, mut weight, mut data_weight, mut alpha_max, mut group_spacing) = (0.0, 0.0, 0.0, 0.0, f64::INFINITY);
     for k in 0..plan.layers.len() {
         let layer = &stack.layers[plan.layers[k].index];
-        let s = layer_sample(stack, plan, k, at, raw(k), &state);
+        let s = layer_sample(stack, plan, k, at, data(k), &state);
         let dataset = layer.spec.kind == LayerKind::Dataset;
         let spacing = if dataset { layer.data_spacing_m } else { f64::INFINITY };
         if layer.spec.blend == BlendMode::Mean {
@@ -175,18 +203,21 @@ fn apply(state: &mut Running, blend: BlendMode, value: f64, alpha: f64, spacing_
     }
 }
 
-/// A quad's composed 257² heights (row by row from the south, NaN where no data), from the raw
-/// tiles of its planned dataset layers: `tile(k)` for the plan's k-th layer.
-pub fn compose_quad<'a>(stack: &Stack, plan: &QuadPlan, tile: &dyn Fn(usize) -> Option<&'a [f32]>) -> Vec<f32> {
+/// A quad's composed 257² heights (row by row from the south, NaN where no data), from the
+/// tiles of its planned dataset layers: `tiles(k)` for the plan's k-th layer.
+pub fn compose_quad<'a>(stack: &Stack, plan: &QuadPlan, tiles: &dyn Fn(usize) -> LayerTiles<'a>) -> Vec<f32> {
     let n = SAMPLES as usize;
-    let tiles: Vec<Option<&[f32]>> = (0..plan.layers.len()).map(tile).collect();
+    let tiles: Vec<LayerTiles> = (0..plan.layers.len()).map(tiles).collect();
     let mut out = vec![f32::NAN; n * n];
     out.par_chunks_mut(n).enumerate().for_each(|(j, row)| {
         for (i, h) in row.iter_mut().enumerate() {
             let (ecef, lon_rad, lat_rad) = sample_point(&stack.ellipsoid, plan.quad, SAMPLES, i as u32, j as u32);
             let at = SamplePoint { ecef, lon_rad, lat_rad };
-            let raw = |k: usize| tiles[k].map_or(f64::NAN, |t| f64::from(t[j * n + i]));
-            *h = compose_sample(stack, plan, &at, &raw) as f32;
+            let data = |k: usize| DataAt {
+                raw: tiles[k].raw.map_or(f64::NAN, |t| f64::from(t[j * n + i])),
+                edge_m: tiles[k].edge_m.map_or(f64::INFINITY, |t| f64::from(t[j * n + i])),
+            };
+            *h = compose_sample(stack, plan, &at, &data) as f32;
         }
     });
     out

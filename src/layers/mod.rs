@@ -8,16 +8,18 @@
 //! - [`stack`]: the stack in memory, each layer's identity and revision, per-quad plans (which
 //!   layers a quad reads, their masks, its cache stamp);
 //! - [`extent`]: extents and feathered masks in metres on the ellipsoid;
+//! - [`edge`]: distances to a dataset's own no-data edge, for `feather_edge_m`;
 //! - [`noise`]: fBm and ridged multifractal on the ECEF position, with a split f64/f32 lattice;
 //! - [`compose`]: the blend formulas, per-sample and per-quad composition, height bounds.
 
 pub mod compose;
+pub mod edge;
 pub mod extent;
 pub mod noise;
 pub mod spec;
 pub mod stack;
 
-pub use compose::{compose_quad, compose_sample, fold, range_bound};
+pub use compose::{DataAt, LayerTiles, compose_quad, compose_sample, fold, range_bound};
 pub use spec::{BlendMode, DetailWhere, ExtentSpec, LayerKind, LayerSpec, NoiseSpec, NoiseType, SourceSpec};
 pub use stack::{Layer, MaskPlan, PlannedLayer, QuadPlan, Stack};
 

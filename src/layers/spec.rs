@@ -202,9 +202,8 @@ pub struct LayerSpec {
     /// Fade-in distance inside the extent's edge, metres on the ellipsoid.
     #[serde(default, skip_serializing_if = "is_zero")]
     pub feather_m: f64,
-    /// Dataset: fade-in distance from the dataset's own no-data edge, metres on the surface.
-    /// Reserved: only 0 is accepted until it is implemented (an extent with `feather_m` fades a
-    /// dataset in meanwhile).
+    /// Dataset: fades the layer in from the dataset's own no-data edge over this distance on
+    /// the surface, metres (0: no fade; see [`super::edge`]).
     #[serde(default, skip_serializing_if = "is_zero")]
     pub feather_edge_m: f64,
     /// Dataset: the tile store (GeoPackage), relative to the project file.
@@ -319,14 +318,20 @@ impl LayerSpec {
         if let Some(extent) = &self.extent {
             check_extent(extent).map_err(|p| LayerError::field(&self.name, "extent", p))?;
         }
-        if self.feather_edge_m != 0.0 {
+        let widest = super::edge::quad_width_m(radius_m, 0);
+        if !(self.feather_edge_m.is_finite() && self.feather_edge_m >= 0.0 && self.feather_edge_m <= widest) {
             return bad(
                 "feather_edge_m",
                 format!(
-                    "{}: fading in from a dataset's own no-data edge is not implemented yet; \
-                     give the layer an extent with feather_m instead",
+                    "{} must be a distance in metres from 0 to {widest:.0} (a level-0 quad's width)",
                     self.feather_edge_m
                 ),
+            );
+        }
+        if self.feather_edge_m > 0.0 && self.kind != LayerKind::Dataset {
+            return bad(
+                "feather_edge_m",
+                format!("fades a dataset in from its no-data edge; a {} layer has none", self.kind.name()),
             );
         }
         let wrong_kind = |field: &str| {

@@ -1,7 +1,7 @@
 //! The stack's semantics checked against an independent evaluation of the README's formulas,
 //! written out by hand per case (not through `fold`).
 
-use super::compose::{SamplePoint, compose_sample, range_bound};
+use super::compose::{DataAt, SamplePoint, compose_sample, range_bound};
 use super::spec::{BlendMode, ExtentSpec, LayerSpec, NoiseSpec};
 use super::stack::{Stack, sample_point};
 use crate::ecm::{Face, QuadId};
@@ -30,7 +30,7 @@ fn compose(specs: &[LayerSpec], raw: &[f64]) -> f64 {
         let index = plan.layers[k].index;
         raw.get(index).copied().unwrap_or(f64::NAN)
     };
-    compose_sample(&stack, &plan, &at(&stack, quad, 128, 128), &raw_of)
+    compose_sample(&stack, &plan, &at(&stack, quad, 128, 128), &|k| DataAt::raw(raw_of(k)))
 }
 
 #[test]
@@ -146,7 +146,7 @@ fn the_feather_follows_the_distance_on_the_ellipsoid_across_a_face_edge() {
         let plan = stack.plan(quad, &|_| true, true);
         for (i, j) in [(0u32, 128u32), (64, 100), (200, 50), (256, 256)] {
             let p = at(&stack, quad, i, j);
-            let h = compose_sample(&stack, &plan, &p, &|_| f64::NAN);
+            let h = compose_sample(&stack, &plan, &p, &|_| DataAt::raw(f64::NAN));
             let dlon = p.lon_rad + 45.5f64.to_radians();
             let d = r * (dlon.sin() * p.lat_rad.cos()).asin();
             let expected = if dlon < 0.0 { 0.0 } else { 100.0 * super::extent::smoothstep(d / feather) };
@@ -181,7 +181,7 @@ fn bounds_hold_every_composed_sample() {
     let quad = QuadId { face: Face::Top, level: 6, x: 20, y: 40 };
     let plan = stack.plan(quad, &|_| true, true);
     let (lo, hi) = range_bound(&stack, &plan, &|k| stack.layers[plan.layers[k].index].value_range_m()).unwrap();
-    let heights = super::compose_quad(&stack, &plan, &|_| None);
+    let heights = super::compose_quad(&stack, &plan, &|_| super::LayerTiles::default());
     for h in heights {
         assert!(h as f64 >= lo - 1e-3 && h as f64 <= hi + 1e-3, "{h} outside [{lo}, {hi}]");
     }
@@ -205,8 +205,12 @@ fn bad_layers_name_the_layer_and_the_field() {
             "layer 'd': store: a dataset layer needs its store",
         ),
         (
-            LayerSpec { feather_edge_m: 500.0, ..LayerSpec::dataset("d", "s") },
-            "layer 'd': feather_edge_m: 500: fading in from a dataset's own no-data edge is not implemented yet",
+            LayerSpec { feather_edge_m: -5.0, ..LayerSpec::dataset("d", "s") },
+            "layer 'd': feather_edge_m: -5 must be a distance in metres from 0 to",
+        ),
+        (
+            LayerSpec { feather_edge_m: 500.0, ..LayerSpec::constant("c", 0.0) },
+            "layer 'c': feather_edge_m: fades a dataset in from its no-data edge; a constant layer has none",
         ),
         (
             LayerSpec { extent: Some(ExtentSpec::Box([0.0, 10.0, 5.0, 5.0])), ..LayerSpec::constant("c", 0.0) },
@@ -263,7 +267,7 @@ fn detail_beyond_the_data_leaves_what_the_data_resolve() {
     let quad = QuadId { face: Face::Front, level: 12, x: 2000, y: 2100 };
     let plan = stack.plan(quad, &|_| true, false);
     let p = at(&stack, quad, 100, 100);
-    let with_data = compose_sample(&stack, &plan, &p, &|k| if k == 0 { 1000.0 } else { f64::NAN });
+    let with_data = compose_sample(&stack, &plan, &p, &|k| DataAt::raw(if k == 0 { 1000.0 } else { f64::NAN }));
     let weights = super::noise::octave_weights(&n, 0.0, 100.0, 1.0);
     assert_eq!(weights, vec![0.0, 0.0, 0.0, 1.0]);
     let expected = 1000.0 + super::noise::noise_at(&n, p.ecef, &weights);

@@ -88,7 +88,7 @@ pub struct Renderer {
     sources_buffer: wgpu::Buffer,
     map_buffers: [wgpu::Buffer; 3],
     heights_pool: SlotPool,
-    sources_pool: SlotPool<(u32, QuadId)>,
+    sources_pool: SlotPool<DataKey>,
     maps_pool: SlotPool,
     /// Per composed height slot, the stamp of the plan it was composed from.
     composed: HashMap<QuadId, u64>,
@@ -282,12 +282,14 @@ impl Renderer {
 
     fn absorb(&mut self, item: Loaded, errors: &mut Vec<String>) {
         match &item {
-            Loaded::Source(d, q, Ok(h)) => {
+            Loaded::Tile(DataKey::Source(d, q), Ok(h)) => {
                 self.cache.tile_ranges.insert((*d, *q), (h.range_m.0, h.range_m.1, h.edge_roughness_m));
             }
-            Loaded::Source(d, q, Err(e)) => {
-                errors.push(format!("dataset '{}', quad {q}: {e}", self.scene.datasets[*d as usize].dataset))
+            Loaded::Tile(key, Err(e)) => {
+                let d = key.dataset().unwrap_or(0) as usize;
+                errors.push(format!("dataset '{}', {key}: {e}", self.scene.datasets[d].dataset))
             }
+            Loaded::Tile(..) => {}
             Loaded::Maps(..) => {}
         }
         self.cpu.insert(item);
@@ -296,9 +298,9 @@ impl Renderer {
     /// Fills a GPU slot from the CPU cache; false if the data are not there or no slot is free.
     fn upload(&mut self, key: DataKey) -> bool {
         match key {
-            DataKey::Source(d, q) => {
-                let Some(h) = self.cpu.source(d, q) else { return false };
-                let Some(slot) = self.sources_pool.allocate((d, q), self.frame) else { return false };
+            DataKey::Source(..) | DataKey::Edge(..) => {
+                let Some(h) = self.cpu.tile(key) else { return false };
+                let Some(slot) = self.sources_pool.allocate(key, self.frame) else { return false };
                 let values: Vec<f32> = h.grid.iter().map(|&v| if v.is_nan() { NODATA_STORED } else { v }).collect();
                 let offset = u64::from(slot) * u64::from(SAMPLES * SAMPLES) * 4;
                 self.queue.write_buffer(&self.sources_buffer, offset, bytemuck::cast_slice(&values));

@@ -3,7 +3,7 @@
 //! counters, and composing or reading heights on demand for tools and tests.
 
 use super::*;
-use crate::gpu::data::read_source;
+use crate::gpu::data::{EdgeFields, read_tile};
 
 impl Renderer {
     /// Replaces layer `index`'s settings (its identity stays, its revision is bumped): the
@@ -122,25 +122,16 @@ impl Renderer {
         let mut ready = self.missing_maps(quad).is_none();
         let mut slots = Vec::with_capacity(plan.layers.len());
         for planned in &plan.layers {
-            let Some(d) = self.scene.dataset_of_layer(planned.index) else {
-                slots.push(NO_SLOT);
+            let Some((source, edge)) = self.scene.layer_tiles(planned.index, quad) else {
+                slots.push((NO_SLOT, NO_SLOT));
                 continue;
             };
-            let key = (d as u32, quad);
-            if let Some(slot) = self.sources_pool.touch(key, self.frame) {
-                slots.push(slot);
-                continue;
+            let source = self.tile_slot(source, stats, requests);
+            let edge = edge.map_or(Some(NO_SLOT), |key| self.tile_slot(key, stats, requests));
+            match (source, edge) {
+                (Some(s), Some(e)) => slots.push((s, e)),
+                _ => ready = false,
             }
-            let data = DataKey::Source(key.0, key.1);
-            if self.cpu.contains(data) && stats.uploads < UPLOADS_PER_FRAME && self.upload(data) {
-                stats.uploads += 1;
-                slots.push(self.sources_pool.get(key).unwrap_or(NO_SLOT));
-                continue;
-            }
-            if !self.cpu.contains(data) && !requests.contains(&data) {
-                requests.push(data);
-            }
-            ready = false;
         }
         if !ready {
             return false;
@@ -152,6 +143,22 @@ impl Renderer {
         batch.push(&self.scene.stack, &plan, &geometry, height_slot, map_slot, &|k| slots[k]);
         self.composed.insert(quad, plan.stamp);
         true
+    }
+
+    /// The GPU slot of a source or edge tile: resident, or uploaded from the CPU cache within the
+    /// frame's budget; else asked of the loader (None).
+    fn tile_slot(&mut self, key: DataKey, stats: &mut FrameStats, requests: &mut Vec<DataKey>) -> Option<u32> {
+        if let Some(slot) = self.sources_pool.touch(key, self.frame) {
+            return Some(slot);
+        }
+        if self.cpu.contains(key) && stats.uploads < UPLOADS_PER_FRAME && self.upload(key) {
+            stats.uploads += 1;
+            return self.sources_pool.get(key);
+        }
+        if !self.cpu.contains(key) && !requests.contains(&key) {
+            requests.push(key);
+        }
+        None
     }
 
     /// The quad's corner geometry (the bounding geometry's corners are the exact ones).
@@ -167,6 +174,7 @@ impl Renderer {
         let mut stats = FrameStats::default();
         let mut batch = ComposeBatch::default();
         let mut stores: Vec<Option<crate::store::Store>> = self.scene.datasets.iter().map(|_| None).collect();
+        let fields = EdgeFields::default();
         for &quad in quads {
             let canonical = MapSymmetry::of(quad).canonical;
             if !self.flat.is_flat(quad) && self.maps_pool.touch(canonical, self.frame).is_none() {
@@ -183,19 +191,21 @@ impl Renderer {
             }
             let plan = self.cache.plan(&self.scene, quad);
             for planned in &plan.layers {
-                let Some(d) = self.scene.dataset_of_layer(planned.index) else { continue };
-                if self.sources_pool.touch((d as u32, quad), self.frame).is_some() {
-                    continue;
-                }
-                let tile = read_source(quad, &self.scene.datasets[d], &mut stores[d]).map_err(GpuError::Stack)?;
-                self.cache
-                    .tile_ranges
-                    .insert((d as u32, quad), (tile.range_m.0, tile.range_m.1, tile.edge_roughness_m));
-                self.cpu.insert(Loaded::Source(d as u32, quad, Ok(std::sync::Arc::new(tile))));
-                if !self.upload(DataKey::Source(d as u32, quad)) {
-                    return Err(GpuError::Stack(format!(
-                        "no free source slot for {quad}: compose fewer quads at once"
-                    )));
+                let Some((source, edge)) = self.scene.layer_tiles(planned.index, quad) else { continue };
+                for key in std::iter::once(source).chain(edge) {
+                    if self.sources_pool.touch(key, self.frame).is_some() {
+                        continue;
+                    }
+                    let tile = read_tile(key, &self.scene.datasets, &mut stores, &fields).map_err(GpuError::Stack)?;
+                    if let DataKey::Source(d, q) = key {
+                        self.cache.tile_ranges.insert((d, q), (tile.range_m.0, tile.range_m.1, tile.edge_roughness_m));
+                    }
+                    self.cpu.insert(Loaded::Tile(key, Ok(std::sync::Arc::new(tile))));
+                    if !self.upload(key) {
+                        return Err(GpuError::Stack(format!(
+                            "no free source slot for {quad}: compose fewer quads at once"
+                        )));
+                    }
                 }
             }
             let mut requests = Vec::new();
