@@ -7,6 +7,7 @@
 //! - [`gpkg`]: the GeoPackage file, transactions, provenance.
 //! - [`source`]: a GDAL source, checked and read in windows.
 //! - [`import`]: the import pipeline.
+//! - [`resample`]: the import's sampling (footprints, resampling, the pyramid's averages).
 //! - [`read`]: reading back.
 //! - [`export`]: GeoTIFF export in any CRS.
 
@@ -15,6 +16,7 @@ pub mod gpkg;
 pub mod grid;
 pub mod import;
 pub mod read;
+pub mod resample;
 pub mod source;
 pub mod tile;
 

@@ -1,0 +1,336 @@
+//! The import's sampling: which quads a source may cover, resampling a finest-level quad from
+//! its sources (face point → geodetic → source pixel through PROJ, interpolated, heights
+//! converted to the ellipsoid), and averaging a coarser quad from the level below.
+
+use std::collections::HashSet;
+
+use gdal::spatial_ref::CoordTransform;
+
+use super::StoreError;
+use super::grid::{self, GRID, TILE, face_xy, spacing_m};
+use super::import::{Plan, Resampling, Worker};
+use super::read::GridReader;
+use super::source::{SourceReader, Window};
+use super::tile::QuadGrid;
+use crate::ecm::{CubeProjection, Edge, FacePoint, QuadId};
+use crate::geodesy::Ellipsoid;
+
+/// The quads at `level` that a source may cover: under a grid of source points spaced at most
+/// a quarter quad apart (edges included), with their eight neighbours.
+pub(super) fn footprint(reader: &SourceReader, body: &Ellipsoid, level: u8) -> Result<HashSet<QuadId>, StoreError> {
+    let info = reader.info();
+    let (w, h) = (info.size.0 as f64, info.size.1 as f64);
+    let quad_m = spacing_m(body, level) * f64::from(TILE);
+    let step = (quad_m / 4.0 / info.resolution_m).clamp(0.5, f64::MAX);
+    let along = |n: f64| -> Vec<f64> {
+        let count = (n / step).ceil().max(1.0) as usize;
+        (0..=count).map(|k| n * k as f64 / count as f64).collect()
+    };
+    let (xs, ys) = (along(w), along(h));
+    let mut quads = HashSet::new();
+    let mut batch = Vec::with_capacity(1 << 16);
+    let flush = |batch: &mut Vec<(f64, f64)>, quads: &mut HashSet<QuadId>| {
+        for (lon, lat) in reader.lonlat_of_pixels(batch) {
+            if lon.is_finite() {
+                let p = CubeProjection::Qsc.face_point_from_geodetic(body, lat.to_radians(), lon.to_radians());
+                if let Ok(q) = QuadId::containing(p, level) {
+                    quads.insert(q);
+                }
+            }
+        }
+        batch.clear();
+    };
+    for &y in &ys {
+        for &x in &xs {
+            batch.push((x, y));
+            if batch.len() == batch.capacity() {
+                flush(&mut batch, &mut quads);
+            }
+        }
+    }
+    flush(&mut batch, &mut quads);
+    if quads.is_empty() {
+        return Err(StoreError::new(&info.path, "none of its pixels lies on the body: is its CRS right?"));
+    }
+    let mut with_neighbours = quads.clone();
+    for q in &quads {
+        for e in Edge::ALL {
+            let n = q.neighbour(e).quad;
+            with_neighbours.insert(n);
+            for e2 in [Edge::North, Edge::South] {
+                if matches!(e, Edge::East | Edge::West) {
+                    with_neighbours.insert(n.neighbour(e2).quad);
+                }
+            }
+        }
+    }
+    Ok(with_neighbours)
+}
+
+/// Resamples one quad's 257² grid from the sources (first source with data wins).
+pub(super) fn resample_quad(
+    worker: &mut Worker,
+    body: &Ellipsoid,
+    plan: &Plan,
+    quad: QuadId,
+) -> Result<Option<QuadGrid>, StoreError> {
+    let k = plan.supersample;
+    let n = GRID as usize;
+    let mut grid = QuadGrid::empty();
+    let j0 = i64::from(quad.y) * i64::from(TILE);
+    // Rows of samples in bands, each band's positions computed once and read per source.
+    let band_rows = (16_384 / (n * (k * k) as usize)).max(1);
+    let mut row = 0usize;
+    while row < n {
+        let rows = band_rows.min(n - row);
+        let (lons, lats) = band_positions(body, quad, j0 + row as i64, rows, k);
+        let mut values = vec![f64::NAN; rows * n];
+        for reader in &worker.readers {
+            if values.iter().all(|v| !v.is_nan()) {
+                break;
+            }
+            let (mut fx, mut fy) = (lons.clone(), lats.clone());
+            reader.centre_coords(&mut fx, &mut fy);
+            fill_from_source(reader, plan, &fx, &fy, 0, rows, n, k, &mut values)?;
+        }
+        if let Some(t) = &worker.geoid {
+            convert_heights(t, body, quad, j0 + row as i64, rows, &mut values);
+        }
+        for r in 0..rows {
+            for i in 0..n {
+                grid.values[(row + r) * n + i] = values[r * n + i] as f32;
+            }
+        }
+        row += rows;
+    }
+    Ok((!grid.is_empty()).then_some(grid))
+}
+
+/// Longitudes and latitudes (degrees) of the sub-sample points of `rows` rows of the quad's
+/// 257 samples, starting at global row j0; k×k sub-samples per sample, spread over its cell.
+fn band_positions(body: &Ellipsoid, quad: QuadId, j0: i64, rows: usize, k: u32) -> (Vec<f64>, Vec<f64>) {
+    let n = GRID as usize;
+    let i0 = i64::from(quad.x) * i64::from(TILE);
+    let mut lons = Vec::with_capacity(rows * n * (k * k) as usize);
+    let mut lats = Vec::with_capacity(lons.capacity());
+    let m = grid::intervals_per_face_edge(quad.level) as f64;
+    let off = |s: u32| (f64::from(s) + 0.5) / f64::from(k) - 0.5;
+    for r in 0..rows {
+        for i in 0..n {
+            for a in 0..k {
+                for b in 0..k {
+                    let (x, y) = if k == 1 {
+                        face_xy(quad.level, i0 + i as i64, j0 + r as i64)
+                    } else {
+                        let x = -1.0 + 2.0 * ((i0 + i as i64) as f64 + off(b)) / m;
+                        let y = -1.0 + 2.0 * ((j0 + r as i64) as f64 + off(a)) / m;
+                        (x.clamp(-1.0, 1.0), y.clamp(-1.0, 1.0))
+                    };
+                    let (lat, lon) = CubeProjection::Qsc
+                        .geodetic_from_face_point(body, FacePoint { face: quad.face, x, y })
+                        .unwrap_or((f64::NAN, f64::NAN));
+                    lons.push(lon.to_degrees());
+                    lats.push(lat.to_degrees());
+                }
+            }
+        }
+    }
+    (lons, lats)
+}
+
+/// Interpolates the samples of rows r0..r0 + rows (of `n` samples, k² sub-samples each) that
+/// are still NaN, reading the source in windows no larger than the plan's cap (halving the band
+/// of rows until the window fits).
+#[allow(clippy::too_many_arguments)]
+fn fill_from_source(
+    reader: &SourceReader,
+    plan: &Plan,
+    fx: &[f64],
+    fy: &[f64],
+    r0: usize,
+    rows: usize,
+    n: usize,
+    k: u32,
+    values: &mut [f64],
+) -> Result<(), StoreError> {
+    let kk = (k * k) as usize;
+    let info = reader.info();
+    let width = info.size.0 as f64;
+    let range = r0 * n * kk..(r0 + rows) * n * kk;
+    let mut xs: Vec<f64> = fx[range.clone()].to_vec();
+    let ys = &fy[range];
+    // Unwrap the columns of a 360° source around the band's first valid point.
+    if info.wraps
+        && let Some(&reference) = xs.iter().find(|v| v.is_finite())
+    {
+        {
+            for x in &mut xs {
+                *x -= width * ((*x - reference) / width).round();
+            }
+        }
+    }
+    let margin = if plan.resampling == Resampling::Cubic { 2 } else { 1 };
+    let bound =
+        |v: &[f64], f: fn(f64, f64) -> f64, init: f64| v.iter().filter(|x| x.is_finite()).fold(init, |a, &b| f(a, b));
+    let (x_min, x_max) = (bound(&xs, f64::min, f64::INFINITY), bound(&xs, f64::max, f64::NEG_INFINITY));
+    let (y_min, y_max) = (bound(ys, f64::min, f64::INFINITY), bound(ys, f64::max, f64::NEG_INFINITY));
+    if x_min > x_max {
+        return Ok(());
+    }
+    let (c0, c1) = (x_min.floor() as i64 - margin, x_max.floor() as i64 + margin);
+    let (rr0, rr1) = (y_min.floor() as i64 - margin, y_max.floor() as i64 + margin);
+    let (h, w) = (info.size.1 as i64, info.size.0 as i64);
+    if rr1 < 0 || rr0 >= h || (!info.wraps && (c1 < 0 || c0 >= w)) {
+        return Ok(());
+    }
+    let cols = if info.wraps { (c1 - c0 + 1).min(w) } else { c1.min(w - 1) - c0.max(0) + 1 };
+    let bytes = (cols.max(1) * (rr1.min(h - 1) - rr0.max(0) + 1).max(1)) as usize * 8;
+    if bytes > plan.window_cap_bytes && rows > 1 {
+        let half = rows / 2;
+        fill_from_source(reader, plan, fx, fy, r0, half, n, k, values)?;
+        return fill_from_source(reader, plan, fx, fy, r0 + half, rows - half, n, k, values);
+    }
+    let win = reader.window(c0, c1, rr0, rr1)?;
+    for s in 0..rows * n {
+        let target = &mut values[r0 * n + s];
+        if !target.is_nan() {
+            continue;
+        }
+        let mut sum = 0.0;
+        let mut count = 0u32;
+        for sub in 0..kk {
+            let v = interpolate(&win, info.size, info.wraps, xs[s * kk + sub], ys[s * kk + sub], plan.resampling);
+            if !v.is_nan() {
+                sum += v;
+                count += 1;
+            }
+        }
+        if 2 * count as usize >= kk.max(1) && count > 0 {
+            *target = sum / f64::from(count);
+        }
+    }
+    Ok(())
+}
+
+/// Interpolates a window at fractional pixel-centre coordinates (fx, fy). NaN outside the
+/// raster's area; within half a pixel of its edge the edge pixels are extended.
+pub fn interpolate(win: &Window, size: (usize, usize), wraps: bool, fx: f64, fy: f64, how: Resampling) -> f64 {
+    let (w, h) = (size.0 as f64, size.1 as f64);
+    if !(fx.is_finite() && fy.is_finite()) || fy < -0.5 || fy > h - 0.5 || (!wraps && (fx < -0.5 || fx > w - 0.5)) {
+        return f64::NAN;
+    }
+    let col = |c: i64| if wraps { c } else { c.clamp(0, size.0 as i64 - 1) };
+    let row = |r: i64| r.clamp(0, size.1 as i64 - 1);
+    let px = |c: i64, r: i64| win.get(col(c), row(r));
+    match how {
+        Resampling::Nearest => px((fx + 0.5).floor() as i64, (fy + 0.5).floor() as i64),
+        Resampling::Bilinear => bilinear(&px, fx, fy),
+        Resampling::Cubic => {
+            let (x0, y0) = (fx.floor() as i64, fy.floor() as i64);
+            let (tx, ty) = (fx - x0 as f64, fy - y0 as f64);
+            let (wx, wy) = (keys(tx), keys(ty));
+            let mut sum = 0.0;
+            for (b, wyb) in wy.iter().enumerate() {
+                for (a, wxa) in wx.iter().enumerate() {
+                    let v = px(x0 - 1 + a as i64, y0 - 1 + b as i64);
+                    if v.is_nan() {
+                        return bilinear(&px, fx, fy);
+                    }
+                    sum += wxa * wyb * v;
+                }
+            }
+            sum
+        }
+    }
+}
+
+fn bilinear(px: &dyn Fn(i64, i64) -> f64, fx: f64, fy: f64) -> f64 {
+    let (x0, y0) = (fx.floor() as i64, fy.floor() as i64);
+    let (tx, ty) = (fx - x0 as f64, fy - y0 as f64);
+    let mut sum = 0.0;
+    let mut weight = 0.0;
+    for (dx, dy, wgt) in
+        [(0, 0, (1.0 - tx) * (1.0 - ty)), (1, 0, tx * (1.0 - ty)), (0, 1, (1.0 - tx) * ty), (1, 1, tx * ty)]
+    {
+        let v = px(x0 + dx, y0 + dy);
+        if !v.is_nan() && wgt > 0.0 {
+            sum += wgt * v;
+            weight += wgt;
+        }
+    }
+    if weight < 1e-5 { f64::NAN } else { sum / weight }
+}
+
+/// Keys' cubic convolution weights (a = −0.5) for the four pixels around a fraction t.
+fn keys(t: f64) -> [f64; 4] {
+    let a = -0.5;
+    let near = |x: f64| ((a + 2.0) * x - (a + 3.0)) * x * x + 1.0;
+    let far = |x: f64| ((a * x - 5.0 * a) * x + 8.0 * a) * x - 4.0 * a;
+    [far(1.0 + t), near(t), near(1.0 - t), far(2.0 - t)]
+}
+
+/// Geoid heights → ellipsoidal heights (h = H + N) through PROJ, at the samples' positions.
+fn convert_heights(t: &CoordTransform, body: &Ellipsoid, quad: QuadId, j0: i64, rows: usize, values: &mut [f64]) {
+    let (mut xs, mut ys) = band_positions(body, quad, j0, rows, 1);
+    let mut zs: Vec<f64> = values.iter().map(|v| if v.is_nan() { 0.0 } else { *v }).collect();
+    if t.transform_coords(&mut xs, &mut ys, &mut zs).is_ok() {
+        for (v, z) in values.iter_mut().zip(zs) {
+            if !v.is_nan() {
+                *v = z;
+            }
+        }
+    } else {
+        values.iter_mut().for_each(|v| *v = f64::NAN);
+    }
+}
+
+/// A coarser quad from its level below: each sample the area mean of its cell (weights ¼ ½ ¼
+/// per axis over the child samples at and beside it, across quad and face edges), ignoring no
+/// data; no data where less than half the cell has data.
+pub fn average_quad(reader: &mut GridReader, quad: QuadId) -> Result<Option<QuadGrid>, StoreError> {
+    let child = quad.level + 1;
+    let (ci0, cj0) = (2 * i64::from(quad.x) * i64::from(TILE), 2 * i64::from(quad.y) * i64::from(TILE));
+    let span = 2 * GRID as usize + 1; // child samples −1 ..= 513
+    let mut region = vec![f32::NAN; span * span];
+    for b in 0..span {
+        for a in 0..span {
+            region[b * span + a] = reader.sample(quad.face, child, ci0 - 1 + a as i64, cj0 - 1 + b as i64)?;
+        }
+    }
+    let mut grid = QuadGrid::empty();
+    // Weights in sixteenths: the full-weighting stencil, and at a cube corner (where a cell has
+    // three quadrants, one per face) the same quadrants counted once each, so that the three
+    // faces compute the same value.
+    const FULL: [[f64; 3]; 3] = [[1.0, 2.0, 1.0], [2.0, 4.0, 2.0], [1.0, 2.0, 1.0]];
+    let m = grid::intervals_per_face_edge(quad.level);
+    for q in 0..GRID as usize {
+        for p in 0..GRID as usize {
+            let (ca, cb) = (2 * p + 1, 2 * q + 1);
+            let (gi, gj) =
+                (i64::from(quad.x) * i64::from(TILE) + p as i64, i64::from(quad.y) * i64::from(TILE) + q as i64);
+            let corner = (gi == 0 || gi == m) && (gj == 0 || gj == m);
+            let mut w = FULL;
+            if corner {
+                // sx, sy: steps into the face; the stencil row/column index of (−sx, −sy) etc.
+                let (ix, iy) = (if gi == 0 { 0 } else { 2 }, if gj == 0 { 0 } else { 2 });
+                w[1][1] = 3.0;
+                w[iy][1] = 0.0; // (0, −sy): the same point as (−sx, 0), counted once
+                w[iy][ix] = 0.0; // beyond the corner: no such point
+            }
+            let (mut sum, mut weight) = (0.0, 0.0);
+            for (db, row) in w.iter().enumerate() {
+                for (da, wgt) in row.iter().enumerate() {
+                    let v = region[(cb + db - 1) * span + ca + da - 1];
+                    if !v.is_nan() && *wgt > 0.0 {
+                        sum += wgt * f64::from(v);
+                        weight += wgt / 16.0;
+                    }
+                }
+            }
+            if weight >= 0.5 {
+                grid.values[q * GRID as usize + p] = (sum / 16.0 / weight) as f32;
+            }
+        }
+    }
+    Ok((!grid.is_empty()).then_some(grid))
+}
