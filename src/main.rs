@@ -392,6 +392,7 @@ fn import_options(a: &ImportArgs) -> Result<terrafuse::store::ImportOptions> {
         threads: a.threads,
         progress: !a.quiet,
         finest_only: false,
+        watch: None,
     })
 }
 
@@ -536,7 +537,14 @@ fn run(args: Args) -> Result<ExitCode> {
             if !(timeout.is_finite() && timeout > 0.0) {
                 anyhow::bail!("--timeout {timeout} must be a positive number of seconds");
             }
-            let report = terrafuse::gui::run(&terrafuse::gui::ViewOptions {
+            if std::env::var_os("DISPLAY").is_none() {
+                anyhow::bail!(
+                    "terrafuse view needs an X11 display and DISPLAY is not set (on Wayland desktops XWayland \
+                     provides one; without a display use `xvfb-run terrafuse view … --screenshot OUT.png`, or \
+                     `terrafuse render` for images)"
+                );
+            }
+            let opts = terrafuse::gui::ViewOptions {
                 project,
                 view: look.view,
                 camera: look.camera,
@@ -545,8 +553,12 @@ fn run(args: Args) -> Result<ExitCode> {
                 height,
                 screenshot,
                 timeout: std::time::Duration::from_secs_f64(timeout),
-            })
-            .map_err(anyhow::Error::msg)?;
+            };
+            let opened = terrafuse::gui::open(&opts).map_err(anyhow::Error::msg)?;
+            for line in opened.imported() {
+                eprintln!("{line}");
+            }
+            let report = terrafuse::gui::run(&opts, opened).map_err(anyhow::Error::msg)?;
             print!("{report}");
         }
         Command::Import { import } => {
@@ -616,6 +628,7 @@ fn run(args: Args) -> Result<ExitCode> {
                 threads: Some(import.threads),
                 progress: false,
                 finest_only: true,
+                watch: None,
             };
             print!("{}", cli::bench_import(&opts, &work, import.threads.max(1))?);
             if import.work.is_none() {

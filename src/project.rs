@@ -423,6 +423,15 @@ impl Project {
         if path.is_absolute() { path.to_path_buf() } else { self.base_dir.join(path) }
     }
 
+    /// The camera a command asks for: an explicit `lat,lon,alt,heading,pitch[,fov]` (`--camera`),
+    /// else a named view, else the default view.
+    pub fn camera(&self, view: Option<&str>, camera: Option<&str>) -> Result<CameraSpec, String> {
+        match camera {
+            Some(c) => CameraSpec::parse(c).map_err(|e| format!("--camera: {e}")),
+            None => self.view(view),
+        }
+    }
+
     /// A named view, or the default view when `name` is `None`.
     pub fn view(&self, name: Option<&str>) -> Result<CameraSpec, String> {
         let name = match name {

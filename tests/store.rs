@@ -12,7 +12,7 @@ use terrafuse::cli::warp_comparison;
 use terrafuse::ecm::{Face, QuadId};
 use terrafuse::geodesy::Ellipsoid;
 use terrafuse::store::grid::{self, fold_sample};
-use terrafuse::store::{GridReader, ImportOptions, LevelChoice, Resampling, Store, VerticalDatum, import};
+use terrafuse::store::{GridReader, ImportOptions, ImportWatch, LevelChoice, Resampling, Store, VerticalDatum, import};
 
 const BIN: &str = env!("CARGO_BIN_EXE_terrafuse");
 
@@ -40,6 +40,7 @@ fn options(sources: &[PathBuf], store: &Path, body: Ellipsoid, name: &str, level
         threads: Some(2),
         progress: false,
         finest_only: false,
+        watch: None,
     }
 }
 
@@ -465,6 +466,54 @@ fn a_killed_import_leaves_a_store_that_opens_and_resumes_to_the_same_result() {
     let b = Store::open_read_only(&store_path).unwrap();
     assert!(b.dataset("lola").unwrap().unwrap().completed.is_some());
     for level in 0..=4 {
+        let quads = a.data_quads("lola", level).unwrap();
+        assert_eq!(quads, b.data_quads("lola", level).unwrap(), "level {level}");
+        for q in quads {
+            assert_eq!(a.read_grid("lola", q).unwrap(), b.read_grid("lola", q).unwrap(), "{q}");
+        }
+    }
+}
+
+#[test]
+fn a_cancelled_import_reports_its_progress_keeps_a_valid_store_and_resumes_to_the_same_result() {
+    let dir = scratch("cancel");
+    let src = data("moon_lola_ldem_4ppd_global.tif");
+    let reference = dir.join("reference.gpkg");
+    import(&options(std::slice::from_ref(&src), &reference, Ellipsoid::MOON, "lola", LevelChoice::Level(3))).unwrap();
+    let store_path = dir.join("cancelled.gpkg");
+    let watch = std::sync::Arc::new(ImportWatch::default());
+    let mut opts = options(std::slice::from_ref(&src), &store_path, Ellipsoid::MOON, "lola", LevelChoice::Level(3));
+    opts.watch = Some(watch.clone());
+    // Cancel from another thread once 40 tiles (one committed batch and more) are done.
+    let watcher = {
+        let watch = watch.clone();
+        std::thread::spawn(move || {
+            let mut seen = Vec::new();
+            loop {
+                let p = watch.progress();
+                if p.done >= 40 {
+                    watch.cancel();
+                    return (seen, p);
+                }
+                seen.push(p);
+                std::thread::sleep(std::time::Duration::from_millis(1));
+            }
+        })
+    };
+    let err = import(&opts).unwrap_err();
+    let (_, at_cancel) = watcher.join().unwrap();
+    assert!(err.to_string().contains("cancelled"), "{err}");
+    assert_eq!(at_cancel.phase, "level 3");
+    assert!(at_cancel.total > 40 && at_cancel.done <= at_cancel.total, "{at_cancel:?}");
+    let store = Store::open_read_only(&store_path).unwrap();
+    assert!(store.dataset("lola").unwrap().unwrap().completed.is_none(), "a cancelled import is incomplete");
+    assert!(!store.finished_quads("lola", 3).unwrap().is_empty(), "the committed batch stays");
+    drop(store);
+    opts.watch = None;
+    let resumed = import(&opts).unwrap();
+    assert!(resumed.levels.iter().any(|&(_, _, earlier)| earlier > 0), "{:?}", resumed.levels);
+    let (a, b) = (Store::open_read_only(&reference).unwrap(), Store::open_read_only(&store_path).unwrap());
+    for level in 0..=3 {
         let quads = a.data_quads("lola", level).unwrap();
         assert_eq!(quads, b.data_quads("lola", level).unwrap(), "level {level}");
         for q in quads {

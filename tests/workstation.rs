@@ -17,19 +17,24 @@ use terrafuse::project::Project;
 const SIZE: egui::Vec2 = egui::vec2(1000.0, 900.0);
 
 fn harness(project: &std::path::Path, view: &str) -> Harness<'static, App> {
+    harness_of_size(project, view, SIZE)
+}
+
+/// A window of another size (a tall one shows the whole settings panel without scrolling).
+fn harness_of_size(project: &std::path::Path, view: &str, size: egui::Vec2) -> Harness<'static, App> {
     let opened = gui::open(&ViewOptions {
         project: project.to_path_buf(),
         view: Some(view.into()),
         camera: None,
         lod_threshold: None,
-        width: SIZE.x as u32,
-        height: SIZE.y as u32,
+        width: size.x as u32,
+        height: size.y as u32,
         screenshot: None,
         timeout: Duration::from_secs(60),
     })
     .unwrap();
     Harness::builder()
-        .with_size(SIZE)
+        .with_size(size)
         .wgpu_setup(gui::wgpu_setup())
         .build_eframe(move |cc| gui::build_app(cc, opened).expect("the workstation starts"))
 }
@@ -211,7 +216,101 @@ fn the_workstation_draws_probes_navigates_and_saves() {
         h.state().message(),
         h.state().unsaved()
     );
-    h.get_by_label("remove").click_accesskit();
+    // Every layer has its remove button; the top one (listed first) is the detail.
+    h.get_all_by_label("remove").next().unwrap().click_accesskit();
     h.step();
     assert_eq!(h.state().stack().layers.len(), 1);
+    assert_eq!(h.state().stack().layers[0].spec.name, "lola_global");
+}
+
+/// Steps until the background import or opening of a dataset is over.
+fn wait_for_dataset(h: &mut Harness<'static, App>) {
+    for _ in 0..6000 {
+        h.step();
+        if !h.state().adding_dataset() {
+            h.run_steps(2);
+            return;
+        }
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    panic!("adding the dataset did not finish");
+}
+
+/// Types into the text field labelled `label`, replacing what it held.
+fn type_into(h: &mut Harness<'static, App>, label: &str, text: &str) {
+    h.get_by_label(label).focus();
+    h.step();
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::A);
+    h.get_by_label(label).type_text(text);
+    h.step();
+}
+
+#[test]
+fn datasets_are_imported_in_the_background_cancelled_and_layers_reorder_by_dragging() {
+    let dir = repo_path("tests/out/workstation-add");
+    let _ = std::fs::remove_dir_all(dir.join("stores"));
+    let project = sample_project("moon-lola", &dir);
+    let mut h = harness_of_size(&project, "globe", egui::vec2(900.0, 1500.0));
+    settle(&mut h);
+    h.get_by_label("add a dataset").click_accesskit();
+    h.run_steps(2);
+
+    // A file that is not there: refused by name, nothing added.
+    type_into(&mut h, "file", "/nonexistent/dem.tif");
+    h.get_by_label("add dataset").click_accesskit();
+    h.run_steps(2);
+    assert!(h.state().message().contains("/nonexistent/dem.tif"), "{}", h.state().message());
+    assert_eq!(h.state().stack().layers.len(), 1);
+
+    // The north polar grid, imported into stores/north.gpkg beside the project in the
+    // background while the window keeps drawing, then put on top of the stack.
+    let raster = repo_path("projects/data/moon_lola_north_stere_1600m.tif");
+    type_into(&mut h, "file", raster.to_str().unwrap());
+    type_into(&mut h, "name", "north");
+    h.get_by_label("add dataset").click_accesskit();
+    h.step();
+    assert!(h.state().adding_dataset(), "the import runs in the background");
+    wait_for_dataset(&mut h);
+    assert_eq!(h.state().message(), "added dataset layer 'north'");
+    let stack = h.state().stack();
+    assert_eq!(stack.layers.len(), 2);
+    let north = &stack.layers[1];
+    assert_eq!(north.spec.name, "north");
+    assert_eq!(north.spec.store.as_deref(), Some(std::path::Path::new("stores/north.gpkg")));
+    assert!(north.raw_range_m.1 > north.raw_range_m.0, "the dataset is attached: {:?}", north.raw_range_m);
+    assert!(dir.join("stores/north.gpkg").exists());
+    settle(&mut h);
+    h.get_by_label("save project *").click_accesskit();
+    h.step();
+    let saved = Project::load(&project).unwrap();
+    assert_eq!(saved.layers.iter().map(|l| l.name.as_str()).collect::<Vec<_>>(), ["lola_global", "north"]);
+    assert_eq!(saved.layers[1].source.as_ref().unwrap().files, std::slice::from_ref(&raster));
+
+    // The same raster again under another name, cancelled at once: nothing added, the store it
+    // began stays a valid store that a later import resumes.
+    type_into(&mut h, "name", "north again");
+    h.get_by_label("add dataset").click_accesskit();
+    h.run_steps(2);
+    assert!(h.state().message().contains("not usable as a table name"), "{}", h.state().message());
+    type_into(&mut h, "name", "north_again");
+    h.get_by_label("add dataset").click_accesskit();
+    h.run_steps(2);
+    if h.state().adding_dataset() {
+        h.get_by_label("cancel").click_accesskit();
+    }
+    wait_for_dataset(&mut h);
+    assert_eq!(h.state().stack().layers.len(), 2, "{}", h.state().message());
+    assert!(h.state().message().contains("cancelled"), "{}", h.state().message());
+    let partial = dir.join("stores/north_again.gpkg");
+    if partial.exists() {
+        terrafuse::store::Store::open_read_only(&partial).expect("a cancelled import leaves a valid store");
+    }
+
+    // Dragging the top layer (listed first) onto the bottom one moves it to the bottom.
+    let handles: Vec<egui::Rect> = h.get_all_by_label("drag").map(|n| n.rect()).collect();
+    assert_eq!(handles.len(), 2);
+    drag(&mut h, handles[0].center(), handles[1].center() + egui::vec2(40.0, 20.0));
+    h.run_steps(2);
+    let names: Vec<String> = h.state().stack().layers.iter().map(|l| l.spec.name.clone()).collect();
+    assert_eq!(names, ["north", "lola_global"]);
 }

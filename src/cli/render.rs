@@ -40,22 +40,13 @@ pub fn open_renderer(project_path: &Path) -> Result<(Project, Renderer, Vec<Stri
 
 /// The camera of a request: `--camera`, else `--view`, else the project's default view.
 pub fn request_camera(project: &Project, view: Option<&str>, camera: Option<&str>) -> Result<CameraSpec, String> {
-    match camera {
-        Some(c) => CameraSpec::parse(c).map_err(|e| format!("--camera: {e}")),
-        None => project.view(view),
-    }
+    project.camera(view, camera)
 }
 
 /// Writes an image as PNG, atomically.
 pub fn write_png(path: &Path, image: &RenderedImage) -> Result<(), String> {
-    let mut bytes = Vec::new();
-    image::codecs::png::PngEncoder::new(&mut bytes)
-        .write_image(&image.rgba, image.width, image.height, image::ExtendedColorType::Rgba8)
-        .map_err(|e| format!("{}: cannot encode PNG: {e}", path.display()))?;
-    crate::files::write_atomic(path, &bytes).map_err(|e| format!("{}: cannot write: {e}", path.display()))
+    image.write_png(path)
 }
-
-use image::ImageEncoder as _;
 
 /// Renders one frame and writes it; returns the report.
 pub fn render(request: &RenderRequest) -> Result<String, String> {
@@ -74,7 +65,30 @@ pub fn render(request: &RenderRequest) -> Result<String, String> {
     if let Some(t) = request.lod_threshold {
         renderer.set_threshold(t);
     }
-    let stats = renderer.settle(&camera, request.width, request.height, Duration::from_secs(300));
+    let debug = std::env::var_os("TERRAFUSE_DEBUG").is_some();
+    let quads = std::env::var_os("TERRAFUSE_DEBUG_QUADS").is_some();
+    let stats = renderer.settle_traced(&camera, request.width, request.height, Duration::from_secs(300), &mut |s, busy| {
+        if debug {
+            eprintln!(
+                "settle: {} drawn, {} pending, {} uploads, {} requested, {} blocked, loader {busy} / culled {} {} visited {}",
+                s.selection.quads.len(),
+                s.pending,
+                s.uploads,
+                s.requested,
+                s.blocked,
+                s.selection.culled_frustum,
+                s.selection.culled_horizon,
+                s.selection.visited
+            );
+        }
+        if debug && quads {
+            eprintln!(
+                "  drawn {:?}\n  wanted {:?}",
+                s.selection.quads.iter().map(|q| q.to_string()).collect::<Vec<_>>(),
+                s.selection.wanted.iter().map(|q| q.to_string()).collect::<Vec<_>>()
+            );
+        }
+    });
     let image = renderer.render_image(DrawMode::Colour).map_err(|e| e.to_string())?;
     write_png(request.out, &image)?;
     let mut out = String::new();

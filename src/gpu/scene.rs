@@ -9,7 +9,7 @@ use super::data::{DataKey, DatasetInfo};
 use crate::colour::Ramp;
 use crate::ecm::QuadId;
 use crate::geodesy::Ellipsoid;
-use crate::layers::{LayerKind, QuadPlan, Stack};
+use crate::layers::{LayerKind, LayerSpec, QuadPlan, Stack};
 use crate::project::{ColourMapSpec, DetailSpec, Project, Visuals};
 use crate::store::grid::spacing_m;
 use crate::store::{ImportOptions, LevelChoice, Resampling, Store, VerticalDatum};
@@ -81,98 +81,135 @@ impl Scene {
     pub fn open(project: &Project) -> Result<(Scene, OpenReport), String> {
         let ellipsoid = project.ellipsoid()?;
         let mut report = OpenReport::default();
-        let mut stack = Stack::new(ellipsoid, &project.layers).map_err(|e| e.to_string())?;
-        let mut datasets: Vec<DatasetInfo> = Vec::new();
-        let mut dataset_of = HashMap::new();
+        let stack = Stack::new(ellipsoid, &project.layers).map_err(|e| e.to_string())?;
+        let range_m = stack_range(&stack);
+        let visuals = project.visuals.clone();
+        let ramp = resolve_ramp(project, &visuals.colour_map, range_m)?;
+        let mut scene = Scene {
+            ellipsoid,
+            stack,
+            datasets: Arc::new(Vec::new()),
+            dataset_of: HashMap::new(),
+            octave_skipping: true,
+            visuals,
+            detail: project.detail.clone(),
+            ramp,
+            range_m,
+        };
         for (index, d) in project.layers.iter().enumerate() {
-            if d.kind != LayerKind::Dataset {
+            if d.kind != LayerKind::Dataset || d.store.is_none() {
                 continue;
             }
-            let Some(store) = &d.store else { continue };
-            let store_path = project.resolve(store);
-            let name = d.store_dataset();
-            let has = store_path.exists()
-                && Store::open_read_only(&store_path)
-                    .map_err(|e| e.to_string())?
-                    .dataset(name)
-                    .map_err(|e| e.to_string())?
-                    .is_some_and(|r| r.completed.is_some());
-            if !has {
-                let Some(source) = &d.source else {
-                    return Err(format!(
-                        "dataset '{}': {} has no complete dataset '{name}' and the project lists no source to import it from",
-                        d.name,
-                        store_path.display()
-                    ));
-                };
-                if let Some(dir) = store_path.parent() {
-                    std::fs::create_dir_all(dir).map_err(|e| format!("{}: cannot create: {e}", dir.display()))?;
-                }
-                let vertical = match &source.vertical_datum {
-                    Some(v) => v.parse::<VerticalDatum>().map_err(|e| format!("dataset '{}': {e}", d.name))?,
-                    None => VerticalDatum::Ellipsoidal,
-                };
-                let opts = ImportOptions {
-                    sources: source.files.iter().map(|f| project.resolve(f)).collect(),
-                    store: store_path.clone(),
-                    body: ellipsoid,
-                    name: Some(name.to_string()),
-                    level: source.max_level.map_or(LevelChoice::Auto, LevelChoice::Level),
-                    resampling: Resampling::Bilinear,
-                    vertical,
-                    memory_budget: 1 << 30,
-                    threads: None,
-                    progress: false,
-                    finest_only: false,
-                };
+            if let Some(opts) = import_needed(project, d)? {
                 let r = crate::store::import(&opts).map_err(|e| e.to_string())?;
                 report.imported.push(format!(
                     "imported {} into {} (levels 0–{}, {:.1} s)",
-                    source.files.iter().map(|f| f.display().to_string()).collect::<Vec<_>>().join(", "),
-                    store_path.display(),
+                    opts.sources.iter().map(|f| f.display().to_string()).collect::<Vec<_>>().join(", "),
+                    opts.store.display(),
                     r.finest_level,
                     r.seconds_finest + r.seconds_pyramid
                 ));
             }
-            let info = DatasetInfo::open(&store_path, name).map_err(|e| format!("dataset '{}': {e}", d.name))?;
-            let store_body = info.body;
-            if store_body.a_m() != ellipsoid.a_m() || store_body.b_m() != ellipsoid.b_m() {
-                return Err(format!(
-                    "dataset '{}': {} is on {}, the project on {}",
-                    d.name,
-                    store_path.display(),
-                    store_body.name(),
-                    ellipsoid.name()
-                ));
-            }
-            stack.set_dataset_info(index, info.range_m, spacing_m(&ellipsoid, info.finest_level));
-            let k = match datasets.iter().position(|o| o.store == info.store && o.dataset == info.dataset) {
-                Some(k) => k,
-                None => {
-                    datasets.push(info);
-                    datasets.len() - 1
-                }
-            };
-            dataset_of.insert(stack.layers[index].uid, k);
+            let info = open_dataset(project, d)?;
+            scene.attach(index, info)?;
         }
-        let range_m = stack_range(&stack);
-        let visuals = project.visuals.clone();
-        let ramp = resolve_ramp(project, &visuals.colour_map, range_m)?;
-        Ok((
-            Scene {
-                ellipsoid,
-                stack,
-                datasets: Arc::new(datasets),
-                dataset_of,
-                octave_skipping: true,
-                visuals,
-                detail: project.detail.clone(),
-                ramp,
-                range_m,
-            },
-            report,
-        ))
+        scene.range_m = stack_range(&scene.stack);
+        scene.ramp = resolve_ramp(project, &scene.visuals.colour_map, scene.range_m)?;
+        Ok((scene, report))
     }
+
+    /// Inserts a dataset layer at `index` (0: bottom) reading `info` (see [`open_dataset`]).
+    pub fn insert_dataset_layer(&mut self, index: usize, spec: LayerSpec, info: DatasetInfo) -> Result<(), String> {
+        if spec.kind != LayerKind::Dataset {
+            return Err(format!("layer '{}': kind: {} is not a dataset", spec.name, spec.kind.name()));
+        }
+        self.stack.insert(index, spec).map_err(|e| e.to_string())?;
+        if let Err(e) = self.attach(index, info) {
+            self.stack.remove(index);
+            return Err(e);
+        }
+        Ok(())
+    }
+
+    /// Attaches an opened dataset to dataset layer `index`: checks its body against the
+    /// project's, records its value range and spacing, and shares it with the layers that read
+    /// the same store and dataset.
+    fn attach(&mut self, index: usize, info: DatasetInfo) -> Result<(), String> {
+        let name = &self.stack.layers[index].spec.name;
+        let store_body = info.body;
+        if store_body.a_m() != self.ellipsoid.a_m() || store_body.b_m() != self.ellipsoid.b_m() {
+            return Err(format!(
+                "dataset '{name}': {} is on {}, the project on {}",
+                info.store.display(),
+                store_body.name(),
+                self.ellipsoid.name()
+            ));
+        }
+        self.stack.set_dataset_info(index, info.range_m, spacing_m(&self.ellipsoid, info.finest_level));
+        let k = match self.datasets.iter().position(|o| o.store == info.store && o.dataset == info.dataset) {
+            Some(k) => k,
+            None => {
+                Arc::make_mut(&mut self.datasets).push(info);
+                self.datasets.len() - 1
+            }
+        };
+        self.dataset_of.insert(self.stack.layers[index].uid, k);
+        Ok(())
+    }
+}
+
+/// What importing a dataset layer's sources into its store takes, when the store lacks a
+/// complete copy of it (None: nothing to import). Errors name the layer and the store.
+pub fn import_needed(project: &Project, d: &LayerSpec) -> Result<Option<ImportOptions>, String> {
+    let Some(store) = &d.store else {
+        return Err(format!("layer '{}': store: a dataset layer needs its store", d.name));
+    };
+    let store_path = project.resolve(store);
+    let name = d.store_dataset();
+    let has = store_path.exists()
+        && Store::open_read_only(&store_path)
+            .map_err(|e| e.to_string())?
+            .dataset(name)
+            .map_err(|e| e.to_string())?
+            .is_some_and(|r| r.completed.is_some());
+    if has {
+        return Ok(None);
+    }
+    let Some(source) = &d.source else {
+        return Err(format!(
+            "dataset '{}': {} has no complete dataset '{name}' and the project lists no source to import it from",
+            d.name,
+            store_path.display()
+        ));
+    };
+    if let Some(dir) = store_path.parent() {
+        std::fs::create_dir_all(dir).map_err(|e| format!("{}: cannot create: {e}", dir.display()))?;
+    }
+    let vertical = match &source.vertical_datum {
+        Some(v) => v.parse::<VerticalDatum>().map_err(|e| format!("dataset '{}': {e}", d.name))?,
+        None => VerticalDatum::Ellipsoidal,
+    };
+    Ok(Some(ImportOptions {
+        sources: source.files.iter().map(|f| project.resolve(f)).collect(),
+        store: store_path,
+        body: project.ellipsoid()?,
+        name: Some(name.to_string()),
+        level: source.max_level.map_or(LevelChoice::Auto, LevelChoice::Level),
+        resampling: Resampling::Bilinear,
+        vertical,
+        memory_budget: 1 << 30,
+        threads: None,
+        progress: false,
+        finest_only: false,
+        watch: None,
+    }))
+}
+
+/// Opens what a dataset layer reads (its store must hold the dataset complete).
+pub fn open_dataset(project: &Project, d: &LayerSpec) -> Result<DatasetInfo, String> {
+    let store =
+        d.store.as_ref().ok_or_else(|| format!("layer '{}': store: a dataset layer needs its store", d.name))?;
+    DatasetInfo::open(&project.resolve(store), d.store_dataset()).map_err(|e| format!("dataset '{}': {e}", d.name))
 }
 
 /// The heights the visible layers can give, metres: the hull of the active layers' value ranges,

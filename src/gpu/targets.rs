@@ -31,6 +31,18 @@ pub struct RenderedImage {
     pub gpu_ms: Option<f64>,
 }
 
+impl RenderedImage {
+    /// Writes the image as PNG, atomically (beside, then renamed).
+    pub fn write_png(&self, path: &std::path::Path) -> Result<(), String> {
+        use image::ImageEncoder as _;
+        let mut bytes = Vec::new();
+        image::codecs::png::PngEncoder::new(&mut bytes)
+            .write_image(&self.rgba, self.width, self.height, image::ExtendedColorType::Rgba8)
+            .map_err(|e| format!("{}: cannot encode PNG: {e}", path.display()))?;
+        crate::files::write_atomic(path, &bytes).map_err(|e| format!("{}: cannot write: {e}", path.display()))
+    }
+}
+
 /// The targets of one frame: the colour image ([`IMAGE_FORMAT`], sRGB-encoded), for probes the
 /// camera-relative surface position with height ([`SURFACE_FORMAT`]) and the ids
 /// ([`ID_FORMAT`]), and the depth buffer.
@@ -168,9 +180,8 @@ impl FrameTargets {
         mapped.extend(time_buffers.iter());
         for b in &mapped {
             b.slice(..).map_async(wgpu::MapMode::Read, |r| {
-                if let Err(e) = r {
-                    eprintln!("terrafuse: reading back from the GPU failed: {e}");
-                }
+                // A failed mapping shows when the range is read below.
+                let _ = r;
             });
         }
         device

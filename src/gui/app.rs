@@ -68,6 +68,8 @@ pub struct App {
     confirm_close: bool,
     /// The user chose how to close; let the window go.
     closing: bool,
+    /// The "add a dataset" form and its import in flight.
+    add_dataset: super::add_dataset::AddDataset,
 }
 
 impl App {
@@ -112,6 +114,7 @@ impl App {
             device,
             confirm_close: false,
             closing: false,
+            add_dataset: Default::default(),
         }
     }
 
@@ -134,6 +137,11 @@ impl App {
     /// Whether settings changed since the project was saved.
     pub fn unsaved(&self) -> bool {
         self.unsaved
+    }
+
+    /// Whether a dataset is being imported or opened in the background.
+    pub fn adding_dataset(&self) -> bool {
+        self.add_dataset.busy()
     }
 
     /// The last message in the status bar (saves, errors).
@@ -358,6 +366,22 @@ impl App {
             if let Some(e) = change.error {
                 ui.colored_label(egui::Color32::LIGHT_RED, e);
             }
+            match self.add_dataset.ui(ui, &self.project) {
+                Some(Ok((spec, info))) => {
+                    let change = super::layers_panel::insert_dataset(&mut self.renderer, &mut self.project, spec, info);
+                    if change.changed {
+                        self.dirty = true;
+                        self.unsaved = true;
+                        self.message =
+                            format!("added dataset layer '{}'", self.project.layers.last().map_or("", |l| &l.name));
+                    }
+                    if let Some(e) = change.error {
+                        self.message = e;
+                    }
+                }
+                Some(Err(e)) => self.message = e,
+                None => {}
+            }
 
             ui.separator();
             let label = if self.unsaved { "save project *" } else { "save project" };
@@ -550,9 +574,6 @@ impl App {
         if self.dirty || streaming {
             let t = Instant::now();
             let stats = self.renderer.prepare(&self.camera, w, h);
-            for e in &stats.errors {
-                eprintln!("terrafuse: {e}");
-            }
             if let Some(e) = stats.errors.last() {
                 self.message = e.clone();
             }
@@ -585,7 +606,8 @@ impl App {
                 let r = self.viewport_px.unwrap_or(egui::Rect::NOTHING);
                 let (w, h) = self.viewport.as_ref().map_or((0, 0), |v| v.size());
                 format!(
-                    "window: {}x{} pixels, written to {}\nviewport: {} {} {} {} (x y width height, pixels; rendered {w}x{h})\ncamera: {:.6},{:.6},{:.3},{:.4},{:.4},{:.3}\nframe: {}\ngpu: {}\nframes rendered: {}, {:.1} s\n",
+                    "{}\nwindow: {}x{} pixels, written to {}\nviewport: {} {} {} {} (x y width height, pixels; rendered {w}x{h})\ncamera: {:.6},{:.6},{:.3},{:.4},{:.4},{:.3}\nframe: {}\ngpu: {}\nframes rendered: {}, {:.1} s\n",
+                    self.device,
                     image.size[0],
                     image.size[1],
                     job.path.display(),
@@ -691,7 +713,7 @@ fn write_screenshot(path: &std::path::Path, image: &egui::ColorImage) -> Result<
         ids: None,
         gpu_ms: None,
     };
-    crate::cli::write_png(path, &picture)
+    picture.write_png(path)
 }
 
 impl eframe::App for App {

@@ -1,10 +1,10 @@
 //! The layers panel: the stack top to bottom as a person reads it, each layer's visibility,
 //! blend mode, opacity and parameters edited live (the renderer recomposes only the quads the
-//! changed layer touches), order changed with up/down, constant and procedural layers added and
-//! removed.
+//! changed layer touches), order changed by dragging a layer onto another or with up/down,
+//! constant and procedural layers added (datasets by [`super::add_dataset`]) and any layer removed.
 
 use crate::gpu::Renderer;
-use crate::layers::{BlendMode, DetailWhere, LayerKind, LayerSpec, NoiseSpec, NoiseType};
+use crate::layers::{BlendMode, DetailWhere, ExtentSpec, LayerKind, LayerSpec, NoiseSpec, NoiseType};
 use crate::project::Project;
 
 /// What the panel did this frame.
@@ -21,7 +21,7 @@ pub fn layers_ui(ui: &mut egui::Ui, renderer: &mut Renderer, project: &mut Proje
     let mut change = LayersChange::default();
     let count = project.layers.len();
     if count == 0 {
-        ui.label("no layers yet: add a constant or detail here, datasets in the project file");
+        ui.label("no layers yet: add a dataset, a constant or detail");
     }
     ui.horizontal(|ui| {
         if ui.small_button("add constant").on_hover_text("a constant height on top of the stack").clicked() {
@@ -46,29 +46,44 @@ pub fn layers_ui(ui: &mut egui::Ui, renderer: &mut Renderer, project: &mut Proje
             insert(renderer, project, LayerSpec::procedural(&unique_name(project, "detail"), noise), &mut change);
         }
     });
-    let mut swap: Option<(usize, usize)> = None;
+    // A move from one position to another (up, down, or a layer dragged onto another).
+    let mut moved: Option<(usize, usize)> = None;
     let mut remove: Option<usize> = None;
     // Top of the stack first, as in every layer panel.
     for index in (0..count).rev() {
         let mut spec = project.layers[index].clone();
         let before = spec.clone();
-        ui.push_id(index, |ui| {
-            ui.horizontal(|ui| {
-                ui.checkbox(&mut spec.visible, "visible");
-                ui.label(egui::RichText::new(&spec.name).strong());
-                ui.label(egui::RichText::new(spec.kind.name()).small());
-                if ui.small_button("up").on_hover_text("move up the stack").clicked() && index + 1 < count {
-                    swap = Some((index, index + 1));
-                }
-                if ui.small_button("down").on_hover_text("move down the stack").clicked() && index > 0 {
-                    swap = Some((index, index - 1));
-                }
-                if spec.kind != LayerKind::Dataset && ui.small_button("remove").clicked() {
-                    remove = Some(index);
-                }
-            });
-            layer_settings_ui(ui, &mut spec);
-        });
+        let block = ui
+            .push_id(index, |ui| {
+                ui.horizontal(|ui| {
+                    ui.dnd_drag_source(ui.scope_id().with("drag"), index, |ui| ui.label("drag"))
+                        .response
+                        .on_hover_text("drag onto another layer to move it there");
+                    ui.checkbox(&mut spec.visible, "visible");
+                    ui.label(egui::RichText::new(&spec.name).strong());
+                    ui.label(egui::RichText::new(spec.kind.name()).small());
+                    if ui.small_button("up").on_hover_text("move up the stack").clicked() && index + 1 < count {
+                        moved = Some((index, index + 1));
+                    }
+                    if ui.small_button("down").on_hover_text("move down the stack").clicked() && index > 0 {
+                        moved = Some((index, index - 1));
+                    }
+                    if ui.small_button("remove").on_hover_text("take the layer off the stack").clicked() {
+                        remove = Some(index);
+                    }
+                });
+                layer_settings_ui(ui, &mut spec);
+            })
+            .response;
+        if block.dnd_hover_payload::<usize>().is_some_and(|from| *from != index) {
+            let stroke = egui::Stroke::new(2.0, ui.visuals().selection.stroke.color);
+            ui.painter().hline(block.rect.x_range(), block.rect.top(), stroke);
+        }
+        if let Some(from) = block.dnd_release_payload::<usize>()
+            && *from != index
+        {
+            moved = Some((*from, index));
+        }
         if spec != before {
             match renderer.update_layer(index, spec.clone()) {
                 Ok(()) => {
@@ -89,7 +104,7 @@ pub fn layers_ui(ui: &mut egui::Ui, renderer: &mut Renderer, project: &mut Proje
             Err(e) => change.error = Some(e.to_string()),
         }
     }
-    if let Some((from, to)) = swap {
+    if let Some((from, to)) = moved {
         renderer.move_layer(from, to);
         let layer = project.layers.remove(from);
         project.layers.insert(to, layer);
@@ -105,6 +120,26 @@ fn unique_name(project: &Project, base: &str) -> String {
         return base.to_string();
     }
     (2..).map(|k| format!("{base} {k}")).find(|n| !used(n)).unwrap_or_else(|| base.to_string())
+}
+
+/// Puts a dataset layer (opened by [`super::add_dataset`]) on top of the stack, in the renderer
+/// and the project.
+pub fn insert_dataset(
+    renderer: &mut Renderer,
+    project: &mut Project,
+    spec: LayerSpec,
+    info: crate::gpu::data::DatasetInfo,
+) -> LayersChange {
+    let mut change = LayersChange::default();
+    let top = project.layers.len();
+    match renderer.insert_dataset_layer(top, spec.clone(), info) {
+        Ok(()) => {
+            project.layers.push(spec);
+            change.changed = true;
+        }
+        Err(e) => change.error = Some(e.to_string()),
+    }
+    change
 }
 
 /// Puts a new layer on top of the stack, in the renderer and the project.
@@ -129,11 +164,12 @@ fn layer_settings_ui(ui: &mut egui::Ui, spec: &mut LayerSpec) {
     if spec.blend == BlendMode::Mean {
         ui.add(egui::Slider::new(&mut spec.weight, 0.0..=10.0).text("weight"));
     }
-    ui.add(egui::DragValue::new(&mut spec.scale).speed(0.01).prefix("scale "));
-    ui.add(egui::DragValue::new(&mut spec.offset_m).speed(1.0).prefix("offset ").suffix(" m"));
-    if spec.extent.is_some() {
-        ui.add(egui::DragValue::new(&mut spec.feather_m).speed(100.0).range(0.0..=1e7).prefix("feather ").suffix(" m"));
-    }
+    ui.horizontal(|ui| {
+        ui.add(egui::DragValue::new(&mut spec.scale).speed(0.01).prefix("scale "));
+        ui.add(egui::DragValue::new(&mut spec.offset_m).speed(1.0).prefix("offset ").suffix(" m"));
+    });
+    valid_range_ui(ui, spec);
+    extent_ui(ui, spec);
     match spec.kind {
         LayerKind::Constant => {
             if let Some(h) = &mut spec.height_m {
@@ -156,8 +192,18 @@ fn layer_settings_ui(ui: &mut egui::Ui, spec: &mut LayerSpec) {
                         .prefix("wavelength ")
                         .suffix(" m"),
                 );
+                egui::ComboBox::from_label("noise").selected_text(noise_name(n.noise_type)).show_ui(ui, |ui| {
+                    for t in [NoiseType::Fbm, NoiseType::Ridged] {
+                        ui.selectable_value(&mut n.noise_type, t, noise_name(t));
+                    }
+                });
                 ui.add(egui::Slider::new(&mut n.octaves, 1..=16).text("octaves"));
+                ui.add(egui::Slider::new(&mut n.lacunarity, 1.5..=3.0).text("lacunarity"));
                 ui.add(egui::Slider::new(&mut n.gain, 0.05..=0.95).text("gain"));
+                let mut beyond = n.placement == DetailWhere::BeyondData;
+                if ui.checkbox(&mut beyond, "only beyond the data").changed() {
+                    n.placement = if beyond { DetailWhere::BeyondData } else { DetailWhere::Everywhere };
+                }
                 ui.add(egui::DragValue::new(&mut n.seed).prefix("seed "));
             }
         }
@@ -171,5 +217,55 @@ fn layer_settings_ui(ui: &mut egui::Ui, spec: &mut LayerSpec) {
             )
             .on_hover_text("fade the dataset in from its own no-data edge over this distance on the surface");
         }
+    }
+}
+
+fn noise_name(t: NoiseType) -> &'static str {
+    match t {
+        NoiseType::Fbm => "fBm",
+        NoiseType::Ridged => "ridged",
+    }
+}
+
+/// `valid_range_m`: values outside are no data.
+fn valid_range_ui(ui: &mut egui::Ui, spec: &mut LayerSpec) {
+    ui.horizontal(|ui| {
+        let mut on = spec.valid_range_m.is_some();
+        if ui.checkbox(&mut on, "valid range").changed() {
+            spec.valid_range_m = on.then_some([-11_000.0, 9_000.0]);
+        }
+        if let Some([lo, hi]) = &mut spec.valid_range_m {
+            ui.add(egui::DragValue::new(lo).speed(10.0).range(-1e6..=*hi).suffix(" m"));
+            ui.add(egui::DragValue::new(hi).speed(10.0).range(*lo..=1e6).suffix(" m"));
+        }
+    });
+}
+
+/// The extent: none, a box (west, south, east, north in degrees) or a polygon (edited in the
+/// project file; its feather here), and the feather inside its edge.
+fn extent_ui(ui: &mut egui::Ui, spec: &mut LayerSpec) {
+    ui.horizontal(|ui| {
+        let mut boxed = matches!(spec.extent, Some(ExtentSpec::Box(_)));
+        let polygon = matches!(spec.extent, Some(ExtentSpec::Polygon(_)));
+        if !polygon && ui.checkbox(&mut boxed, "extent box").changed() {
+            spec.extent = boxed.then_some(ExtentSpec::Box([-180.0, -90.0, 180.0, 90.0]));
+            if !boxed {
+                spec.feather_m = 0.0;
+            }
+        }
+        if let Some(ExtentSpec::Polygon(p)) = &spec.extent {
+            ui.label(format!("extent: polygon of {} vertices", p.len()));
+        }
+    });
+    if let Some(ExtentSpec::Box([w, so, e, n])) = &mut spec.extent {
+        ui.horizontal(|ui| {
+            ui.add(egui::DragValue::new(w).speed(0.01).range(-180.0..=180.0).prefix("W ").suffix("°"));
+            ui.add(egui::DragValue::new(so).speed(0.01).range(-90.0..=*n).prefix("S ").suffix("°"));
+            ui.add(egui::DragValue::new(e).speed(0.01).range(-180.0..=180.0).prefix("E ").suffix("°"));
+            ui.add(egui::DragValue::new(n).speed(0.01).range(*so..=90.0).prefix("N ").suffix("°"));
+        });
+    }
+    if spec.extent.is_some() {
+        ui.add(egui::DragValue::new(&mut spec.feather_m).speed(100.0).range(0.0..=1e7).prefix("feather ").suffix(" m"));
     }
 }

@@ -1,6 +1,7 @@
 //! The workstation: an eframe window whose viewport is the wgpu terrain renderer, embedded
 //! through egui-wgpu on eframe's own device.
 
+pub mod add_dataset;
 pub mod app;
 pub mod layers_panel;
 pub mod navigate;
@@ -54,6 +55,14 @@ pub struct Opened {
     camera: crate::project::CameraSpec,
     screenshot: Option<app::ScreenshotJob>,
     outcome: app::Outcome,
+    imported: Vec<String>,
+}
+
+impl Opened {
+    /// One line per dataset imported from its sources while opening.
+    pub fn imported(&self) -> &[String] {
+        &self.imported
+    }
 }
 
 /// Checks the request and opens the project: everything that can fail before a window opens.
@@ -62,7 +71,7 @@ pub fn open(opts: &ViewOptions) -> Result<Opened, String> {
         return Err(format!("window size {}x{} must lie within 200x150 … 16384x16384", opts.width, opts.height));
     }
     let project = Project::load(&opts.project).map_err(|e| e.to_string())?;
-    let camera = crate::cli::request_camera(&project, opts.view.as_deref(), opts.camera.as_deref())?;
+    let camera = project.camera(opts.view.as_deref(), opts.camera.as_deref())?;
     if let Some(t) = opts.lod_threshold
         && !(t.is_finite() && t > 0.0)
     {
@@ -72,9 +81,6 @@ pub fn open(opts: &ViewOptions) -> Result<Opened, String> {
         check_writable(path)?;
     }
     let (mut scene, report) = Scene::open(&project).map_err(|e| format!("{}: {e}", opts.project.display()))?;
-    for line in &report.imported {
-        eprintln!("{line}");
-    }
     if let Some(t) = opts.lod_threshold {
         scene.detail.lod_threshold_px = t;
     }
@@ -85,6 +91,7 @@ pub fn open(opts: &ViewOptions) -> Result<Opened, String> {
         camera,
         screenshot: opts.screenshot.clone().map(|path| app::ScreenshotJob { path, timeout: opts.timeout }),
         outcome: Arc::new(Mutex::new(None)),
+        imported: report.imported,
     })
 }
 
@@ -106,7 +113,6 @@ pub fn build_app(cc: &eframe::CreationContext<'_>, opened: Opened) -> Result<app
         timestamps: rs.device.features().contains(wgpu::Features::TIMESTAMP_QUERY),
     };
     let device = format!("device: {}", ctx.describe());
-    eprintln!("{device}");
     let renderer = Renderer::new(&ctx, opened.scene, IMAGE_FORMAT).map_err(|e| e.to_string())?;
     Ok(app::App::new(
         opened.project,
@@ -121,14 +127,7 @@ pub fn build_app(cc: &eframe::CreationContext<'_>, opened: Opened) -> Result<app
 
 /// Opens the workstation on a project; returns the screenshot run's report (empty when the
 /// user closed the window).
-pub fn run(opts: &ViewOptions) -> Result<String, String> {
-    if std::env::var_os("DISPLAY").is_none() {
-        return Err("terrafuse view needs an X11 display and DISPLAY is not set (on Wayland desktops XWayland \
-                    provides one; without a display use `xvfb-run terrafuse view … --screenshot OUT.png`, or \
-                    `terrafuse render` for images)"
-            .into());
-    }
-    let opened = open(opts)?;
+pub fn run(opts: &ViewOptions, opened: Opened) -> Result<String, String> {
     let outcome = opened.outcome.clone();
     let name = opts.project.file_stem().map_or("project".into(), |s| s.to_string_lossy().into_owned());
     let native = eframe::NativeOptions {

@@ -28,6 +28,7 @@ use super::read::GridReader;
 use super::resample::{average_quad, footprint, resample_quad};
 use super::source::{SourceInfo, SourceReader};
 use super::tile::QuadGrid;
+use super::watch::ImportWatch;
 use crate::ecm::{Face, QuadId};
 use crate::geodesy::Ellipsoid;
 
@@ -153,6 +154,8 @@ pub struct ImportOptions {
     pub threads: Option<usize>,
     /// Draw a progress bar (on a terminal).
     pub progress: bool,
+    /// Report progress to, and take a cancel from, another thread (e.g. a window).
+    pub watch: Option<std::sync::Arc<ImportWatch>>,
     /// Stop after this many tiles of the finest level (for benchmarks of the resampling alone).
     pub finest_only: bool,
 }
@@ -353,7 +356,14 @@ pub fn import(opts: &ImportOptions) -> Result<ImportReport, StoreError> {
     for info in &infos {
         candidates.extend(footprint(&SourceReader::new(info, &body)?, &body, level)?);
     }
-    let mut levels = LevelWriter { store: &mut store, dataset: &name, pool: &pool, queue, progress: opts.progress };
+    let mut levels = LevelWriter {
+        store: &mut store,
+        dataset: &name,
+        pool: &pool,
+        queue,
+        progress: opts.progress,
+        watch: opts.watch.as_deref(),
+    };
     let (written, finished, computed) = levels.run(
         level,
         candidates,
@@ -424,12 +434,13 @@ fn vertical_record(
             }
             match geoid_transform(grid) {
                 Ok(_) => (format!("ellipsoidal: converted from {model} geoid heights with PROJ grid {grid}"), Some(grid.clone())),
-                Err(why) => {
-                    eprintln!(
-                        "warning: {model} grid {grid} is not available ({why}); heights stay {model} geoid heights. Install proj-data or pass --vertical-datum geoid:FILE"
-                    );
-                    (format!("{model} geoid heights, NOT converted to ellipsoidal heights (grid {grid} not found)"), None)
-                }
+                Err(why) => (
+                    format!(
+                        "{model} geoid heights, NOT converted to ellipsoidal heights: grid {grid} is not available \
+                         ({why}); install proj-data or pass --vertical-datum geoid:FILE"
+                    ),
+                    None,
+                ),
             }
         }
     })
@@ -470,6 +481,7 @@ struct LevelWriter<'a> {
     /// Quads in flight between the workers and the writer.
     queue: usize,
     progress: bool,
+    watch: Option<&'a ImportWatch>,
 }
 
 impl LevelWriter<'_> {
@@ -499,10 +511,13 @@ impl LevelWriter<'_> {
         I: Fn() -> Result<W, StoreError> + Sync,
         F: Fn(&mut W, QuadId) -> Result<Option<QuadGrid>, StoreError> + Sync,
     {
-        let (store, dataset, pool, queue, progress) =
-            (&mut *self.store, self.dataset, self.pool, self.queue, self.progress);
+        let (store, dataset, pool, queue, progress, watch) =
+            (&mut *self.store, self.dataset, self.pool, self.queue, self.progress, self.watch);
         if todo.is_empty() {
             return Ok(0);
+        }
+        if let Some(w) = watch {
+            w.start_phase(label, todo.len() as u64);
         }
         let bar = if progress { ProgressBar::new(todo.len() as u64) } else { ProgressBar::hidden() };
         bar.set_style(
@@ -554,6 +569,14 @@ impl LevelWriter<'_> {
                         written += u64::from(g.is_some());
                         batch.push((q, g));
                         bar.inc(1);
+                        if let Some(w) = watch {
+                            w.advance();
+                            if w.is_cancelled() {
+                                // What is committed stays; this batch is dropped like a crash's.
+                                failure = Some(StoreError::new(store.path(), "cancelled"));
+                                break;
+                            }
+                        }
                         if batch.len() >= 32 || last.elapsed().as_secs_f64() > 1.0 {
                             if let Err(e) = flush(store, &mut batch) {
                                 failure = Some(e);

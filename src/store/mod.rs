@@ -9,6 +9,7 @@
 //! - [`import`]: the import pipeline.
 //! - [`resample`]: the import's sampling (footprints, resampling, the pyramid's averages).
 //! - [`read`]: reading back.
+//! - [`watch`]: an import's progress and cancel switch, for another thread.
 //! - [`export`]: GeoTIFF export in any CRS.
 
 pub mod export;
@@ -19,6 +20,7 @@ pub mod read;
 pub mod resample;
 pub mod source;
 pub mod tile;
+pub mod watch;
 
 use std::fmt;
 use std::path::{Path, PathBuf};
@@ -26,6 +28,7 @@ use std::path::{Path, PathBuf};
 pub use gpkg::Store;
 pub use import::{ImportOptions, ImportReport, LevelChoice, Resampling, VerticalDatum, import};
 pub use read::GridReader;
+pub use watch::{ImportProgress, ImportWatch};
 
 /// A store error: the file concerned and what is wrong, in words.
 #[derive(Debug, Clone, PartialEq)]

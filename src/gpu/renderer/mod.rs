@@ -74,6 +74,11 @@ pub struct ComposeCounters {
     /// Source tiles uploaded to the GPU.
     pub sources_uploaded: u64,
 }
+/// Loader threads: the cores, at most 4.
+fn loader_threads() -> usize {
+    std::thread::available_parallelism().map_or(2, |n| n.get()).clamp(1, 4)
+}
+
 /// The terrain renderer.
 pub struct Renderer {
     device: wgpu::Device,
@@ -162,8 +167,7 @@ impl Renderer {
         );
 
         let flat = flat_rule_for(&scene.ellipsoid, exaggerated_range(&scene, scene.visuals.exaggeration));
-        let threads = std::thread::available_parallelism().map_or(2, |n| n.get()).clamp(1, 4);
-        let loader = Loader::start(scene.datasets.clone(), scene.ellipsoid, threads);
+        let loader = Loader::start(scene.datasets.clone(), scene.ellipsoid, loader_threads());
         let cpu = CpuCache::new((scene.detail.cpu_cache_mib.max(16) << 20) as usize);
         Ok(Renderer {
             device,
@@ -533,32 +537,25 @@ impl Renderer {
     /// statistics. The command line uses it to render a finished frame; an interactive view calls
     /// [`Renderer::prepare`] once per frame instead.
     pub fn settle(&mut self, spec: &CameraSpec, width: u32, height: u32, timeout: Duration) -> FrameStats {
+        self.settle_traced(spec, width, height, timeout, &mut |_, _| {})
+    }
+
+    /// [`Renderer::settle`], showing each waiting step to `trace` (its statistics and the
+    /// loader's requests waiting or in flight): for tools that report what a view waits for.
+    pub fn settle_traced(
+        &mut self,
+        spec: &CameraSpec,
+        width: u32,
+        height: u32,
+        timeout: Duration,
+        trace: &mut dyn FnMut(&FrameStats, usize),
+    ) -> FrameStats {
         let start = Instant::now();
         let mut errors = Vec::new();
         let mut stalls = 0;
         for _ in 0..100_000 {
             let mut stats = self.prepare(spec, width, height);
-            if std::env::var_os("TERRAFUSE_DEBUG").is_some() {
-                eprintln!(
-                    "settle: {} drawn, {} pending, {} uploads, {} requested, {} blocked, loader {} / culled {} {} visited {}",
-                    stats.selection.quads.len(),
-                    stats.pending,
-                    stats.uploads,
-                    stats.requested,
-                    stats.blocked,
-                    self.loader.busy(),
-                    stats.selection.culled_frustum,
-                    stats.selection.culled_horizon,
-                    stats.selection.visited
-                );
-                if std::env::var_os("TERRAFUSE_DEBUG_QUADS").is_some() {
-                    eprintln!(
-                        "  drawn {:?}\n  wanted {:?}",
-                        stats.selection.quads.iter().map(|q| q.to_string()).collect::<Vec<_>>(),
-                        stats.selection.wanted.iter().map(|q| q.to_string()).collect::<Vec<_>>()
-                    );
-                }
-            }
+            trace(&stats, self.loader.busy());
             errors.append(&mut stats.errors);
             if stats.pending == 0 || start.elapsed() > timeout {
                 stats.errors = errors;

@@ -42,6 +42,24 @@ impl Renderer {
         Ok(())
     }
 
+    /// Inserts a dataset layer at `index` (0: bottom) reading `info` (opened off the frame's
+    /// thread: [`crate::gpu::scene::open_dataset`]); the quads it touches are composed anew, and
+    /// the loader restarts to read a dataset the scene did not have.
+    pub fn insert_dataset_layer(
+        &mut self,
+        index: usize,
+        spec: LayerSpec,
+        info: crate::gpu::data::DatasetInfo,
+    ) -> Result<(), GpuError> {
+        let before = self.scene.datasets.len();
+        self.scene.insert_dataset_layer(index, spec, info).map_err(GpuError::Stack)?;
+        if self.scene.datasets.len() != before {
+            self.loader = Loader::start(self.scene.datasets.clone(), self.scene.ellipsoid, loader_threads());
+        }
+        self.cache.plans.clear();
+        Ok(())
+    }
+
     /// Removes layer `index`; the quads it touched are recomposed.
     pub fn remove_layer(&mut self, index: usize) -> Result<(), LayerError> {
         if index >= self.scene.stack.layers.len() {
