@@ -7,6 +7,7 @@
 
 pub mod cli;
 pub mod colour;
+pub mod compare;
 pub mod ecm;
 pub mod files;
 pub mod geodesy;

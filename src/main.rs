@@ -87,6 +87,33 @@ enum Command {
         #[arg(long, default_value = "gpu", value_parser = ["gpu", "cpu"])]
         compose: String,
     },
+    /// Compare layer A with layer B (the reference) of a project: statistics of A − B over
+    /// their overlap at one level, weighted by each sample's cell area on the ellipsoid, by slope
+    /// class of B, with a histogram.
+    Compare {
+        /// The project file (JSON).
+        project: PathBuf,
+        /// Layer A.
+        a: String,
+        /// Layer B, the reference.
+        b: String,
+        /// Level to compare at (default: the finest level of the coarser dataset).
+        #[arg(long)]
+        level: Option<u8>,
+        /// Only inside WEST,SOUTH,EAST,NORTH (degrees; east < west crosses ±180°).
+        #[arg(long, allow_hyphen_values = true)]
+        region: Option<String>,
+        /// Count every sample once (as xDEM and demcompare count pixels) instead of weighting by area.
+        #[arg(long)]
+        unweighted: bool,
+        /// Print JSON (stable field names: count, nodata_count, mean_m, median_m, std_m, rmse_m,
+        /// nmad_m, min_m, max_m, le90_m, p90_abs_m, histogram, by_slope).
+        #[arg(long)]
+        json: bool,
+        /// Also write every sample (lon_deg, lat_deg, dh_m, area_m2, slope_deg) as CSV.
+        #[arg(long)]
+        samples: Option<PathBuf>,
+    },
     /// Open the workstation: a window with the project's terrain, its views and its visual
     /// settings (needs an X11 display; `xvfb-run` provides one for screenshots).
     View {
@@ -509,6 +536,10 @@ fn run(args: Args) -> Result<ExitCode> {
             })
             .map_err(anyhow::Error::msg)?;
             print!("{report}");
+        }
+        Command::Compare { project, a, b, level, region, unweighted, json, samples } => {
+            let request = cli::CompareRequest { project, a, b, level, region, unweighted, json, samples };
+            print!("{}", cli::compare_command(&request).map_err(anyhow::Error::msg)?);
         }
         Command::Export { project, out, raster, level, compose } => {
             let (crs, bounds, resolution) = raster.parse()?;

@@ -120,7 +120,7 @@ fn measure(
     let mut cpu_grids = Default::default();
     for _ in 0..repeats.clamp(1, 3) {
         let t = Instant::now();
-        cpu_grids = super::compose_on_cpu(&scene, quads)?;
+        cpu_grids = scene.compose_cpu(quads)?;
         cpu.push(t.elapsed().as_secs_f64() * 1e3);
     }
     let mut worst = 0f64;

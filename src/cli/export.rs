@@ -8,9 +8,7 @@ use std::collections::{BTreeSet, HashMap};
 use std::path::PathBuf;
 
 use crate::ecm::{CubeProjection, QuadId};
-use crate::gpu::data::{EdgeFields, read_tile};
 use crate::gpu::{GpuContext, IMAGE_FORMAT, Renderer, Scene};
-use crate::layers::{LayerTiles, compose_quad};
 use crate::project::Project;
 use crate::store::export::RasterSpec;
 use crate::store::grid::{intervals_per_face_edge, level_for_resolution};
@@ -106,7 +104,7 @@ pub fn export_composed(opts: &ComposedExport) -> Result<ComposedReport, String> 
     let quads: Vec<QuadId> = cells.iter().flatten().map(|c| c.0).collect::<BTreeSet<_>>().into_iter().collect();
 
     let (grids, composer) = match opts.compose_on {
-        ComposeOn::Cpu => (compose_on_cpu(&scene, &quads)?, "CPU reference".to_string()),
+        ComposeOn::Cpu => (scene.compose_cpu(&quads)?, "CPU reference".to_string()),
         ComposeOn::Gpu => {
             let ctx = GpuContext::headless().map_err(|e| e.to_string())?;
             let name = ctx.describe();
@@ -150,28 +148,4 @@ pub fn export_composed(opts: &ComposedExport) -> Result<ComposedReport, String> 
     ];
     raster.write(&opts.out, &metadata, data).map_err(|e| e.to_string())?;
     Ok(ComposedReport { size: raster.size, level, quads: quads.len(), valid, composer })
-}
-
-type Grid = Vec<f32>;
-
-/// Composes quads with the CPU reference (the source tiles read here).
-pub fn compose_on_cpu(scene: &Scene, quads: &[QuadId]) -> Result<HashMap<QuadId, Vec<f32>>, String> {
-    let mut stores: Vec<Option<crate::store::Store>> = scene.datasets.iter().map(|_| None).collect();
-    let fields = EdgeFields::default();
-    let mut grids = HashMap::new();
-    for &quad in quads {
-        let plan = scene.plan(quad);
-        // Per planned layer: its raw and edge tiles (datasets).
-        let mut tiles: Vec<(Option<Grid>, Option<Grid>)> = Vec::with_capacity(plan.layers.len());
-        for l in &plan.layers {
-            let mut read = |key| read_tile(key, &scene.datasets, &mut stores, &fields).map(|t| t.grid);
-            tiles.push(match scene.layer_tiles(l.index, quad) {
-                Some((source, edge)) => (Some(read(source)?), edge.map(&mut read).transpose()?),
-                None => (None, None),
-            });
-        }
-        let layer_tiles = |k: usize| LayerTiles { raw: tiles[k].0.as_deref(), edge_m: tiles[k].1.as_deref() };
-        grids.insert(quad, compose_quad(&scene.stack, &plan, &layer_tiles));
-    }
-    Ok(grids)
 }

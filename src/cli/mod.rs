@@ -3,6 +3,7 @@
 
 mod bench_compose;
 mod bench_render;
+mod compare;
 mod export;
 mod geo;
 mod geometry;
@@ -12,7 +13,8 @@ mod store;
 
 pub use bench_compose::{ComposeBenchRow, ComposeBenchSettings, bench_compose};
 pub use bench_render::{RenderBenchRow, RenderBenchSettings, bench_render, render_bench_csv, write_render_bench};
-pub use export::{ComposeOn, ComposedExport, ComposedReport, compose_on_cpu, export_composed};
+pub use compare::{CompareRequest, compare_command, table as compare_table};
+pub use export::{ComposeOn, ComposedExport, ComposedReport, export_composed};
 pub use geo::{BatchReport, GeoOperation, run_batch};
 pub use geometry::{
     AccuracyBench, accuracy_bench, accuracy_csv, accuracy_plot, cutoff_report, fitted_rule, timing_report,

@@ -5,14 +5,17 @@
 use std::collections::HashMap;
 use std::sync::Arc;
 
-use super::data::{DataKey, DatasetInfo};
+use super::data::{DataKey, DatasetInfo, EdgeFields, read_tile};
 use crate::colour::Ramp;
 use crate::ecm::QuadId;
 use crate::geodesy::Ellipsoid;
-use crate::layers::{LayerKind, LayerSpec, QuadPlan, Stack};
+use crate::layers::{LayerKind, LayerSpec, LayerTiles, QuadPlan, Stack, compose_quad};
 use crate::project::{ColourMapSpec, DetailSpec, Project, Visuals};
 use crate::store::grid::spacing_m;
 use crate::store::{ImportOptions, LevelChoice, Resampling, Store, VerticalDatum};
+
+/// A quad's 257² values.
+type Grid = Vec<f32>;
 
 /// Everything the renderer needs from a project.
 #[derive(Clone, Debug)]
@@ -116,6 +119,29 @@ impl Scene {
         scene.range_m = stack_range(&scene.stack);
         scene.ramp = resolve_ramp(project, &scene.visuals.colour_map, scene.range_m)?;
         Ok((scene, report))
+    }
+
+    /// Composes quads with the CPU reference, reading their source and edge tiles here (on the
+    /// caller's thread): for export, comparison, benchmarks and tests.
+    pub fn compose_cpu(&self, quads: &[QuadId]) -> Result<HashMap<QuadId, Vec<f32>>, String> {
+        let mut stores: Vec<Option<Store>> = self.datasets.iter().map(|_| None).collect();
+        let fields = EdgeFields::default();
+        let mut grids = HashMap::new();
+        for &quad in quads {
+            let plan = self.plan(quad);
+            // Per planned layer: its raw and edge tiles (datasets).
+            let mut tiles: Vec<(Option<Grid>, Option<Grid>)> = Vec::with_capacity(plan.layers.len());
+            for l in &plan.layers {
+                let mut read = |key| read_tile(key, &self.datasets, &mut stores, &fields).map(|t| t.grid);
+                tiles.push(match self.layer_tiles(l.index, quad) {
+                    Some((source, edge)) => (Some(read(source)?), edge.map(&mut read).transpose()?),
+                    None => (None, None),
+                });
+            }
+            let layer_tiles = |k: usize| LayerTiles { raw: tiles[k].0.as_deref(), edge_m: tiles[k].1.as_deref() };
+            grids.insert(quad, compose_quad(&self.stack, &plan, &layer_tiles));
+        }
+        Ok(grids)
     }
 
     /// Inserts a dataset layer at `index` (0: bottom) reading `info` (see [`open_dataset`]).

@@ -1,0 +1,122 @@
+//! `terrafuse compare PROJECT A B`: the statistics of A − B over their overlap (see
+//! [`crate::compare`]), as a table for people or JSON with stable field names for scripts, and
+//! optionally every sample as CSV.
+
+use std::fmt::Write as _;
+use std::path::PathBuf;
+
+use crate::compare::{CompareOptions, Comparison, Weighting, compare};
+use crate::project::Project;
+
+/// What `terrafuse compare` was asked.
+#[derive(Clone, Debug)]
+pub struct CompareRequest {
+    /// The project file.
+    pub project: PathBuf,
+    /// Layer A.
+    pub a: String,
+    /// Layer B, the reference.
+    pub b: String,
+    /// The level (default: the coarser dataset's finest).
+    pub level: Option<u8>,
+    /// `WEST,SOUTH,EAST,NORTH` in degrees.
+    pub region: Option<String>,
+    /// Count samples instead of weighting them by area.
+    pub unweighted: bool,
+    /// Print JSON.
+    pub json: bool,
+    /// Write every sample here as CSV.
+    pub samples: Option<PathBuf>,
+}
+
+/// Runs the comparison; returns what to print.
+pub fn compare_command(request: &CompareRequest) -> Result<String, String> {
+    let region = match &request.region {
+        None => None,
+        Some(text) => {
+            let v: Vec<f64> = text
+                .split(',')
+                .map(|s| s.trim().parse::<f64>())
+                .collect::<Result<_, _>>()
+                .map_err(|e| format!("--region {text}: {e} (give WEST,SOUTH,EAST,NORTH in degrees)"))?;
+            let [w, s, e, n] = v[..] else {
+                return Err(format!("--region {text}: give four numbers WEST,SOUTH,EAST,NORTH in degrees"));
+            };
+            Some([w, s, e, n])
+        }
+    };
+    let project = Project::load(&request.project).map_err(|e| e.to_string())?;
+    let opts = CompareOptions {
+        level: request.level,
+        region,
+        weighting: if request.unweighted { Weighting::Samples } else { Weighting::Area },
+        keep_samples: request.samples.is_some(),
+        ..CompareOptions::default()
+    };
+    let c =
+        compare(&project, &request.a, &request.b, &opts).map_err(|e| format!("{}: {e}", request.project.display()))?;
+    if let Some(path) = &request.samples {
+        let mut csv = String::from("lon_deg,lat_deg,dh_m,area_m2,slope_deg\n");
+        for s in &c.samples {
+            let _ = writeln!(csv, "{:.8},{:.8},{},{},{}", s.lon_deg, s.lat_deg, s.dh_m, s.area_m2, s.slope_deg);
+        }
+        crate::files::write_atomic(path, csv.as_bytes()).map_err(|e| format!("{}: {e}", path.display()))?;
+    }
+    if request.json {
+        return serde_json::to_string_pretty(&c).map(|s| s + "\n").map_err(|e| e.to_string());
+    }
+    Ok(table(&c))
+}
+
+/// The statistics as a table.
+pub fn table(c: &Comparison) -> String {
+    let s = &c.stats;
+    let mut out = String::new();
+    let weighting = match c.weighting {
+        Weighting::Area => format!(
+            "weighted by cell area on the ellipsoid ({:.1} km², largest/smallest cell {:.6})",
+            c.area_km2, c.weight_ratio
+        ),
+        Weighting::Samples => "every sample counted once".to_string(),
+    };
+    let _ = writeln!(out, "{} − {} at level {} ({:.1} m samples), {weighting}", c.a, c.b, c.level, c.spacing_m);
+    let _ = writeln!(out, "samples: {} compared, {} without data on a side", s.count, s.nodata_count);
+    let _ = writeln!(
+        out,
+        "mean {:.3} m  median {:.3} m  std {:.3} m  RMSE {:.3} m  NMAD {:.3} m",
+        s.mean_m, s.median_m, s.std_m, s.rmse_m, s.nmad_m
+    );
+    let _ = writeln!(
+        out,
+        "min {:.3} m  max {:.3} m  LE90 {:.3} m  90th percentile of |dh| {:.3} m",
+        s.min_m, s.max_m, s.le90_m, s.p90_abs_m
+    );
+    let _ = writeln!(
+        out,
+        "{:>12} {:>10} {:>10} {:>10} {:>10} {:>10}",
+        "slope of B", "samples", "mean m", "median m", "NMAD m", "RMSE m"
+    );
+    for k in &c.by_slope {
+        let _ = writeln!(
+            out,
+            "{:>12} {:>10} {:>10.3} {:>10.3} {:>10.3} {:>10.3}",
+            format!("{}–{}°", k.min_deg, k.max_deg),
+            k.stats.count,
+            k.stats.mean_m,
+            k.stats.median_m,
+            k.stats.nmad_m,
+            k.stats.rmse_m
+        );
+    }
+    let h = &c.histogram;
+    if let (Some(lo), Some(hi)) = (h.edges_m.first(), h.edges_m.last()) {
+        let peak = h.count.iter().copied().max().unwrap_or(1).max(1);
+        let _ = writeln!(out, "histogram of dh, {lo:.2} … {hi:.2} m ({} bins):", h.count.len());
+        for (k, n) in h.count.iter().enumerate().step_by(2) {
+            let n2 = n + h.count.get(k + 1).copied().unwrap_or(0);
+            let bar = "#".repeat(((n2 as f64 / (2 * peak) as f64) * 60.0).round() as usize);
+            let _ = writeln!(out, "{:>9.2} m {bar}", h.edges_m[k]);
+        }
+    }
+    out
+}

@@ -1,0 +1,37 @@
+//! Comparing two layers of a project (issue #13): the differences A − B over their overlap at a
+//! level of the cube map, each sample weighted by the true area of its cell on the ellipsoid, with
+//! the reference's slope, and their statistics (`stats`).
+//!
+//! - [`stats`]: weighted statistics, histogram and slope classes (the JSON of `terrafuse compare`);
+//! - [`sample`]: the overlap's samples: each layer composed alone with the CPU reference, cell areas
+//!   and slopes on the ellipsoid.
+
+pub mod sample;
+pub mod stats;
+
+pub use sample::{CompareOptions, Comparison, Weighting, compare};
+pub use stats::{Diff, Histogram, SlopeClass, Stats};
+
+/// A comparison that cannot be made, in words that name the layer, option or file.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum CompareError {
+    /// A layer named on the command line is not in the project.
+    #[error("layer '{name}' is not in the project (its layers: {known})")]
+    NoLayer {
+        /// The name asked for.
+        name: String,
+        /// The project's layers.
+        known: String,
+    },
+    /// An option's value cannot be used.
+    #[error("{option}: {problem}")]
+    Option {
+        /// The option, as the command line spells it.
+        option: String,
+        /// What is wrong.
+        problem: String,
+    },
+    /// Opening or reading the layers failed.
+    #[error("{0}")]
+    Open(String),
+}

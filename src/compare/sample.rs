@@ -1,0 +1,372 @@
+//! The samples of a comparison: layers A and B each composed alone (the layer as the project sets
+//! it: scale, offset, valid range, extent; shown, `over`, opacity 1) with the CPU reference on the
+//! quads of one level where the datasets among them have tiles; per sample the difference A − B,
+//! the area of its cell on the ellipsoid and the slope of B.
+//!
+//! Each quad's samples i, j ∈ 0..256 are counted, the one whose cell [i, i + 1] × [j, j + 1] it is
+//! (as the store's tiles own them), so shared quad edges count once. A cell's area is that of the
+//! quadrilateral of its four corners on the ellipsoid (half the cross product of its diagonals;
+//! the cell's curvature changes it by less than (cell / R)², 10⁻⁹ at 90 m on Earth). QSC is
+//! equal-area on the sphere, so on the Moon every weight is the same; on an ellipsoid they differ
+//! a little, and `weight_ratio` reports by how much (largest over smallest).
+//!
+//! The slope of B at a sample comes from central differences of B along the grid's two axes
+//! (one-sided at the quad's border or next to no data), turned into the gradient in the tangent
+//! plane through the two axes' ECEF vectors, so it is metres over metres on the ellipsoid wherever
+//! the grid is sheared (near cube corners).
+
+use std::collections::{BTreeSet, HashSet};
+
+use glam::DVec3;
+use rayon::prelude::*;
+use serde::Serialize;
+
+use super::CompareError;
+use super::stats::{Diff, HISTOGRAM_BINS, Histogram, SLOPE_CLASSES_DEG, SlopeClass, Stats, by_slope, histogram, stats};
+use crate::ecm::QuadId;
+use crate::gpu::Scene;
+use crate::gpu::data::DatasetInfo;
+use crate::layers::BlendMode;
+use crate::layers::stack::sample_point;
+use crate::project::Project;
+use crate::store::grid::{GRID, spacing_m};
+
+/// Samples along a quad edge.
+const N: usize = GRID as usize;
+/// Most quads one comparison reads (≈ 4 000 quads of 257², 2.7·10⁸ samples).
+pub const MAX_QUADS: usize = 4096;
+/// Quads composed at once (memory: 2 × 264 kB each).
+const CHUNK: usize = 16;
+
+/// How samples are weighted.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Weighting {
+    /// By the area of each sample's cell on the ellipsoid.
+    Area,
+    /// Each sample counts once (as xDEM and demcompare count pixels).
+    Samples,
+}
+
+/// What to compare and how.
+#[derive(Clone, Debug)]
+pub struct CompareOptions {
+    /// The cube map level (default: the finest level of the coarser dataset among A and B).
+    pub level: Option<u8>,
+    /// Only inside this box: west, south, east, north, degrees (east < west crosses ±180°).
+    pub region: Option<[f64; 4]>,
+    /// Sample weights.
+    pub weighting: Weighting,
+    /// Slope class edges, degrees.
+    pub slope_classes_deg: Vec<f64>,
+    /// Keep every sample (for `--samples`).
+    pub keep_samples: bool,
+}
+
+impl Default for CompareOptions {
+    fn default() -> CompareOptions {
+        CompareOptions {
+            level: None,
+            region: None,
+            weighting: Weighting::Area,
+            slope_classes_deg: SLOPE_CLASSES_DEG.to_vec(),
+            keep_samples: false,
+        }
+    }
+}
+
+/// One sample of the comparison.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Sample {
+    /// Longitude, degrees.
+    pub lon_deg: f64,
+    /// Latitude, degrees.
+    pub lat_deg: f64,
+    /// A − B, metres.
+    pub dh_m: f64,
+    /// The cell's area, m².
+    pub area_m2: f64,
+    /// B's slope, degrees (NaN where it has no neighbour with data).
+    pub slope_deg: f64,
+}
+
+/// The result (field names are the JSON's: scripts rely on them).
+#[derive(Clone, Debug, Serialize)]
+pub struct Comparison {
+    /// Layer A.
+    pub a: String,
+    /// Layer B (the reference: slopes are its).
+    pub b: String,
+    /// The level compared.
+    pub level: u8,
+    /// Mean sample spacing at that level, metres.
+    pub spacing_m: f64,
+    /// How samples are weighted.
+    pub weighting: Weighting,
+    /// The area compared (cells with both A and B), km².
+    pub area_km2: f64,
+    /// Largest over smallest cell area among the compared samples.
+    pub weight_ratio: f64,
+    /// The statistics.
+    #[serde(flatten)]
+    pub stats: Stats,
+    /// The histogram of dh.
+    pub histogram: Histogram,
+    /// The statistics per slope class of B.
+    pub by_slope: Vec<SlopeClass>,
+    /// Every sample, when asked for.
+    #[serde(skip)]
+    pub samples: Vec<Sample>,
+}
+
+/// The quads of `level` where a dataset has tiles (below its finest level, the descendants of its
+/// finest tiles).
+fn quads_at(info: &DatasetInfo, level: u8) -> HashSet<QuadId> {
+    let from = level.min(info.finest_level);
+    let mut quads: HashSet<QuadId> = info.present.get(from as usize).cloned().unwrap_or_default();
+    for _ in from..level {
+        quads = quads.iter().filter_map(|q| q.children()).flatten().collect();
+    }
+    quads
+}
+
+/// Opens layer `name` alone: shown, `over`, opacity 1, its other settings as the project has them.
+fn open_alone(project: &Project, name: &str) -> Result<Scene, CompareError> {
+    let Some(spec) = project.layers.iter().find(|l| l.name == name) else {
+        let known = project.layers.iter().map(|l| l.name.as_str()).collect::<Vec<_>>().join(", ");
+        return Err(CompareError::NoLayer { name: name.into(), known });
+    };
+    let mut alone = project.clone();
+    alone.layers =
+        vec![crate::layers::LayerSpec { visible: true, blend: BlendMode::Over, opacity: 1.0, ..spec.clone() }];
+    Scene::open(&alone).map(|(scene, _)| scene).map_err(CompareError::Open)
+}
+
+/// Compares layer `a` with layer `b` (the reference) of a project.
+pub fn compare(project: &Project, a: &str, b: &str, opts: &CompareOptions) -> Result<Comparison, CompareError> {
+    if a == b {
+        return Err(CompareError::Option { option: "B".into(), problem: format!("'{a}' compared with itself") });
+    }
+    if let Some([w, s, e, n]) = opts.region
+        && !(s < n
+            && (-90.0..=90.0).contains(&s)
+            && (-90.0..=90.0).contains(&n)
+            && w.abs() <= 180.0
+            && e.abs() <= 180.0)
+    {
+        return Err(CompareError::Option {
+            option: "--region".into(),
+            problem: format!("{w},{s},{e},{n} is not a box WEST,SOUTH,EAST,NORTH in degrees with south < north"),
+        });
+    }
+    let (scene_a, scene_b) = (open_alone(project, a)?, open_alone(project, b)?);
+    let datasets: Vec<&DatasetInfo> = scene_a.datasets.iter().chain(scene_b.datasets.iter()).collect();
+    if datasets.is_empty() {
+        return Err(CompareError::Option {
+            option: "A, B".into(),
+            problem: "neither layer is a dataset: nothing bounds the overlap to compare".into(),
+        });
+    }
+    let finest = datasets.iter().map(|d| d.finest_level).min().unwrap_or(0);
+    let level = opts.level.unwrap_or(finest);
+    if level > finest + 4 {
+        return Err(CompareError::Option {
+            option: "--level".into(),
+            problem: format!("{level} is more than 4 levels below the datasets' finest ({finest})"),
+        });
+    }
+    let mut quads: Option<HashSet<QuadId>> = None;
+    for d in &datasets {
+        let here = quads_at(d, level);
+        quads = Some(match quads {
+            None => here,
+            Some(q) => q.intersection(&here).copied().collect(),
+        });
+    }
+    let quads: BTreeSet<QuadId> = quads.unwrap_or_default().into_iter().collect();
+    if quads.len() > MAX_QUADS {
+        return Err(CompareError::Option {
+            option: "--level".into(),
+            problem: format!(
+                "{} quads at level {level} exceed the {MAX_QUADS} a comparison reads: choose a coarser level or a region",
+                quads.len()
+            ),
+        });
+    }
+    let ellipsoid = scene_a.ellipsoid;
+    let quads: Vec<QuadId> = quads.into_iter().collect();
+    let mut diffs = Vec::new();
+    let mut samples = Vec::new();
+    let mut nodata = 0u64;
+    let (mut area_lo, mut area_hi) = (f64::INFINITY, 0f64);
+    for chunk in quads.chunks(CHUNK) {
+        let grids_a = scene_a.compose_cpu(chunk).map_err(CompareError::Open)?;
+        let grids_b = scene_b.compose_cpu(chunk).map_err(CompareError::Open)?;
+        for q in chunk {
+            let rows = quad_samples(&ellipsoid, *q, &grids_a[q], &grids_b[q], opts.region);
+            for row in rows {
+                for s in row {
+                    match s {
+                        None => {}
+                        Some(Err(())) => nodata += 1,
+                        Some(Ok(s)) => {
+                            area_lo = area_lo.min(s.area_m2);
+                            area_hi = area_hi.max(s.area_m2);
+                            let weight = if opts.weighting == Weighting::Area { s.area_m2 } else { 1.0 };
+                            diffs.push(Diff { dh_m: s.dh_m, weight, slope_deg: s.slope_deg });
+                            if opts.keep_samples {
+                                samples.push(s);
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+    let area_m2: f64 = if opts.weighting == Weighting::Area { diffs.iter().map(|d| d.weight).sum() } else { f64::NAN };
+    let mut comparison = Comparison {
+        a: a.into(),
+        b: b.into(),
+        level,
+        spacing_m: spacing_m(&ellipsoid, level),
+        weighting: opts.weighting,
+        area_km2: area_m2 / 1e6,
+        weight_ratio: if diffs.is_empty() { f64::NAN } else { area_hi / area_lo },
+        stats: stats(&diffs, nodata),
+        histogram: histogram(&diffs, HISTOGRAM_BINS),
+        by_slope: by_slope(&diffs, &opts.slope_classes_deg),
+        samples,
+    };
+    if opts.weighting == Weighting::Samples {
+        // The area still says what was compared.
+        comparison.area_km2 = f64::NAN;
+    }
+    Ok(comparison)
+}
+
+/// A sample's outcome: outside the region or both layers (None), no data on one side (Err), or
+/// compared.
+type Outcome = Option<Result<Sample, ()>>;
+
+/// The samples of one quad, row by row (rows in parallel; the order is kept).
+fn quad_samples(
+    ellipsoid: &crate::geodesy::Ellipsoid,
+    quad: QuadId,
+    a: &[f32],
+    b: &[f32],
+    region: Option<[f64; 4]>,
+) -> Vec<Vec<Outcome>> {
+    let points: Vec<(DVec3, f64, f64)> = (0..N * N)
+        .into_par_iter()
+        .map(|k| sample_point(ellipsoid, quad, GRID, (k % N) as u32, (k / N) as u32))
+        .collect();
+    let inside = |lon: f64, lat: f64| {
+        region.is_none_or(|[w, s, e, n]| {
+            let (lon, lat) = (lon.to_degrees(), lat.to_degrees());
+            let in_lon = if w <= e { lon >= w && lon <= e } else { lon >= w || lon <= e };
+            in_lon && lat >= s && lat <= n
+        })
+    };
+    (0..N - 1)
+        .into_par_iter()
+        .map(|j| {
+            (0..N - 1)
+                .map(|i| {
+                    let k = j * N + i;
+                    let (p, lon, lat) = points[k];
+                    if !inside(lon, lat) {
+                        return None;
+                    }
+                    let (va, vb) = (f64::from(a[k]), f64::from(b[k]));
+                    match (va.is_nan(), vb.is_nan()) {
+                        (true, true) => return None, // outside both: not part of the comparison
+                        (true, false) | (false, true) => return Some(Err(())),
+                        (false, false) => {}
+                    }
+                    let corner = |di: usize, dj: usize| points[(j + dj) * N + i + di].0;
+                    let area = 0.5 * (corner(1, 1) - p).cross(corner(0, 1) - corner(1, 0)).length();
+                    Some(Ok(Sample {
+                        lon_deg: lon.to_degrees(),
+                        lat_deg: lat.to_degrees(),
+                        dh_m: va - vb,
+                        area_m2: area,
+                        slope_deg: slope_deg(&points, b, i, j),
+                    }))
+                })
+                .collect()
+        })
+        .collect()
+}
+
+/// The slope of `h` at sample (i, j) of a quad, degrees: the gradient in the tangent plane from
+/// differences along both grid axes (central where both neighbours have data, else one-sided).
+fn slope_deg(points: &[(DVec3, f64, f64)], h: &[f32], i: usize, j: usize) -> f64 {
+    let at = |i: usize, j: usize| (points[j * N + i].0, f64::from(h[j * N + i]));
+    let axis = |before: Option<(usize, usize)>, after: Option<(usize, usize)>| -> Option<(DVec3, f64)> {
+        let valid = |c: Option<(usize, usize)>| c.map(|(i, j)| at(i, j)).filter(|(_, v)| !v.is_nan());
+        let (lo, hi) = match (valid(before), valid(after)) {
+            (Some(lo), Some(hi)) => (lo, hi),
+            (Some(lo), None) => (lo, at(i, j)),
+            (None, Some(hi)) => (at(i, j), hi),
+            (None, None) => return None,
+        };
+        Some((hi.0 - lo.0, hi.1 - lo.1))
+    };
+    let (Some((ex, dx)), Some((ey, dy))) = (
+        axis(i.checked_sub(1).map(|i| (i, j)), (i + 1 < N).then_some((i + 1, j))),
+        axis(j.checked_sub(1).map(|j| (i, j)), (j + 1 < N).then_some((i, j + 1))),
+    ) else {
+        return f64::NAN;
+    };
+    // g = α·ex + β·ey with g·ex = dx and g·ey = dy.
+    let (xx, xy, yy) = (ex.dot(ex), ex.dot(ey), ey.dot(ey));
+    let det = xx * yy - xy * xy;
+    if det <= 0.0 {
+        return f64::NAN;
+    }
+    let alpha = (dx * yy - dy * xy) / det;
+    let beta = (dy * xx - dx * xy) / det;
+    let g2 = alpha * alpha * xx + 2.0 * alpha * beta * xy + beta * beta * yy;
+    g2.max(0.0).sqrt().atan().to_degrees()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::ecm::Face;
+    use crate::geodesy::Ellipsoid;
+
+    #[test]
+    fn a_plane_tilted_by_a_known_angle_has_that_slope_even_where_the_grid_is_sheared() {
+        // h = tan(20°) × the distance east of the quad's first sample along the local east axis:
+        // a plane of slope 20° on the ellipsoid, at a cube corner quad (the grid most sheared).
+        let e = Ellipsoid::WGS84;
+        for quad in [QuadId::new(Face::Front, 9, 511, 511).unwrap(), QuadId::new(Face::Top, 9, 200, 300).unwrap()] {
+            let points: Vec<(DVec3, f64, f64)> =
+                (0..N * N).map(|k| sample_point(&e, quad, GRID, (k % N) as u32, (k / N) as u32)).collect();
+            let (o, lon, _) = points[128 * N + 128];
+            let east = DVec3::new(-lon.sin(), lon.cos(), 0.0);
+            let h: Vec<f32> =
+                points.iter().map(|(p, _, _)| ((p - o).dot(east) * 20f64.to_radians().tan()) as f32).collect();
+            for (i, j) in [(128, 128), (0, 0), (255, 3), (40, 200)] {
+                let s = slope_deg(&points, &h, i, j);
+                assert!((s - 20.0).abs() < 0.05, "{quad} ({i},{j}): {s}°");
+            }
+        }
+    }
+
+    #[test]
+    fn cells_tile_the_quad_and_their_areas_sum_to_its_area() {
+        let e = Ellipsoid::MOON;
+        let quad = QuadId::new(Face::Right, 3, 2, 5).unwrap();
+        let flat = vec![0f32; N * N];
+        let rows = quad_samples(&e, quad, &flat, &flat, None);
+        let areas: Vec<f64> = rows.iter().flatten().map(|s| s.unwrap().unwrap().area_m2).collect();
+        assert_eq!(areas.len(), 256 * 256);
+        // QSC is equal-area on the sphere: on the (spherical) Moon every cell has the same area,
+        // 4πR² / (6 · 4³ · 256²).
+        let expected = 4.0 * std::f64::consts::PI * e.a_m().powi(2) / (6.0 * 64.0 * 65536.0);
+        let (lo, hi) = areas.iter().fold((f64::INFINITY, 0f64), |(l, h), &a| (l.min(a), h.max(a)));
+        assert!((lo / expected - 1.0).abs() < 1e-4 && (hi / expected - 1.0).abs() < 1e-4, "{lo} {hi} {expected}");
+    }
+}

@@ -1,0 +1,259 @@
+//! Statistics of elevation differences dh = A − B, each sample weighted (by its cell's area on
+//! the ellipsoid, or 1 to count samples as xDEM and demcompare do): count, mean, median, standard
+//! deviation, RMSE, NMAD, min, max, LE90, the 90th percentile of |dh|, a histogram, and the same
+//! per slope class. Deterministic: sums in f64 in sample order, quantiles from one sort.
+//!
+//! Weighted quantiles generalise numpy's default (linear interpolation between order statistics,
+//! sample k of n at p = k/(n − 1)): sorted by value, sample k sits at p_k = (W_k − w_0)/(W − w_0)
+//! with W_k the weights up to and including k, and p is interpolated linearly between the two
+//! samples around it. With equal weights this is numpy's `quantile(x, p)` exactly.
+
+use serde::Serialize;
+
+/// The factor that makes the median absolute deviation a standard deviation for normal data.
+pub const NMAD_FACTOR: f64 = 1.4826;
+
+/// Default slope classes, degrees (the last one open).
+pub const SLOPE_CLASSES_DEG: [f64; 7] = [0.0, 5.0, 10.0, 20.0, 30.0, 45.0, 90.0];
+
+/// Bins of the histogram.
+pub const HISTOGRAM_BINS: usize = 50;
+
+/// One difference: its value, weight and the reference's slope there.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Diff {
+    /// A − B, metres.
+    pub dh_m: f64,
+    /// The sample's weight (its cell's area in m², or 1).
+    pub weight: f64,
+    /// The slope of the reference (B), degrees.
+    pub slope_deg: f64,
+}
+
+/// The statistics of a set of differences (field names are the JSON's: scripts rely on them).
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct Stats {
+    /// Samples with a difference.
+    pub count: u64,
+    /// Samples where one of A and B has data and the other none.
+    pub nodata_count: u64,
+    /// Σ weights (the area compared in m² when weighted by area).
+    pub weight_sum: f64,
+    /// Weighted mean, metres.
+    pub mean_m: f64,
+    /// Weighted median, metres.
+    pub median_m: f64,
+    /// Weighted standard deviation (population), metres.
+    pub std_m: f64,
+    /// Weighted root mean square, metres.
+    pub rmse_m: f64,
+    /// 1.4826 × the weighted median of |dh − median|, metres.
+    pub nmad_m: f64,
+    /// Smallest difference, metres.
+    pub min_m: f64,
+    /// Largest difference, metres.
+    pub max_m: f64,
+    /// 95th − 5th weighted percentile, metres.
+    pub le90_m: f64,
+    /// The 90th weighted percentile of |dh|, metres.
+    pub p90_abs_m: f64,
+}
+
+/// A histogram of dh: `edges_m` has one more entry than `count` and `weight`.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct Histogram {
+    /// Bin edges, metres (the 0.5th to the 99.5th percentile, equal bins).
+    pub edges_m: Vec<f64>,
+    /// Samples per bin (values outside the edges go to the end bins).
+    pub count: Vec<u64>,
+    /// Σ weights per bin.
+    pub weight: Vec<f64>,
+}
+
+/// Statistics within one slope class.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct SlopeClass {
+    /// Lower bound, degrees (inclusive).
+    pub min_deg: f64,
+    /// Upper bound, degrees (exclusive; the last class includes 90°).
+    pub max_deg: f64,
+    /// The statistics of its samples.
+    #[serde(flatten)]
+    pub stats: Stats,
+}
+
+/// The weighted quantile p ∈ [0, 1] of values sorted ascending with their weights (see the
+/// module documentation); NaN for no values.
+pub fn weighted_quantile(sorted: &[(f64, f64)], p: f64) -> f64 {
+    match sorted.len() {
+        0 => f64::NAN,
+        1 => sorted[0].0,
+        _ => {
+            let w0 = sorted[0].1;
+            let total: f64 = sorted.iter().map(|s| s.1).sum();
+            let span = total - w0;
+            if span <= 0.0 {
+                return sorted[0].0;
+            }
+            let target = p.clamp(0.0, 1.0) * span;
+            // Positions W_k − w_0 are increasing: find the pair around the target.
+            let mut below = 0.0; // W_{k} − w_0 for k = 0
+            for k in 1..sorted.len() {
+                let at = below + sorted[k].1;
+                if at >= target {
+                    let t = if at > below { (target - below) / (at - below) } else { 0.0 };
+                    return sorted[k - 1].0 + t * (sorted[k].0 - sorted[k - 1].0);
+                }
+                below = at;
+            }
+            sorted[sorted.len() - 1].0
+        }
+    }
+}
+
+/// The statistics of `diffs` (weights > 0), with `nodata_count` recorded as given.
+pub fn stats(diffs: &[Diff], nodata_count: u64) -> Stats {
+    let mut s = Stats { count: diffs.len() as u64, nodata_count, ..Stats::default() };
+    if diffs.is_empty() {
+        for v in [&mut s.mean_m, &mut s.median_m, &mut s.std_m, &mut s.rmse_m, &mut s.nmad_m] {
+            *v = f64::NAN;
+        }
+        (s.min_m, s.max_m, s.le90_m, s.p90_abs_m) = (f64::NAN, f64::NAN, f64::NAN, f64::NAN);
+        return s;
+    }
+    let (mut w, mut wx, mut wxx) = (0.0, 0.0, 0.0);
+    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+    for d in diffs {
+        w += d.weight;
+        wx += d.weight * d.dh_m;
+        wxx += d.weight * d.dh_m * d.dh_m;
+        lo = lo.min(d.dh_m);
+        hi = hi.max(d.dh_m);
+    }
+    let mean = wx / w;
+    let var = diffs.iter().map(|d| d.weight * (d.dh_m - mean).powi(2)).sum::<f64>() / w;
+    let mut sorted: Vec<(f64, f64)> = diffs.iter().map(|d| (d.dh_m, d.weight)).collect();
+    sorted.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let median = weighted_quantile(&sorted, 0.5);
+    let mut deviations: Vec<(f64, f64)> = sorted.iter().map(|&(x, w)| ((x - median).abs(), w)).collect();
+    deviations.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let mut magnitudes: Vec<(f64, f64)> = sorted.iter().map(|&(x, w)| (x.abs(), w)).collect();
+    magnitudes.sort_by(|a, b| a.0.total_cmp(&b.0));
+    s.weight_sum = w;
+    s.mean_m = mean;
+    s.median_m = median;
+    s.std_m = var.sqrt();
+    s.rmse_m = (wxx / w).sqrt();
+    s.nmad_m = NMAD_FACTOR * weighted_quantile(&deviations, 0.5);
+    s.min_m = lo;
+    s.max_m = hi;
+    s.le90_m = weighted_quantile(&sorted, 0.95) - weighted_quantile(&sorted, 0.05);
+    s.p90_abs_m = weighted_quantile(&magnitudes, 0.9);
+    s
+}
+
+/// A histogram of `diffs` over their 0.5th to 99.5th weighted percentile in `bins` equal bins.
+pub fn histogram(diffs: &[Diff], bins: usize) -> Histogram {
+    let bins = bins.max(1);
+    if diffs.is_empty() {
+        return Histogram::default();
+    }
+    let mut sorted: Vec<(f64, f64)> = diffs.iter().map(|d| (d.dh_m, d.weight)).collect();
+    sorted.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let (mut lo, mut hi) = (weighted_quantile(&sorted, 0.005), weighted_quantile(&sorted, 0.995));
+    if hi <= lo {
+        (lo, hi) = (lo - 0.5, lo + 0.5);
+    }
+    let width = (hi - lo) / bins as f64;
+    let edges_m = (0..=bins).map(|k| lo + width * k as f64).collect();
+    let (mut count, mut weight) = (vec![0u64; bins], vec![0f64; bins]);
+    for d in diffs {
+        let k = (((d.dh_m - lo) / width).floor().max(0.0) as usize).min(bins - 1);
+        count[k] += 1;
+        weight[k] += d.weight;
+    }
+    Histogram { edges_m, count, weight }
+}
+
+/// The statistics per slope class; `bounds_deg` are the class edges (the last class includes its
+/// upper bound).
+pub fn by_slope(diffs: &[Diff], bounds_deg: &[f64]) -> Vec<SlopeClass> {
+    bounds_deg
+        .windows(2)
+        .enumerate()
+        .map(|(k, b)| {
+            let last = k + 2 == bounds_deg.len();
+            let members: Vec<Diff> = diffs
+                .iter()
+                .filter(|d| d.slope_deg >= b[0] && (d.slope_deg < b[1] || (last && d.slope_deg <= b[1])))
+                .copied()
+                .collect();
+            SlopeClass { min_deg: b[0], max_deg: b[1], stats: stats(&members, 0) }
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn plain(values: &[f64]) -> Vec<Diff> {
+        values.iter().map(|&dh_m| Diff { dh_m, weight: 1.0, slope_deg: 0.0 }).collect()
+    }
+
+    #[test]
+    fn equal_weights_give_numpys_linear_quantiles() {
+        // numpy.quantile([1, 2, 4, 7, 11], [0, 0.1, 0.5, 0.9, 1]) = [1, 1.4, 4, 9.4, 11]
+        let sorted: Vec<(f64, f64)> = [1.0, 2.0, 4.0, 7.0, 11.0].iter().map(|&x| (x, 3.0)).collect();
+        for (p, expected) in [(0.0, 1.0), (0.1, 1.4), (0.5, 4.0), (0.9, 9.4), (1.0, 11.0)] {
+            assert!((weighted_quantile(&sorted, p) - expected).abs() < 1e-12, "p {p}");
+        }
+    }
+
+    #[test]
+    fn closed_forms_on_a_small_set() {
+        // dh = 1, 2, 3, 4, 100: mean 22, median 3, |dh − 3| = 2,1,0,1,97 → median 1.
+        let s = stats(&plain(&[4.0, 1.0, 100.0, 3.0, 2.0]), 7);
+        assert_eq!((s.count, s.nodata_count), (5, 7));
+        assert_eq!(s.mean_m, 22.0);
+        assert_eq!(s.median_m, 3.0);
+        assert!((s.nmad_m - NMAD_FACTOR).abs() < 1e-12);
+        assert_eq!((s.min_m, s.max_m), (1.0, 100.0));
+        let var = [1.0f64, 2.0, 3.0, 4.0, 100.0].iter().map(|x| (x - 22.0).powi(2)).sum::<f64>() / 5.0;
+        assert!((s.std_m - var.sqrt()).abs() < 1e-12);
+        let rms = ([1.0f64, 4.0, 9.0, 16.0, 10_000.0].iter().sum::<f64>() / 5.0).sqrt();
+        assert!((s.rmse_m - rms).abs() < 1e-12);
+    }
+
+    #[test]
+    fn a_weight_of_k_is_the_sample_repeated_k_times_in_the_moments() {
+        let values = [0.3, -1.7, 2.2, 5.0, -0.4, 0.9];
+        let weights = [1.0, 3.0, 2.0, 1.0, 4.0, 2.0];
+        let weighted: Vec<Diff> =
+            values.iter().zip(weights).map(|(&dh_m, weight)| Diff { dh_m, weight, slope_deg: 0.0 }).collect();
+        let repeated: Vec<f64> =
+            values.iter().zip(weights).flat_map(|(&v, w)| std::iter::repeat_n(v, w as usize)).collect();
+        let (a, b) = (stats(&weighted, 0), stats(&plain(&repeated), 0));
+        for (x, y) in [(a.mean_m, b.mean_m), (a.std_m, b.std_m), (a.rmse_m, b.rmse_m), (a.min_m, b.min_m)] {
+            assert!((x - y).abs() < 1e-12, "{x} {y}");
+        }
+        // Quantiles of a weighted set lie within the repeated set's neighbouring order statistics.
+        assert!(a.median_m >= -0.4 && a.median_m <= 0.9, "{}", a.median_m);
+    }
+
+    #[test]
+    fn slope_classes_split_the_samples_and_the_histogram_holds_them_all() {
+        let diffs: Vec<Diff> =
+            (0..900).map(|k| Diff { dh_m: (k % 17) as f64 - 8.0, weight: 1.0, slope_deg: k as f64 / 10.0 }).collect();
+        let classes = by_slope(&diffs, &SLOPE_CLASSES_DEG);
+        assert_eq!(classes.len(), 6);
+        assert_eq!(classes.iter().map(|c| c.stats.count).sum::<u64>(), 900);
+        assert_eq!(classes[0].stats.count, 50); // 0.0 … 4.9°
+        assert_eq!(classes[5].stats.count, 450); // 45.0 … 89.9°
+        let h = histogram(&diffs, HISTOGRAM_BINS);
+        assert_eq!(h.count.iter().sum::<u64>(), 900);
+        assert_eq!(h.edges_m.len(), HISTOGRAM_BINS + 1);
+        let empty = stats(&[], 3);
+        assert!(empty.mean_m.is_nan() && empty.count == 0 && empty.nodata_count == 3);
+    }
+}
