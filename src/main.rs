@@ -114,6 +114,30 @@ enum Command {
         #[arg(long)]
         samples: Option<PathBuf>,
     },
+    /// Co-register layer A onto layer B (Nuth & Kääb 2011 on the ellipsoid): the horizontal
+    /// shift (east, north, metres) and vertical offset that align A with B, and the statistics of
+    /// A − B before and after.
+    Coregister {
+        /// The project file (JSON).
+        project: PathBuf,
+        /// The layer to move.
+        a: String,
+        /// The reference layer.
+        #[arg(long = "to")]
+        b: String,
+        /// Level to work at (default: the finest level of the coarser dataset).
+        #[arg(long)]
+        level: Option<u8>,
+        /// Only inside WEST,SOUTH,EAST,NORTH (degrees).
+        #[arg(long, allow_hyphen_values = true)]
+        region: Option<String>,
+        /// Write the result into the project: A's shift_m and offset_m.
+        #[arg(long)]
+        apply: bool,
+        /// Print JSON (east_m, north_m, up_m, iterations, before, after).
+        #[arg(long)]
+        json: bool,
+    },
     /// Open the workstation: a window with the project's terrain, its views and its visual
     /// settings (needs an X11 display; `xvfb-run` provides one for screenshots).
     View {
@@ -540,6 +564,10 @@ fn run(args: Args) -> Result<ExitCode> {
         Command::Compare { project, a, b, level, region, unweighted, json, samples } => {
             let request = cli::CompareRequest { project, a, b, level, region, unweighted, json, samples };
             print!("{}", cli::compare_command(&request).map_err(anyhow::Error::msg)?);
+        }
+        Command::Coregister { project, a, b, level, region, apply, json } => {
+            let request = cli::CoregRequest { project, a, b, level, region, apply, json };
+            print!("{}", cli::coregister_command(&request).map_err(anyhow::Error::msg)?);
         }
         Command::Export { project, out, raster, level, compose } => {
             let (crs, bounds, resolution) = raster.parse()?;

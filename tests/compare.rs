@@ -123,3 +123,142 @@ fn bad_input_is_refused_by_name() {
     let (a, b) = (all["count"].as_u64().unwrap(), part["count"].as_u64().unwrap());
     assert!(b > 0 && b < a / 2, "{b} of {a}");
 }
+
+/// The local east and north metres of a shift of (dlon, dlat) degrees at a latitude on WGS84.
+fn metres_of_degrees(dlon: f64, dlat: f64, lat_deg: f64) -> (f64, f64) {
+    let (a, f) = (6_378_137.0f64, 1.0 / 298.257_223_563);
+    let e2 = f * (2.0 - f);
+    let s = lat_deg.to_radians().sin();
+    let n = a / (1.0 - e2 * s * s).sqrt();
+    let m = a * (1.0 - e2) / (1.0 - e2 * s * s).powf(1.5);
+    (dlon.to_radians() * n * lat_deg.to_radians().cos(), dlat.to_radians() * m)
+}
+
+#[test]
+fn a_known_shift_is_recovered_at_least_as_closely_as_xdem_recovers_it() {
+    // The SRTM tile moved by 0.0004° east and 0.0003° south (34 m and 33 m, a third of a pixel):
+    // the correction to find is the opposite. Both tools work on the same 0.4° × 0.4° box around
+    // 40.42°E 39.6°N, xDEM on both rasters warped (bilinear, 90 m) to a transverse Mercator
+    // centred there (so its x and y are east and north at the centre, scale 1); the expected
+    // shift is taken at the centre (a shift in degrees varies by ±0.1 m in metres over the box).
+    let dir = repo_path("tests/out/compare/shift");
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let source = repo_path("projects/data/earth_srtm3_demcompare_N39E040.tif");
+    let (ref_tif, moved_tif) = (dir.join("ref.tif"), dir.join("moved.tif"));
+    std::fs::copy(&source, &ref_tif).unwrap();
+    let ullr = ["40.0004", "39.9997", "40.8337333333333", "39.1663666666667"];
+    common::run_tool(
+        "gdal_translate",
+        &[&["-q", "-a_ullr"][..], &ullr, &[ref_tif.to_str().unwrap(), moved_tif.to_str().unwrap()]].concat(),
+        "",
+    );
+    let project = r#"{"format": "terrafuse-project", "version": 2, "body": "wgs84", "layers": [
+        {"name": "ref", "kind": "dataset", "store": "ref.gpkg", "source": {"files": ["ref.tif"]}},
+        {"name": "moved", "kind": "dataset", "store": "moved.gpkg", "source": {"files": ["moved.tif"]}}]}"#;
+    let p = dir.join("shift.json");
+    std::fs::write(&p, project).unwrap();
+    let ours: serde_json::Value = serde_json::from_str(&run(&[
+        "coregister",
+        p.to_str().unwrap(),
+        "moved",
+        "--to",
+        "ref",
+        "--region",
+        "40.22,39.4,40.62,39.8",
+        "--json",
+    ]))
+    .unwrap();
+    let (e, n) = metres_of_degrees(-0.0004, 0.0003, 39.6);
+    let ours_error = (ours["east_m"].as_f64().unwrap() - e).hypot(ours["north_m"].as_f64().unwrap() - n);
+    assert!(ours["converged"].as_bool().unwrap());
+
+    let tm = "+proj=tmerc +lon_0=40.42 +lat_0=39.6 +k=1 +ellps=WGS84 +units=m";
+    for name in ["ref", "moved"] {
+        let (from, to) = (dir.join(format!("{name}.tif")), dir.join(format!("{name}_tm.tif")));
+        common::run_tool(
+            "gdalwarp",
+            &[
+                "-q",
+                "-overwrite",
+                "-t_srs",
+                tm,
+                "-tr",
+                "90",
+                "90",
+                "-te",
+                "-17000",
+                "-22000",
+                "17000",
+                "22000",
+                "-r",
+                "bilinear",
+                "-dstnodata",
+                "-9999",
+                "-ot",
+                "Float32",
+                from.to_str().unwrap(),
+                to.to_str().unwrap(),
+            ],
+            "",
+        );
+    }
+    let python = repo_path(".venv-ref/bin/python");
+    let out = std::process::Command::new(&python)
+        .arg(repo_path("tests/reference/xdem_nuth_kaab.py"))
+        .arg(dir.join("ref_tm.tif"))
+        .arg(dir.join("moved_tm.tif"))
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let xdem: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let xdem_error = (xdem["shift_x"].as_f64().unwrap() - e).hypot(xdem["shift_y"].as_f64().unwrap() - n);
+    println!(
+        "known correction east {e:.3} m north {n:.3} m; Terrafuse {:.3} {:.3} (error {ours_error:.3} m), xDEM {:.3} {:.3} (error {xdem_error:.3} m)",
+        ours["east_m"], ours["north_m"], xdem["shift_x"], xdem["shift_y"]
+    );
+    assert!(ours_error <= xdem_error, "Terrafuse errs by {ours_error} m, xDEM by {xdem_error} m");
+    assert!(ours_error < 0.2, "{ours_error} m");
+
+    // Applied, the layer moves: A′ − B is noise where A − B was tens of metres.
+    let before: serde_json::Value =
+        serde_json::from_str(&run(&["compare", p.to_str().unwrap(), "moved", "ref", "--json"])).unwrap();
+    run(&["coregister", p.to_str().unwrap(), "moved", "--to", "ref", "--region", "40.22,39.4,40.62,39.8", "--apply"]);
+    let saved = Project::load(&p).unwrap();
+    let shift = saved.layers[1].shift_m;
+    assert!((shift[0] - ours["east_m"].as_f64().unwrap()).abs() < 1e-9, "{shift:?}");
+    let after: serde_json::Value =
+        serde_json::from_str(&run(&["compare", p.to_str().unwrap(), "moved", "ref", "--json"])).unwrap();
+    let (nmad_before, nmad_after) = (before["nmad_m"].as_f64().unwrap(), after["nmad_m"].as_f64().unwrap());
+    println!("NMAD before {nmad_before:.3} m, after applying {nmad_after:.3} m");
+    assert!(nmad_before > 5.0 && nmad_after < 1.0, "{nmad_before} → {nmad_after}");
+}
+
+#[test]
+fn the_erzurum_pair_is_three_and_five_pixels_apart_as_demcompare_finds() {
+    // demcompare's own answer for its pair: 3 pixels east and 5 north (3″ pixels: 71.5 m east and
+    // 92.6 m north at 39.6°N). On a central box of the tile.
+    let p = project();
+    let c: serde_json::Value = serde_json::from_str(&run(&[
+        "coregister",
+        p.to_str().unwrap(),
+        "blurred",
+        "--to",
+        "srtm",
+        "--region",
+        "40.3,39.45,40.6,39.75",
+        "--json",
+    ]))
+    .unwrap();
+    let (px_e, px_n) = metres_of_degrees(1.0 / 1200.0, 1.0 / 1200.0, 39.6);
+    let (east_px, north_px) = (c["east_m"].as_f64().unwrap() / px_e, c["north_m"].as_f64().unwrap() / px_n);
+    println!("blurred onto srtm: east {east_px:.3} px, north {north_px:.3} px, {} iterations", c["iterations"]);
+    assert!((east_px - 3.0).abs() < 0.1 && (north_px + 5.0).abs() < 0.1, "{east_px} {north_px}");
+    let (before, after) = (c["before"]["nmad_m"].as_f64().unwrap(), c["after"]["nmad_m"].as_f64().unwrap());
+    assert!(after < before / 10.0, "NMAD {before} → {after}");
+    // Bad input: the reference itself, an unknown layer.
+    let out = terrafuse(&["coregister", p.to_str().unwrap(), "srtm", "--to", "srtm"], "");
+    assert!(String::from_utf8_lossy(&out.stderr).contains("'srtm' co-registered onto itself"));
+    let out = terrafuse(&["coregister", p.to_str().unwrap(), "blurred", "--to", "nope"], "");
+    assert!(String::from_utf8_lossy(&out.stderr).contains("layer 'nope' is not in the project"));
+}

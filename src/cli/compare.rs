@@ -5,7 +5,7 @@
 use std::fmt::Write as _;
 use std::path::PathBuf;
 
-use crate::compare::{CompareOptions, Comparison, Weighting, compare};
+use crate::compare::{CompareOptions, Comparison, CoregOptions, Coregistration, Weighting, compare, coregister};
 use crate::project::Project;
 
 /// What `terrafuse compare` was asked.
@@ -29,22 +29,23 @@ pub struct CompareRequest {
     pub samples: Option<PathBuf>,
 }
 
+/// Parses `--region WEST,SOUTH,EAST,NORTH`.
+fn parse_region(region: Option<&str>) -> Result<Option<[f64; 4]>, String> {
+    let Some(text) = region else { return Ok(None) };
+    let v: Vec<f64> = text
+        .split(',')
+        .map(|s| s.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .map_err(|e| format!("--region {text}: {e} (give WEST,SOUTH,EAST,NORTH in degrees)"))?;
+    let [w, s, e, n] = v[..] else {
+        return Err(format!("--region {text}: give four numbers WEST,SOUTH,EAST,NORTH in degrees"));
+    };
+    Ok(Some([w, s, e, n]))
+}
+
 /// Runs the comparison; returns what to print.
 pub fn compare_command(request: &CompareRequest) -> Result<String, String> {
-    let region = match &request.region {
-        None => None,
-        Some(text) => {
-            let v: Vec<f64> = text
-                .split(',')
-                .map(|s| s.trim().parse::<f64>())
-                .collect::<Result<_, _>>()
-                .map_err(|e| format!("--region {text}: {e} (give WEST,SOUTH,EAST,NORTH in degrees)"))?;
-            let [w, s, e, n] = v[..] else {
-                return Err(format!("--region {text}: give four numbers WEST,SOUTH,EAST,NORTH in degrees"));
-            };
-            Some([w, s, e, n])
-        }
-    };
+    let region = parse_region(request.region.as_deref())?;
     let project = Project::load(&request.project).map_err(|e| e.to_string())?;
     let opts = CompareOptions {
         level: request.level,
@@ -117,6 +118,74 @@ pub fn table(c: &Comparison) -> String {
             let bar = "#".repeat(((n2 as f64 / (2 * peak) as f64) * 60.0).round() as usize);
             let _ = writeln!(out, "{:>9.2} m {bar}", h.edges_m[k]);
         }
+    }
+    out
+}
+
+/// What `terrafuse coregister` was asked.
+#[derive(Clone, Debug)]
+pub struct CoregRequest {
+    /// The project file.
+    pub project: PathBuf,
+    /// The layer to move.
+    pub a: String,
+    /// The reference (`--to`).
+    pub b: String,
+    /// The level.
+    pub level: Option<u8>,
+    /// `WEST,SOUTH,EAST,NORTH` in degrees.
+    pub region: Option<String>,
+    /// Write the result into the project as A's `shift_m` and `offset_m`.
+    pub apply: bool,
+    /// Print JSON.
+    pub json: bool,
+}
+
+/// Runs the co-registration (and applies it); returns what to print.
+pub fn coregister_command(request: &CoregRequest) -> Result<String, String> {
+    let region = parse_region(request.region.as_deref())?;
+    let mut project = Project::load(&request.project).map_err(|e| e.to_string())?;
+    let opts = CoregOptions { level: request.level, region, ..CoregOptions::default() };
+    let c = coregister(&project, &request.a, &request.b, &opts)
+        .map_err(|e| format!("{}: {e}", request.project.display()))?;
+    if request.apply {
+        let layer = project.layers.iter_mut().find(|l| l.name == request.a).ok_or("the layer vanished")?;
+        let [e0, n0] = layer.shift_m;
+        layer.shift_m = [e0 + c.east_m, n0 + c.north_m];
+        layer.offset_m += c.up_m;
+        project.save(&request.project).map_err(|e| e.to_string())?;
+    }
+    if request.json {
+        return serde_json::to_string_pretty(&c).map(|s| s + "\n").map_err(|e| e.to_string());
+    }
+    Ok(coreg_table(&c, request.apply))
+}
+
+fn coreg_table(c: &Coregistration, applied: bool) -> String {
+    let mut out = String::new();
+    let _ = writeln!(out, "{} onto {} at level {} ({:.1} m samples), Nuth & Kääb:", c.a, c.b, c.level, c.spacing_m);
+    for (k, [e, n, bias]) in c.steps.iter().enumerate() {
+        let _ = writeln!(
+            out,
+            "  iteration {:>2}: step east {e:+.3} m, north {n:+.3} m (vertical bias {bias:+.3} m)",
+            k + 1
+        );
+    }
+    let state = if c.converged { "converged" } else { "NOT converged (the last step was over the tolerance)" };
+    let _ = writeln!(
+        out,
+        "move {} east {:+.3} m, north {:+.3} m, up {:+.3} m ({state}, {} iterations)",
+        c.a, c.east_m, c.north_m, c.up_m, c.iterations
+    );
+    for (name, s) in [("before", &c.before), ("after", &c.after)] {
+        let _ = writeln!(
+            out,
+            "{name:>6}: {} samples, mean {:+.3} m, median {:+.3} m, std {:.3} m, NMAD {:.3} m, RMSE {:.3} m",
+            s.count, s.mean_m, s.median_m, s.std_m, s.nmad_m, s.rmse_m
+        );
+    }
+    if applied {
+        let _ = writeln!(out, "applied: {}'s shift_m and offset_m updated in the project", c.a);
     }
     out
 }

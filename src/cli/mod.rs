@@ -13,7 +13,7 @@ mod store;
 
 pub use bench_compose::{ComposeBenchRow, ComposeBenchSettings, bench_compose};
 pub use bench_render::{RenderBenchRow, RenderBenchSettings, bench_render, render_bench_csv, write_render_bench};
-pub use compare::{CompareRequest, compare_command, table as compare_table};
+pub use compare::{CompareRequest, CoregRequest, compare_command, coregister_command, table as compare_table};
 pub use export::{ComposeOn, ComposedExport, ComposedReport, export_composed};
 pub use geo::{BatchReport, GeoOperation, run_batch};
 pub use geometry::{

@@ -3,12 +3,15 @@
 //! the reference's slope, and their statistics (`stats`).
 //!
 //! - [`stats`]: weighted statistics, histogram and slope classes (the JSON of `terrafuse compare`);
+//! - [`coreg`]: Nuth & Kääb co-registration on the ellipsoid;
 //! - [`sample`]: the overlap's samples: each layer composed alone with the CPU reference, cell areas
 //!   and slopes on the ellipsoid.
 
+pub mod coreg;
 pub mod sample;
 pub mod stats;
 
+pub use coreg::{CoregOptions, Coregistration, coregister};
 pub use sample::{CompareOptions, Comparison, Weighting, compare};
 pub use stats::{Diff, Histogram, SlopeClass, Stats};
 

@@ -121,7 +121,7 @@ pub struct Comparison {
 
 /// The quads of `level` where a dataset has tiles (below its finest level, the descendants of its
 /// finest tiles).
-fn quads_at(info: &DatasetInfo, level: u8) -> HashSet<QuadId> {
+pub(super) fn quads_at(info: &DatasetInfo, level: u8) -> HashSet<QuadId> {
     let from = level.min(info.finest_level);
     let mut quads: HashSet<QuadId> = info.present.get(from as usize).cloned().unwrap_or_default();
     for _ in from..level {
@@ -131,7 +131,7 @@ fn quads_at(info: &DatasetInfo, level: u8) -> HashSet<QuadId> {
 }
 
 /// Opens layer `name` alone: shown, `over`, opacity 1, its other settings as the project has them.
-fn open_alone(project: &Project, name: &str) -> Result<Scene, CompareError> {
+pub(super) fn open_alone(project: &Project, name: &str) -> Result<Scene, CompareError> {
     let Some(spec) = project.layers.iter().find(|l| l.name == name) else {
         let known = project.layers.iter().map(|l| l.name.as_str()).collect::<Vec<_>>().join(", ");
         return Err(CompareError::NoLayer { name: name.into(), known });
@@ -160,41 +160,8 @@ pub fn compare(project: &Project, a: &str, b: &str, opts: &CompareOptions) -> Re
         });
     }
     let (scene_a, scene_b) = (open_alone(project, a)?, open_alone(project, b)?);
-    let datasets: Vec<&DatasetInfo> = scene_a.datasets.iter().chain(scene_b.datasets.iter()).collect();
-    if datasets.is_empty() {
-        return Err(CompareError::Option {
-            option: "A, B".into(),
-            problem: "neither layer is a dataset: nothing bounds the overlap to compare".into(),
-        });
-    }
-    let finest = datasets.iter().map(|d| d.finest_level).min().unwrap_or(0);
-    let level = opts.level.unwrap_or(finest);
-    if level > finest + 4 {
-        return Err(CompareError::Option {
-            option: "--level".into(),
-            problem: format!("{level} is more than 4 levels below the datasets' finest ({finest})"),
-        });
-    }
-    let mut quads: Option<HashSet<QuadId>> = None;
-    for d in &datasets {
-        let here = quads_at(d, level);
-        quads = Some(match quads {
-            None => here,
-            Some(q) => q.intersection(&here).copied().collect(),
-        });
-    }
-    let quads: BTreeSet<QuadId> = quads.unwrap_or_default().into_iter().collect();
-    if quads.len() > MAX_QUADS {
-        return Err(CompareError::Option {
-            option: "--level".into(),
-            problem: format!(
-                "{} quads at level {level} exceed the {MAX_QUADS} a comparison reads: choose a coarser level or a region",
-                quads.len()
-            ),
-        });
-    }
+    let (level, quads) = overlap_quads(&scene_a, &scene_b, opts.level)?;
     let ellipsoid = scene_a.ellipsoid;
-    let quads: Vec<QuadId> = quads.into_iter().collect();
     let mut diffs = Vec::new();
     let mut samples = Vec::new();
     let mut nodata = 0u64;
@@ -244,6 +211,59 @@ pub fn compare(project: &Project, a: &str, b: &str, opts: &CompareOptions) -> Re
     Ok(comparison)
 }
 
+/// The level to work at (default: the finest of the coarser dataset) and the quads of it where
+/// every dataset among the two scenes has tiles, in order.
+pub(super) fn overlap_quads(
+    scene_a: &Scene,
+    scene_b: &Scene,
+    level: Option<u8>,
+) -> Result<(u8, Vec<QuadId>), CompareError> {
+    let datasets: Vec<&DatasetInfo> = scene_a.datasets.iter().chain(scene_b.datasets.iter()).collect();
+    if datasets.is_empty() {
+        return Err(CompareError::Option {
+            option: "A, B".into(),
+            problem: "neither layer is a dataset: nothing bounds the overlap to compare".into(),
+        });
+    }
+    let finest = datasets.iter().map(|d| d.finest_level).min().unwrap_or(0);
+    let level = level.unwrap_or(finest);
+    if level > finest + 4 {
+        return Err(CompareError::Option {
+            option: "--level".into(),
+            problem: format!("{level} is more than 4 levels below the datasets' finest ({finest})"),
+        });
+    }
+    let mut quads: Option<HashSet<QuadId>> = None;
+    for d in &datasets {
+        let here = quads_at(d, level);
+        quads = Some(match quads {
+            None => here,
+            Some(q) => q.intersection(&here).copied().collect(),
+        });
+    }
+    let quads: BTreeSet<QuadId> = quads.unwrap_or_default().into_iter().collect();
+    if quads.len() > MAX_QUADS {
+        return Err(CompareError::Option {
+            option: "--level".into(),
+            problem: format!(
+                "{} quads at level {level} exceed the {MAX_QUADS} a comparison reads: choose a coarser level or a region",
+                quads.len()
+            ),
+        });
+    }
+    Ok((level, quads.into_iter().collect()))
+}
+
+/// Whether a point (radians) lies in the region (west, south, east, north in degrees; east <
+/// west crosses ±180°); everywhere without one.
+pub(super) fn in_region(region: Option<[f64; 4]>, lon: f64, lat: f64) -> bool {
+    region.is_none_or(|[w, s, e, n]| {
+        let (lon, lat) = (lon.to_degrees(), lat.to_degrees());
+        let in_lon = if w <= e { lon >= w && lon <= e } else { lon >= w || lon <= e };
+        in_lon && lat >= s && lat <= n
+    })
+}
+
 /// A sample's outcome: outside the region or both layers (None), no data on one side (Err), or
 /// compared.
 type Outcome = Option<Result<Sample, ()>>;
@@ -256,17 +276,8 @@ fn quad_samples(
     b: &[f32],
     region: Option<[f64; 4]>,
 ) -> Vec<Vec<Outcome>> {
-    let points: Vec<(DVec3, f64, f64)> = (0..N * N)
-        .into_par_iter()
-        .map(|k| sample_point(ellipsoid, quad, GRID, (k % N) as u32, (k / N) as u32))
-        .collect();
-    let inside = |lon: f64, lat: f64| {
-        region.is_none_or(|[w, s, e, n]| {
-            let (lon, lat) = (lon.to_degrees(), lat.to_degrees());
-            let in_lon = if w <= e { lon >= w && lon <= e } else { lon >= w || lon <= e };
-            in_lon && lat >= s && lat <= n
-        })
-    };
+    let points = quad_points(ellipsoid, quad);
+    let inside = |lon: f64, lat: f64| in_region(region, lon, lat);
     (0..N - 1)
         .into_par_iter()
         .map(|j| {
@@ -298,9 +309,16 @@ fn quad_samples(
         .collect()
 }
 
-/// The slope of `h` at sample (i, j) of a quad, degrees: the gradient in the tangent plane from
-/// differences along both grid axes (central where both neighbours have data, else one-sided).
+/// The slope of `h` at sample (i, j) of a quad, degrees (NaN where no neighbour has data).
 fn slope_deg(points: &[(DVec3, f64, f64)], h: &[f32], i: usize, j: usize) -> f64 {
+    gradient(points, h, i, j).map_or(f64::NAN, |g| g.length().atan().to_degrees())
+}
+
+/// The gradient of `h` at sample (i, j) of a quad, in the tangent plane (ECEF, metres per metre):
+/// from differences along both grid axes (central where both neighbours have data, else
+/// one-sided), g = α·ex + β·ey with g·ex = dx and g·ey = dy, so it is right where the grid's axes
+/// are not orthogonal (near cube corners).
+pub(super) fn gradient(points: &[(DVec3, f64, f64)], h: &[f32], i: usize, j: usize) -> Option<DVec3> {
     let at = |i: usize, j: usize| (points[j * N + i].0, f64::from(h[j * N + i]));
     let axis = |before: Option<(usize, usize)>, after: Option<(usize, usize)>| -> Option<(DVec3, f64)> {
         let valid = |c: Option<(usize, usize)>| c.map(|(i, j)| at(i, j)).filter(|(_, v)| !v.is_nan());
@@ -312,22 +330,24 @@ fn slope_deg(points: &[(DVec3, f64, f64)], h: &[f32], i: usize, j: usize) -> f64
         };
         Some((hi.0 - lo.0, hi.1 - lo.1))
     };
-    let (Some((ex, dx)), Some((ey, dy))) = (
-        axis(i.checked_sub(1).map(|i| (i, j)), (i + 1 < N).then_some((i + 1, j))),
-        axis(j.checked_sub(1).map(|j| (i, j)), (j + 1 < N).then_some((i, j + 1))),
-    ) else {
-        return f64::NAN;
-    };
-    // g = α·ex + β·ey with g·ex = dx and g·ey = dy.
+    let (ex, dx) = axis(i.checked_sub(1).map(|i| (i, j)), (i + 1 < N).then_some((i + 1, j)))?;
+    let (ey, dy) = axis(j.checked_sub(1).map(|j| (i, j)), (j + 1 < N).then_some((i, j + 1)))?;
+    if dx.is_nan() || dy.is_nan() {
+        return None;
+    }
     let (xx, xy, yy) = (ex.dot(ex), ex.dot(ey), ey.dot(ey));
     let det = xx * yy - xy * xy;
     if det <= 0.0 {
-        return f64::NAN;
+        return None;
     }
     let alpha = (dx * yy - dy * xy) / det;
     let beta = (dy * xx - dx * xy) / det;
-    let g2 = alpha * alpha * xx + 2.0 * alpha * beta * xy + beta * beta * yy;
-    g2.max(0.0).sqrt().atan().to_degrees()
+    Some(alpha * ex + beta * ey)
+}
+
+/// A quad's 257² sample points: ECEF, longitude and latitude (radians).
+pub(super) fn quad_points(ellipsoid: &crate::geodesy::Ellipsoid, quad: QuadId) -> Vec<(DVec3, f64, f64)> {
+    (0..N * N).into_par_iter().map(|k| sample_point(ellipsoid, quad, GRID, (k % N) as u32, (k / N) as u32)).collect()
 }
 
 #[cfg(test)]

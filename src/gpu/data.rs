@@ -78,6 +78,8 @@ pub struct DatasetInfo {
     pub range_m: (f64, f64),
     /// The body of its store.
     pub body: Ellipsoid,
+    /// Moved east and north by this much, metres (see `shifted`; the layer's `shift_m`).
+    pub shift_m: [f64; 2],
 }
 
 impl DatasetInfo {
@@ -97,6 +99,7 @@ impl DatasetInfo {
             present,
             range_m,
             body: *store.body(),
+            shift_m: [0.0, 0.0],
         })
     }
 
@@ -308,6 +311,9 @@ pub fn read_source(quad: QuadId, dataset: &DatasetInfo, store: &mut Option<Store
         *store = Some(Store::open_read_only(&dataset.store).map_err(|e| e.to_string())?);
     }
     let s = store.as_ref().expect("opened above");
+    if dataset.shift_m != [0.0, 0.0] {
+        return Ok(QuadHeights::new(super::shifted::shifted_grid(dataset, s, quad)?));
+    }
     let source = dataset.source_quad(quad);
     let grid = match s.read_grid(&dataset.dataset, source).map_err(|e| e.to_string())? {
         Some(tile) if source == quad => tile.values,
@@ -372,6 +378,9 @@ pub fn read_edge(
             let tile = |q: QuadId| -> Result<Option<Arc<Vec<f32>>>, String> {
                 if !dataset.has(q) {
                     return Ok(None);
+                }
+                if dataset.shift_m != [0.0, 0.0] {
+                    return Ok(Some(Arc::new(super::shifted::shifted_grid(dataset, s, q)?)));
                 }
                 Ok(s.read_grid(&dataset.dataset, q).map_err(|e| e.to_string())?.map(|t| Arc::new(t.values)))
             };

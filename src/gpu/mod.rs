@@ -11,6 +11,7 @@ pub mod renderer;
 pub mod scene;
 pub mod select;
 pub mod shaders;
+pub mod shifted;
 mod slots;
 pub mod targets;
 mod terrain;

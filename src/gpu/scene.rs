@@ -144,6 +144,14 @@ impl Scene {
         Ok(grids)
     }
 
+    /// Points dataset layer `index` at its dataset moved by its current `shift_m` (after the
+    /// layer's shift changed): the same dataset under another shift is another set of tiles.
+    pub fn reattach_shifted(&mut self, index: usize) -> Result<(), String> {
+        let d = self.dataset_of_layer(index).ok_or("the layer reads no dataset")?;
+        let info = self.datasets[d].clone();
+        self.attach(index, info)
+    }
+
     /// Inserts a dataset layer at `index` (0: bottom) reading `info` (see [`open_dataset`]).
     pub fn insert_dataset_layer(&mut self, index: usize, spec: LayerSpec, info: DatasetInfo) -> Result<(), String> {
         if spec.kind != LayerKind::Dataset {
@@ -160,8 +168,9 @@ impl Scene {
     /// Attaches an opened dataset to dataset layer `index`: checks its body against the
     /// project's, records its value range and spacing, and shares it with the layers that read
     /// the same store and dataset.
-    fn attach(&mut self, index: usize, info: DatasetInfo) -> Result<(), String> {
+    fn attach(&mut self, index: usize, mut info: DatasetInfo) -> Result<(), String> {
         let name = &self.stack.layers[index].spec.name;
+        info.shift_m = self.stack.layers[index].spec.shift_m;
         let store_body = info.body;
         if store_body.a_m() != self.ellipsoid.a_m() || store_body.b_m() != self.ellipsoid.b_m() {
             return Err(format!(
@@ -172,7 +181,8 @@ impl Scene {
             ));
         }
         self.stack.set_dataset_info(index, info.range_m, spacing_m(&self.ellipsoid, info.finest_level));
-        let k = match self.datasets.iter().position(|o| o.store == info.store && o.dataset == info.dataset) {
+        let same = |o: &DatasetInfo| o.store == info.store && o.dataset == info.dataset && o.shift_m == info.shift_m;
+        let k = match self.datasets.iter().position(same) {
             Some(k) => k,
             None => {
                 Arc::make_mut(&mut self.datasets).push(info);

@@ -216,6 +216,15 @@ fn layer_settings_ui(ui: &mut egui::Ui, spec: &mut LayerSpec) {
                     .suffix(" m"),
             )
             .on_hover_text("fade the dataset in from its own no-data edge over this distance on the surface");
+            ui.horizontal(|ui| {
+                let [east, north] = &mut spec.shift_m;
+                ui.add(
+                    egui::DragValue::new(east).speed(1.0).range(-10_000.0..=10_000.0).prefix("shift E ").suffix(" m"),
+                );
+                ui.add(egui::DragValue::new(north).speed(1.0).range(-10_000.0..=10_000.0).prefix("N ").suffix(" m"));
+            })
+            .response
+            .on_hover_text("move the dataset east and north (what terrafuse coregister --apply writes)");
         }
     }
 }

@@ -206,6 +206,10 @@ pub struct LayerSpec {
     /// the surface, metres (0: no fade; see [`super::edge`]).
     #[serde(default, skip_serializing_if = "is_zero")]
     pub feather_edge_m: f64,
+    /// Dataset: moves the layer east and north by this much, metres in each sample's local frame
+    /// (what `terrafuse coregister --apply` writes): the value at p is the dataset's at p − shift.
+    #[serde(default, skip_serializing_if = "is_zero_pair")]
+    pub shift_m: [f64; 2],
     /// Dataset: the tile store (GeoPackage), relative to the project file.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub store: Option<PathBuf>,
@@ -230,6 +234,13 @@ fn yes() -> bool {
 fn one() -> f64 {
     1.0
 }
+
+fn is_zero_pair(v: &[f64; 2]) -> bool {
+    *v == [0.0, 0.0]
+}
+
+/// The largest horizontal shift of a layer, metres (co-registration shifts are a few pixels).
+pub const MAX_SHIFT_M: f64 = 10_000.0;
 
 fn is_zero(v: &f64) -> bool {
     *v == 0.0
@@ -272,6 +283,7 @@ impl LayerSpec {
             extent: None,
             feather_m: 0.0,
             feather_edge_m: 0.0,
+            shift_m: [0.0, 0.0],
             store: None,
             dataset: None,
             source: None,
@@ -327,6 +339,15 @@ impl LayerSpec {
                     self.feather_edge_m
                 ),
             );
+        }
+        if !(self.shift_m.iter().all(|v| v.is_finite() && v.abs() <= MAX_SHIFT_M)) {
+            return bad(
+                "shift_m",
+                format!("{:?} must be [east, north] in metres, each within ±{MAX_SHIFT_M}", self.shift_m),
+            );
+        }
+        if self.shift_m != [0.0, 0.0] && self.kind != LayerKind::Dataset {
+            return bad("shift_m", format!("moves a dataset; a {} layer has none to move", self.kind.name()));
         }
         if self.feather_edge_m > 0.0 && self.kind != LayerKind::Dataset {
             return bad(

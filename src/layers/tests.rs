@@ -209,6 +209,14 @@ fn bad_layers_name_the_layer_and_the_field() {
             "layer 'd': feather_edge_m: -5 must be a distance in metres from 0 to",
         ),
         (
+            LayerSpec { shift_m: [20_000.0, 0.0], ..LayerSpec::dataset("d", "s") },
+            "layer 'd': shift_m: [20000.0, 0.0] must be [east, north] in metres, each within ±10000",
+        ),
+        (
+            LayerSpec { shift_m: [5.0, 0.0], ..LayerSpec::constant("c", 0.0) },
+            "layer 'c': shift_m: moves a dataset; a constant layer has none to move",
+        ),
+        (
             LayerSpec { feather_edge_m: 500.0, ..LayerSpec::constant("c", 0.0) },
             "layer 'c': feather_edge_m: fades a dataset in from its no-data edge; a constant layer has none",
         ),

@@ -22,7 +22,16 @@ impl Renderer {
                 "a layer's kind, store and dataset are fixed once open".into(),
             ));
         }
+        let shifted = old.spec.shift_m != spec.shift_m;
         self.scene.stack.set(index, spec)?;
+        if shifted {
+            // Other tiles: the dataset under its new shift (the loader learns of it).
+            let before = self.scene.datasets.len();
+            self.scene.reattach_shifted(index).map_err(|e| LayerError::field("?", "shift_m", e))?;
+            if self.scene.datasets.len() != before {
+                self.loader = Loader::start(self.scene.datasets.clone(), self.scene.ellipsoid, loader_threads());
+            }
+        }
         self.cache.plans.clear();
         Ok(())
     }
