@@ -69,6 +69,10 @@ enum Command {
         height: u32,
         #[command(flatten)]
         look: LookArgs,
+        /// A,B[,POSITION]: layer A left of a vertical line at POSITION (0–1 of the width,
+        /// default 0.5), layer B right of it (each shown with the other hidden).
+        #[arg(long)]
+        swipe: Option<String>,
     },
     /// Write a project's composed elevation (every visible layer, as drawn) as a GeoTIFF in any
     /// CRS: float32, NaN nodata, written atomically.
@@ -137,6 +141,27 @@ enum Command {
         /// Print JSON (east_m, north_m, up_m, iterations, before, after).
         #[arg(long)]
         json: bool,
+    },
+    /// Every visible layer's elevation (each alone) and the composed stack's along the geodesic
+    /// between two points.
+    Profile {
+        /// The project file (JSON).
+        project: PathBuf,
+        /// Start: LAT,LON in degrees.
+        #[arg(long, allow_hyphen_values = true)]
+        from: String,
+        /// End: LAT,LON in degrees.
+        #[arg(long, allow_hyphen_values = true)]
+        to: String,
+        /// Samples along the line (default: one per sample spacing of the level).
+        #[arg(long)]
+        samples: Option<usize>,
+        /// Level to sample (default: the finest among the datasets).
+        #[arg(long)]
+        level: Option<u8>,
+        /// Write the profile as CSV (distance_m, lat_deg, lon_deg, a column per layer, composed).
+        #[arg(long)]
+        csv: Option<PathBuf>,
     },
     /// Open the workstation: a window with the project's terrain, its views and its visual
     /// settings (needs an X11 display; `xvfb-run` provides one for screenshots).
@@ -280,6 +305,20 @@ impl RasterArgs {
 
 #[derive(Subcommand)]
 enum Bench {
+    /// Comparison statistics and co-registration: time on the Erzurum pair and on a synthetic
+    /// pair with a known shift, beside xDEM's in the same run, and both tools' shift error;
+    /// writes compare.txt.
+    Compare {
+        /// The Erzurum comparison project.
+        #[arg(long, default_value = concat!(env!("CARGO_MANIFEST_DIR"), "/projects/erzurum-compare.json"))]
+        project: PathBuf,
+        /// Edge of the synthetic rasters, pixels.
+        #[arg(long, default_value_t = 4096)]
+        size: usize,
+        /// Folder for the synthetic pair, its stores and compare.txt.
+        #[arg(long, default_value = "out/bench-compare")]
+        out: PathBuf,
+    },
     /// The layer stack's composition: samples per second on the GPU against the CPU reference
     /// for 1, 2, 4, 8 layers and each kind, the GPU − CPU difference, octave skipping (time and
     /// error), and recomposition after a one-layer change; writes compose.csv.
@@ -548,7 +587,7 @@ fn run(args: Args) -> Result<ExitCode> {
                 cli::cutoff_report(&ellipsoid, tolerance_m, limit_fraction, max_level.min(30), samples.max(3));
             print!("{table}");
         }
-        Command::Render { project, out, width, height, look } => {
+        Command::Render { project, out, width, height, look, swipe } => {
             let report = cli::render(&cli::RenderRequest {
                 project: &project,
                 out: &out,
@@ -557,9 +596,14 @@ fn run(args: Args) -> Result<ExitCode> {
                 view: look.view.as_deref(),
                 camera: look.camera.as_deref(),
                 lod_threshold: look.lod_threshold,
+                swipe: swipe.as_deref(),
             })
             .map_err(anyhow::Error::msg)?;
             print!("{report}");
+        }
+        Command::Profile { project, from, to, samples, level, csv } => {
+            let request = cli::ProfileRequest { project, from, to, samples, level, csv };
+            print!("{}", cli::profile_command(&request).map_err(anyhow::Error::msg)?);
         }
         Command::Compare { project, a, b, level, region, unweighted, json, samples } => {
             let request = cli::CompareRequest { project, a, b, level, region, unweighted, json, samples };
@@ -657,6 +701,18 @@ fn run(args: Args) -> Result<ExitCode> {
                 report.level,
                 report.valid
             );
+        }
+        Command::Bench { bench: Bench::Compare { project, size, out } } => {
+            anyhow::ensure!((64..=16384).contains(&size), "--size {size} must lie within 64–16384 pixels");
+            let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+            let settings = cli::CompareBenchSettings {
+                project,
+                out,
+                size,
+                python: root.join(".venv-ref/bin/python"),
+                reference_dir: root.join("tests/reference"),
+            };
+            print!("{}", cli::bench_compare(&settings).map_err(anyhow::Error::msg)?);
         }
         Command::Bench { bench: Bench::Compose { project, quads, repeats, out } } => {
             anyhow::ensure!(quads > 0 && repeats > 0, "--quads and --repeats must be at least 1");

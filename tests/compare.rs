@@ -262,3 +262,82 @@ fn the_erzurum_pair_is_three_and_five_pixels_apart_as_demcompare_finds() {
     let out = terrafuse(&["coregister", p.to_str().unwrap(), "blurred", "--to", "nope"], "");
     assert!(String::from_utf8_lossy(&out.stderr).contains("layer 'nope' is not in the project"));
 }
+
+#[test]
+fn a_profile_follows_the_geodesic_as_geographiclib_computes_it_and_samples_every_visible_layer() {
+    let p = project();
+    let csv = repo_path("tests/out/compare/profile.csv");
+    let report = run(&[
+        "profile",
+        p.to_str().unwrap(),
+        "--from",
+        "39.3,40.1",
+        "--to",
+        "39.85,40.75",
+        "--samples",
+        "201",
+        "--csv",
+        csv.to_str().unwrap(),
+    ]);
+    assert!(report.contains("201 samples at level 9") && report.contains("composed"), "{report}");
+    let text = std::fs::read_to_string(&csv).unwrap();
+    let mut lines = text.lines();
+    assert_eq!(lines.next().unwrap(), "distance_m,lat_deg,lon_deg,srtm,composed"); // blurred is hidden
+    let rows: Vec<Vec<f64>> = lines.map(|l| l.split(',').map(|v| v.parse().unwrap()).collect()).collect();
+    assert_eq!(rows.len(), 201);
+    // The line's length and points against GeographicLib's GeodSolve (inverse, then direct).
+    let inverse = common::run_tool("GeodSolve", &["-i", "-p", "9"], "39.3 40.1 39.85 40.75\n");
+    let v: Vec<f64> = inverse.split_whitespace().map(|x| x.parse().unwrap()).collect();
+    let (azimuth, length) = (v[0], v[2]);
+    assert!((rows[200][0] - length).abs() < 1e-3, "length {} against GeodSolve {length}", rows[200][0]);
+    let input: String = rows.iter().map(|r| format!("39.3 40.1 {azimuth} {}\n", r[0])).collect();
+    let direct = common::run_tool("GeodSolve", &["-p", "9"], &input);
+    for (row, line) in rows.iter().zip(direct.lines()) {
+        let g: Vec<f64> = line.split_whitespace().map(|x| x.parse().unwrap()).collect();
+        assert!((row[1] - g[0]).abs() < 1e-8 && (row[2] - g[1]).abs() < 1e-8, "{row:?} against {line}");
+    }
+    // With SRTM the only visible layer, the composed stack is SRTM.
+    let with_data = rows.iter().filter(|r| !r[3].is_nan()).count();
+    assert!(with_data > 190, "{with_data}");
+    for r in &rows {
+        assert!(r[3].is_nan() && r[4].is_nan() || (r[3] - r[4]).abs() < 1e-3, "{r:?}");
+        assert!(r[3].is_nan() || (1000.0..3500.0).contains(&r[3]), "{r:?}");
+    }
+    let out = terrafuse(&["profile", p.to_str().unwrap(), "--from", "95,40", "--to", "39,40"], "");
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--from: 95,40 is not a latitude, longitude"));
+}
+
+#[test]
+fn a_swiped_render_shows_a_left_of_the_line_and_b_right_of_it() {
+    let p = project();
+    let dir = repo_path("tests/out/compare");
+    let render = |name: &str, extra: &[&str]| {
+        let out = dir.join(format!("{name}.png"));
+        let mut args =
+            vec!["render", p.to_str().unwrap(), "--out", out.to_str().unwrap(), "--width", "320", "--height", "240"];
+        args.extend_from_slice(extra);
+        let report = run(&args);
+        (image::open(&out).unwrap().to_rgba8(), report)
+    };
+    let (swiped, report) = render("swipe", &["--swipe", "blurred,srtm,0.25"]);
+    assert!(report.contains("swipe: 'blurred' left of 25 % of the width, 'srtm' right of it"), "{report}");
+    // Right of the line: exactly the plain render of srtm (the project shows srtm, hides blurred).
+    let (plain, _) = render("plain", &[]);
+    let (w, h) = plain.dimensions();
+    let split = (0.25 * f64::from(w)).round() as u32;
+    let (mut same, mut different) = (0, 0);
+    for y in 0..h {
+        for x in 0..w {
+            if x > split + 1 {
+                assert_eq!(swiped.get_pixel(x, y), plain.get_pixel(x, y), "({x}, {y}) right of the line");
+            } else if x + 1 < split {
+                if swiped.get_pixel(x, y) == plain.get_pixel(x, y) { same += 1 } else { different += 1 }
+            } else {
+                assert_eq!(swiped.get_pixel(x, y).0, [255, 255, 255, 255], "the line at ({x}, {y})");
+            }
+        }
+    }
+    assert!(different > same, "left of the line should show the blurred layer: {different} differ, {same} same");
+    let out = terrafuse(&["render", p.to_str().unwrap(), "--out", "/tmp/x.png", "--swipe", "blurred,nope"], "");
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--swipe blurred,nope: layer 'nope' is not in the project"));
+}

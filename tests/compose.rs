@@ -468,3 +468,31 @@ fn a_dataset_fades_in_from_its_own_no_data_edge_by_the_distance_on_the_surface_w
     }
     assert!(crossed >= 2, "the feather band should cross shared edges");
 }
+
+#[test]
+fn a_settled_view_after_swapping_the_shown_dataset_equals_a_fresh_renderers_pixel_for_pixel() {
+    // Regression: a drawn quad whose layers changed stays drawn with its old heights until its
+    // new sources arrive, and `settle` took the view for complete meanwhile (the old dataset
+    // stayed on screen). Such quads now count as pending.
+    let p = common::sample_project("erzurum-compare", &common::repo_path("tests/out/compose-swap"));
+    let project = Project::load(&p).unwrap();
+    let camera = project.view(None).unwrap();
+    let mut swapped = project.clone();
+    swapped.layers[0].visible = false; // srtm
+    swapped.layers[1].visible = true; // blurred
+    let mut r = renderer(&swapped);
+    r.settle(&camera, 320, 240, Duration::from_secs(120));
+    for (index, visible) in [(0, true), (1, false)] {
+        let spec = LayerSpec { visible, ..r.scene().stack.layers[index].spec.clone() };
+        r.update_layer(index, spec).unwrap();
+    }
+    let before = r.compose_counters().quads;
+    r.settle(&camera, 320, 240, Duration::from_secs(120));
+    assert!(r.compose_counters().quads > before, "nothing was recomposed");
+    let edited = r.render_image(DrawMode::Colour).unwrap();
+    let mut fresh = renderer(&project);
+    fresh.settle(&camera, 320, 240, Duration::from_secs(120));
+    let reference = fresh.render_image(DrawMode::Colour).unwrap();
+    let differing = edited.rgba.chunks(4).zip(reference.rgba.chunks(4)).filter(|(a, b)| a != b).count();
+    assert_eq!(differing, 0, "{differing} pixels differ from a fresh renderer's");
+}

@@ -1,16 +1,19 @@
 //! The logic behind the `terrafuse` subcommands, kept out of `main.rs` so it can be tested:
 //! batch coordinate conversion in the manner of PROJ's `cct` and the analysis reports.
 
+mod bench_compare;
 mod bench_compose;
 mod bench_render;
 mod compare;
 mod export;
 mod geo;
 mod geometry;
+mod profile;
 mod render;
 mod report;
 mod store;
 
+pub use bench_compare::{CompareBenchSettings, bench_compare};
 pub use bench_compose::{ComposeBenchRow, ComposeBenchSettings, bench_compose};
 pub use bench_render::{RenderBenchRow, RenderBenchSettings, bench_render, render_bench_csv, write_render_bench};
 pub use compare::{CompareRequest, CoregRequest, compare_command, coregister_command, table as compare_table};
@@ -20,6 +23,7 @@ pub use geometry::{
     AccuracyBench, accuracy_bench, accuracy_csv, accuracy_plot, cutoff_report, fitted_rule, timing_report,
     write_accuracy_outputs,
 };
+pub use profile::{ProfileRequest, profile_command};
 pub use render::{RenderRequest, frame_report, open_renderer, render, request_camera, write_png};
 pub use report::{overview, tissot_report};
 pub use store::{

@@ -24,6 +24,75 @@ pub struct RenderRequest<'a> {
     pub camera: Option<&'a str>,
     /// Overrides the project's level-of-detail threshold.
     pub lod_threshold: Option<f64>,
+    /// `A,B[,POSITION]`: layer A left of a vertical line at POSITION (0–1 of the width, default
+    /// 0.5), layer B right of it.
+    pub swipe: Option<&'a str>,
+}
+
+/// A parsed `--swipe A,B[,POSITION]`.
+struct Swipe {
+    a: String,
+    b: String,
+    position: f64,
+}
+
+fn parse_swipe(text: &str, project: &Project) -> Result<Swipe, String> {
+    let parts: Vec<&str> = text.split(',').map(str::trim).collect();
+    let (a, b, position) = match parts[..] {
+        [a, b] => (a, b, 0.5),
+        [a, b, p] => (a, b, p.parse::<f64>().map_err(|e| format!("--swipe {text}: position {p}: {e}"))?),
+        _ => return Err(format!("--swipe {text}: give A,B or A,B,POSITION (layer names, position 0–1)")),
+    };
+    if !(0.0..=1.0).contains(&position) {
+        return Err(format!("--swipe {text}: position {position} must lie within 0–1 of the width"));
+    }
+    for name in [a, b] {
+        if !project.layers.iter().any(|l| l.name == name) {
+            let known: Vec<&str> = project.layers.iter().map(|l| l.name.as_str()).collect();
+            return Err(format!(
+                "--swipe {text}: layer '{name}' is not in the project (its layers: {})",
+                known.join(", ")
+            ));
+        }
+    }
+    if a == b {
+        return Err(format!("--swipe {text}: A and B are the same layer"));
+    }
+    Ok(Swipe { a: a.into(), b: b.into(), position })
+}
+
+/// The project with layer `show` shown and layer `hide` hidden.
+fn show_only(project: &Project, show: &str, hide: &str) -> Project {
+    let mut p = project.clone();
+    for layer in &mut p.layers {
+        if layer.name == show {
+            layer.visible = true;
+        } else if layer.name == hide {
+            layer.visible = false;
+        }
+    }
+    p
+}
+
+/// The two images side by side at `position` (0–1 of the width), with a white line between.
+fn composite(left: &RenderedImage, right: &RenderedImage, position: f64) -> RenderedImage {
+    let split = (position * f64::from(left.width)).round() as u32;
+    let mut out = left.clone();
+    for y in 0..left.height {
+        for x in 0..left.width {
+            let k = ((y * left.width + x) * 4) as usize;
+            if x.abs_diff(split) <= 1 {
+                out.rgba[k..k + 4].copy_from_slice(&[255, 255, 255, 255]);
+            } else if x > split {
+                out.rgba[k..k + 4].copy_from_slice(&right.rgba[k..k + 4]);
+            }
+        }
+    }
+    out.gpu_ms = match (left.gpu_ms, right.gpu_ms) {
+        (Some(a), Some(b)) => Some(a + b),
+        _ => None,
+    };
+    out
 }
 
 /// Opens a project for rendering: the project, its scene (importing missing datasets), the
@@ -56,6 +125,7 @@ pub fn render(request: &RenderRequest) -> Result<String, String> {
     // Check the request before importing anything or opening the GPU.
     let project = Project::load(request.project).map_err(|e| e.to_string())?;
     let camera = request_camera(&project, request.view, request.camera)?;
+    let swipe = request.swipe.map(|s| parse_swipe(s, &project)).transpose()?;
     if let Some(t) = request.lod_threshold
         && !(t.is_finite() && t > 0.0)
     {
@@ -64,6 +134,15 @@ pub fn render(request: &RenderRequest) -> Result<String, String> {
     let (_, mut renderer, lines) = open_renderer(request.project)?;
     if let Some(t) = request.lod_threshold {
         renderer.set_threshold(t);
+    }
+    if let Some(s) = &swipe {
+        // Each side is rendered as its own project would be, by a renderer of its own.
+        let (scene, _) = Scene::open(&show_only(&project, &s.a, &s.b))?;
+        renderer = Renderer::new(&GpuContext::headless().map_err(|e| e.to_string())?, scene, IMAGE_FORMAT)
+            .map_err(|e| e.to_string())?;
+        if let Some(t) = request.lod_threshold {
+            renderer.set_threshold(t);
+        }
     }
     let debug = std::env::var_os("TERRAFUSE_DEBUG").is_some();
     let quads = std::env::var_os("TERRAFUSE_DEBUG_QUADS").is_some();
@@ -89,9 +168,29 @@ pub fn render(request: &RenderRequest) -> Result<String, String> {
             );
         }
     });
-    let image = renderer.render_image(DrawMode::Colour).map_err(|e| e.to_string())?;
+    let mut image = renderer.render_image(DrawMode::Colour).map_err(|e| e.to_string())?;
+    let mut swiped = String::new();
+    if let Some(s) = &swipe {
+        let (scene, _) = Scene::open(&show_only(&project, &s.b, &s.a))?;
+        let mut right_renderer =
+            Renderer::new(&GpuContext::headless().map_err(|e| e.to_string())?, scene, IMAGE_FORMAT)
+                .map_err(|e| e.to_string())?;
+        if let Some(t) = request.lod_threshold {
+            right_renderer.set_threshold(t);
+        }
+        let right_stats = right_renderer.settle(&camera, request.width, request.height, Duration::from_secs(300));
+        let right = right_renderer.render_image(DrawMode::Colour).map_err(|e| e.to_string())?;
+        image = composite(&image, &right, s.position);
+        swiped = format!(
+            "swipe: '{}' left of {:.0} % of the width, '{}' right of it ({} quads drawn right)\n",
+            s.a,
+            s.position * 100.0,
+            s.b,
+            right_stats.selection.quads.len()
+        );
+    }
     write_png(request.out, &image)?;
-    let mut out = String::new();
+    let mut out = swiped;
     for l in lines {
         let _ = writeln!(out, "{l}");
     }

@@ -12,18 +12,17 @@
 //!
 //! The result moves A by (east_m, north_m) and raises it by up_m: A′(p) = A(p − c) + up.
 
-use std::collections::HashMap;
-
 use glam::DVec3;
 use rayon::prelude::*;
 use serde::Serialize;
 
 use super::CompareError;
+use super::mosaic::Mosaic;
 use super::sample::{gradient, open_alone, overlap_quads, quad_points};
 use super::stats::{Diff, Stats, stats};
 use crate::ecm::QuadId;
 use crate::gpu::Scene;
-use crate::gpu::shifted::{bilinear, local_axes, locate};
+use crate::gpu::shifted::local_axes;
 use crate::project::Project;
 use crate::store::grid::{GRID, spacing_m};
 
@@ -99,39 +98,6 @@ struct RefSample {
     area: f64,
 }
 
-/// Layer A's composed grids at one level, composed when first asked for.
-struct Mosaic {
-    scene: Scene,
-    level: u8,
-    grids: HashMap<QuadId, Vec<f32>>,
-}
-
-impl Mosaic {
-    /// Composes the quads the points fall in that are not composed yet.
-    fn prefetch(&mut self, points: &[DVec3]) -> Result<(), CompareError> {
-        let e = self.scene.ellipsoid;
-        let level = self.level;
-        let mut wanted: Vec<QuadId> = points
-            .par_iter()
-            .filter_map(|p| locate(&e, level, *p).map(|l| l.0))
-            .collect::<std::collections::HashSet<_>>()
-            .into_iter()
-            .filter(|q| !self.grids.contains_key(q))
-            .collect();
-        wanted.sort();
-        for chunk in wanted.chunks(16) {
-            self.grids.extend(self.scene.compose_cpu(chunk).map_err(CompareError::Open)?);
-        }
-        Ok(())
-    }
-
-    /// A's value at a point, bilinear (NaN outside its data or its composed quads).
-    fn value(&self, p: DVec3) -> f64 {
-        let Some((q, u, v)) = locate(&self.scene.ellipsoid, self.level, p) else { return f64::NAN };
-        self.grids.get(&q).map_or(f64::NAN, |g| bilinear(g, u, v))
-    }
-}
-
 /// Co-registers layer `a` onto layer `b` of a project.
 pub fn coregister(project: &Project, a: &str, b: &str, opts: &CoregOptions) -> Result<Coregistration, CompareError> {
     if a == b {
@@ -148,7 +114,7 @@ pub fn coregister(project: &Project, a: &str, b: &str, opts: &CoregOptions) -> R
     if reference.is_empty() {
         return Err(CompareError::Option { option: "A, B".into(), problem: "the layers do not overlap".into() });
     }
-    let mut mosaic = Mosaic { scene: scene_a, level, grids: HashMap::new() };
+    let mut mosaic = Mosaic::new(scene_a, level);
     let spacing = spacing_m(&ellipsoid, level);
     let min_tan = opts.min_slope_deg.to_radians().tan();
     let (mut c_e, mut c_n) = (0.0, 0.0);

@@ -4,14 +4,18 @@
 //!
 //! - [`stats`]: weighted statistics, histogram and slope classes (the JSON of `terrafuse compare`);
 //! - [`coreg`]: Nuth & Kääb co-registration on the ellipsoid;
+//! - [`profile`]: every visible layer's elevation along a geodesic;
 //! - [`sample`]: the overlap's samples: each layer composed alone with the CPU reference, cell areas
 //!   and slopes on the ellipsoid.
 
 pub mod coreg;
+mod mosaic;
+pub mod profile;
 pub mod sample;
 pub mod stats;
 
 pub use coreg::{CoregOptions, Coregistration, coregister};
+pub use profile::{Profile, ProfileOptions, profile};
 pub use sample::{CompareOptions, Comparison, Weighting, compare};
 pub use stats::{Diff, Histogram, SlopeClass, Stats};
 

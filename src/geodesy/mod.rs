@@ -7,6 +7,7 @@
 //! No I/O and no dependency on other Terrafuse modules.
 
 mod ellipsoid;
+pub mod geodesic;
 
 pub use ellipsoid::Ellipsoid;
 use glam::DVec3;

@@ -42,7 +42,8 @@ pub struct FrameStats {
     pub prepare_ms: f64,
     /// Slots filled this frame.
     pub uploads: usize,
-    /// Quads that would be refined if their data were on the GPU.
+    /// Quads that would be refined if their data were on the GPU, and drawn quads still shown
+    /// with heights of an older stack while their new ones wait for data.
     pub pending: usize,
     /// Data asked of the loader this frame.
     pub requested: usize,
@@ -400,9 +401,13 @@ impl Renderer {
         let mut free_maps = self.maps_pool.capacity.saturating_sub(maps_counted.len() as u32);
         let mut requests = Vec::new();
         let mut batch = ComposeBatch::default();
-        // Drawn quads whose layers changed are recomposed first (they stay drawn meanwhile).
+        // Drawn quads whose layers changed are recomposed first (they stay drawn meanwhile, with
+        // their old heights, and count as pending until their new ones are composed).
+        let mut stale = 0;
         for q in &selection.quads {
-            self.ensure_heights(*q, &mut batch, &mut stats, &mut requests);
+            if !self.ensure_heights(*q, &mut batch, &mut stats, &mut requests) {
+                stale += 1;
+            }
         }
         for q in &selection.wanted {
             let has = self.cache.plan(&self.scene, *q).has_data(&self.scene.stack);
@@ -489,7 +494,7 @@ impl Renderer {
         self.write_frame(&camera, width, height);
         self.drawn = selection.quads.clone();
         stats.triangles = self.instances.len() as u64 * TRIANGLES_PER_QUAD;
-        stats.pending = selection.wanted.len();
+        stats.pending = selection.wanted.len() + stale;
         stats.gpu_slots = (
             self.heights_pool.slots.len(),
             self.heights_pool.capacity,

@@ -1,0 +1,240 @@
+//! `terrafuse bench compare`: the time of the comparison statistics and of co-registration on the
+//! bundled Erzurum pair and on a synthetic 4096² pair with a known shift, beside xDEM's time on
+//! the same data in the same run (its rasters warped to a transverse Mercator centred on the area,
+//! as the tests do), and both tools' co-registration error against the known shift.
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use crate::compare::{CompareOptions, CoregOptions, compare, coregister};
+use crate::geodesy::Ellipsoid;
+use crate::layers::{NoiseSpec, NoiseType, noise};
+use crate::project::Project;
+use crate::store::export::RasterSpec;
+
+/// What to measure.
+#[derive(Clone, Debug)]
+pub struct CompareBenchSettings {
+    /// The Erzurum comparison project (`projects/erzurum-compare.json`).
+    pub project: PathBuf,
+    /// Where the synthetic pair, its stores and the tables go.
+    pub out: PathBuf,
+    /// The synthetic rasters' edge, pixels (4096 by default).
+    pub size: usize,
+    /// The Python with xDEM (`.venv-ref/bin/python`); skipped with a note when missing.
+    pub python: PathBuf,
+    /// The folder of `xdem_bench.py`.
+    pub reference_dir: PathBuf,
+}
+
+fn seconds(t: Instant) -> f64 {
+    t.elapsed().as_secs_f64()
+}
+
+/// Warps a raster to the transverse Mercator centred at (lat, lon), 90 m, bilinear.
+fn warp_tm(from: &Path, to: &Path, lat: f64, lon: f64) -> Result<(), String> {
+    let tm = format!("+proj=tmerc +lon_0={lon} +lat_0={lat} +k=1 +ellps=WGS84 +units=m");
+    let status = std::process::Command::new("gdalwarp")
+        .args(["-q", "-overwrite", "-t_srs", &tm, "-tr", "90", "90", "-r", "bilinear", "-dstnodata", "-9999"])
+        .args(["-ot", "Float32"])
+        .arg(from)
+        .arg(to)
+        .status()
+        .map_err(|e| format!("gdalwarp: {e} (install gdal-bin: scripts/install-deps)"))?;
+    if status.success() { Ok(()) } else { Err(format!("gdalwarp {} failed", from.display())) }
+}
+
+/// xDEM's statistics and Nuth & Kääb on two rasters, or why not.
+fn xdem(settings: &CompareBenchSettings, reference: &Path, moved: &Path) -> Result<serde_json::Value, String> {
+    if !settings.python.exists() {
+        return Err(format!("{} is missing (scripts/install-deps makes it)", settings.python.display()));
+    }
+    let out = std::process::Command::new(&settings.python)
+        .arg(settings.reference_dir.join("xdem_bench.py"))
+        .arg(reference)
+        .arg(moved)
+        .output()
+        .map_err(|e| e.to_string())?;
+    if !out.status.success() {
+        return Err(String::from_utf8_lossy(&out.stderr).into_owned());
+    }
+    serde_json::from_slice(&out.stdout).map_err(|e| e.to_string())
+}
+
+/// The east and north metres of (dlon, dlat) degrees at a latitude on WGS84.
+fn metres_of_degrees(dlon: f64, dlat: f64, lat_deg: f64) -> (f64, f64) {
+    let e = Ellipsoid::WGS84;
+    let s = lat_deg.to_radians().sin();
+    let n = e.a_m() / (1.0 - e.e2() * s * s).sqrt();
+    let m = e.a_m() * (1.0 - e.e2()) / (1.0 - e.e2() * s * s).powf(1.5);
+    (dlon.to_radians() * n * lat_deg.to_radians().cos(), dlat.to_radians() * m)
+}
+
+/// Writes a synthetic DEM (fBm of the position on the ellipsoid, 3″ pixels from 40°E 40°N) and
+/// the same moved by (dlon, dlat) degrees.
+fn synthetic_pair(dir: &Path, size: usize, dlon: f64, dlat: f64) -> Result<(PathBuf, PathBuf), String> {
+    let e = Ellipsoid::WGS84;
+    let pixel = 1.0 / 1200.0;
+    let terrain = NoiseSpec {
+        noise_type: NoiseType::Fbm,
+        seed: 11,
+        amplitude_m: 600.0,
+        wavelength_m: 40_000.0,
+        octaves: 10,
+        lacunarity: 2.0,
+        gain: 0.5,
+        placement: Default::default(),
+    };
+    let weights = vec![1.0; terrain.octaves as usize];
+    let data: Vec<f32> = (0..size * size)
+        .map(|k| {
+            let (col, row) = ((k % size) as f64 + 0.5, (k / size) as f64 + 0.5);
+            let (lon, lat) = (40.0 + col * pixel, 40.0 - row * pixel);
+            let p = crate::geodesy::ecef_from_geodetic(
+                &e,
+                crate::geodesy::Geodetic { lat_rad: lat.to_radians(), lon_rad: lon.to_radians(), height_m: 0.0 },
+            );
+            (1500.0 + noise::noise_at(&terrain, p, &weights)) as f32
+        })
+        .collect();
+    let extent = size as f64 * pixel;
+    let mut paths = Vec::new();
+    for (name, (dx, dy)) in [("synthetic_ref.tif", (0.0, 0.0)), ("synthetic_moved.tif", (dlon, dlat))] {
+        let path = dir.join(name);
+        let spec = RasterSpec::new(
+            "EPSG:4326",
+            [40.0 + dx, 40.0 - extent + dy, 40.0 + extent + dx, 40.0 + dy],
+            (pixel, pixel),
+            &path,
+        )
+        .map_err(|e| e.to_string())?;
+        spec.write(&path, &[("TERRAFUSE_SYNTHETIC", "fBm, 600 m, 40 km, 10 octaves".into())], data.clone())
+            .map_err(|e| e.to_string())?;
+        paths.push(path);
+    }
+    Ok((paths[0].clone(), paths[1].clone()))
+}
+
+/// Runs the benchmark; returns the report (also written to OUT/compare.txt).
+pub fn bench_compare(settings: &CompareBenchSettings) -> Result<String, String> {
+    std::fs::create_dir_all(&settings.out).map_err(|e| format!("{}: {e}", settings.out.display()))?;
+    let mut report = String::new();
+    let _ = writeln!(
+        report,
+        "terrafuse bench compare ({} cores)",
+        std::thread::available_parallelism().map_or(1, |n| n.get())
+    );
+    let _ = writeln!(
+        report,
+        "{:<34} {:>10} {:>9} {:>9} {:>10} {:>10} {:>10} {:>9}",
+        "pair", "samples", "stats s", "coreg s", "east m", "north m", "error m", "NMAD m"
+    );
+    // 1. The bundled Erzurum pair.
+    let project = Project::load(&settings.project).map_err(|e| e.to_string())?;
+    let t = Instant::now();
+    let c = compare(&project, "blurred", "srtm", &CompareOptions::default()).map_err(|e| e.to_string())?;
+    let stats_s = seconds(t);
+    let t = Instant::now();
+    let r = coregister(&project, "blurred", "srtm", &CoregOptions::default()).map_err(|e| e.to_string())?;
+    let coreg_s = seconds(t);
+    let _ = writeln!(
+        report,
+        "{:<34} {:>10} {:>9.2} {:>9.2} {:>10.3} {:>10.3} {:>10} {:>9.3}",
+        "Erzurum, Terrafuse", c.stats.count, stats_s, coreg_s, r.east_m, r.north_m, "-", c.stats.nmad_m
+    );
+    let data = |name: &str| project.resolve(Path::new(&format!("data/{name}")));
+    let (ref_tm, moved_tm) = (settings.out.join("erzurum_ref_tm.tif"), settings.out.join("erzurum_moved_tm.tif"));
+    warp_tm(&data("earth_srtm3_demcompare_N39E040.tif"), &ref_tm, 39.6, 40.42)?;
+    warp_tm(&data("earth_srtm3_blurred_shifted_N39E040.tif"), &moved_tm, 39.6, 40.42)?;
+    match xdem(settings, &ref_tm, &moved_tm) {
+        Ok(x) => {
+            let _ = writeln!(
+                report,
+                "{:<34} {:>10} {:>9.2} {:>9.2} {:>10.3} {:>10.3} {:>10} {:>9.3}",
+                "Erzurum, xDEM (tmerc 90 m)",
+                x["count"],
+                x["stats_s"].as_f64().unwrap_or(f64::NAN),
+                x["coreg_s"].as_f64().unwrap_or(f64::NAN),
+                x["shift_x"].as_f64().unwrap_or(f64::NAN),
+                x["shift_y"].as_f64().unwrap_or(f64::NAN),
+                "-",
+                x["nmad_m"].as_f64().unwrap_or(f64::NAN)
+            );
+        }
+        Err(e) => {
+            let _ = writeln!(report, "Erzurum, xDEM: not run: {e}");
+        }
+    }
+    // 2. The synthetic pair with a known shift.
+    let (dlon, dlat) = (0.0004, -0.0003);
+    let t = Instant::now();
+    let (ref_tif, moved_tif) = synthetic_pair(&settings.out, settings.size, dlon, dlat)?;
+    let made_s = seconds(t);
+    let side = settings.size as f64 / 1200.0;
+    let (lat_c, lon_c) = (40.0 - side / 2.0, 40.0 + side / 2.0);
+    let synthetic = format!(
+        r#"{{"format": "terrafuse-project", "version": 2, "body": "wgs84", "layers": [
+            {{"name": "ref", "kind": "dataset", "store": "synthetic_ref.gpkg", "source": {{"files": ["{}"]}}}},
+            {{"name": "moved", "kind": "dataset", "store": "synthetic_moved.gpkg", "source": {{"files": ["{}"]}}}}]}}"#,
+        ref_tif.display(),
+        moved_tif.display()
+    );
+    let synthetic_path = settings.out.join("synthetic.json");
+    crate::files::write_atomic(&synthetic_path, synthetic.as_bytes()).map_err(|e| e.to_string())?;
+    let t = Instant::now();
+    let project = Project::load(&synthetic_path).map_err(|e| e.to_string())?;
+    crate::gpu::Scene::open(&project)?; // imports both rasters
+    let import_s = seconds(t);
+    let t = Instant::now();
+    let c = compare(&project, "moved", "ref", &CompareOptions::default()).map_err(|e| e.to_string())?;
+    let stats_s = seconds(t);
+    let t = Instant::now();
+    let opts = CoregOptions { level: Some(c.level), ..CoregOptions::default() };
+    let r = coregister(&project, "moved", "ref", &opts).map_err(|e| e.to_string())?;
+    let coreg_s = seconds(t);
+    let (e, n) = metres_of_degrees(-dlon, -dlat, lat_c);
+    let label = format!("synthetic {0}², Terrafuse (L{1})", settings.size, c.level);
+    let _ = writeln!(
+        report,
+        "{label:<34} {:>10} {:>9.2} {:>9.2} {:>10.3} {:>10.3} {:>10.3} {:>9.3}",
+        c.stats.count,
+        stats_s,
+        coreg_s,
+        r.east_m,
+        r.north_m,
+        (r.east_m - e).hypot(r.north_m - n),
+        c.stats.nmad_m
+    );
+    let (ref_tm, moved_tm) = (settings.out.join("synthetic_ref_tm.tif"), settings.out.join("synthetic_moved_tm.tif"));
+    warp_tm(&ref_tif, &ref_tm, lat_c, lon_c)?;
+    warp_tm(&moved_tif, &moved_tm, lat_c, lon_c)?;
+    match xdem(settings, &ref_tm, &moved_tm) {
+        Ok(x) => {
+            let (sx, sy) = (x["shift_x"].as_f64().unwrap_or(f64::NAN), x["shift_y"].as_f64().unwrap_or(f64::NAN));
+            let label = format!("synthetic {}², xDEM (tmerc 90 m)", settings.size);
+            let _ = writeln!(
+                report,
+                "{label:<34} {:>10} {:>9.2} {:>9.2} {:>10.3} {:>10.3} {:>10.3} {:>9.3}",
+                x["count"],
+                x["stats_s"].as_f64().unwrap_or(f64::NAN),
+                x["coreg_s"].as_f64().unwrap_or(f64::NAN),
+                sx,
+                sy,
+                (sx - e).hypot(sy - n),
+                x["nmad_m"].as_f64().unwrap_or(f64::NAN)
+            );
+        }
+        Err(err) => {
+            let _ = writeln!(report, "synthetic, xDEM: not run: {err}");
+        }
+    }
+    let _ = writeln!(
+        report,
+        "known correction of the synthetic pair at its centre: east {e:.3} m, north {n:.3} m (made in {made_s:.1} s, imported in {import_s:.1} s); \
+         stats: the whole overlap, cell-area weighted; coreg: Nuth & Kääb to 0.001 px (Terrafuse at the statistics' level here)"
+    );
+    let path = settings.out.join("compare.txt");
+    crate::files::write_atomic(&path, report.as_bytes()).map_err(|e| format!("{}: {e}", path.display()))?;
+    Ok(report)
+}

@@ -1,0 +1,84 @@
+//! `terrafuse profile PROJECT --from LAT,LON --to LAT,LON`: every visible layer's elevation and
+//! the composed stack's along the geodesic, as a summary table and optionally CSV.
+
+use std::fmt::Write as _;
+use std::path::PathBuf;
+
+use crate::compare::{ProfileOptions, profile};
+use crate::project::Project;
+
+/// What `terrafuse profile` was asked.
+#[derive(Clone, Debug)]
+pub struct ProfileRequest {
+    /// The project file.
+    pub project: PathBuf,
+    /// `LAT,LON` of the start, degrees.
+    pub from: String,
+    /// `LAT,LON` of the end, degrees.
+    pub to: String,
+    /// Samples along the line.
+    pub samples: Option<usize>,
+    /// The level.
+    pub level: Option<u8>,
+    /// Write the profile here as CSV.
+    pub csv: Option<PathBuf>,
+}
+
+fn parse_point(option: &str, text: &str) -> Result<[f64; 2], String> {
+    let v: Vec<f64> = text
+        .split(',')
+        .map(|s| s.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .map_err(|e| format!("{option} {text}: {e} (give LAT,LON in degrees)"))?;
+    match v[..] {
+        [lat, lon] => Ok([lat, lon]),
+        _ => Err(format!("{option} {text}: give LAT,LON in degrees")),
+    }
+}
+
+/// Samples the profile, writes the CSV if asked; returns what to print.
+pub fn profile_command(request: &ProfileRequest) -> Result<String, String> {
+    let opts = ProfileOptions {
+        from: parse_point("--from", &request.from)?,
+        to: parse_point("--to", &request.to)?,
+        samples: request.samples,
+        level: request.level,
+    };
+    let project = Project::load(&request.project).map_err(|e| e.to_string())?;
+    let p = profile(&project, &opts).map_err(|e| format!("{}: {e}", request.project.display()))?;
+    if let Some(path) = &request.csv {
+        crate::files::write_atomic(path, p.csv().as_bytes()).map_err(|e| format!("{}: {e}", path.display()))?;
+    }
+    let mut out = String::new();
+    let _ = writeln!(
+        out,
+        "profile of {:.3} km along the geodesic, {} samples at level {}",
+        p.length_m / 1e3,
+        p.distance_m.len(),
+        p.level
+    );
+    let mut columns: Vec<(&str, &Vec<f64>)> = p.layers.iter().map(|(n, h)| (n.as_str(), h)).collect();
+    columns.push(("composed", &p.composed));
+    for (name, h) in &columns {
+        let valid: Vec<f64> = h.iter().copied().filter(|v| !v.is_nan()).collect();
+        let (lo, hi) = valid.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| (a.min(v), b.max(v)));
+        let _ = writeln!(out, "{name:>16}: {} of {} samples with data, {lo:.1} … {hi:.1} m", valid.len(), h.len());
+    }
+    let _ = write!(out, "{:>10} {:>11} {:>11}", "km", "lat", "lon");
+    for (name, _) in &columns {
+        let _ = write!(out, " {name:>12}");
+    }
+    out.push('\n');
+    let every = (p.distance_m.len() / 10).max(1);
+    for k in (0..p.distance_m.len()).step_by(every).chain(std::iter::once(p.distance_m.len() - 1)) {
+        let _ = write!(out, "{:>10.3} {:>11.6} {:>11.6}", p.distance_m[k] / 1e3, p.lat_deg[k], p.lon_deg[k]);
+        for (_, h) in &columns {
+            let _ = write!(out, " {:>12.2}", h[k]);
+        }
+        out.push('\n');
+    }
+    if let Some(path) = &request.csv {
+        let _ = writeln!(out, "wrote {}", path.display());
+    }
+    Ok(out)
+}

@@ -1,0 +1,50 @@
+//! A layer (or a stack) composed at one level, quads composed with the CPU reference when first
+//! reached, sampled bilinearly at any point: what co-registration and profiles read.
+
+use std::collections::HashMap;
+
+use glam::DVec3;
+use rayon::prelude::*;
+
+use super::CompareError;
+use crate::ecm::QuadId;
+use crate::gpu::Scene;
+use crate::gpu::shifted::{bilinear, locate};
+
+/// A scene composed at one level, quads composed when first reached.
+pub(crate) struct Mosaic {
+    scene: Scene,
+    level: u8,
+    grids: HashMap<QuadId, Vec<f32>>,
+}
+
+impl Mosaic {
+    /// An empty mosaic of a scene at a level.
+    pub(crate) fn new(scene: Scene, level: u8) -> Mosaic {
+        Mosaic { scene, level, grids: HashMap::new() }
+    }
+
+    /// Composes the quads the points fall in that are not composed yet.
+    pub(crate) fn prefetch(&mut self, points: &[DVec3]) -> Result<(), CompareError> {
+        let e = self.scene.ellipsoid;
+        let level = self.level;
+        let mut wanted: Vec<QuadId> = points
+            .par_iter()
+            .filter_map(|p| locate(&e, level, *p).map(|l| l.0))
+            .collect::<std::collections::HashSet<_>>()
+            .into_iter()
+            .filter(|q| !self.grids.contains_key(q))
+            .collect();
+        wanted.sort();
+        for chunk in wanted.chunks(16) {
+            self.grids.extend(self.scene.compose_cpu(chunk).map_err(CompareError::Open)?);
+        }
+        Ok(())
+    }
+
+    /// A's value at a point, bilinear (NaN outside its data or its composed quads).
+    pub(crate) fn value(&self, p: DVec3) -> f64 {
+        let Some((q, u, v)) = locate(&self.scene.ellipsoid, self.level, p) else { return f64::NAN };
+        self.grids.get(&q).map_or(f64::NAN, |g| bilinear(g, u, v))
+    }
+}
