@@ -314,3 +314,44 @@ fn datasets_are_imported_in_the_background_cancelled_and_layers_reorder_by_dragg
     let names: Vec<String> = h.state().stack().layers.iter().map(|l| l.spec.name.clone()).collect();
     assert_eq!(names, ["north", "lola_global"]);
 }
+
+/// Steps until the *Compare* section's computation is over.
+fn wait_for_compare(h: &mut Harness<'static, App>) {
+    for _ in 0..20_000 {
+        h.step();
+        if !h.state().compare_panel().busy() {
+            h.run_steps(2);
+            return;
+        }
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    panic!("the comparison did not finish");
+}
+
+#[test]
+fn the_compare_section_shows_statistics_and_applies_a_coregistration() {
+    let dir = repo_path("tests/out/workstation-compare");
+    let project = sample_project("erzurum-compare", &dir);
+    let mut h = harness_of_size(&project, "30km", egui::vec2(900.0, 1700.0));
+    settle(&mut h);
+    // Defaults: the top dataset (blurred) against the one below (srtm).
+    h.get_by_label("compare").click_accesskit();
+    h.step();
+    assert!(h.state().compare_panel().busy(), "the comparison runs in the background");
+    wait_for_compare(&mut h);
+    let c = h.state().compare_panel().comparison().expect("statistics");
+    assert_eq!((c.a.as_str(), c.b.as_str()), ("blurred", "srtm"));
+    assert!(c.stats.count > 1_000_000 && c.stats.nmad_m > 50.0, "{:?}", c.stats);
+    h.get_by_label("co-register").click_accesskit();
+    h.step();
+    wait_for_compare(&mut h);
+    let r = h.state().compare_panel().coregistration().expect("a co-registration");
+    let (east, north) = (r.east_m, r.north_m);
+    assert!((east - 214.8).abs() < 1.0 && (north + 462.6).abs() < 1.0, "{east} {north}");
+    h.get_by_label("apply to blurred").click_accesskit();
+    h.run_steps(2);
+    let blurred = h.state().stack().layers.iter().find(|l| l.spec.name == "blurred").unwrap().spec.clone();
+    assert_eq!(blurred.shift_m, [east, north]);
+    assert!(h.state().message().starts_with("moved 'blurred' east"), "{}", h.state().message());
+    settle(&mut h);
+}

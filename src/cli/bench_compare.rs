@@ -119,6 +119,9 @@ fn synthetic_pair(dir: &Path, size: usize, dlon: f64, dlat: f64) -> Result<(Path
 /// Runs the benchmark; returns the report (also written to OUT/compare.txt).
 pub fn bench_compare(settings: &CompareBenchSettings) -> Result<String, String> {
     std::fs::create_dir_all(&settings.out).map_err(|e| format!("{}: {e}", settings.out.display()))?;
+    // Absolute, since the synthetic project names its rasters from its own folder.
+    let out_dir = std::fs::canonicalize(&settings.out).map_err(|e| format!("{}: {e}", settings.out.display()))?;
+    let settings = &CompareBenchSettings { out: out_dir, ..settings.clone() };
     let mut report = String::new();
     let _ = writeln!(
         report,

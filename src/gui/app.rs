@@ -70,6 +70,8 @@ pub struct App {
     closing: bool,
     /// The "add a dataset" form and its import in flight.
     add_dataset: super::add_dataset::AddDataset,
+    /// The *Compare* section.
+    compare: super::compare_panel::ComparePanel,
 }
 
 impl App {
@@ -115,6 +117,7 @@ impl App {
             confirm_close: false,
             closing: false,
             add_dataset: Default::default(),
+            compare: Default::default(),
         }
     }
 
@@ -137,6 +140,11 @@ impl App {
     /// Whether settings changed since the project was saved.
     pub fn unsaved(&self) -> bool {
         self.unsaved
+    }
+
+    /// The *Compare* section (its last results).
+    pub fn compare_panel(&self) -> &super::compare_panel::ComparePanel {
+        &self.compare
     }
 
     /// Whether a dataset is being imported or opened in the background.
@@ -384,6 +392,14 @@ impl App {
             }
 
             ui.separator();
+            ui.heading("Compare");
+            if let super::compare_panel::CompareAction::Apply { layer, shift_m, up_m } =
+                self.compare.ui(ui, &self.project)
+            {
+                self.apply_coregistration(&layer, shift_m, up_m);
+            }
+
+            ui.separator();
             let label = if self.unsaved { "save project *" } else { "save project" };
             if ui.button(label).on_hover_text("writes the visual settings and t into the project file").clicked() {
                 self.save_project();
@@ -409,6 +425,24 @@ impl App {
                 .small(),
             );
         });
+    }
+
+    /// Moves layer `layer` by `shift_m` more and raises it by `up_m` (a co-registration applied).
+    fn apply_coregistration(&mut self, layer: &str, shift_m: [f64; 2], up_m: f64) {
+        let Some(index) = self.project.layers.iter().position(|l| l.name == layer) else { return };
+        let mut spec = self.project.layers[index].clone();
+        spec.shift_m = [spec.shift_m[0] + shift_m[0], spec.shift_m[1] + shift_m[1]];
+        spec.offset_m += up_m;
+        match self.renderer.update_layer(index, spec.clone()) {
+            Ok(()) => {
+                self.project.layers[index] = spec;
+                self.dirty = true;
+                self.unsaved = true;
+                self.message =
+                    format!("moved '{layer}' east {:+.2} m, north {:+.2} m, up {:+.2} m", shift_m[0], shift_m[1], up_m);
+            }
+            Err(e) => self.message = e.to_string(),
+        }
     }
 
     fn status_bar(&self, ui: &mut egui::Ui) {

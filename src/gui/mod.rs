@@ -3,6 +3,7 @@
 
 pub mod add_dataset;
 pub mod app;
+pub mod compare_panel;
 pub mod layers_panel;
 pub mod navigate;
 pub mod viewport;

@@ -1,4 +1,5 @@
-"""xDEM timings for `terrafuse bench compare`: on two rasters on the same projected grid, the
+"""xDEM timings for `terrafuse bench compare`: on two rasters in one projected CRS (the second
+reprojected onto the first's grid when they differ), the
 statistics of dh (numpy and xdem.spatialstats.nmad) and Nuth & Kääb. Prints JSON:
 {"stats_s", "coreg_s", "count", "nmad_m", "shift_x", "shift_y", "shift_z"}.
 """
@@ -14,6 +15,8 @@ import xdem  # noqa: E402
 start = time.time()
 reference = xdem.DEM(sys.argv[1])
 to_align = xdem.DEM(sys.argv[2])
+if to_align.shape != reference.shape or to_align.transform != reference.transform:
+    to_align = to_align.reproject(reference)  # onto the reference's grid, as xDEM's guides do
 dh = (to_align - reference).data.compressed().astype(float)
 stats = {
     "mean": float(np.mean(dh)), "median": float(np.median(dh)), "std": float(np.std(dh)),

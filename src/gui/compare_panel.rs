@@ -1,0 +1,219 @@
+//! The *Compare* section: statistics of A − B (as `terrafuse compare` prints them: the numbers,
+//! the histogram, the slope classes) and Nuth & Kääb co-registration of A onto B with an *apply*
+//! button, each computed on a thread while the view keeps drawing.
+
+use std::thread::JoinHandle;
+
+use crate::compare::{CompareOptions, Comparison, CoregOptions, Coregistration, compare, coregister};
+use crate::layers::LayerKind;
+use crate::project::Project;
+
+/// What the panel asks of the window.
+pub enum CompareAction {
+    /// Nothing.
+    None,
+    /// Move layer `layer` by `shift_m` more and raise it by `up_m` (a co-registration applied).
+    Apply {
+        /// The layer.
+        layer: String,
+        /// East, north, metres.
+        shift_m: [f64; 2],
+        /// Metres.
+        up_m: f64,
+    },
+}
+
+/// The section's state.
+#[derive(Default)]
+pub struct ComparePanel {
+    a: String,
+    b: String,
+    comparing: Option<JoinHandle<Result<Comparison, String>>>,
+    coregistering: Option<JoinHandle<Result<Coregistration, String>>>,
+    comparison: Option<Result<Comparison, String>>,
+    coregistration: Option<Result<Coregistration, String>>,
+}
+
+impl ComparePanel {
+    /// Whether a computation runs.
+    pub fn busy(&self) -> bool {
+        self.comparing.is_some() || self.coregistering.is_some()
+    }
+
+    /// The last statistics, if any.
+    pub fn comparison(&self) -> Option<&Comparison> {
+        self.comparison.as_ref().and_then(|r| r.as_ref().ok())
+    }
+
+    /// The last co-registration, if any.
+    pub fn coregistration(&self) -> Option<&Coregistration> {
+        self.coregistration.as_ref().and_then(|r| r.as_ref().ok())
+    }
+
+    fn poll(&mut self) {
+        if self.comparing.as_ref().is_some_and(|h| h.is_finished())
+            && let Some(h) = self.comparing.take()
+        {
+            self.comparison = Some(h.join().unwrap_or_else(|_| Err("the comparison failed unexpectedly".into())));
+        }
+        if self.coregistering.as_ref().is_some_and(|h| h.is_finished())
+            && let Some(h) = self.coregistering.take()
+        {
+            self.coregistration =
+                Some(h.join().unwrap_or_else(|_| Err("the co-registration failed unexpectedly".into())));
+        }
+    }
+
+    /// Draws the section.
+    pub fn ui(&mut self, ui: &mut egui::Ui, project: &Project) -> CompareAction {
+        self.poll();
+        let names: Vec<String> =
+            project.layers.iter().filter(|l| l.kind == LayerKind::Dataset).map(|l| l.name.clone()).collect();
+        if names.len() < 2 {
+            ui.label("add a second dataset layer to compare");
+            return CompareAction::None;
+        }
+        if !names.contains(&self.a) || !names.contains(&self.b) || self.a == self.b {
+            // Default: the top dataset against the one below it.
+            (self.a, self.b) = (names[names.len() - 1].clone(), names[names.len() - 2].clone());
+        }
+        ui.horizontal(|ui| {
+            egui::ComboBox::from_label("minus").selected_text(&self.a).show_ui(ui, |ui| {
+                for n in &names {
+                    ui.selectable_value(&mut self.a, n.clone(), n);
+                }
+            });
+            egui::ComboBox::from_label("(reference)").selected_text(&self.b).show_ui(ui, |ui| {
+                for n in &names {
+                    ui.selectable_value(&mut self.b, n.clone(), n);
+                }
+            });
+        });
+        let mut action = CompareAction::None;
+        ui.horizontal(|ui| {
+            let idle = !self.busy() && self.a != self.b;
+            if ui.add_enabled(idle, egui::Button::new("compare")).clicked() {
+                let (p, a, b) = (project.clone(), self.a.clone(), self.b.clone());
+                self.comparing = Some(std::thread::spawn(move || {
+                    compare(&p, &a, &b, &CompareOptions::default()).map_err(|e| e.to_string())
+                }));
+            }
+            if ui.add_enabled(idle, egui::Button::new("co-register")).on_hover_text("Nuth & Kääb: A onto B").clicked()
+            {
+                let (p, a, b) = (project.clone(), self.a.clone(), self.b.clone());
+                self.coregistering = Some(std::thread::spawn(move || {
+                    coregister(&p, &a, &b, &CoregOptions::default()).map_err(|e| e.to_string())
+                }));
+            }
+            if self.busy() {
+                ui.spinner();
+                ui.ctx().request_repaint_after(std::time::Duration::from_millis(100));
+            }
+        });
+        match &self.comparison {
+            Some(Ok(c)) => comparison_ui(ui, c),
+            Some(Err(e)) => {
+                ui.colored_label(egui::Color32::LIGHT_RED, e);
+            }
+            None => {}
+        }
+        match &self.coregistration {
+            Some(Ok(c)) => {
+                ui.label(format!(
+                    "move {} east {:+.2} m, north {:+.2} m, up {:+.2} m ({} iterations{})",
+                    c.a,
+                    c.east_m,
+                    c.north_m,
+                    c.up_m,
+                    c.iterations,
+                    if c.converged { "" } else { ", not converged" }
+                ));
+                ui.label(format!(
+                    "NMAD {:.2} m to {:.2} m, RMSE {:.2} m to {:.2} m",
+                    c.before.nmad_m, c.after.nmad_m, c.before.rmse_m, c.after.rmse_m
+                ));
+                if ui
+                    .button(format!("apply to {}", c.a))
+                    .on_hover_text("adds the shift to its shift_m and the offset to its offset_m")
+                    .clicked()
+                {
+                    action = CompareAction::Apply { layer: c.a.clone(), shift_m: [c.east_m, c.north_m], up_m: c.up_m };
+                    self.coregistration = None;
+                }
+            }
+            Some(Err(e)) => {
+                ui.colored_label(egui::Color32::LIGHT_RED, e);
+            }
+            None => {}
+        }
+        action
+    }
+}
+
+/// The statistics, the histogram and the slope classes of a comparison.
+fn comparison_ui(ui: &mut egui::Ui, c: &Comparison) {
+    let s = &c.stats;
+    ui.label(format!("{} - {} at level {} ({:.0} m), by cell area", c.a, c.b, c.level, c.spacing_m));
+    egui::Grid::new("compare stats").num_columns(4).show(ui, |ui| {
+        let mut cell = |name: &str, v: String| {
+            ui.label(name);
+            ui.monospace(v);
+        };
+        cell("samples", s.count.to_string());
+        cell("no data", s.nodata_count.to_string());
+        ui.end_row();
+        for (k, (name, v)) in [
+            ("mean", s.mean_m),
+            ("median", s.median_m),
+            ("std", s.std_m),
+            ("RMSE", s.rmse_m),
+            ("NMAD", s.nmad_m),
+            ("LE90", s.le90_m),
+            ("min", s.min_m),
+            ("max", s.max_m),
+            ("p90 |dh|", s.p90_abs_m),
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            ui.label(name);
+            ui.monospace(format!("{v:.2} m"));
+            if k % 2 == 1 {
+                ui.end_row();
+            }
+        }
+        ui.end_row();
+    });
+    // The histogram: bars scaled to the largest bin.
+    let h = &c.histogram;
+    let (rect, _) = ui.allocate_exact_size(egui::vec2(ui.available_width().min(280.0), 70.0), egui::Sense::hover());
+    let peak = h.count.iter().copied().max().unwrap_or(1).max(1) as f32;
+    let width = rect.width() / h.count.len().max(1) as f32;
+    let painter = ui.painter_at(rect);
+    painter.rect_filled(rect, 0.0, ui.visuals().extreme_bg_color);
+    for (k, n) in h.count.iter().enumerate() {
+        let height = rect.height() * (*n as f32 / peak);
+        let x = rect.left() + k as f32 * width;
+        painter.rect_filled(
+            egui::Rect::from_min_max(egui::pos2(x, rect.bottom() - height), egui::pos2(x + width - 1.0, rect.bottom())),
+            0.0,
+            ui.visuals().selection.bg_fill,
+        );
+    }
+    if let (Some(lo), Some(hi)) = (h.edges_m.first(), h.edges_m.last()) {
+        ui.label(egui::RichText::new(format!("dh {lo:.1} … {hi:.1} m")).small());
+    }
+    egui::Grid::new("compare slopes").num_columns(4).striped(true).show(ui, |ui| {
+        for head in ["slope of B", "samples", "median", "NMAD"] {
+            ui.label(egui::RichText::new(head).small());
+        }
+        ui.end_row();
+        for k in &c.by_slope {
+            ui.label(format!("{}–{}°", k.min_deg, k.max_deg));
+            ui.monospace(k.stats.count.to_string());
+            ui.monospace(format!("{:.2}", k.stats.median_m));
+            ui.monospace(format!("{:.2}", k.stats.nmad_m));
+            ui.end_row();
+        }
+    });
+}
