@@ -183,6 +183,9 @@ pub fn bench_compare(settings: &CompareBenchSettings) -> Result<String, String> 
         ref_tif.display(),
         moved_tif.display()
     );
+    for store in ["synthetic_ref.gpkg", "synthetic_moved.gpkg"] {
+        let _ = std::fs::remove_file(settings.out.join(store)); // time a fresh import
+    }
     let synthetic_path = settings.out.join("synthetic.json");
     crate::files::write_atomic(&synthetic_path, synthetic.as_bytes()).map_err(|e| e.to_string())?;
     let t = Instant::now();
