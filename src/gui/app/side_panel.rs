@@ -1,0 +1,226 @@
+//! The settings panel on the left: views, camera, detail, colour, isolines, lighting, the layer
+//! stack, adding datasets, comparison, saving and the project's facts.
+
+use super::*;
+
+impl App {
+    pub(super) fn side_panel(&mut self, ui: &mut egui::Ui) {
+        egui::ScrollArea::vertical().show(ui, |ui| {
+            ui.heading("Views");
+            let names: Vec<String> = self.project.views.keys().cloned().collect();
+            ui.horizontal_wrapped(|ui| {
+                for name in names {
+                    if ui.button(&name).clicked() {
+                        let spec = self.project.views[&name];
+                        self.set_camera(spec);
+                    }
+                }
+                if ui.button("home").on_hover_text("the view the window opened with (key H)").clicked() {
+                    self.set_camera(self.home);
+                }
+            });
+            ui.horizontal(|ui| {
+                ui.add(egui::TextEdit::singleline(&mut self.view_name).hint_text("name").desired_width(110.0));
+                if ui.button("save view").on_hover_text("adds the current camera to the project's views").clicked() {
+                    self.save_view();
+                }
+            });
+
+            ui.separator();
+            ui.heading("Camera");
+            let mut c = self.camera;
+            egui::Grid::new("camera").num_columns(2).show(ui, |ui| {
+                let row = |ui: &mut egui::Ui, label: &str, v: &mut f64, speed: f64, range: (f64, f64), unit: &str| {
+                    let name = ui.label(label).id;
+                    ui.add(egui::DragValue::new(v).speed(speed).range(range.0..=range.1).suffix(unit).max_decimals(6))
+                        .labelled_by(name);
+                    ui.end_row();
+                };
+                row(ui, "latitude", &mut c.lat, 0.01, (-90.0, 90.0), "°");
+                row(ui, "longitude", &mut c.lon, 0.01, (-180.0, 180.0), "°");
+                let alt_speed = (c.alt.abs() * 0.01).max(1.0);
+                row(ui, "altitude", &mut c.alt, alt_speed, (-1.0e5, 1.0e9), " m");
+                row(ui, "heading", &mut c.heading, 0.5, (0.0, 360.0), "°");
+                row(ui, "pitch", &mut c.pitch, 0.5, (-90.0, 90.0), "°");
+                row(ui, "field of view", &mut c.fov, 0.5, (1.0, 150.0), "°");
+            });
+            self.set_camera(c);
+            let text = format!(
+                "{:.6},{:.6},{:.1},{:.2},{:.2},{:.1}",
+                self.camera.lat,
+                self.camera.lon,
+                self.camera.alt,
+                self.camera.heading,
+                self.camera.pitch,
+                self.camera.fov
+            );
+            ui.label(egui::RichText::new(format!("--camera {text}")).monospace().small())
+                .on_hover_text("this camera for terrafuse render");
+
+            ui.separator();
+            ui.heading("Detail");
+            let t = self.threshold_px;
+            ui.add(egui::Slider::new(&mut self.threshold_px, 0.5..=8.0).logarithmic(true).text("t, pixels per sample"));
+            if t != self.threshold_px {
+                self.renderer.set_threshold(self.threshold_px);
+                self.dirty = true;
+                self.unsaved = true;
+            }
+            let s = self.render_scale;
+            ui.add(egui::Slider::new(&mut self.render_scale, 0.25..=1.0).text("render scale"))
+                .on_hover_text("renders fewer pixels and scales the image up (for software GPUs)");
+            if s != self.render_scale {
+                self.dirty = true;
+            }
+
+            ui.separator();
+            ui.heading("Colour");
+            let v = &mut self.visuals;
+            let current = match &v.colour_map.file {
+                Some(f) => format!("file {}", f.display()),
+                None => v.colour_map.preset.clone(),
+            };
+            egui::ComboBox::from_label("colour map").selected_text(current).show_ui(ui, |ui| {
+                for (name, _, _) in crate::colour::PRESETS {
+                    if ui.selectable_label(v.colour_map.file.is_none() && v.colour_map.preset == *name, *name).clicked()
+                    {
+                        v.colour_map.preset = (*name).to_string();
+                        v.colour_map.file = None;
+                    }
+                }
+            });
+            let data = self.renderer.scene().range_m;
+            let mut range = v.colour_map.range_m.unwrap_or([data.0, data.1]);
+            ui.horizontal(|ui| {
+                ui.label("range");
+                let low = ui.add(egui::DragValue::new(&mut range[0]).speed(10.0).suffix(" m"));
+                low.on_hover_text("the height of the ramp's first colour");
+                let high = ui.add(egui::DragValue::new(&mut range[1]).speed(10.0).suffix(" m"));
+                high.on_hover_text("the height of the ramp's last colour");
+                if ui.small_button("data").on_hover_text("the datasets' height range").clicked() {
+                    range = [data.0, data.1];
+                }
+            });
+            if range[1] > range[0] && Some(range) != v.colour_map.range_m && range != [data.0, data.1] {
+                v.colour_map.range_m = Some(range);
+            } else if range == [data.0, data.1] {
+                v.colour_map.range_m = None;
+            }
+            ui.add(egui::Slider::new(&mut v.exaggeration, 0.1..=50.0).logarithmic(true).text("exaggeration"));
+
+            ui.separator();
+            ui.heading("Isolines");
+            let iso = &mut v.isolines;
+            ui.checkbox(&mut iso.enabled, "show isolines");
+            egui::Grid::new("isolines").num_columns(2).show(ui, |ui| {
+                let row = |ui: &mut egui::Ui, label: &str, value: egui::DragValue<'_>| {
+                    let name = ui.label(label).id;
+                    ui.add(value).labelled_by(name);
+                    ui.end_row();
+                };
+                row(
+                    ui,
+                    "interval",
+                    egui::DragValue::new(&mut iso.interval_m).speed(1.0).range(0.01..=1.0e6).suffix(" m"),
+                );
+                row(ui, "offset", egui::DragValue::new(&mut iso.offset_m).speed(1.0).suffix(" m"));
+                row(ui, "major every", egui::DragValue::new(&mut iso.major_every).range(0..=100));
+                row(ui, "width", egui::DragValue::new(&mut iso.width_px).speed(0.05).range(0.1..=10.0).suffix(" px"));
+                row(
+                    ui,
+                    "major width",
+                    egui::DragValue::new(&mut iso.major_width_px).speed(0.05).range(0.1..=10.0).suffix(" px"),
+                );
+            });
+
+            ui.separator();
+            ui.heading("Lighting");
+            let light = &mut v.lighting;
+            ui.checkbox(&mut light.enabled, "hillshade");
+            ui.add(egui::Slider::new(&mut light.sun_azimuth_deg, 0.0..=360.0).text("sun azimuth °"));
+            ui.add(egui::Slider::new(&mut light.sun_elevation_deg, 0.0..=90.0).text("sun elevation °"));
+            ui.add(egui::Slider::new(&mut light.strength, 0.0..=1.0).text("strength"));
+            self.apply_visuals();
+
+            ui.separator();
+            ui.heading("Layers");
+            let change = crate::gui::layers_panel::layers_ui(ui, &mut self.renderer, &mut self.project);
+            if change.changed {
+                self.dirty = true;
+                self.unsaved = true;
+            }
+            if let Some(e) = change.error {
+                ui.colored_label(egui::Color32::LIGHT_RED, e);
+            }
+            match self.add_dataset.ui(ui, &self.project) {
+                Some(Ok((spec, info))) => {
+                    let change =
+                        crate::gui::layers_panel::insert_dataset(&mut self.renderer, &mut self.project, spec, info);
+                    if change.changed {
+                        self.dirty = true;
+                        self.unsaved = true;
+                        self.message =
+                            format!("added dataset layer '{}'", self.project.layers.last().map_or("", |l| &l.name));
+                    }
+                    if let Some(e) = change.error {
+                        self.message = e;
+                    }
+                }
+                Some(Err(e)) => self.message = e,
+                None => {}
+            }
+
+            ui.separator();
+            ui.heading("Compare");
+            if let crate::gui::compare_panel::CompareAction::Apply { layer, shift_m, up_m } =
+                self.compare.ui(ui, &self.project)
+            {
+                self.apply_coregistration(&layer, shift_m, up_m);
+            }
+
+            ui.separator();
+            let label = if self.unsaved { "save project *" } else { "save project" };
+            if ui.button(label).on_hover_text("writes the visual settings and t into the project file").clicked() {
+                self.save_project();
+            }
+
+            ui.separator();
+            ui.heading("Project");
+            ui.label(self.project_path.display().to_string());
+            ui.label(format!("body: {}", self.project.body));
+            for info in self.renderer.scene().datasets.iter() {
+                ui.label(format!(
+                    "{}: levels 0–{}, {:.0} … {:.0} m",
+                    info.dataset, info.finest_level, info.range_m.0, info.range_m.1
+                ));
+            }
+            ui.label(egui::RichText::new(&self.device).small());
+            ui.separator();
+            ui.label(
+                egui::RichText::new(
+                    "drag: move the globe · right drag or ctrl+drag: orbit · middle drag or shift+drag: look · \
+                     wheel: zoom to the cursor · W A S D / arrows: fly · Q E: down, up · N: north up · H: home",
+                )
+                .small(),
+            );
+        });
+    }
+
+    /// Moves layer `layer` by `shift_m` more and raises it by `up_m` (a co-registration applied).
+    fn apply_coregistration(&mut self, layer: &str, shift_m: [f64; 2], up_m: f64) {
+        let Some(index) = self.project.layers.iter().position(|l| l.name == layer) else { return };
+        let mut spec = self.project.layers[index].clone();
+        spec.shift_m = [spec.shift_m[0] + shift_m[0], spec.shift_m[1] + shift_m[1]];
+        spec.offset_m += up_m;
+        match self.renderer.update_layer(index, spec.clone()) {
+            Ok(()) => {
+                self.project.layers[index] = spec;
+                self.dirty = true;
+                self.unsaved = true;
+                self.message =
+                    format!("moved '{layer}' east {:+.2} m, north {:+.2} m, up {:+.2} m", shift_m[0], shift_m[1], up_m);
+            }
+            Err(e) => self.message = e.to_string(),
+        }
+    }
+}
