@@ -70,7 +70,8 @@ enum Command {
         #[command(flatten)]
         look: LookArgs,
         /// A,B[,POSITION]: layer A left of a vertical line at POSITION (0–1 of the width,
-        /// default 0.5), layer B right of it (each shown with the other hidden).
+        /// default 0.5), layer B right of it (each shown with the other hidden); or the name of
+        /// a swipe saved in the project (comparison.swipes), with its view.
         #[arg(long)]
         swipe: Option<String>,
     },
@@ -149,10 +150,13 @@ enum Command {
         project: PathBuf,
         /// Start: LAT,LON in degrees.
         #[arg(long, allow_hyphen_values = true)]
-        from: String,
+        from: Option<String>,
         /// End: LAT,LON in degrees.
         #[arg(long, allow_hyphen_values = true)]
-        to: String,
+        to: Option<String>,
+        /// A profile line saved in the project (comparison.profiles) instead of --from and --to.
+        #[arg(long)]
+        line: Option<String>,
         /// Samples along the line (default: one per sample spacing of the level).
         #[arg(long)]
         samples: Option<usize>,
@@ -601,8 +605,8 @@ fn run(args: Args) -> Result<ExitCode> {
             .map_err(anyhow::Error::msg)?;
             print!("{report}");
         }
-        Command::Profile { project, from, to, samples, level, csv } => {
-            let request = cli::ProfileRequest { project, from, to, samples, level, csv };
+        Command::Profile { project, from, to, line, samples, level, csv } => {
+            let request = cli::ProfileRequest { project, from, to, line, samples, level, csv };
             print!("{}", cli::profile_command(&request).map_err(anyhow::Error::msg)?);
         }
         Command::Compare { project, a, b, level, region, unweighted, json, samples } => {

@@ -280,6 +280,55 @@ impl Default for DetailSpec {
     }
 }
 
+/// Saved comparison settings: swipes (`terrafuse render --swipe NAME`) and profile lines
+/// (`terrafuse profile --line NAME`), by name.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ComparisonSpec {
+    /// Swipes by name.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub swipes: BTreeMap<String, SwipeSpec>,
+    /// Profile lines by name.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub profiles: BTreeMap<String, ProfileLine>,
+}
+
+impl ComparisonSpec {
+    fn is_empty(&self) -> bool {
+        self.swipes.is_empty() && self.profiles.is_empty()
+    }
+}
+
+/// A swipe: layer `a` left of a vertical line, layer `b` right of it.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SwipeSpec {
+    /// The layer left of the line.
+    pub a: String,
+    /// The layer right of the line.
+    pub b: String,
+    /// Where the line is, 0–1 of the width.
+    #[serde(default = "half")]
+    pub position: f64,
+    /// The view to show it from (default: the project's default view).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub view: Option<String>,
+}
+
+fn half() -> f64 {
+    0.5
+}
+
+/// A profile line: from and to, `[lat, lon]` in degrees.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ProfileLine {
+    /// Start, `[lat, lon]` degrees.
+    pub from: [f64; 2],
+    /// End, `[lat, lon]` degrees.
+    pub to: [f64; 2],
+}
+
 /// The project: what `terrafuse render` and the workstation open.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -305,6 +354,9 @@ pub struct Project {
     /// The view shown when none is asked for (default: the first by name).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub default_view: Option<String>,
+    /// Saved swipes and profile lines.
+    #[serde(default, skip_serializing_if = "ComparisonSpec::is_empty")]
+    pub comparison: ComparisonSpec,
     /// The folder relative paths resolve against (not saved).
     #[serde(skip)]
     pub base_dir: PathBuf,
@@ -322,6 +374,7 @@ impl Project {
             detail: DetailSpec::default(),
             views: BTreeMap::new(),
             default_view: None,
+            comparison: ComparisonSpec::default(),
             base_dir: PathBuf::from("."),
         }
     }
@@ -378,6 +431,34 @@ impl Project {
                 return Err(format!("layers[{k}]: layer '{}' is listed twice", layer.name));
             }
             layer.check(radius_m).map_err(|e| format!("layers[{k}]: {e}"))?;
+        }
+        for (name, s) in &self.comparison.swipes {
+            let at = format!("comparison.swipes.{name}");
+            for layer in [&s.a, &s.b] {
+                if !names.contains(layer) {
+                    return Err(format!("{at}: layer '{layer}' is not in the project"));
+                }
+            }
+            if s.a == s.b {
+                return Err(format!("{at}: a and b are the same layer"));
+            }
+            if !(0.0..=1.0).contains(&s.position) {
+                return Err(format!("{at}.position: {} must lie within 0–1 of the width", s.position));
+            }
+            if let Some(v) = &s.view
+                && !self.views.contains_key(v)
+            {
+                return Err(format!("{at}.view: '{v}' is not one of the views"));
+            }
+        }
+        for (name, line) in &self.comparison.profiles {
+            for (end, [lat, lon]) in [("from", line.from), ("to", line.to)] {
+                if !(lat.abs() <= 90.0 && lon.abs() <= 180.0) {
+                    return Err(format!(
+                        "comparison.profiles.{name}.{end}: [{lat}, {lon}] is not [lat, lon] in degrees"
+                    ));
+                }
+            }
         }
         let v = &self.visuals;
         if !(v.exaggeration.is_finite() && v.exaggeration > 0.0) {
@@ -450,6 +531,8 @@ impl Project {
 
     /// Writes the project atomically (paths as they are, relative ones stay relative).
     pub fn save(&self, path: &Path) -> Result<(), ProjectError> {
+        // Never write a file that would not load again.
+        self.check().map_err(|e| ProjectError::new(path, format!("not saved: {e}")))?;
         let mut text = serde_json::to_string_pretty(self).map_err(|e| ProjectError::new(path, e.to_string()))?;
         text.push('\n');
         crate::files::write_atomic(path, text.as_bytes())

@@ -97,6 +97,18 @@ fn a_layer_offset_by_5_m_differs_by_exactly_5_m_everywhere() {
 }
 
 #[test]
+fn a_saved_swipe_or_profile_that_names_no_layer_is_refused_on_load() {
+    let mut p = Project::load(&project()).unwrap();
+    p.comparison.swipes.get_mut("blurred-srtm").unwrap().b = "gone".into();
+    let bad = repo_path("tests/out/compare/bad-swipe.json");
+    p.save(&bad).unwrap_err(); // save checks too, and refuses
+    let text = std::fs::read_to_string(project()).unwrap().replace(r#""b": "srtm""#, r#""b": "gone""#);
+    std::fs::write(&bad, text).unwrap();
+    let e = Project::load(&bad).unwrap_err().to_string();
+    assert!(e.contains("comparison.swipes.blurred-srtm: layer 'gone' is not in the project"), "{e}");
+}
+
+#[test]
 fn bad_input_is_refused_by_name() {
     let p = project();
     let p = p.to_str().unwrap();
@@ -303,6 +315,23 @@ fn a_profile_follows_the_geodesic_as_geographiclib_computes_it_and_samples_every
         assert!(r[3].is_nan() && r[4].is_nan() || (r[3] - r[4]).abs() < 1e-3, "{r:?}");
         assert!(r[3].is_nan() || (1000.0..3500.0).contains(&r[3]), "{r:?}");
     }
+    // The line saved in the project is the same line.
+    let saved_csv = repo_path("tests/out/compare/profile-saved.csv");
+    run(&[
+        "profile",
+        p.to_str().unwrap(),
+        "--line",
+        "across",
+        "--samples",
+        "201",
+        "--csv",
+        saved_csv.to_str().unwrap(),
+    ]);
+    assert_eq!(std::fs::read_to_string(&saved_csv).unwrap(), text);
+    let out = terrafuse(&["profile", p.to_str().unwrap(), "--line", "nope"], "");
+    assert!(
+        String::from_utf8_lossy(&out.stderr).contains("--line nope: not a profile line of the project (saved: across)")
+    );
     let out = terrafuse(&["profile", p.to_str().unwrap(), "--from", "95,40", "--to", "39,40"], "");
     assert!(String::from_utf8_lossy(&out.stderr).contains("--from: 95,40 is not a latitude, longitude"));
 }
@@ -338,6 +367,10 @@ fn a_swiped_render_shows_a_left_of_the_line_and_b_right_of_it() {
         }
     }
     assert!(different > same, "left of the line should show the blurred layer: {different} differ, {same} same");
+    // The swipe saved in the project, with its view.
+    let (saved, report) = render("saved", &["--swipe", "blurred-srtm"]);
+    assert!(report.contains("swipe: 'blurred' left of 50 % of the width, 'srtm' right of it"), "{report}");
+    assert_eq!(saved.dimensions(), (w, h));
     let out = terrafuse(&["render", p.to_str().unwrap(), "--out", "/tmp/x.png", "--swipe", "blurred,nope"], "");
     assert!(String::from_utf8_lossy(&out.stderr).contains("--swipe blurred,nope: layer 'nope' is not in the project"));
 }

@@ -13,9 +13,11 @@ pub struct ProfileRequest {
     /// The project file.
     pub project: PathBuf,
     /// `LAT,LON` of the start, degrees.
-    pub from: String,
+    pub from: Option<String>,
     /// `LAT,LON` of the end, degrees.
-    pub to: String,
+    pub to: Option<String>,
+    /// A profile line saved in the project instead of `from` and `to`.
+    pub line: Option<String>,
     /// Samples along the line.
     pub samples: Option<usize>,
     /// The level.
@@ -38,13 +40,19 @@ fn parse_point(option: &str, text: &str) -> Result<[f64; 2], String> {
 
 /// Samples the profile, writes the CSV if asked; returns what to print.
 pub fn profile_command(request: &ProfileRequest) -> Result<String, String> {
-    let opts = ProfileOptions {
-        from: parse_point("--from", &request.from)?,
-        to: parse_point("--to", &request.to)?,
-        samples: request.samples,
-        level: request.level,
-    };
     let project = Project::load(&request.project).map_err(|e| e.to_string())?;
+    let (from, to) = match (&request.line, &request.from, &request.to) {
+        (Some(name), None, None) => {
+            let line = project.comparison.profiles.get(name).ok_or_else(|| {
+                let saved: Vec<&str> = project.comparison.profiles.keys().map(String::as_str).collect();
+                format!("--line {name}: not a profile line of the project (saved: {})", saved.join(", "))
+            })?;
+            (line.from, line.to)
+        }
+        (None, Some(from), Some(to)) => (parse_point("--from", from)?, parse_point("--to", to)?),
+        _ => return Err("give --from LAT,LON and --to LAT,LON, or --line NAME (a line saved in the project)".into()),
+    };
+    let opts = ProfileOptions { from, to, samples: request.samples, level: request.level };
     let p = profile(&project, &opts).map_err(|e| format!("{}: {e}", request.project.display()))?;
     if let Some(path) = &request.csv {
         crate::files::write_atomic(path, p.csv().as_bytes()).map_err(|e| format!("{}: {e}", path.display()))?;

@@ -37,11 +37,20 @@ struct Swipe {
 }
 
 fn parse_swipe(text: &str, project: &Project) -> Result<Swipe, String> {
+    if let Some(saved) = project.comparison.swipes.get(text) {
+        return Ok(Swipe { a: saved.a.clone(), b: saved.b.clone(), position: saved.position });
+    }
     let parts: Vec<&str> = text.split(',').map(str::trim).collect();
     let (a, b, position) = match parts[..] {
         [a, b] => (a, b, 0.5),
         [a, b, p] => (a, b, p.parse::<f64>().map_err(|e| format!("--swipe {text}: position {p}: {e}"))?),
-        _ => return Err(format!("--swipe {text}: give A,B or A,B,POSITION (layer names, position 0–1)")),
+        _ => {
+            let saved: Vec<&str> = project.comparison.swipes.keys().map(String::as_str).collect();
+            return Err(format!(
+                "--swipe {text}: give A,B or A,B,POSITION (layer names, position 0–1) or a saved swipe ({})",
+                if saved.is_empty() { "the project saves none".to_string() } else { saved.join(", ") }
+            ));
+        }
     };
     if !(0.0..=1.0).contains(&position) {
         return Err(format!("--swipe {text}: position {position} must lie within 0–1 of the width"));
@@ -124,8 +133,10 @@ pub fn render(request: &RenderRequest) -> Result<String, String> {
     }
     // Check the request before importing anything or opening the GPU.
     let project = Project::load(request.project).map_err(|e| e.to_string())?;
-    let camera = request_camera(&project, request.view, request.camera)?;
     let swipe = request.swipe.map(|s| parse_swipe(s, &project)).transpose()?;
+    // A saved swipe brings its view, unless the command names one.
+    let saved_view = request.swipe.and_then(|s| project.comparison.swipes.get(s)).and_then(|s| s.view.as_deref());
+    let camera = request_camera(&project, request.view.or(saved_view), request.camera)?;
     if let Some(t) = request.lod_threshold
         && !(t.is_finite() && t > 0.0)
     {

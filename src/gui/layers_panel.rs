@@ -98,7 +98,9 @@ pub fn layers_ui(ui: &mut egui::Ui, renderer: &mut Renderer, project: &mut Proje
     if let Some(index) = remove {
         match renderer.remove_layer(index) {
             Ok(()) => {
-                project.layers.remove(index);
+                let removed = project.layers.remove(index);
+                // Saved swipes that show it go with it (the project would not load otherwise).
+                project.comparison.swipes.retain(|_, s| s.a != removed.name && s.b != removed.name);
                 change.changed = true;
             }
             Err(e) => change.error = Some(e.to_string()),
