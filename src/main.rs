@@ -91,6 +91,9 @@ enum Command {
         /// Where to compose: gpu (the renderer's pass) or cpu (the reference, bit for bit).
         #[arg(long, default_value = "gpu", value_parser = ["gpu", "cpu"])]
         compose: String,
+        /// A,B: write layer A − layer B (each composed alone) instead of the stack.
+        #[arg(long)]
+        difference: Option<String>,
     },
     /// Compare layer A with layer B (the reference) of a project: statistics of A − B over
     /// their overlap at one level, weighted by each sample's cell area on the ellipsoid, by slope
@@ -617,8 +620,13 @@ fn run(args: Args) -> Result<ExitCode> {
             let request = cli::CoregRequest { project, a, b, level, region, apply, json };
             print!("{}", cli::coregister_command(&request).map_err(anyhow::Error::msg)?);
         }
-        Command::Export { project, out, raster, level, compose } => {
+        Command::Export { project, out, raster, level, compose, difference } => {
             let (crs, bounds, resolution) = raster.parse()?;
+            let difference = match difference.as_deref().map(|d| d.split(',').map(str::trim).collect::<Vec<_>>()) {
+                None => None,
+                Some(v) if v.len() == 2 && v[0] != v[1] => Some((v[0].to_string(), v[1].to_string())),
+                Some(v) => anyhow::bail!("--difference {}: give two different layers A,B", v.join(",")),
+            };
             let opts = cli::ComposedExport {
                 project,
                 out,
@@ -627,6 +635,7 @@ fn run(args: Args) -> Result<ExitCode> {
                 resolution,
                 level,
                 compose_on: if compose == "cpu" { cli::ComposeOn::Cpu } else { cli::ComposeOn::Gpu },
+                difference,
             };
             let report = cli::export_composed(&opts).map_err(anyhow::Error::msg)?;
             println!(

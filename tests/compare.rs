@@ -374,3 +374,69 @@ fn a_swiped_render_shows_a_left_of_the_line_and_b_right_of_it() {
     let out = terrafuse(&["render", p.to_str().unwrap(), "--out", "/tmp/x.png", "--swipe", "blurred,nope"], "");
     assert!(String::from_utf8_lossy(&out.stderr).contains("--swipe blurred,nope: layer 'nope' is not in the project"));
 }
+
+#[test]
+fn the_difference_raster_agrees_with_gdals_difference_of_the_sources() {
+    // `terrafuse export --difference blurred,srtm` over a box against the two source rasters
+    // warped by gdalwarp (bilinear) to the same grid and subtracted with numpy. Both sides are
+    // EGM96 heights turned ellipsoidal by the same geoid, which cancels in the difference.
+    let p = project();
+    let dir = repo_path("tests/out/compare/difference");
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let ours = dir.join("dh.tif");
+    let box_args = ["--crs", "EPSG:4326", "--bounds", "40.2,39.4,40.6,39.8", "--resolution", "0.001"];
+    let report = run(&[
+        &["export", p.to_str().unwrap(), ours.to_str().unwrap()][..],
+        &box_args,
+        &["--difference", "blurred,srtm", "--compose", "cpu"],
+    ]
+    .concat());
+    assert!(report.contains("400×400 pixels"), "{report}");
+    for (name, file) in [("a", "earth_srtm3_blurred_shifted_N39E040.tif"), ("b", "earth_srtm3_demcompare_N39E040.tif")]
+    {
+        let out = dir.join(format!("{name}.tif"));
+        common::run_tool(
+            "gdalwarp",
+            &[
+                "-q",
+                "-overwrite",
+                "-te",
+                "40.2",
+                "39.4",
+                "40.6",
+                "39.8",
+                "-tr",
+                "0.001",
+                "0.001",
+                "-r",
+                "bilinear",
+                "-ot",
+                "Float32",
+                "-dstnodata",
+                "nan",
+                repo_path(&format!("projects/data/{file}")).to_str().unwrap(),
+                out.to_str().unwrap(),
+            ],
+            "",
+        );
+    }
+    let script = format!(
+        "import rasterio, numpy as np\n\
+         r = lambda n: rasterio.open('{d}/' + n).read(1).astype(float)\n\
+         ours, gdal = r('dh.tif'), r('a.tif') - r('b.tif')\n\
+         ok = np.isfinite(ours) & np.isfinite(gdal)\n\
+         d = ours[ok] - gdal[ok]\n\
+         print(ok.sum(), np.isfinite(gdal).sum(), np.mean(d), np.median(np.abs(d)), np.mean(ours[ok]), np.mean(gdal[ok]))\n",
+        d = dir.display()
+    );
+    let out = std::process::Command::new(repo_path(".venv-ref/bin/python")).args(["-c", &script]).output().unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let v: Vec<f64> = String::from_utf8_lossy(&out.stdout).split_whitespace().map(|x| x.parse().unwrap()).collect();
+    println!(
+        "difference raster against GDAL: {} of {} pixels, mean {:.3} m, median |Δ| {:.3} m; means {:.3} / {:.3} m",
+        v[0], v[1], v[2], v[3], v[4], v[5]
+    );
+    assert!(v[0] >= 0.99 * v[1], "ours has data at {} of GDAL's {} pixels", v[0], v[1]);
+    assert!(v[2].abs() < 0.5 && v[3] < 3.0, "mean {} m, median |Δ| {} m", v[2], v[3]);
+}

@@ -40,6 +40,9 @@ pub struct ComposedExport {
     pub level: Option<u8>,
     /// Where to compose.
     pub compose_on: ComposeOn,
+    /// Write A − B of these two layers (each composed alone, as `compare` takes them) instead of
+    /// the stack: the difference raster.
+    pub difference: Option<(String, String)>,
 }
 
 /// What was written.
@@ -103,22 +106,21 @@ pub fn export_composed(opts: &ComposedExport) -> Result<ComposedReport, String> 
         .collect();
     let quads: Vec<QuadId> = cells.iter().flatten().map(|c| c.0).collect::<BTreeSet<_>>().into_iter().collect();
 
-    let (grids, composer) = match opts.compose_on {
-        ComposeOn::Cpu => (scene.compose_cpu(&quads)?, "CPU reference".to_string()),
-        ComposeOn::Gpu => {
-            let ctx = GpuContext::headless().map_err(|e| e.to_string())?;
-            let name = ctx.describe();
-            let mut renderer = Renderer::new(&ctx, scene, IMAGE_FORMAT).map_err(|e| e.to_string())?;
-            let mut grids = HashMap::new();
-            for batch in quads.chunks(GPU_BATCH) {
-                renderer.compose_now(batch).map_err(|e| e.to_string())?;
-                for &q in batch {
-                    // A quad the stack gives no data stays all no data.
-                    let grid = renderer.read_heights(q).map_err(|e| e.to_string())?;
-                    grids.insert(q, grid.unwrap_or_else(|| vec![f32::NAN; 257 * 257]));
+    let (grids, composer) = match &opts.difference {
+        None => compose_grids(scene, &quads, opts.compose_on)?,
+        Some((a, b)) => {
+            let alone = |name: &str| {
+                crate::compare::sample::open_alone(&project, name)
+                    .map_err(|e| format!("{}: {e}", opts.project.display()))
+            };
+            let (mut grids, composer) = compose_grids(alone(a)?, &quads, opts.compose_on)?;
+            let (minus, _) = compose_grids(alone(b)?, &quads, opts.compose_on)?;
+            for (q, g) in grids.iter_mut() {
+                for (v, w) in g.iter_mut().zip(&minus[q]) {
+                    *v -= w; // NaN where either has none
                 }
             }
-            (grids, format!("GPU, {name}"))
+            (grids, composer)
         }
     };
 
@@ -139,7 +141,10 @@ pub fn export_composed(opts: &ComposedExport) -> Result<ComposedReport, String> 
         })
         .collect();
     let valid = data.iter().filter(|v| !v.is_nan()).count() as u64;
-    let layers: Vec<String> = project.layers.iter().filter(|l| l.visible).map(|l| l.name.clone()).collect();
+    let layers: Vec<String> = match &opts.difference {
+        Some((a, b)) => vec![format!("{a} - {b} (difference)")],
+        None => project.layers.iter().filter(|l| l.visible).map(|l| l.name.clone()).collect(),
+    };
     let metadata = [
         ("TERRAFUSE_PROJECT", opts.project.to_string_lossy().into_owned()),
         ("TERRAFUSE_LAYERS", layers.join(",")),
@@ -148,4 +153,30 @@ pub fn export_composed(opts: &ComposedExport) -> Result<ComposedReport, String> 
     ];
     raster.write(&opts.out, &metadata, data).map_err(|e| e.to_string())?;
     Ok(ComposedReport { size: raster.size, level, quads: quads.len(), valid, composer })
+}
+
+/// Composes quads of a scene where asked: their 257² grids (all no data where the stack gives
+/// none) and what composed them.
+fn compose_grids(
+    scene: Scene,
+    quads: &[QuadId],
+    compose_on: ComposeOn,
+) -> Result<(HashMap<QuadId, Vec<f32>>, String), String> {
+    match compose_on {
+        ComposeOn::Cpu => Ok((scene.compose_cpu(quads)?, "CPU reference".to_string())),
+        ComposeOn::Gpu => {
+            let ctx = GpuContext::headless().map_err(|e| e.to_string())?;
+            let name = ctx.describe();
+            let mut renderer = Renderer::new(&ctx, scene, IMAGE_FORMAT).map_err(|e| e.to_string())?;
+            let mut grids = HashMap::new();
+            for batch in quads.chunks(GPU_BATCH) {
+                renderer.compose_now(batch).map_err(|e| e.to_string())?;
+                for &q in batch {
+                    let grid = renderer.read_heights(q).map_err(|e| e.to_string())?;
+                    grids.insert(q, grid.unwrap_or_else(|| vec![f32::NAN; 257 * 257]));
+                }
+            }
+            Ok((grids, format!("GPU, {name}")))
+        }
+    }
 }

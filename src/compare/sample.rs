@@ -131,7 +131,7 @@ pub(super) fn quads_at(info: &DatasetInfo, level: u8) -> HashSet<QuadId> {
 }
 
 /// Opens layer `name` alone: shown, `over`, opacity 1, its other settings as the project has them.
-pub(super) fn open_alone(project: &Project, name: &str) -> Result<Scene, CompareError> {
+pub fn open_alone(project: &Project, name: &str) -> Result<Scene, CompareError> {
     let Some(spec) = project.layers.iter().find(|l| l.name == name) else {
         let known = project.layers.iter().map(|l| l.name.as_str()).collect::<Vec<_>>().join(", ");
         return Err(CompareError::NoLayer { name: name.into(), known });
