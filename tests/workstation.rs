@@ -355,3 +355,37 @@ fn the_compare_section_shows_statistics_and_applies_a_coregistration() {
     assert!(h.state().message().starts_with("moved 'blurred' east"), "{}", h.state().message());
     settle(&mut h);
 }
+
+#[test]
+fn swiping_shows_a_left_of_a_line_and_b_right_of_it_and_the_line_drags() {
+    let dir = repo_path("tests/out/workstation-swipe");
+    let project = sample_project("erzurum-compare", &dir);
+    let mut h = harness_of_size(&project, "30km", egui::vec2(900.0, 1700.0));
+    settle(&mut h);
+    h.get_by_label("swipe blurred | srtm").click_accesskit();
+    h.run_steps(3);
+    settle(&mut h);
+    assert_eq!(h.state().swipe_position(), Some(0.5), "{}", h.state().message());
+    let visible = |stack: &terrafuse::layers::Stack, name: &str| {
+        stack.layers.iter().find(|l| l.spec.name == name).unwrap().spec.visible
+    };
+    assert!(visible(h.state().stack(), "blurred") && !visible(h.state().stack(), "srtm"), "left: A shown, B hidden");
+    let right = h.state().swipe_stack().expect("a second stack");
+    assert!(!visible(right, "blurred") && visible(right, "srtm"), "right: B shown, A hidden");
+
+    // Dragging the line moves it and not the camera.
+    let r = h.state().viewport_rect_px().unwrap();
+    let camera = h.state().camera();
+    let (x, y) = (r.left() + 0.5 * r.width(), r.center().y);
+    drag(&mut h, egui::pos2(x, y), egui::pos2(x + 120.0, y));
+    let position = h.state().swipe_position().unwrap();
+    assert!((position - (0.5 + 120.0 / r.width())).abs() < 0.02, "line at {position}");
+    assert_eq!(h.state().camera(), camera, "the camera stayed");
+    settle(&mut h);
+    // The window as it looks, for people (not compared).
+    h.render().unwrap().save(dir.join("swipe.png")).unwrap();
+    // Unticked, the view is one picture again.
+    h.get_by_label("swipe blurred | srtm").click_accesskit();
+    h.run_steps(2);
+    assert_eq!(h.state().swipe_position(), None);
+}

@@ -35,6 +35,11 @@ pub struct ComparePanel {
 }
 
 impl ComparePanel {
+    /// The layers chosen: A and B (the reference).
+    pub fn selection(&self) -> (&str, &str) {
+        (&self.a, &self.b)
+    }
+
     /// Whether a computation runs.
     pub fn busy(&self) -> bool {
         self.comparing.is_some() || self.coregistering.is_some()

@@ -15,6 +15,7 @@ use crate::gpu::{Camera, FrameStats, Renderer};
 use crate::project::{CameraSpec, Project, Visuals};
 
 mod side_panel;
+mod swipe;
 
 /// A screenshot the window is asked to take once its frame has settled, then close.
 pub struct ScreenshotJob {
@@ -74,6 +75,10 @@ pub struct App {
     add_dataset: crate::gui::add_dataset::AddDataset,
     /// The *Compare* section.
     compare: crate::gui::compare_panel::ComparePanel,
+    /// A swipe in progress (a second renderer).
+    swipe: Option<swipe::Swipe>,
+    /// A swipe asked for by the panel, started on the next frame (it needs the device).
+    swipe_request: Option<(String, String)>,
 }
 
 impl App {
@@ -120,6 +125,8 @@ impl App {
             closing: false,
             add_dataset: Default::default(),
             compare: Default::default(),
+            swipe: None,
+            swipe_request: None,
         }
     }
 
@@ -132,6 +139,8 @@ impl App {
     /// GPU cache is full of this frame's quads (nothing more can arrive).
     pub fn settled(&self) -> bool {
         !self.dirty
+            && self.swipe_request.is_none()
+            && self.swipe_settled()
             && self.frames > 0
             && (self.stats.pending == 0 || self.stats.blocked > 0)
             && self.stats.uploads == 0
@@ -142,6 +151,11 @@ impl App {
     /// Whether settings changed since the project was saved.
     pub fn unsaved(&self) -> bool {
         self.unsaved
+    }
+
+    /// The viewport's rectangle in the window, physical pixels (after the first frame).
+    pub fn viewport_rect_px(&self) -> Option<egui::Rect> {
+        self.viewport_px
     }
 
     /// The *Compare* section (its last results).
@@ -388,6 +402,7 @@ impl App {
         let waiting = self.stats.pending > 0 && self.stats.blocked == 0;
         let streaming =
             waiting || self.stats.uploads > 0 || self.stats.requested > 0 || !self.stats.composed.is_empty();
+        let draw_swipe = self.dirty;
         if self.dirty || streaming {
             let t = Instant::now();
             let stats = self.renderer.prepare(&self.camera, w, h);
@@ -410,6 +425,7 @@ impl App {
         } else if self.hover.is_some() && vp.hits[0].is_none_or(|h| h.pixel != cursor) {
             vp.probe(rs, [cursor, centre]);
         }
+        self.render_swipe(rs, (w, h), draw_swipe);
     }
 
     /// In screenshot mode: once the frame has settled and been shown, take the window's picture,
@@ -548,14 +564,23 @@ impl eframe::App for App {
             let response = ui.allocate_rect(rect, egui::Sense::click_and_drag());
             let size_px = ((rect.width() * ppp).round() as u32, (rect.height() * ppp).round() as u32);
             self.viewport_px = Some(egui::Rect::from_min_size((rect.min.to_vec2() * ppp).to_pos2(), rect.size() * ppp));
-            self.navigate(ui, &response, rect);
+            if let (Some((a, b)), Some(rs)) = (self.swipe_request.take(), frame.wgpu_render_state())
+                && let Err(e) = self.start_swipe(rs, &a, &b)
+            {
+                self.message = e;
+            }
+            if !self.drag_swipe(ui, &response, rect) {
+                self.navigate(ui, &response, rect);
+            }
             self.render(frame, size_px);
-            if let Some(vp) = &self.viewport {
+            if !self.paint_swipe(ui, rect)
+                && let Some(vp) = &self.viewport
+            {
                 let uv = egui::Rect::from_min_max(egui::pos2(0.0, 0.0), egui::pos2(1.0, 1.0));
                 ui.painter().image(vp.texture, rect, uv, egui::Color32::WHITE);
             }
         });
-        if self.stats.pending > 0 || self.stats.uploads > 0 || self.stats.requested > 0 {
+        if self.stats.pending > 0 || self.stats.uploads > 0 || self.stats.requested > 0 || !self.swipe_settled() {
             ui.ctx().request_repaint_after(Duration::from_millis(30));
         }
         self.screenshot(ui);

@@ -148,6 +148,10 @@ impl App {
             if change.changed {
                 self.dirty = true;
                 self.unsaved = true;
+                if self.swipe.take().is_some() {
+                    // The second stack would no longer match the first.
+                    self.message = "swipe stopped: the layer stack changed".into();
+                }
             }
             if let Some(e) = change.error {
                 ui.colored_label(egui::Color32::LIGHT_RED, e);
@@ -176,6 +180,23 @@ impl App {
                 self.compare.ui(ui, &self.project)
             {
                 self.apply_coregistration(&layer, shift_m, up_m);
+            }
+            let (a, b) = self.compare.selection();
+            let (a, b) = (a.to_string(), b.to_string());
+            if !a.is_empty() && a != b {
+                let mut on = self.swipe.is_some();
+                if ui
+                    .checkbox(&mut on, format!("swipe {a} | {b}"))
+                    .on_hover_text("A left of a line, B right of it; drag the line in the view")
+                    .changed()
+                {
+                    if on {
+                        self.swipe_request = Some((a, b));
+                    } else {
+                        self.swipe = None;
+                        self.dirty = true;
+                    }
+                }
             }
 
             ui.separator();

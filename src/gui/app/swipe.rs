@@ -1,0 +1,150 @@
+//! Swipe in the workstation: layer A left of a vertical line, layer B right of it, from one
+//! camera. The window's renderer shows the project with A shown and B hidden; a second renderer
+//! on the same device shows it with B shown and A hidden, into a viewport of its own; the two
+//! pictures are painted on either side of the line, which is dragged sideways.
+
+use super::*;
+use crate::gpu::GpuContext;
+use crate::layers::LayerSpec;
+
+/// Within this many points of the line a drag moves the line instead of the camera.
+const GRAB_PT: f32 = 8.0;
+
+/// A swipe in progress.
+pub(crate) struct Swipe {
+    /// The layer left of the line.
+    pub(crate) a: String,
+    /// The layer right of the line.
+    pub(crate) b: String,
+    /// Where the line is, 0–1 of the viewport's width.
+    pub(crate) position: f32,
+    /// The stack with B shown and A hidden.
+    pub(crate) renderer: Renderer,
+    viewport: Option<Viewport>,
+    stats: FrameStats,
+    dragging: bool,
+}
+
+impl App {
+    /// Starts swiping layer `a` (left) against layer `b` (right): A is shown and B hidden in the
+    /// window's stack, and a second renderer shows the reverse.
+    pub(super) fn start_swipe(&mut self, rs: &egui_wgpu::RenderState, a: &str, b: &str) -> Result<(), String> {
+        let index = |name: &str| {
+            self.project
+                .layers
+                .iter()
+                .position(|l| l.name == name)
+                .ok_or(format!("layer '{name}' is not in the project"))
+        };
+        let (ia, ib) = (index(a)?, index(b)?);
+        for (i, visible) in [(ia, true), (ib, false)] {
+            let spec = LayerSpec { visible, ..self.project.layers[i].clone() };
+            self.renderer.update_layer(i, spec.clone()).map_err(|e| e.to_string())?;
+            self.project.layers[i] = spec;
+        }
+        let mut other = self.project.clone();
+        other.layers[ia].visible = false;
+        other.layers[ib].visible = true;
+        let (scene, _) = crate::gpu::Scene::open(&other)?;
+        let ctx = GpuContext {
+            device: rs.device.clone(),
+            queue: rs.queue.clone(),
+            info: rs.adapter.get_info(),
+            timestamps: rs.device.features().contains(wgpu::Features::TIMESTAMP_QUERY),
+        };
+        let mut renderer = Renderer::new(&ctx, scene, crate::gpu::IMAGE_FORMAT).map_err(|e| e.to_string())?;
+        renderer.set_threshold(self.threshold_px);
+        self.swipe = Some(Swipe {
+            a: a.into(),
+            b: b.into(),
+            position: 0.5,
+            renderer,
+            viewport: None,
+            stats: FrameStats::default(),
+            dragging: false,
+        });
+        self.dirty = true;
+        self.message = format!("swipe: '{a}' left of the line, '{b}' right of it");
+        Ok(())
+    }
+
+    /// The second picture, drawn when the first is (or while its own data stream in).
+    pub(super) fn render_swipe(&mut self, rs: &egui_wgpu::RenderState, size: (u32, u32), draw: bool) {
+        let camera = self.camera;
+        let Some(s) = &mut self.swipe else { return };
+        let vp = s.viewport.get_or_insert_with(|| Viewport::new(rs, size.0, size.1));
+        let resized = vp.resize(rs, size.0, size.1);
+        vp.collect(rs);
+        let streaming =
+            s.stats.pending > 0 || s.stats.uploads > 0 || s.stats.requested > 0 || !s.stats.composed.is_empty();
+        if draw || resized || streaming || s.stats.selection.quads.is_empty() {
+            s.stats = s.renderer.prepare(&camera, size.0, size.1);
+            let centre = (size.0 / 2, size.1 / 2);
+            if let Err(e) = vp.render(rs, &s.renderer, [centre, centre]) {
+                self.message = e;
+            }
+        }
+    }
+
+    /// Whether the second picture is complete.
+    pub(super) fn swipe_settled(&self) -> bool {
+        self.swipe.as_ref().is_none_or(|s| {
+            (s.stats.pending == 0 || s.stats.blocked > 0)
+                && s.stats.uploads == 0
+                && s.stats.requested == 0
+                && s.stats.composed.is_empty()
+        })
+    }
+
+    /// Moves the line when a drag starts on it; true while the line is being dragged (the camera
+    /// then stays).
+    pub(super) fn drag_swipe(&mut self, ui: &egui::Ui, response: &egui::Response, rect: egui::Rect) -> bool {
+        let Some(s) = &mut self.swipe else { return false };
+        let line_x = rect.left() + s.position * rect.width();
+        // Where the press began decides (the pointer has moved by the time a drag is seen).
+        if response.drag_started()
+            && let Some(p) = ui.input(|i| i.pointer.press_origin()).or_else(|| response.interact_pointer_pos())
+        {
+            s.dragging = (p.x - line_x).abs() <= GRAB_PT;
+        }
+        if !s.dragging {
+            return false;
+        }
+        if let Some(p) = ui.input(|i| i.pointer.latest_pos()) {
+            s.position = ((p.x - rect.left()) / rect.width()).clamp(0.0, 1.0);
+        }
+        if response.drag_stopped() || !response.dragged() {
+            s.dragging = false;
+        }
+        true
+    }
+
+    /// Paints both pictures, split at the line, and the line.
+    pub(super) fn paint_swipe(&self, ui: &egui::Ui, rect: egui::Rect) -> bool {
+        let (Some(s), Some(main)) = (&self.swipe, &self.viewport) else { return false };
+        let Some(other) = &s.viewport else { return false };
+        let split = rect.left() + s.position * rect.width();
+        let left = egui::Rect::from_min_max(rect.min, egui::pos2(split, rect.bottom()));
+        let right = egui::Rect::from_min_max(egui::pos2(split, rect.top()), rect.max);
+        let uv = |x0: f32, x1: f32| egui::Rect::from_min_max(egui::pos2(x0, 0.0), egui::pos2(x1, 1.0));
+        ui.painter().image(main.texture, left, uv(0.0, s.position), egui::Color32::WHITE);
+        ui.painter().image(other.texture, right, uv(s.position, 1.0), egui::Color32::WHITE);
+        ui.painter().vline(split, rect.y_range(), egui::Stroke::new(2.0, egui::Color32::WHITE));
+        let label = |text: &str, pos: egui::Pos2, align: egui::Align2| {
+            ui.painter().text(pos, align, text, egui::FontId::proportional(13.0), egui::Color32::WHITE);
+        };
+        label(&s.a, egui::pos2(split - 6.0, rect.top() + 6.0), egui::Align2::RIGHT_TOP);
+        label(&s.b, egui::pos2(split + 6.0, rect.top() + 6.0), egui::Align2::LEFT_TOP);
+        true
+    }
+
+    /// Where the swipe's line is (0–1 of the width), if swiping.
+    pub fn swipe_position(&self) -> Option<f32> {
+        self.swipe.as_ref().map(|s| s.position)
+    }
+
+    /// The second renderer's stack, if swiping.
+    pub fn swipe_stack(&self) -> Option<&crate::layers::Stack> {
+        self.swipe.as_ref().map(|s| &s.renderer.scene().stack)
+    }
+}
