@@ -389,3 +389,47 @@ fn swiping_shows_a_left_of_a_line_and_b_right_of_it_and_the_line_drags() {
     h.run_steps(2);
     assert_eq!(h.state().swipe_position(), None);
 }
+
+/// Clicks at a point of the window: hover (for the probe), press, release.
+fn click(h: &mut Harness<'static, App>, at: egui::Pos2) {
+    h.hover_at(at);
+    for _ in 0..6 {
+        h.step();
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    h.drag_at(at);
+    h.step();
+    h.drop_at(at);
+    h.step();
+}
+
+#[test]
+fn a_profile_drawn_with_two_clicks_shows_each_visible_layer_and_saves_its_line() {
+    let dir = repo_path("tests/out/workstation-profile");
+    let project = sample_project("erzurum-compare", &dir);
+    let mut h = harness_of_size(&project, "30km", egui::vec2(900.0, 1700.0));
+    settle(&mut h);
+    h.get_by_label("draw a profile").click_accesskit();
+    h.run_steps(2);
+    let r = h.state().viewport_rect_px().unwrap();
+    click(&mut h, egui::pos2(r.left() + 0.3 * r.width(), r.top() + 0.6 * r.height()));
+    assert_eq!(h.state().message(), "profile: click its end");
+    click(&mut h, egui::pos2(r.left() + 0.7 * r.width(), r.top() + 0.5 * r.height()));
+    for _ in 0..3000 {
+        h.step();
+        if !h.state().profile_busy() {
+            break;
+        }
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    let p = h.state().last_profile().expect("a profile");
+    assert_eq!(p.layers.iter().map(|(n, _)| n.as_str()).collect::<Vec<_>>(), ["srtm"], "the visible layers");
+    assert!(p.length_m > 1000.0 && p.distance_m.len() == 400, "{} m, {} samples", p.length_m, p.distance_m.len());
+    assert!(p.composed.iter().filter(|v| !v.is_nan()).count() > 300);
+    h.run_steps(2);
+    h.render().unwrap().save(dir.join("profile.png")).unwrap(); // for people, not compared
+    h.get_by_label("save line").click_accesskit();
+    h.step();
+    assert!(h.state().project().comparison.profiles.contains_key("line 1"), "{}", h.state().message());
+    assert!(h.state().unsaved());
+}

@@ -14,6 +14,7 @@ use crate::gpu::scene::resolve_ramp;
 use crate::gpu::{Camera, FrameStats, Renderer};
 use crate::project::{CameraSpec, Project, Visuals};
 
+mod profile;
 mod side_panel;
 mod swipe;
 
@@ -79,6 +80,8 @@ pub struct App {
     swipe: Option<swipe::Swipe>,
     /// A swipe asked for by the panel, started on the next frame (it needs the device).
     swipe_request: Option<(String, String)>,
+    /// The profile tool.
+    profile: profile::ProfileTool,
 }
 
 impl App {
@@ -127,6 +130,7 @@ impl App {
             compare: Default::default(),
             swipe: None,
             swipe_request: None,
+            profile: Default::default(),
         }
     }
 
@@ -151,6 +155,11 @@ impl App {
     /// Whether settings changed since the project was saved.
     pub fn unsaved(&self) -> bool {
         self.unsaved
+    }
+
+    /// The project as edited so far (saved or not).
+    pub fn project(&self) -> &Project {
+        &self.project
     }
 
     /// The viewport's rectangle in the window, physical pixels (after the first frame).
@@ -569,7 +578,7 @@ impl eframe::App for App {
             {
                 self.message = e;
             }
-            if !self.drag_swipe(ui, &response, rect) {
+            if !self.drag_swipe(ui, &response, rect) && !self.pick_profile(&response) {
                 self.navigate(ui, &response, rect);
             }
             self.render(frame, size_px);

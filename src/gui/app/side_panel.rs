@@ -181,6 +181,7 @@ impl App {
             {
                 self.apply_coregistration(&layer, shift_m, up_m);
             }
+            self.profile_ui(ui);
             let (a, b) = self.compare.selection();
             let (a, b) = (a.to_string(), b.to_string());
             if !a.is_empty() && a != b {
