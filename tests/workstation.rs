@@ -384,6 +384,14 @@ fn swiping_shows_a_left_of_a_line_and_b_right_of_it_and_the_line_drags() {
     settle(&mut h);
     // The window as it looks, for people (not compared).
     h.render().unwrap().save(dir.join("swipe.png")).unwrap();
+    // Side by side: two linked views, each the whole picture at half the width.
+    h.get_by_label("side by side").click_accesskit();
+    h.run_steps(2);
+    settle(&mut h);
+    assert!(h.state().side_by_side());
+    let half = h.state().viewport_rect_px().unwrap();
+    assert!((half.width() - r.width() / 2.0).abs() <= 1.0, "{} of {}", half.width(), r.width());
+    h.render().unwrap().save(dir.join("side-by-side.png")).unwrap(); // for people, not compared
     // Unticked, the view is one picture again.
     h.get_by_label("swipe blurred | srtm").click_accesskit();
     h.run_steps(2);

@@ -571,15 +571,17 @@ impl eframe::App for App {
                 ((avail.max.to_vec2() * ppp).floor() / ppp).to_pos2(),
             );
             let response = ui.allocate_rect(rect, egui::Sense::click_and_drag());
-            let size_px = ((rect.width() * ppp).round() as u32, (rect.height() * ppp).round() as u32);
-            self.viewport_px = Some(egui::Rect::from_min_size((rect.min.to_vec2() * ppp).to_pos2(), rect.size() * ppp));
+            // With linked views each picture takes half the width.
+            let view = self.view_rect(ui, rect);
+            let size_px = ((view.width() * ppp).round() as u32, (view.height() * ppp).round() as u32);
+            self.viewport_px = Some(egui::Rect::from_min_size((view.min.to_vec2() * ppp).to_pos2(), view.size() * ppp));
             if let (Some((a, b)), Some(rs)) = (self.swipe_request.take(), frame.wgpu_render_state())
                 && let Err(e) = self.start_swipe(rs, &a, &b)
             {
                 self.message = e;
             }
             if !self.drag_swipe(ui, &response, rect) && !self.pick_profile(&response) {
-                self.navigate(ui, &response, rect);
+                self.navigate(ui, &response, view);
             }
             self.render(frame, size_px);
             if !self.paint_swipe(ui, rect)

@@ -198,6 +198,14 @@ impl App {
                         self.dirty = true;
                     }
                 }
+                if let Some(swipe) = &mut self.swipe
+                    && ui
+                        .checkbox(&mut swipe.side_by_side, "side by side")
+                        .on_hover_text("two linked views, one camera, instead of one split picture")
+                        .changed()
+                {
+                    self.dirty = true;
+                }
             }
 
             ui.separator();

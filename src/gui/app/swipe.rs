@@ -18,6 +18,9 @@ pub(crate) struct Swipe {
     pub(crate) b: String,
     /// Where the line is, 0–1 of the viewport's width.
     pub(crate) position: f32,
+    /// Two linked views side by side (each the whole picture at half the width) instead of
+    /// one picture split at the line.
+    pub(crate) side_by_side: bool,
     /// The stack with B shown and A hidden.
     pub(crate) renderer: Renderer,
     viewport: Option<Viewport>,
@@ -58,6 +61,7 @@ impl App {
             a: a.into(),
             b: b.into(),
             position: 0.5,
+            side_by_side: false,
             renderer,
             viewport: None,
             stats: FrameStats::default(),
@@ -100,6 +104,9 @@ impl App {
     /// then stays).
     pub(super) fn drag_swipe(&mut self, ui: &egui::Ui, response: &egui::Response, rect: egui::Rect) -> bool {
         let Some(s) = &mut self.swipe else { return false };
+        if s.side_by_side {
+            return false;
+        }
         let line_x = rect.left() + s.position * rect.width();
         // Where the press began decides (the pointer has moved by the time a drag is seen).
         if response.drag_started()
@@ -123,6 +130,23 @@ impl App {
     pub(super) fn paint_swipe(&self, ui: &egui::Ui, rect: egui::Rect) -> bool {
         let (Some(s), Some(main)) = (&self.swipe, &self.viewport) else { return false };
         let Some(other) = &s.viewport else { return false };
+        let whole = egui::Rect::from_min_max(egui::pos2(0.0, 0.0), egui::pos2(1.0, 1.0));
+        if s.side_by_side {
+            let (left, right) = halves(rect);
+            ui.painter().image(main.texture, left, whole, egui::Color32::WHITE);
+            ui.painter().image(other.texture, right, whole, egui::Color32::WHITE);
+            ui.painter().vline(right.left(), rect.y_range(), egui::Stroke::new(2.0, egui::Color32::WHITE));
+            for (text, r) in [(&s.a, left), (&s.b, right)] {
+                ui.painter().text(
+                    r.left_top() + egui::vec2(6.0, 6.0),
+                    egui::Align2::LEFT_TOP,
+                    text,
+                    egui::FontId::proportional(13.0),
+                    egui::Color32::WHITE,
+                );
+            }
+            return true;
+        }
         let split = rect.left() + s.position * rect.width();
         let left = egui::Rect::from_min_max(rect.min, egui::pos2(split, rect.bottom()));
         let right = egui::Rect::from_min_max(egui::pos2(split, rect.top()), rect.max);
@@ -138,6 +162,24 @@ impl App {
         true
     }
 
+    /// Whether the view shows two linked views side by side.
+    pub fn side_by_side(&self) -> bool {
+        self.swipe.as_ref().is_some_and(|s| s.side_by_side)
+    }
+
+    /// The rectangle a view is drawn in: the whole viewport, or with linked views the half under
+    /// the pointer (both halves show the same camera, so either maps pointer positions alike).
+    pub(super) fn view_rect(&self, ui: &egui::Ui, rect: egui::Rect) -> egui::Rect {
+        if !self.side_by_side() {
+            return rect;
+        }
+        let (left, right) = halves(rect);
+        match ui.input(|i| i.pointer.latest_pos()) {
+            Some(p) if right.contains(p) => right,
+            _ => left,
+        }
+    }
+
     /// Where the swipe's line is (0–1 of the width), if swiping.
     pub fn swipe_position(&self) -> Option<f32> {
         self.swipe.as_ref().map(|s| s.position)
@@ -147,4 +189,13 @@ impl App {
     pub fn swipe_stack(&self) -> Option<&crate::layers::Stack> {
         self.swipe.as_ref().map(|s| &s.renderer.scene().stack)
     }
+}
+
+/// The left and right halves of a rectangle.
+fn halves(rect: egui::Rect) -> (egui::Rect, egui::Rect) {
+    let mid = rect.center().x;
+    (
+        egui::Rect::from_min_max(rect.min, egui::pos2(mid, rect.bottom())),
+        egui::Rect::from_min_max(egui::pos2(mid, rect.top()), rect.max),
+    )
 }
