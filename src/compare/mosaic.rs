@@ -9,7 +9,8 @@ use rayon::prelude::*;
 use super::CompareError;
 use crate::ecm::QuadId;
 use crate::gpu::Scene;
-use crate::gpu::shifted::{bilinear, locate};
+use crate::gpu::data::bilinear;
+use crate::gpu::shifted::locate;
 
 /// A scene composed at one level, quads composed when first reached.
 pub(crate) struct Mosaic {

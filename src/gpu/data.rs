@@ -406,20 +406,27 @@ pub fn upsample(grid: &[f32], source: QuadId, quad: QuadId) -> Vec<f32> {
         let v = (oy * cells + j as f64) * scale;
         for i in 0..n {
             let u = (ox * cells + i as f64) * scale;
-            let (i0, j0) = ((u.floor() as usize).min(n - 2), (v.floor() as usize).min(n - 2));
-            let (fu, fv) = (u - i0 as f64, v - j0 as f64);
-            let mut h = 0.0;
-            for (di, dj, w) in
-                [(0, 0, (1.0 - fu) * (1.0 - fv)), (1, 0, fu * (1.0 - fv)), (0, 1, (1.0 - fu) * fv), (1, 1, fu * fv)]
-            {
-                if w > 0.0 {
-                    h += w * f64::from(grid[(j0 + dj) * n + i0 + di]);
-                }
-            }
-            out.push(h as f32);
+            out.push(bilinear(grid, u, v) as f32);
         }
     }
     out
+}
+
+/// Bilinear interpolation in a 257² grid at grid coordinates (u, v) ∈ [0, 256]² (NaN where a
+/// sample with weight has none; a sample with weight 0 is not read).
+pub fn bilinear(grid: &[f32], u: f64, v: f64) -> f64 {
+    let n = SAMPLES as usize;
+    let (i0, j0) = ((u.floor() as usize).min(n - 2), (v.floor() as usize).min(n - 2));
+    let (fu, fv) = (u - i0 as f64, v - j0 as f64);
+    let mut h = 0.0;
+    for (di, dj, w) in
+        [(0, 0, (1.0 - fu) * (1.0 - fv)), (1, 0, fu * (1.0 - fv)), (0, 1, (1.0 - fu) * fv), (1, 1, fu * fv)]
+    {
+        if w > 0.0 {
+            h += w * f64::from(grid[(j0 + dj) * n + i0 + di]);
+        }
+    }
+    h
 }
 
 /// The CPU cache: heights and maps by key, least recently used dropped past the budget.

@@ -10,7 +10,7 @@ use std::collections::HashMap;
 
 use glam::DVec3;
 
-use super::data::DatasetInfo;
+use super::data::{DatasetInfo, bilinear};
 use crate::ecm::{CubeProjection, QuadId};
 use crate::geodesy::{Ellipsoid, geodetic_from_ecef};
 use crate::layers::stack::sample_point;
@@ -36,21 +36,6 @@ pub fn locate(ellipsoid: &Ellipsoid, level: u8, p: DVec3) -> Option<(QuadId, f64
     let u = ((fp.x + 1.0) * 0.5 * n - f64::from(q.x)) * 256.0;
     let v = ((fp.y + 1.0) * 0.5 * n - f64::from(q.y)) * 256.0;
     Some((q, u.clamp(0.0, 256.0), v.clamp(0.0, 256.0)))
-}
-
-/// Bilinear interpolation in a 257² grid at (u, v) (NaN where a sample with weight has none).
-pub fn bilinear(grid: &[f32], u: f64, v: f64) -> f64 {
-    let (i0, j0) = ((u.floor() as usize).min(N - 2), (v.floor() as usize).min(N - 2));
-    let (fu, fv) = (u - i0 as f64, v - j0 as f64);
-    let mut h = 0.0;
-    for (di, dj, w) in
-        [(0, 0, (1.0 - fu) * (1.0 - fv)), (1, 0, fu * (1.0 - fv)), (0, 1, (1.0 - fu) * fv), (1, 1, fu * fv)]
-    {
-        if w > 0.0 {
-            h += w * f64::from(grid[(j0 + dj) * N + i0 + di]);
-        }
-    }
-    h
 }
 
 /// The shifted dataset's 257² grid at `quad` (sampled at the level min(quad's, finest)).
