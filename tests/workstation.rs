@@ -398,12 +398,20 @@ fn swiping_shows_a_left_of_a_line_and_b_right_of_it_and_the_line_drags() {
     assert_eq!(h.state().swipe_position(), None);
 }
 
-/// Clicks at a point of the window: hover (for the probe), press, release.
+/// Clicks at a point of the viewport: hover until the probe reads that pixel, press, release.
 fn click(h: &mut Harness<'static, App>, at: egui::Pos2) {
     h.hover_at(at);
-    for _ in 0..6 {
+    let r = h.state().viewport_rect_px().unwrap();
+    let pixel = (at.x - r.left(), at.y - r.top());
+    for _ in 0..500 {
         h.step();
-        std::thread::sleep(Duration::from_millis(20));
+        let probed = h.state().hit().is_some_and(|hit| {
+            (hit.pixel.0 as f32 - pixel.0).abs() < 2.0 && (hit.pixel.1 as f32 - pixel.1).abs() < 2.0
+        });
+        if probed {
+            break;
+        }
+        std::thread::sleep(Duration::from_millis(10));
     }
     h.drag_at(at);
     h.step();

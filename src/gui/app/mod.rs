@@ -580,7 +580,7 @@ impl eframe::App for App {
             {
                 self.message = e;
             }
-            if !self.drag_swipe(ui, &response, rect) && !self.pick_profile(&response) {
+            if !self.drag_swipe(ui, &response, rect) && !self.pick_profile(&response, view) {
                 self.navigate(ui, &response, view);
             }
             self.render(frame, size_px);

@@ -34,16 +34,30 @@ const COLOURS: [egui::Color32; 6] = [
 ];
 
 impl App {
-    /// Takes a click on the terrain as the next end of the profile; true when it did.
-    pub(super) fn pick_profile(&mut self, response: &egui::Response) -> bool {
+    /// Takes a click on the terrain as the next end of the profile; true when it did. The point
+    /// is the probe's when it is for the clicked pixel (it arrives a frame or more late), else
+    /// where the pixel's ray meets the body's mean sphere.
+    pub(super) fn pick_profile(&mut self, response: &egui::Response, rect: egui::Rect) -> bool {
         if self.profile.picking == 0 || !response.clicked() {
             return false;
         }
-        let Some(hit) = self.viewport.as_ref().and_then(|v| v.hits[0]) else {
-            self.message = "no terrain under the cursor: click on the terrain".into();
-            return true;
-        };
-        let g = geodesy::geodetic_from_ecef(&self.renderer.scene().ellipsoid, hit.ecef);
+        let (Some(vp), Some(at)) = (&self.viewport, response.interact_pointer_pos()) else { return true };
+        let (w, h) = vp.size();
+        let px = (
+            f64::from((at.x - rect.min.x) / rect.width()) * f64::from(w),
+            f64::from((at.y - rect.min.y) / rect.height()) * f64::from(h),
+        );
+        let e = self.renderer.scene().ellipsoid;
+        let ecef = vp.hits[0]
+            .filter(|hit| (f64::from(hit.pixel.0) - px.0).abs() < 3.0 && (f64::from(hit.pixel.1) - px.1).abs() < 3.0)
+            .map_or_else(
+                || {
+                    let cam = self.placed();
+                    navigate::fallback_target(&e, &cam, cam.ray(px.0, px.1, w, h))
+                },
+                |hit| hit.ecef,
+            );
+        let g = geodesy::geodetic_from_ecef(&e, ecef);
         let point = [g.lat_rad.to_degrees(), g.lon_rad.to_degrees()];
         if self.profile.picking == 2 {
             self.profile.from = Some(point);
