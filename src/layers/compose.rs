@@ -208,11 +208,20 @@ fn apply(state: &mut Running, blend: BlendMode, value: f64, alpha: f64, spacing_
 pub fn compose_quad<'a>(stack: &Stack, plan: &QuadPlan, tiles: &dyn Fn(usize) -> LayerTiles<'a>) -> Vec<f32> {
     let n = SAMPLES as usize;
     let tiles: Vec<LayerTiles> = (0..plan.layers.len()).map(tiles).collect();
+    // Only masks near an extent's edge and noise read the sample's position: a plan without them
+    // (datasets and constants inside or without extents) skips the inverse projection.
+    let positioned = plan.layers.iter().any(|l| {
+        matches!(l.mask, MaskPlan::Partial(_)) || stack.layers[l.index].spec.kind == LayerKind::Procedural
+    });
     let mut out = vec![f32::NAN; n * n];
     out.par_chunks_mut(n).enumerate().for_each(|(j, row)| {
         for (i, h) in row.iter_mut().enumerate() {
-            let (ecef, lon_rad, lat_rad) = sample_point(&stack.ellipsoid, plan.quad, SAMPLES, i as u32, j as u32);
-            let at = SamplePoint { ecef, lon_rad, lat_rad };
+            let at = if positioned {
+                let (ecef, lon_rad, lat_rad) = sample_point(&stack.ellipsoid, plan.quad, SAMPLES, i as u32, j as u32);
+                SamplePoint { ecef, lon_rad, lat_rad }
+            } else {
+                SamplePoint { ecef: DVec3::NAN, lon_rad: f64::NAN, lat_rad: f64::NAN }
+            };
             let data = |k: usize| DataAt {
                 raw: tiles[k].raw.map_or(f64::NAN, |t| f64::from(t[j * n + i])),
                 edge_m: tiles[k].edge_m.map_or(f64::INFINITY, |t| f64::from(t[j * n + i])),
