@@ -448,4 +448,11 @@ fn a_profile_drawn_with_two_clicks_shows_each_visible_layer_and_saves_its_line()
     h.step();
     assert!(h.state().project().comparison.profiles.contains_key("line 1"), "{}", h.state().message());
     assert!(h.state().unsaved());
+    // And as CSV beside the project: a column per visible layer and the composed stack.
+    let _ = std::fs::remove_file(dir.join("profile.csv"));
+    h.get_by_label("write CSV").click_accesskit();
+    h.step();
+    let csv = std::fs::read_to_string(dir.join("profile.csv")).expect("profile.csv written");
+    assert!(csv.starts_with("distance_m,lat_deg,lon_deg,srtm,composed\n"), "{}", &csv[..80.min(csv.len())]);
+    assert_eq!(csv.lines().count(), 401);
 }

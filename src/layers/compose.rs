@@ -210,9 +210,10 @@ pub fn compose_quad<'a>(stack: &Stack, plan: &QuadPlan, tiles: &dyn Fn(usize) ->
     let tiles: Vec<LayerTiles> = (0..plan.layers.len()).map(tiles).collect();
     // Only masks near an extent's edge and noise read the sample's position: a plan without them
     // (datasets and constants inside or without extents) skips the inverse projection.
-    let positioned = plan.layers.iter().any(|l| {
-        matches!(l.mask, MaskPlan::Partial(_)) || stack.layers[l.index].spec.kind == LayerKind::Procedural
-    });
+    let positioned = plan
+        .layers
+        .iter()
+        .any(|l| matches!(l.mask, MaskPlan::Partial(_)) || stack.layers[l.index].spec.kind == LayerKind::Procedural);
     let mut out = vec![f32::NAN; n * n];
     out.par_chunks_mut(n).enumerate().for_each(|(j, row)| {
         for (i, h) in row.iter_mut().enumerate() {

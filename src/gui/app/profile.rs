@@ -118,6 +118,15 @@ impl App {
                 self.unsaved = true;
                 self.message = format!("profile saved as '{name}' (save the project to keep it)");
             }
+            if let Some(Ok(p)) = &self.profile.result
+                && ui.button("write CSV").on_hover_text("profile.csv beside the project file").clicked()
+            {
+                let path = self.project.resolve(std::path::Path::new("profile.csv"));
+                self.message = match crate::files::write_atomic(&path, p.csv().as_bytes()) {
+                    Ok(()) => format!("wrote {}", path.display()),
+                    Err(e) => format!("{}: {e}", path.display()),
+                };
+            }
         });
         match &self.profile.result {
             Some(Ok(p)) => profile_chart(ui, p),
