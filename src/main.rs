@@ -133,7 +133,8 @@ enum Command {
         /// The reference layer.
         #[arg(long = "to")]
         b: String,
-        /// Level to work at (default: the finest level of the coarser dataset).
+        /// Level to work at (default: one finer than the coarser dataset's finest, where A and B
+        /// are smoothed alike by interpolation).
         #[arg(long)]
         level: Option<u8>,
         /// Only inside WEST,SOUTH,EAST,NORTH (degrees).
