@@ -1,6 +1,7 @@
 // The ECM terrain: one instanced draw of every selected quad. Vertex stage: the camera-centric
 // single-precision reconstruction P = A′ + (patch + oₑ + h₀·δn + (h − h₀)·nₑ) with skirts;
-// fragment stage: colour ramp, isolines and hillshade computed per pixel from the elevation.
+// fragment stage: colour ramp, isolines and hillshade computed per pixel from the elevation, and
+// the drawn difference layer's dh in a diverging colour map with its own isolines.
 //!include shared/ecm.wgsl
 //!include shared/shading.wgsl
 
@@ -27,6 +28,9 @@ struct Frame {
     below: vec4<f32>,
     above: vec4<f32>,
     nodata: vec4<f32>,
+    // The drawn difference layer: range (metres: ±range are the colour map's ends), isoline
+    // interval (metres, 0: none), opacity over the ramp, drawn (1) or not (0).
+    difference: vec4<f32>,
 }
 
 struct Quad {
@@ -58,6 +62,8 @@ struct RampStop {
 @group(0) @binding(4) var<storage, read> map_n: array<f32>;
 @group(0) @binding(5) var<storage, read> map_dn: array<f32>;
 @group(0) @binding(6) var<storage, read> ramp: array<RampStop>;
+// A − B of the drawn difference layer per height slot (NODATA_BELOW where either has no data).
+@group(0) @binding(7) var<storage, read> overlay: array<f32>;
 
 struct VertexOut {
     @builtin(position) clip: vec4<f32>,
@@ -75,6 +81,9 @@ struct VertexOut {
     // Which quad, and the sample coordinates with 1 for a skirt vertex (probe output).
     @location(6) @interpolate(flat) quad: u32,
     @location(7) @interpolate(flat) sample: vec3<u32>,
+    // The drawn difference A − B (metres) and 1 where it has data.
+    @location(8) dh: f32,
+    @location(9) dh_valid: f32,
 }
 
 fn map_value(which: u32, slot: u32, c: vec2<u32>) -> vec3<f32> {
@@ -182,6 +191,13 @@ fn vs_main(@builtin(vertex_index) vertex: u32, @builtin(instance_index) instance
     out.along_j = along_j;
     out.quad = instance;
     out.sample = vec3<u32>(i, j, select(0u, 1u, skirt));
+    out.dh = 0.0;
+    out.dh_valid = 0.0;
+    if frame.difference.w > 0.5 && q.slots.z != NO_SLOT {
+        let dh = overlay[q.slots.z * N * N + j * N + i];
+        out.dh = select(0.0, dh, dh > NODATA_BELOW);
+        out.dh_valid = select(0.0, 1.0, dh > NODATA_BELOW);
+    }
     return out;
 }
 
@@ -221,13 +237,22 @@ fn ramp_colour(h: f32) -> vec4<f32> {
     return a.colour + (b.colour - a.colour) * w;
 }
 
-// The pixel's colour, sRGB-encoded 0–1.
-fn shade(in: VertexOut, fw_iso: f32) -> vec4<f32> {
+// The pixel's colour, sRGB-encoded 0–1. fw_iso and fw_dh: the pixel's footprint in height and
+// dh isoline intervals.
+fn shade(in: VertexOut, fw_iso: f32, fw_dh: f32) -> vec4<f32> {
     if in.valid < 0.5 {
         return frame.nodata;
     }
     let base = ramp_colour(in.height);
     var colour = srgb_to_linear(base.rgb);
+    if frame.difference.w > 0.5 {
+        // dh draped over the ramp by the layer's opacity; where A or B has no data, the ramp in grey.
+        var over = vec3<f32>(dot(colour, vec3<f32>(0.2126, 0.7152, 0.0722)));
+        if in.dh_valid > 0.5 {
+            over = srgb_to_linear(diverging_colour(in.dh / frame.difference.x));
+        }
+        colour = mix(colour, over, frame.difference.z);
+    }
     if frame.sun.w > 0.5 {
         let up = normalize(in.up);
         var n = normalize(cross(in.along_i, in.along_j));
@@ -246,6 +271,14 @@ fn shade(in: VertexOut, fw_iso: f32) -> vec4<f32> {
         let coverage = isoline_coverage(x, fw_iso, width, frame.iso_width.z, spacing) * frame.iso_colour.a;
         colour = mix(colour, srgb_to_linear(frame.iso_colour.rgb), coverage);
     }
+    if frame.difference.w > 0.5 && frame.difference.y > 0.0 && in.dh_valid > 0.5 {
+        // Isolines of dh at ±k·interval, k ≥ 1, dark grey (zero is the map's white already; its
+        // line would trace the noise of two equal surfaces).
+        let x = in.dh / frame.difference.y;
+        let zero = abs(round(x)) < 0.5;
+        let coverage = select(isoline_coverage(x, fw_dh, frame.iso_width.x, frame.iso_width.z, 1.0), 0.0, zero);
+        colour = mix(colour, vec3<f32>(0.02), coverage);
+    }
     return vec4<f32>(linear_to_srgb(colour), 1.0);
 }
 
@@ -253,7 +286,8 @@ fn shade(in: VertexOut, fw_iso: f32) -> vec4<f32> {
 fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
     // Derivatives in uniform control flow, before any branch.
     let fw_iso = fwidth(in.height / frame.iso.x);
-    return shade(in, fw_iso);
+    let fw_dh = fwidth(in.dh / max(frame.difference.y, 1e-6));
+    return shade(in, fw_iso, fw_dh);
 }
 
 struct ProbeOut {
@@ -268,8 +302,9 @@ struct ProbeOut {
 @fragment
 fn fs_probe(in: VertexOut) -> ProbeOut {
     let fw_iso = fwidth(in.height / frame.iso.x);
+    let fw_dh = fwidth(in.dh / max(frame.difference.y, 1e-6));
     var out: ProbeOut;
-    out.colour = shade(in, fw_iso);
+    out.colour = shade(in, fw_iso, fw_dh);
     out.surface = vec4<f32>(in.rel, in.height);
     out.id = vec4<u32>(in.quad + 1u, in.sample.x, in.sample.y, select(0u, 1u, in.valid > 0.5) + 2u * in.sample.z);
     return out;

@@ -324,6 +324,33 @@ pub fn linear_to_srgb(c: f64) -> f64 {
     if c <= 0.003_130_8 { c * 12.92 } else { 1.055 * c.powf(1.0 / 2.4) - 0.055 }
 }
 
+/// ColorBrewer's RdBu, 11 classes, red to blue (sRGB): the diverging map difference layers draw
+/// dh with, as xDEM plots it (A below B red, above blue, equal white). The terrain shader's
+/// `DIVERGING` holds the same stops.
+pub const DIVERGING: [[u8; 3]; 11] = [
+    [0x67, 0x00, 0x1f],
+    [0xb2, 0x18, 0x2b],
+    [0xd6, 0x60, 0x4d],
+    [0xf4, 0xa5, 0x82],
+    [0xfd, 0xdb, 0xc7],
+    [0xf7, 0xf7, 0xf7],
+    [0xd1, 0xe5, 0xf0],
+    [0x92, 0xc5, 0xde],
+    [0x43, 0x93, 0xc3],
+    [0x21, 0x66, 0xac],
+    [0x05, 0x30, 0x61],
+];
+
+/// The diverging map's sRGB colour (0–1) at t = dh / range, clamped to [−1, 1], linear in sRGB
+/// between the stops. CPU reference of `diverging_colour` in `shaders/shared/shading.wgsl`.
+pub fn diverging(t: f64) -> [f64; 3] {
+    let x = (t.clamp(-1.0, 1.0) + 1.0) * 5.0;
+    let k = (x.floor() as usize).min(9);
+    let w = x - k as f64;
+    let (a, b) = (DIVERGING[k], DIVERGING[k + 1]);
+    [0, 1, 2].map(|c| (f64::from(a[c]) + w * (f64::from(b[c]) - f64::from(a[c]))) / 255.0)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -408,6 +408,15 @@ impl Project {
         if version == 1 {
             migrate_v1(&mut value)?;
         }
+        // serde_json's errors from a value have no position: name the layer a bad one is in.
+        if let Some(layers) = value.get("layers").and_then(|l| l.as_array()) {
+            for (k, layer) in layers.iter().enumerate() {
+                if let Err(e) = serde_json::from_value::<crate::layers::LayerSpec>(layer.clone()) {
+                    let name = layer.get("name").and_then(|n| n.as_str()).unwrap_or("?");
+                    return Err(format!("layers[{k}]: layer '{name}': {e}"));
+                }
+            }
+        }
         let project: Project = serde_json::from_value(value).map_err(|e| format!("{e}"))?;
         project.check()?;
         Ok(project)
@@ -432,6 +441,11 @@ impl Project {
             }
             layer.check(radius_m).map_err(|e| format!("layers[{k}]: {e}"))?;
         }
+        // Difference operands name layers with heights (the stack's own check, with the index).
+        crate::layers::Stack::new(self.ellipsoid()?, &self.layers).map_err(|e| {
+            let k = self.layers.iter().position(|l| l.name == e.layer).unwrap_or(0);
+            format!("layers[{k}]: {e}")
+        })?;
         for (name, s) in &self.comparison.swipes {
             let at = format!("comparison.swipes.{name}");
             for layer in [&s.a, &s.b] {

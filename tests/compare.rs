@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 
 use common::{repo_path, sample_project, terrafuse};
 use terrafuse::compare::{CompareOptions, Weighting, compare};
-use terrafuse::layers::LayerSpec;
+use terrafuse::layers::{BlendMode, LayerSpec, Operand};
 use terrafuse::project::Project;
 
 fn project() -> PathBuf {
@@ -97,6 +97,75 @@ fn a_layer_offset_by_5_m_differs_by_exactly_5_m_everywhere() {
 }
 
 #[test]
+fn a_group_of_layers_compares_as_it_composes() {
+    // srtm + a 7 m constant added on it, composed as a group, minus srtm alone: 7 m everywhere.
+    let mut p = Project::load(&project()).unwrap();
+    p.layers.push(LayerSpec { blend: BlendMode::Add, visible: false, ..LayerSpec::constant("bump", 7.0) });
+    let opts = CompareOptions { level: Some(8), ..CompareOptions::default() };
+    let c = compare(&p, "srtm+bump", "srtm", &opts).unwrap();
+    assert_eq!((c.a.as_str(), c.b.as_str()), ("srtm+bump", "srtm"));
+    assert!(c.stats.count > 50_000);
+    for v in [c.stats.mean_m, c.stats.median_m, c.stats.min_m, c.stats.max_m] {
+        assert!((v - 7.0).abs() < 1e-3, "{v}");
+    }
+    let e = compare(&p, "srtm+nope", "srtm", &opts).unwrap_err().to_string();
+    assert!(e.contains("layer 'nope' is not in the project"), "{e}");
+}
+
+#[test]
+fn a_difference_layer_draws_blue_where_a_is_higher_and_red_where_lower_over_its_percentile_range() {
+    // The same tile raised by 40 m, minus the tile: dh = +40 m everywhere, so the 98th percentile
+    // of |dh| is 40 m and every pixel of terrain shows the map's blue end (then the other way
+    // round, red). Hillshade darkens both, the hue stays.
+    let dir = repo_path("tests/out/compare-difference");
+    let mut p = Project::load(&sample_project("erzurum-compare", &dir)).unwrap();
+    let srtm = p.layers.iter().find(|l| l.name == "srtm").unwrap().clone();
+    p.layers = vec![
+        srtm.clone(),
+        LayerSpec { name: "raised".into(), dataset: Some("srtm".into()), offset_m: 40.0, visible: false, ..srtm },
+    ];
+    p.visuals.isolines.enabled = false;
+    p.comparison = Default::default();
+    for (a, b, blue) in [("raised", "srtm", true), ("srtm", "raised", false)] {
+        let mut q = p.clone();
+        q.layers.push(LayerSpec::difference("dh", Operand::Layer(a.into()), Operand::Layer(b.into())));
+        let path = dir.join(format!("dh-{a}.json"));
+        q.save(&path).unwrap();
+        let out = dir.join(format!("dh-{a}.png"));
+        let report = run(&[
+            "render",
+            path.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--width",
+            "240",
+            "--height",
+            "160",
+        ]);
+        assert!(report.contains(&format!("difference 'dh' ({a} - {b}): red -40.00 m")), "{report}");
+        assert!(report.contains("(the 98th percentile of |dh|)"), "{report}");
+        let image = image::open(&out).unwrap().to_rgba8();
+        // Not the sky, not the ground beyond the tile (no data).
+        let (sky, nodata) = (q.visuals.background, q.visuals.colour_map.nodata_colour);
+        let terrain: Vec<_> = image.pixels().filter(|px| px.0 != sky && px.0 != nodata).collect();
+        assert!(terrain.len() > 240 * 160 / 2, "{} terrain pixels", terrain.len());
+        let right = terrain.iter().filter(|px| if blue { px[2] > px[0] + 20 } else { px[0] > px[2] + 20 }).count();
+        let wrong: Vec<_> =
+            terrain.iter().filter(|px| !(if blue { px[2] > px[0] + 20 } else { px[0] > px[2] + 20 })).take(8).collect();
+        assert_eq!(right, terrain.len(), "every terrain pixel {}: {wrong:?}", if blue { "blue" } else { "red" });
+    }
+    // An operand that names no layer is refused on load, naming the file, the layer and the field.
+    let mut bad = p.clone();
+    bad.layers.push(LayerSpec::difference("dh", Operand::Layer("raised".into()), Operand::Layer("nope".into())));
+    let path = dir.join("bad.json");
+    std::fs::write(&path, serde_json::to_string_pretty(&bad).unwrap()).unwrap();
+    let out = terrafuse(&["render", path.to_str().unwrap(), "--out", "/tmp/x.png"], "");
+    let e = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(e.contains("bad.json") && e.contains("layers[2]: layer 'dh': of: operand B names 'nope'"), "{e}");
+}
+
+#[test]
 fn a_saved_swipe_or_profile_that_names_no_layer_is_refused_on_load() {
     let mut p = Project::load(&project()).unwrap();
     p.comparison.swipes.get_mut("blurred-srtm").unwrap().b = "gone".into();
@@ -113,7 +182,11 @@ fn bad_input_is_refused_by_name() {
     let p = project();
     let p = p.to_str().unwrap();
     for (args, expected) in [
-        (vec!["compare", p, "nope", "srtm"], "layer 'nope' is not in the project (its layers: srtm, blurred)"),
+        (
+            vec!["compare", p, "nope", "srtm"],
+            "layer 'nope' is not in the project (its layers: srtm, blurred, blurred - srtm)",
+        ),
+        (vec!["compare", p, "blurred - srtm", "srtm"], "blurred - srtm: is a difference layer: it draws A − B"),
         (vec!["compare", p, "srtm", "srtm"], "'srtm' compared with itself"),
         (vec!["compare", p, "blurred", "srtm", "--region", "40,39.5,41"], "--region 40,39.5,41: give four numbers"),
         (
@@ -350,8 +423,26 @@ fn a_swiped_render_shows_a_left_of_the_line_and_b_right_of_it() {
     };
     let (swiped, report) = render("swipe", &["--swipe", "blurred,srtm,0.25"]);
     assert!(report.contains("swipe: 'blurred' left of 25 % of the width, 'srtm' right of it"), "{report}");
-    // Right of the line: exactly the plain render of srtm (the project shows srtm, hides blurred).
-    let (plain, _) = render("plain", &[]);
+    // Right of the line: exactly the plain render of srtm (the project shows srtm; blurred and
+    // the difference layer hidden here).
+    let mut shown = Project::load(&p).unwrap();
+    for l in &mut shown.layers {
+        l.visible = l.name == "srtm";
+    }
+    let plain_project = dir.join("plain.json");
+    shown.save(&plain_project).unwrap();
+    let plain_out = dir.join("plain.png");
+    run(&[
+        "render",
+        plain_project.to_str().unwrap(),
+        "--out",
+        plain_out.to_str().unwrap(),
+        "--width",
+        "320",
+        "--height",
+        "240",
+    ]);
+    let plain = image::open(&plain_out).unwrap().to_rgba8();
     let (w, h) = plain.dimensions();
     let split = (0.25 * f64::from(w)).round() as u32;
     let (mut same, mut different) = (0, 0);

@@ -14,7 +14,8 @@ use terrafuse::geodesy::Ellipsoid;
 use terrafuse::gpu::data::{EdgeFields, read_tile};
 use terrafuse::gpu::{DrawMode, GpuContext, IMAGE_FORMAT, Renderer, Scene};
 use terrafuse::layers::{
-    BlendMode, DetailWhere, ExtentSpec, LayerSpec, LayerTiles, NoiseSpec, NoiseType, compose_quad,
+    BlendMode, DetailWhere, ExtentSpec, LayerSpec, LayerTiles, NoiseSpec, NoiseType, Operand, compose_difference,
+    compose_quad,
 };
 use terrafuse::project::{CameraSpec, Project};
 
@@ -188,6 +189,84 @@ fn datasets_with_scale_offset_valid_range_and_feathers_compose_on_the_gpu_as_on_
     // km: 0.01 m bounds it.
     println!("GPU − CPU with datasets: worst {worst:.2e} m over {with_data} samples");
     assert!(worst < 0.01, "worst GPU − CPU difference {worst} m");
+}
+
+#[test]
+fn a_difference_of_a_shifted_layer_and_a_composed_group_composes_on_the_gpu_as_on_the_cpu() {
+    // Erzurum: the SRTM tile shown under fBm detail; the blurred and shifted copy hidden, moved
+    // 300 m east by its shift. The difference draws blurred alone minus the group srtm + detail,
+    // beside heights that must not change.
+    let dir = common::repo_path("tests/out/compose-difference");
+    let mut p = Project::load(&common::sample_project("erzurum-compare", &dir)).unwrap();
+    let srtm = p.layers.iter().find(|l| l.name == "srtm").unwrap().clone();
+    let blurred = p.layers.iter().find(|l| l.name == "blurred").unwrap().clone();
+    let detail = layer(LayerSpec::procedural("detail", noise(NoiseType::Fbm, 15.0, 900.0, 6)), BlendMode::Add, 0.8);
+    let group = Operand::Group(vec!["srtm".into(), "detail".into()]);
+    p.layers = vec![
+        srtm,
+        detail,
+        LayerSpec { shift_m: [300.0, 0.0], ..blurred },
+        LayerSpec::difference("dh", Operand::Layer("blurred".into()), group),
+    ];
+    let mut r = renderer(&p);
+    let e = Ellipsoid::WGS84;
+    // Inside the tile, and across its edges (where one side has no data).
+    let quads: Vec<QuadId> =
+        [(39.5, 40.4, 9u8), (39.02, 40.5, 9), (39.98, 40.97, 10), (39.5, 40.0, 9), (39.6, 40.3, 8)]
+            .iter()
+            .map(|&(lat, lon, level)| quad_at(&e, lat, lon, level))
+            .collect();
+    let (worst_heights, _) = gpu_against_cpu(&mut r, &quads, &store_tiles);
+    let (mut worst, mut with_data, mut without) = (0f64, 0usize, 0usize);
+    for &quad in &quads {
+        let gpu = r.read_difference(quad).unwrap().expect("a difference is drawn");
+        let scene = r.scene();
+        let plan = scene.plan(quad);
+        let d = plan.difference.as_ref().expect("the plan has the difference");
+        assert_eq!(d.a.layers.len(), 1, "A: blurred alone");
+        assert!(d.b.layers.len() == 2, "B: srtm and detail, {:?}", d.b.layers);
+        let mut stores: Vec<_> = scene.datasets.iter().map(|_| None).collect();
+        let fields = EdgeFields::default();
+        let tiles: Vec<Option<Vec<f32>>> =
+            d.a.layers
+                .iter()
+                .chain(&d.b.layers)
+                .map(|l| {
+                    scene
+                        .layer_tiles(l.index, quad)
+                        .map(|(source, _)| read_tile(source, &scene.datasets, &mut stores, &fields).unwrap().grid)
+                })
+                .collect();
+        let cpu = compose_difference(&scene.stack, d, &|k| LayerTiles { raw: tiles[k].as_deref(), edge_m: None });
+        for (k, (g, c)) in gpu.iter().zip(&cpu).enumerate() {
+            assert_eq!(g.is_nan(), c.is_nan(), "{quad} sample {k}: GPU dh {g}, CPU {c}");
+            if c.is_nan() {
+                without += 1;
+            } else {
+                worst = worst.max(f64::from((g - c).abs()));
+                with_data += 1;
+            }
+        }
+    }
+    println!(
+        "dh GPU − CPU: worst {worst:.2e} m over {with_data} samples ({without} without); heights {worst_heights:.2e} m"
+    );
+    assert!(with_data > 2 * 257 * 257, "{with_data}");
+    assert!(without > 10_000, "the quads across the tile's edges have samples where one side has none: {without}");
+    // Each side as the heights test (≤ 0.01 m); their difference adds one f32 rounding.
+    assert!(worst < 0.02, "worst GPU − CPU dh {worst} m");
+    assert!(worst_heights < 0.01, "heights {worst_heights} m");
+    // The heights are the stack's alone: the same with the difference hidden.
+    let before: Vec<_> = quads.iter().map(|q| r.read_heights(*q).unwrap().unwrap()).collect();
+    let mut hidden = r.scene().stack.layers[3].spec.clone();
+    hidden.visible = false;
+    r.update_layer(3, hidden).unwrap();
+    assert!(r.scene().plan(quads[0]).difference.is_none());
+    r.compose_now(&quads).unwrap();
+    for (q, b) in quads.iter().zip(&before) {
+        let after = r.read_heights(*q).unwrap().unwrap();
+        assert!(after.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits()), "{q}: heights changed");
+    }
 }
 
 fn cam(lat: f64, lon: f64, alt: f64, heading: f64, pitch: f64) -> CameraSpec {

@@ -334,6 +334,10 @@ fn the_compare_section_shows_statistics_and_applies_a_coregistration() {
     let project = sample_project("erzurum-compare", &dir);
     let mut h = harness_of_size(&project, "30km", egui::vec2(900.0, 1700.0));
     settle(&mut h);
+    // The sample draws blurred − srtm; its colour range is the 98th percentile of |dh|, computed
+    // in the background.
+    let range_before = wait_for_range(&mut h);
+    assert!(range_before > 100.0, "a 3 and 5 pixel shift in mountains: {range_before} m");
     // Defaults: the top dataset (blurred) against the one below (srtm).
     h.get_by_label("compare").click_accesskit();
     h.step();
@@ -354,6 +358,34 @@ fn the_compare_section_shows_statistics_and_applies_a_coregistration() {
     assert_eq!(blurred.shift_m, [east, north]);
     assert!(h.state().message().starts_with("moved 'blurred' east"), "{}", h.state().message());
     settle(&mut h);
+    // Co-registered, the differences shrink, and so does the range they are drawn over.
+    let range_after = wait_for_range(&mut h);
+    assert!(range_after < range_before / 2.0, "{range_before} m to {range_after} m");
+    h.render().unwrap().save(dir.join("difference.png")).unwrap(); // for people, not compared
+    // "show difference" puts another difference layer on top; it is the one drawn.
+    h.get_by_label("show difference").click_accesskit();
+    h.run_steps(2);
+    let stack = h.state().stack();
+    let top = &stack.layers.last().unwrap().spec;
+    assert_eq!((top.name.as_str(), top.kind), ("blurred - srtm 2", terrafuse::layers::LayerKind::Difference));
+    assert_eq!(stack.drawn_difference(), Some(stack.layers.len() - 1));
+    settle(&mut h);
+}
+
+/// Steps until the drawn difference's range from its percentile is known; returns it.
+fn wait_for_range(h: &mut Harness<'static, App>) -> f64 {
+    for _ in 0..2000 {
+        h.step();
+        if !h.state().difference_range().1 {
+            // Not busy: one more step starts a computation if the inputs changed.
+            h.step();
+            if !h.state().difference_range().1 {
+                return h.state().difference_range().0;
+            }
+        }
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    panic!("the difference's range was not computed");
 }
 
 #[test]
@@ -370,6 +402,7 @@ fn swiping_shows_a_left_of_a_line_and_b_right_of_it_and_the_line_drags() {
         stack.layers.iter().find(|l| l.spec.name == name).unwrap().spec.visible
     };
     assert!(visible(h.state().stack(), "blurred") && !visible(h.state().stack(), "srtm"), "left: A shown, B hidden");
+    assert!(!visible(h.state().stack(), "blurred - srtm"), "no difference drawn over a swipe");
     let right = h.state().swipe_stack().expect("a second stack");
     assert!(!visible(right, "blurred") && visible(right, "srtm"), "right: B shown, A hidden");
 

@@ -24,9 +24,11 @@ struct Job {
     origin: vec4<f32>,
     // Output height slot, split code, map slot (NO_SLOT: flat patch), symmetry flags.
     slots: vec4<u32>,
-    // First layer, layer count, unused, unused.
+    // First layer, the heights' layer count, then A's and B's (a difference's operands, listed
+    // after the heights' layers).
     layers: vec4<u32>,
-    // Sample spacing for octave weights (0: every octave), unused ×3.
+    // Sample spacing for octave weights (0: every octave), 1 where the job writes a difference
+    // into the overlay pool, unused ×2.
     params: vec4<f32>,
 }
 
@@ -68,6 +70,8 @@ struct Octave {
 @group(0) @binding(4) var<storage, read> sources: array<f32>;
 @group(0) @binding(5) var<storage, read> map_o: array<f32>;
 @group(0) @binding(6) var<storage, read_write> heights: array<f32>;
+// A − B of the drawn difference layer, per height slot (NODATA_STORED where either has no data).
+@group(0) @binding(7) var<storage, read_write> overlay: array<f32>;
 
 fn turn(job: Job, v: vec3<f32>) -> vec3<f32> {
     return job.sym[0].xyz * v.x + job.sym[1].xyz * v.y + job.sym[2].xyz * v.z;
@@ -259,27 +263,14 @@ fn apply(r: Running, blend: u32, v: f32, a: f32, spacing: f32, data_share: f32) 
     return out;
 }
 
-@compute @workgroup_size(16, 16, 1)
-fn compose(@builtin(global_invocation_id) id: vec3<u32>) {
-    let i = id.x;
-    let j = id.y;
-    if i >= N || j >= N {
-        return;
-    }
-    let job = jobs[id.z];
-    let local = sample_local(job, i, j);
-    let p = job.origin.xyz + local;
-    let lon = precise_atan2(p.y, p.x);
-    let lat = precise_atan2(p.z, (1.0 - job.origin.w) * length(p.xy));
-
+// layers::compose::compose_sample: folds job layers [first, first + count) into a running height.
+fn compose_layers(job: Job, first: u32, count: u32, i: u32, j: u32, local: vec3<f32>, lon: f32, lat: f32) -> Running {
     var r = Running(0.0, false, FAR, 0.0);
     var group_sum = 0.0;
     var group_weight = 0.0;
     var group_data_weight = 0.0;
     var group_alpha = 0.0;
     var group_spacing = FAR;
-    let first = job.layers.x;
-    let count = job.layers.y;
     for (var k = 0u; k < count; k++) {
         let l = job_layers[first + k];
         var base = 0.0;
@@ -337,5 +328,29 @@ fn compose(@builtin(global_invocation_id) id: vec3<u32>) {
             r = apply(r, l.head.y, v, alpha, spacing, select(0.0, 1.0, dataset));
         }
     }
-    heights[job.slots.x * N * N + j * N + i] = select(NODATA_STORED, r.h, r.has);
+    return r;
+}
+
+@compute @workgroup_size(16, 16, 1)
+fn compose(@builtin(global_invocation_id) id: vec3<u32>) {
+    let i = id.x;
+    let j = id.y;
+    if i >= N || j >= N {
+        return;
+    }
+    let job = jobs[id.z];
+    let local = sample_local(job, i, j);
+    let p = job.origin.xyz + local;
+    let lon = precise_atan2(p.y, p.x);
+    let lat = precise_atan2(p.z, (1.0 - job.origin.w) * length(p.xy));
+    let at = job.slots.x * N * N + j * N + i;
+    let first = job.layers.x;
+    let r = compose_layers(job, first, job.layers.y, i, j, local, lon, lat);
+    heights[at] = select(NODATA_STORED, r.h, r.has);
+    if job.params.y > 0.5 {
+        // layers::compose::compose_difference: A and B each composed alone, A − B.
+        let a = compose_layers(job, first + job.layers.y, job.layers.z, i, j, local, lon, lat);
+        let b = compose_layers(job, first + job.layers.y + job.layers.z, job.layers.w, i, j, local, lon, lat);
+        overlay[at] = select(NODATA_STORED, a.h - b.h, a.has && b.has);
+    }
 }

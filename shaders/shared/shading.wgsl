@@ -44,3 +44,27 @@ fn hillshade(n: vec3<f32>, up: vec3<f32>, azimuth: f32, elevation: f32, strength
     let lit = max(dot(n, sun), 0.0) / max(sin(elevation), 1e-3);
     return (1.0 - strength) + strength * lit;
 }
+
+// ColorBrewer's RdBu, 11 classes, red to blue (sRGB 0–1): src/colour.rs DIVERGING.
+const DIVERGING: array<vec3<f32>, 11> = array<vec3<f32>, 11>(
+    vec3<f32>(0.403921569, 0.0, 0.121568627),
+    vec3<f32>(0.698039216, 0.094117647, 0.168627451),
+    vec3<f32>(0.839215686, 0.376470588, 0.301960784),
+    vec3<f32>(0.956862745, 0.647058824, 0.509803922),
+    vec3<f32>(0.992156863, 0.858823529, 0.780392157),
+    vec3<f32>(0.968627451, 0.968627451, 0.968627451),
+    vec3<f32>(0.819607843, 0.898039216, 0.941176471),
+    vec3<f32>(0.57254902, 0.77254902, 0.870588235),
+    vec3<f32>(0.262745098, 0.576470588, 0.764705882),
+    vec3<f32>(0.129411765, 0.4, 0.674509804),
+    vec3<f32>(0.019607843, 0.188235294, 0.380392157),
+);
+
+// The diverging map's sRGB colour at t = dh / range (clamped to [−1, 1]): colour::diverging.
+fn diverging_colour(t: f32) -> vec3<f32> {
+    let x = (clamp(t, -1.0, 1.0) + 1.0) * 5.0;
+    let k = min(u32(floor(x)), 9u);
+    let w = x - f32(k);
+    var stops = DIVERGING;
+    return stops[k] + w * (stops[k + 1u] - stops[k]);
+}

@@ -70,13 +70,14 @@ fn parse_swipe(text: &str, project: &Project) -> Result<Swipe, String> {
     Ok(Swipe { a: a.into(), b: b.into(), position })
 }
 
-/// The project with layer `show` shown and layer `hide` hidden.
+/// The project with layer `show` shown and layer `hide` hidden, and no difference layer drawn (a
+/// swipe shows the layers themselves).
 fn show_only(project: &Project, show: &str, hide: &str) -> Project {
     let mut p = project.clone();
     for layer in &mut p.layers {
         if layer.name == show {
             layer.visible = true;
-        } else if layer.name == hide {
+        } else if layer.name == hide || layer.kind == crate::layers::LayerKind::Difference {
             layer.visible = false;
         }
     }
@@ -112,8 +113,34 @@ pub fn open_renderer(project_path: &Path) -> Result<(Project, Renderer, Vec<Stri
     let ctx = GpuContext::headless().map_err(|e| e.to_string())?;
     let mut lines = report.imported;
     lines.push(format!("device: {}", ctx.describe()));
-    let renderer = Renderer::new(&ctx, scene, IMAGE_FORMAT).map_err(|e| e.to_string())?;
+    let mut renderer = Renderer::new(&ctx, scene, IMAGE_FORMAT).map_err(|e| e.to_string())?;
+    if let Some(line) = resolve_difference_range(&project, &mut renderer)? {
+        lines.push(line);
+    }
     Ok((project, renderer, lines))
+}
+
+/// Gives the renderer the drawn difference layer's range: its `range_m`, or the percentile of
+/// |dh| computed here; the line says which.
+pub fn resolve_difference_range(project: &Project, renderer: &mut Renderer) -> Result<Option<String>, String> {
+    let Some(d) = renderer.scene().stack.drawn_difference() else { return Ok(None) };
+    let spec = renderer.scene().stack.layers[d].spec.clone();
+    let style = spec.difference_style();
+    if style.range_m.is_none() {
+        let range = crate::compare::difference_range(project, &spec)
+            .map_err(|e| format!("difference layer '{}': {e}", spec.name))?;
+        renderer.set_difference_range(range);
+    }
+    let how = match style.range_m {
+        Some(_) => "its range_m".to_string(),
+        None => format!("the {}th percentile of |dh|", style.percentile),
+    };
+    let of = spec.of.as_ref().map_or(String::new(), |[a, b]| format!("{a} - {b}"));
+    Ok(Some(format!(
+        "difference '{}' ({of}): red -{r:.2} m … white 0 … blue +{r:.2} m ({how})",
+        spec.name,
+        r = renderer.difference_range_m()
+    )))
 }
 
 /// The camera of a request: `--camera`, else `--view`, else the project's default view.

@@ -16,7 +16,9 @@ pub mod stats;
 
 pub use coreg::{CoregOptions, Coregistration, coregister};
 pub use profile::{Profile, ProfileOptions, profile};
-pub use sample::{CompareOptions, Comparison, Weighting, compare};
+pub use sample::{
+    CompareOptions, Comparison, Weighting, compare, compare_operands, difference_range, open_operand, operand,
+};
 pub use stats::{Diff, Histogram, SlopeClass, Stats};
 
 /// A comparison that cannot be made, in words that name the layer, option or file.

@@ -84,7 +84,13 @@ pub fn profile(project: &Project, opts: &ProfileOptions) -> Result<Profile, Comp
         return Err(bad("--to", "the line has no length (--from and --to are the same point)".into()));
     }
     let (stack, _) = Scene::open(project).map_err(CompareError::Open)?;
-    let visible: Vec<String> = project.layers.iter().filter(|l| l.visible).map(|l| l.name.clone()).collect();
+    // Layers with heights (a difference layer has none).
+    let visible: Vec<String> = project
+        .layers
+        .iter()
+        .filter(|l| l.visible && l.kind != crate::layers::LayerKind::Difference)
+        .map(|l| l.name.clone())
+        .collect();
     let level = match opts.level {
         Some(l) => l,
         None => stack

@@ -1,6 +1,7 @@
-//! The samples of a comparison: layers A and B each composed alone (the layer as the project sets
-//! it: scale, offset, valid range, extent; shown, `over`, opacity 1) with the CPU reference on the
-//! quads of one level where the datasets among them have tiles; per sample the difference A − B,
+//! The samples of a comparison: operands A and B each composed on its own (a layer alone as the
+//! project sets it: scale, offset, valid range, extent; shown, `over`, opacity 1; or a group of
+//! layers composed by their own blend modes) with the CPU reference on the quads of one level where
+//! the datasets among them have tiles; per sample the difference A − B,
 //! the area of its cell on the ellipsoid and the slope of B.
 //!
 //! Each quad's samples i, j ∈ 0..256 are counted, the one whose cell [i, i + 1] × [j, j + 1] it is
@@ -26,8 +27,8 @@ use super::stats::{Diff, HISTOGRAM_BINS, Histogram, SLOPE_CLASSES_DEG, SlopeClas
 use crate::ecm::QuadId;
 use crate::gpu::Scene;
 use crate::gpu::data::DatasetInfo;
-use crate::layers::BlendMode;
 use crate::layers::stack::sample_point;
+use crate::layers::{BlendMode, LayerKind, LayerSpec, Operand};
 use crate::project::Project;
 use crate::store::grid::{GRID, spacing_m};
 
@@ -130,20 +131,68 @@ pub(super) fn quads_at(info: &DatasetInfo, level: u8) -> HashSet<QuadId> {
     quads
 }
 
-/// Opens layer `name` alone: shown, `over`, opacity 1, its other settings as the project has them.
-pub fn open_alone(project: &Project, name: &str) -> Result<Scene, CompareError> {
+/// The project's layer called `name` (not a difference layer: those have no heights).
+fn height_layer<'a>(project: &'a Project, name: &str) -> Result<&'a LayerSpec, CompareError> {
     let Some(spec) = project.layers.iter().find(|l| l.name == name) else {
         let known = project.layers.iter().map(|l| l.name.as_str()).collect::<Vec<_>>().join(", ");
         return Err(CompareError::NoLayer { name: name.into(), known });
     };
+    if spec.kind == LayerKind::Difference {
+        return Err(CompareError::Option {
+            option: name.into(),
+            problem: "is a difference layer: it draws A − B and has no heights to compare".into(),
+        });
+    }
+    Ok(spec)
+}
+
+/// Opens layer `name` alone: shown, `over`, opacity 1, its other settings as the project has them.
+pub fn open_alone(project: &Project, name: &str) -> Result<Scene, CompareError> {
+    open_operand(project, &Operand::Layer(name.into()))
+}
+
+/// An operand as the command line names it (`NAME`, or `NAME+NAME…` for a composed group).
+pub fn operand(project: &Project, text: &str) -> Operand {
+    Operand::parse(text, &|name| project.layers.iter().any(|l| l.name == name))
+}
+
+/// Opens an operand: a layer alone ([`open_alone`]), or a group's layers in the project's order,
+/// shown, with their own blend modes and opacities (the stack's `operand_layers` reads the same).
+pub fn open_operand(project: &Project, operand: &Operand) -> Result<Scene, CompareError> {
     let mut alone = project.clone();
-    alone.layers =
-        vec![crate::layers::LayerSpec { visible: true, blend: BlendMode::Over, opacity: 1.0, ..spec.clone() }];
+    alone.layers = match operand {
+        Operand::Layer(name) => {
+            let spec = height_layer(project, name)?;
+            vec![LayerSpec { visible: true, blend: BlendMode::Over, opacity: 1.0, ..spec.clone() }]
+        }
+        Operand::Group(names) => {
+            for name in names {
+                height_layer(project, name)?;
+            }
+            project
+                .layers
+                .iter()
+                .filter(|l| names.contains(&l.name))
+                .map(|l| LayerSpec { visible: true, ..l.clone() })
+                .collect()
+        }
+    };
     Scene::open(&alone).map(|(scene, _)| scene).map_err(CompareError::Open)
 }
 
-/// Compares layer `a` with layer `b` (the reference) of a project.
+/// Compares `a` with `b` (the reference) of a project: each a layer or a composed group
+/// (`NAME+NAME…`, see [`operand`]).
 pub fn compare(project: &Project, a: &str, b: &str, opts: &CompareOptions) -> Result<Comparison, CompareError> {
+    compare_operands(project, &operand(project, a), &operand(project, b), opts)
+}
+
+/// Compares operand `a` with operand `b` (the reference).
+pub fn compare_operands(
+    project: &Project,
+    a: &Operand,
+    b: &Operand,
+    opts: &CompareOptions,
+) -> Result<Comparison, CompareError> {
     if a == b {
         return Err(CompareError::Option { option: "B".into(), problem: format!("'{a}' compared with itself") });
     }
@@ -159,7 +208,7 @@ pub fn compare(project: &Project, a: &str, b: &str, opts: &CompareOptions) -> Re
             problem: format!("{w},{s},{e},{n} is not a box WEST,SOUTH,EAST,NORTH in degrees with south < north"),
         });
     }
-    let (scene_a, scene_b) = (open_alone(project, a)?, open_alone(project, b)?);
+    let (scene_a, scene_b) = (open_operand(project, a)?, open_operand(project, b)?);
     let (level, quads) = overlap_quads(&scene_a, &scene_b, opts.level)?;
     let ellipsoid = scene_a.ellipsoid;
     let mut diffs = Vec::new();
@@ -192,8 +241,8 @@ pub fn compare(project: &Project, a: &str, b: &str, opts: &CompareOptions) -> Re
     }
     let area_m2: f64 = if opts.weighting == Weighting::Area { diffs.iter().map(|d| d.weight).sum() } else { f64::NAN };
     let mut comparison = Comparison {
-        a: a.into(),
-        b: b.into(),
+        a: a.label(),
+        b: b.label(),
         level,
         spacing_m: spacing_m(&ellipsoid, level),
         weighting: opts.weighting,
@@ -348,6 +397,31 @@ pub(super) fn gradient(points: &[(DVec3, f64, f64)], h: &[f32], i: usize, j: usi
 /// A quad's 257² sample points: ECEF, longitude and latitude (radians).
 pub(super) fn quad_points(ellipsoid: &crate::geodesy::Ellipsoid, quad: QuadId) -> Vec<(DVec3, f64, f64)> {
     (0..N * N).into_par_iter().map(|k| sample_point(ellipsoid, quad, GRID, (k % N) as u32, (k / N) as u32)).collect()
+}
+
+/// The range a difference layer draws without a `range_m`: the `percentile` of |A − B| over the
+/// operands' overlap, area-weighted, at one level coarser than a comparison's default (a quarter
+/// of its samples: a colour range, not a statistic). None where the operands do not overlap.
+pub fn difference_range(project: &Project, spec: &LayerSpec) -> Result<Option<f64>, CompareError> {
+    let Some([a, b]) = &spec.of else {
+        return Err(CompareError::Option { option: spec.name.clone(), problem: "is not a difference layer".into() });
+    };
+    let (scene_a, scene_b) = (open_operand(project, a)?, open_operand(project, b)?);
+    let (finest, _) = overlap_quads(&scene_a, &scene_b, None)?;
+    let mut level = finest.saturating_sub(1);
+    // Coarser still while the overlap is more than a comparison reads.
+    while level > 0 && overlap_quads(&scene_a, &scene_b, Some(level)).is_err() {
+        level -= 1;
+    }
+    let opts = CompareOptions { level: Some(level), keep_samples: true, ..CompareOptions::default() };
+    let c = compare_operands(project, a, b, &opts)?;
+    let mut abs: Vec<(f64, f64)> = c.samples.iter().map(|s| (s.dh_m.abs(), s.area_m2)).collect();
+    if abs.is_empty() {
+        return Ok(None);
+    }
+    abs.sort_by(|x, y| x.0.total_cmp(&y.0));
+    let p = super::stats::weighted_quantile(&abs, spec.difference_style().percentile / 100.0);
+    Ok((p > 0.0).then_some(p))
 }
 
 #[cfg(test)]

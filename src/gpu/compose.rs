@@ -1,6 +1,8 @@
 //! The composition pass: per quad that needs it, a compute dispatch of `shaders/compose/
 //! compose.wgsl` that folds the quad's planned layers into its 257² heights in the height pool
-//! (the GPU twin of [`crate::layers::compose`]). The structs below are the Pod twins of the
+//! and, where a difference layer is drawn, composes its operands A and B the same way and writes
+//! A − B into the overlay pool's slot of the same index (the GPU twin of
+//! [`crate::layers::compose`]). The structs below are the Pod twins of the
 //! shader's `Job`, `JobLayer` and `Octave` (keep in sync; sizes asserted at compile time). All
 //! positions a job carries are relative to the quad's origin O, cast from f64: the kernel works
 //! in quad-local f32, and procedural lattices are addressed from per-octave f64 origins.
@@ -14,7 +16,7 @@ use super::terrain::bind_buffers;
 use super::uniforms::NO_SLOT;
 use crate::ecm::geometry::{MapSymmetry, QuadGeometry, Split};
 use crate::layers::spec::{BlendMode, DetailWhere, LayerKind, NoiseType};
-use crate::layers::{MaskPlan, QuadPlan, Stack, noise};
+use crate::layers::{MaskPlan, PlannedLayer, QuadPlan, Stack, noise};
 
 /// Stands for "no bound" and "no data spacing" in the shader (its `FAR`).
 const FAR: f32 = 3.0e38;
@@ -90,9 +92,11 @@ impl ComposeBatch {
         self.jobs.is_empty()
     }
 
-    /// Adds a quad: its plan, geometry, the height slot it writes, its map slot (None: flat
-    /// patch) and the source and edge slots of each planned dataset layer (`tile_slots(k)`;
-    /// NO_SLOT for the edge where the layer does not fade in from its no-data edge).
+    /// Adds a quad: its plan, geometry, the height slot it writes (and, where the plan has a
+    /// difference, the same slot of the overlay pool), its map slot (None: flat patch) and the
+    /// source and edge slots of each planned dataset layer (`tile_slots(k)` over
+    /// [`QuadPlan::all_layers`]; NO_SLOT for the edge where the layer does not fade in from its
+    /// no-data edge).
     pub fn push(
         &mut self,
         stack: &Stack,
@@ -108,103 +112,125 @@ impl ComposeBatch {
         let m = symmetry.matrix();
         let flags = u32::from(symmetry.swap) | u32::from(symmetry.flip_x) << 1 | u32::from(symmetry.flip_y) << 2;
         let first_layer = self.layers.len() as u32;
-        for (k, planned) in plan.layers.iter().enumerate() {
-            let layer = &stack.layers[planned.index];
-            let spec = &layer.spec;
-            let kind = match spec.kind {
-                LayerKind::Dataset => 0,
-                LayerKind::Procedural => 1,
-                LayerKind::Constant => 2,
-            };
-            let blend = match spec.blend {
-                BlendMode::Over => 0,
-                BlendMode::Add => 1,
-                BlendMode::Min => 2,
-                BlendMode::Max => 3,
-                BlendMode::Mean => 4,
-            };
-            let mut mask = [0u32; 4];
-            let mut lon_min = 0.0f32;
-            let mut orientation = 1.0f32;
-            let partial = match (&planned.mask, &layer.extent) {
-                (MaskPlan::Partial(segments), Some(extent)) => {
-                    mask[0] = self.shapes.len() as u32;
-                    mask[1] = segments.len() as u32;
-                    for &s in segments {
-                        let [a, b] = extent.segments[s as usize];
-                        self.shapes.push(v4(a - origin, 0.0));
-                        self.shapes.push(v4(b - origin, 0.0));
-                    }
-                    mask[2] = self.shapes.len() as u32;
-                    match extent.box_rad {
-                        // A box: no ring, its bounds in one entry.
-                        Some(b) => self.shapes.push(b.map(|v| v as f32)),
-                        None => {
-                            mask[3] = extent.ring_rad.len() as u32;
-                            self.shapes
-                                .extend(extent.ring_rad.iter().map(|[lon, lat]| [*lon as f32, *lat as f32, 0.0, 0.0]));
-                        }
-                    }
-                    lon_min = extent.lon_min_rad as f32;
-                    orientation = extent.orientation() as f32;
-                    1
-                }
-                _ => 0,
-            };
-            let mut noise_head = [0u32; 4];
-            let mut extra = [0.0f32, 0.0, FAR, 0.0];
-            if let Some(n) = &spec.noise {
-                noise_head = [
-                    self.octaves.len() as u32,
-                    planned.octaves,
-                    u32::from(n.noise_type == NoiseType::Ridged),
-                    u32::from(n.placement == DetailWhere::BeyondData),
-                ];
-                for o in 0..planned.octaves {
-                    let wavelength = noise::octave_wavelength_m(n, o);
-                    let (cell, frac) = noise::lattice_origin(origin, wavelength);
-                    self.octaves.push(OctaveOrigin {
-                        cell: [cell[0], cell[1], cell[2], noise::octave_seed(n.seed, o)],
-                        frac: [frac[0] as f32, frac[1] as f32, frac[2] as f32, wavelength as f32],
-                    });
-                }
-                extra[0] = n.amplitude_m as f32;
-                extra[1] = n.gain as f32;
-            }
-            if let Some(h) = spec.height_m {
-                extra[0] = h as f32;
-            }
-            if spec.kind == LayerKind::Dataset {
-                // The edge slot where the noise head would be, the feather where the gain would.
-                noise_head[0] = tile_slots(k).1;
-                extra[1] = spec.feather_edge_m as f32;
-                if layer.data_spacing_m.is_finite() {
-                    extra[2] = layer.data_spacing_m as f32;
-                }
-            }
-            extra[3] = orientation;
-            let [lo, hi] = spec.valid_range_m.map_or([-FAR, FAR], |[a, b]| [a as f32, b as f32]);
-            let source = if spec.kind == LayerKind::Dataset { tile_slots(k).0 } else { NO_SLOT };
-            self.layers.push(JobLayer {
-                head: [kind, blend, source, partial],
-                mask,
-                noise: noise_head,
-                value: [spec.opacity as f32, spec.weight as f32, spec.scale as f32, spec.offset_m as f32],
-                range: [lo, hi, spec.feather_m as f32, lon_min],
-                extra,
-            });
+        let mut count = 0;
+        for (k, planned) in plan.all_layers().enumerate() {
+            self.push_layer(stack, planned, origin, tile_slots(k));
+            count += 1;
         }
-        self.layers_read += plan.layers.len();
+        self.layers_read += count;
+        // Heights: the plan's layers; A and B follow them (their counts; 0, 0: no difference).
+        let (a, b) = plan.difference.as_ref().map_or((0, 0), |d| (d.a.layers.len() as u32, d.b.layers.len() as u32));
         self.quads.push(quad);
         self.jobs.push(ComposeJob {
             corners: geometry.corners_ecef.map(|c| v4(c - origin, 0.0)),
             sym: [m.x_axis, m.y_axis, m.z_axis].map(|c| v4(c, 0.0)),
             origin: v4(origin, stack.ellipsoid.e2() as f32),
             slots: [height_slot, Split::of(quad).code(), map_slot.unwrap_or(NO_SLOT), flags],
-            layers: [first_layer, plan.layers.len() as u32, 0, 0],
-            params: [plan.spacing_m as f32, 0.0, 0.0, 0.0],
+            layers: [first_layer, plan.layers.len() as u32, a, b],
+            params: [plan.spacing_m as f32, f32::from(u8::from(plan.difference.is_some())), 0.0, 0.0],
         });
     }
+
+    /// One planned layer's record; `slots` its source and edge tiles' slots.
+    fn push_layer(&mut self, stack: &Stack, planned: &PlannedLayer, origin: DVec3, slots: (u32, u32)) {
+        let layer = &stack.layers[planned.index];
+        let spec = &layer.spec;
+        let kind = match spec.kind {
+            LayerKind::Dataset => 0,
+            LayerKind::Procedural => 1,
+            LayerKind::Constant => 2,
+            LayerKind::Difference => unreachable!("a difference layer is never planned"),
+        };
+        let blend = match planned.blend {
+            BlendMode::Over => 0,
+            BlendMode::Add => 1,
+            BlendMode::Min => 2,
+            BlendMode::Max => 3,
+            BlendMode::Mean => 4,
+        };
+        let mut mask = [0u32; 4];
+        let mut lon_min = 0.0f32;
+        let mut orientation = 1.0f32;
+        let partial = match (&planned.mask, &layer.extent) {
+            (MaskPlan::Partial(segments), Some(extent)) => {
+                mask[0] = self.shapes.len() as u32;
+                mask[1] = segments.len() as u32;
+                for &s in segments {
+                    let [a, b] = extent.segments[s as usize];
+                    self.shapes.push(v4(a - origin, 0.0));
+                    self.shapes.push(v4(b - origin, 0.0));
+                }
+                mask[2] = self.shapes.len() as u32;
+                match extent.box_rad {
+                    // A box: no ring, its bounds in one entry.
+                    Some(b) => self.shapes.push(b.map(|v| v as f32)),
+                    None => {
+                        mask[3] = extent.ring_rad.len() as u32;
+                        self.shapes
+                            .extend(extent.ring_rad.iter().map(|[lon, lat]| [*lon as f32, *lat as f32, 0.0, 0.0]));
+                    }
+                }
+                lon_min = extent.lon_min_rad as f32;
+                orientation = extent.orientation() as f32;
+                1
+            }
+            _ => 0,
+        };
+        let mut noise_head = [0u32; 4];
+        let mut extra = [0.0f32, 0.0, FAR, 0.0];
+        if let Some(n) = &spec.noise {
+            noise_head = [
+                self.octaves.len() as u32,
+                planned.octaves,
+                u32::from(n.noise_type == NoiseType::Ridged),
+                u32::from(n.placement == DetailWhere::BeyondData),
+            ];
+            for o in 0..planned.octaves {
+                let wavelength = noise::octave_wavelength_m(n, o);
+                let (cell, frac) = noise::lattice_origin(origin, wavelength);
+                self.octaves.push(OctaveOrigin {
+                    cell: [cell[0], cell[1], cell[2], noise::octave_seed(n.seed, o)],
+                    frac: [frac[0] as f32, frac[1] as f32, frac[2] as f32, wavelength as f32],
+                });
+            }
+            extra[0] = n.amplitude_m as f32;
+            extra[1] = n.gain as f32;
+        }
+        if let Some(h) = spec.height_m {
+            extra[0] = h as f32;
+        }
+        if spec.kind == LayerKind::Dataset {
+            // The edge slot where the noise head would be, the feather where the gain would.
+            noise_head[0] = slots.1;
+            extra[1] = spec.feather_edge_m as f32;
+            if layer.data_spacing_m.is_finite() {
+                extra[2] = layer.data_spacing_m as f32;
+            }
+        }
+        extra[3] = orientation;
+        let [lo, hi] = spec.valid_range_m.map_or([-FAR, FAR], |[a, b]| [a as f32, b as f32]);
+        let source = if spec.kind == LayerKind::Dataset { slots.0 } else { NO_SLOT };
+        self.layers.push(JobLayer {
+            head: [kind, blend, source, partial],
+            mask,
+            noise: noise_head,
+            value: [planned.opacity as f32, spec.weight as f32, spec.scale as f32, spec.offset_m as f32],
+            range: [lo, hi, spec.feather_m as f32, lon_min],
+            extra,
+        });
+    }
+}
+
+/// The pools a dispatch reads and writes.
+pub(crate) struct ComposePools<'a> {
+    /// Raw source and edge tiles.
+    pub(crate) sources: &'a wgpu::Buffer,
+    /// The static displacement maps.
+    pub(crate) map_o: &'a wgpu::Buffer,
+    /// Composed heights (written).
+    pub(crate) heights: &'a wgpu::Buffer,
+    /// The drawn difference (written where a job has one).
+    pub(crate) overlay: &'a wgpu::Buffer,
 }
 
 /// The compose pipeline.
@@ -240,6 +266,7 @@ impl ComposePass {
                 entry(4, true),
                 entry(5, true),
                 entry(6, false),
+                entry(7, false),
             ],
         });
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -264,10 +291,9 @@ impl ComposePass {
         device: &wgpu::Device,
         encoder: &mut wgpu::CommandEncoder,
         batch: &ComposeBatch,
-        sources: &wgpu::Buffer,
-        map_o: &wgpu::Buffer,
-        heights: &wgpu::Buffer,
+        pools: ComposePools,
     ) {
+        let ComposePools { sources, map_o, heights, overlay } = pools;
         if batch.is_empty() {
             return;
         }
@@ -288,7 +314,7 @@ impl ComposePass {
             device,
             &self.layout,
             "compose",
-            &[&jobs, &layers, &octaves, &shapes, sources, map_o, heights],
+            &[&jobs, &layers, &octaves, &shapes, sources, map_o, heights, overlay],
         );
         let mut pass =
             encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("compose"), timestamp_writes: None });

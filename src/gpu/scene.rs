@@ -159,7 +159,8 @@ impl Scene {
         }
         self.stack.insert(index, spec).map_err(|e| e.to_string())?;
         if let Err(e) = self.attach(index, info) {
-            self.stack.remove(index);
+            // Just inserted: no difference reads it yet.
+            let _ = self.stack.remove(index);
             return Err(e);
         }
         Ok(())

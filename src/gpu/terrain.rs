@@ -98,6 +98,7 @@ impl TerrainPass {
                 entry(4, wgpu::ShaderStages::VERTEX, read),
                 entry(5, wgpu::ShaderStages::VERTEX, read),
                 entry(6, wgpu::ShaderStages::FRAGMENT, read),
+                entry(7, wgpu::ShaderStages::VERTEX, read),
             ],
         });
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -155,8 +156,8 @@ impl TerrainPass {
         })
     }
 
-    /// The terrain bind group: frame, quads, heights, the three maps, the ramp.
-    pub(crate) fn bind_group(&self, device: &wgpu::Device, buffers: [&wgpu::Buffer; 7]) -> wgpu::BindGroup {
+    /// The terrain bind group: frame, quads, heights, the three maps, the ramp, the overlay.
+    pub(crate) fn bind_group(&self, device: &wgpu::Device, buffers: [&wgpu::Buffer; 8]) -> wgpu::BindGroup {
         bind_buffers(device, &self.layout, "terrain", &buffers)
     }
 }

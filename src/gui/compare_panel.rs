@@ -12,6 +12,13 @@ use crate::project::Project;
 pub enum CompareAction {
     /// Nothing.
     None,
+    /// Draw A − B over the terrain (a difference layer on top of the stack).
+    ShowDifference {
+        /// A.
+        a: String,
+        /// B.
+        b: String,
+    },
     /// Move layer `layer` by `shift_m` more and raise it by `up_m` (a co-registration applied).
     Apply {
         /// The layer.
@@ -109,6 +116,13 @@ impl ComparePanel {
                 self.coregistering = Some(std::thread::spawn(move || {
                     coregister(&p, &a, &b, &CoregOptions::default()).map_err(|e| e.to_string())
                 }));
+            }
+            if ui
+                .add_enabled(self.a != self.b, egui::Button::new("show difference"))
+                .on_hover_text("a difference layer A - B on top of the stack: red where A is lower, blue higher")
+                .clicked()
+            {
+                action = CompareAction::ShowDifference { a: self.a.clone(), b: self.b.clone() };
             }
             if self.busy() {
                 ui.spinner();

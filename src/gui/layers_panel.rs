@@ -1,7 +1,9 @@
 //! The layers panel: the stack top to bottom as a person reads it, each layer's visibility,
 //! blend mode, opacity and parameters edited live (the renderer recomposes only the quads the
 //! changed layer touches), order changed by dragging a layer onto another or with up/down,
-//! constant and procedural layers added (datasets by [`super::add_dataset`]) and any layer removed.
+//! constant, procedural and difference layers added (datasets by [`super::add_dataset`]; a
+//! difference's settings by [`super::difference_ui`]) and any layer removed (not one a difference
+//! reads).
 
 use crate::gpu::Renderer;
 use crate::layers::{BlendMode, DetailWhere, ExtentSpec, LayerKind, LayerSpec, NoiseSpec, NoiseType};
@@ -45,6 +47,19 @@ pub fn layers_ui(ui: &mut egui::Ui, renderer: &mut Renderer, project: &mut Proje
             };
             insert(renderer, project, LayerSpec::procedural(&unique_name(project, "detail"), noise), &mut change);
         }
+        let heights: Vec<&str> =
+            project.layers.iter().filter(|l| l.kind != LayerKind::Difference).map(|l| l.name.as_str()).collect();
+        let two = heights.len() >= 2;
+        if ui
+            .add_enabled(two, egui::Button::new("add difference").small())
+            .on_hover_text("A - B of the top two layers, drawn over the terrain in red and blue")
+            .on_disabled_hover_text("needs two layers with heights")
+            .clicked()
+        {
+            let (a, b) = (heights[heights.len() - 1], heights[heights.len() - 2]);
+            let spec = super::difference_ui::new_layer(project, a, b);
+            insert(renderer, project, spec, &mut change);
+        }
     });
     // A move from one position to another (up, down, or a layer dragged onto another).
     let mut moved: Option<(usize, usize)> = None;
@@ -72,7 +87,18 @@ pub fn layers_ui(ui: &mut egui::Ui, renderer: &mut Renderer, project: &mut Proje
                         remove = Some(index);
                     }
                 });
-                layer_settings_ui(ui, &mut spec);
+                if spec.kind == LayerKind::Difference {
+                    let heights = project.layers.iter().filter(|l| l.kind != LayerKind::Difference);
+                    let names: Vec<String> = heights.clone().map(|l| l.name.clone()).collect();
+                    let visible: Vec<String> = heights.filter(|l| l.visible).map(|l| l.name.clone()).collect();
+                    let drawn = renderer.scene().stack.drawn_difference() == Some(index);
+                    super::difference_ui::settings_ui(ui, &mut spec, &names, &visible, renderer.difference_range_m());
+                    if !drawn && spec.visible {
+                        ui.label("(a difference above this one is drawn)");
+                    }
+                } else {
+                    layer_settings_ui(ui, &mut spec);
+                }
             })
             .response;
         if block.dnd_hover_payload::<usize>().is_some_and(|from| *from != index) {
@@ -145,7 +171,7 @@ pub fn insert_dataset(
 }
 
 /// Puts a new layer on top of the stack, in the renderer and the project.
-fn insert(renderer: &mut Renderer, project: &mut Project, spec: LayerSpec, change: &mut LayersChange) {
+pub fn insert(renderer: &mut Renderer, project: &mut Project, spec: LayerSpec, change: &mut LayersChange) {
     let top = project.layers.len();
     match renderer.insert_layer(top, spec.clone()) {
         Ok(()) => {
@@ -209,6 +235,7 @@ fn layer_settings_ui(ui: &mut egui::Ui, spec: &mut LayerSpec) {
                 ui.add(egui::DragValue::new(&mut n.seed).prefix("seed "));
             }
         }
+        LayerKind::Difference => {}
         LayerKind::Dataset => {
             ui.add(
                 egui::DragValue::new(&mut spec.feather_edge_m)

@@ -4,6 +4,7 @@
 pub mod add_dataset;
 pub mod app;
 pub mod compare_panel;
+pub mod difference_ui;
 pub mod layers_panel;
 pub mod navigate;
 pub mod viewport;

@@ -13,7 +13,7 @@ use glam::DVec3;
 use rayon::prelude::*;
 
 use super::spec::{BlendMode, LayerKind};
-use super::stack::{MaskPlan, QuadPlan, SAMPLES, Stack, sample_point};
+use super::stack::{DifferencePlan, MaskPlan, QuadPlan, SAMPLES, Stack, sample_point};
 use super::{edge, noise};
 
 /// The running state at a sample.
@@ -135,6 +135,8 @@ pub fn layer_sample(
             weights.truncate(planned.octaves as usize);
             noise::noise_at(n, at.ecef, &weights)
         }
+        // Never planned: it changes no height.
+        LayerKind::Difference => f64::NAN,
     };
     let value = base * spec.scale + spec.offset_m;
     let valid = !value.is_nan() && spec.valid_range_m.is_none_or(|[lo, hi]| value >= lo && value <= hi);
@@ -148,7 +150,7 @@ pub fn layer_sample(
         _ => 1.0,
     };
     let edge = if spec.kind == LayerKind::Dataset { edge::edge_mask(data.edge_m, spec.feather_edge_m) } else { 1.0 };
-    LayerSample { value, alpha: spec.opacity * mask * edge }
+    LayerSample { value, alpha: planned.opacity * mask * edge }
 }
 
 /// The composed height at one sample; `data(k)` is what the plan's k-th layer's tiles hold there
@@ -158,11 +160,12 @@ pub fn compose_sample(stack: &Stack, plan: &QuadPlan, at: &SamplePoint, data: &d
     // The open mean group: Σ w·α·v, Σ w·α, Σ w·α over its datasets, max α, finest spacing.
     let (mut sum, mut weight, mut data_weight, mut alpha_max, mut group_spacing) = (0.0, 0.0, 0.0, 0.0, f64::INFINITY);
     for k in 0..plan.layers.len() {
-        let layer = &stack.layers[plan.layers[k].index];
+        let planned = &plan.layers[k];
+        let layer = &stack.layers[planned.index];
         let s = layer_sample(stack, plan, k, at, data(k), &state);
         let dataset = layer.spec.kind == LayerKind::Dataset;
         let spacing = if dataset { layer.data_spacing_m } else { f64::INFINITY };
-        if layer.spec.blend == BlendMode::Mean {
+        if planned.blend == BlendMode::Mean {
             if s.alpha > 0.0 {
                 let w = layer.spec.weight * s.alpha;
                 sum += w * s.value;
@@ -173,8 +176,7 @@ pub fn compose_sample(stack: &Stack, plan: &QuadPlan, at: &SamplePoint, data: &d
                 alpha_max = f64::max(alpha_max, s.alpha);
                 group_spacing = group_spacing.min(spacing);
             }
-            let closes =
-                plan.layers.get(k + 1).is_none_or(|next| stack.layers[next.index].spec.blend != BlendMode::Mean);
+            let closes = plan.layers.get(k + 1).is_none_or(|next| next.blend != BlendMode::Mean);
             if closes {
                 if weight > 0.0 {
                     apply(&mut state, BlendMode::Over, sum / weight, alpha_max, group_spacing, data_weight / weight);
@@ -182,7 +184,7 @@ pub fn compose_sample(stack: &Stack, plan: &QuadPlan, at: &SamplePoint, data: &d
                 (sum, weight, data_weight, alpha_max, group_spacing) = (0.0, 0.0, 0.0, 0.0, f64::INFINITY);
             }
         } else if s.alpha > 0.0 {
-            apply(&mut state, layer.spec.blend, s.value, s.alpha, spacing, if dataset { 1.0 } else { 0.0 });
+            apply(&mut state, planned.blend, s.value, s.alpha, spacing, if dataset { 1.0 } else { 0.0 });
         }
     }
     state.h
@@ -233,6 +235,21 @@ pub fn compose_quad<'a>(stack: &Stack, plan: &QuadPlan, tiles: &dyn Fn(usize) ->
     out
 }
 
+/// A quad's difference A − B (257², NaN where either side has no data), each operand composed
+/// from its own plan like heights: `tiles(k)` for the k-th layer of A's plan then of B's (k
+/// counting on past A's layers), as the GPU's job lists them.
+pub fn compose_difference<'a>(
+    stack: &Stack,
+    plan: &DifferencePlan,
+    tiles: &dyn Fn(usize) -> LayerTiles<'a>,
+) -> Vec<f32> {
+    let offset = plan.a.layers.len();
+    let a = compose_quad(stack, &plan.a, tiles);
+    let b = compose_quad(stack, &plan.b, &|k| tiles(offset + k));
+    // In f32 as the GPU subtracts its f32 heights; NaN on either side stays NaN.
+    a.iter().zip(&b).map(|(a, b)| a - b).collect()
+}
+
 /// A conservative range of the composed heights of a quad, from each planned layer's value range
 /// (`range(k)`, e.g. its source tile's), by interval arithmetic through the blend modes; `None`
 /// where no layer can give data. A layer's coverage α lies in [α_lo, opacity], α_lo = opacity
@@ -247,12 +264,12 @@ pub fn range_bound(stack: &Stack, plan: &QuadPlan, range: &dyn Fn(usize) -> (f64
         let spec = &layer.spec;
         let (mut lo, mut hi) = range(k);
         let full = planned.mask == MaskPlan::Full && spec.kind != LayerKind::Dataset && spec.valid_range_m.is_none();
-        let (mut a_lo, a_hi) = (if full { spec.opacity } else { 0.0 }, spec.opacity);
-        let mut blend = spec.blend;
+        let (mut a_lo, a_hi) = (if full { planned.opacity } else { 0.0 }, planned.opacity);
+        let mut blend = planned.blend;
         if blend == BlendMode::Mean {
             // The group's value lies in the hull of its members; it applies with over.
             let mut j = k + 1;
-            while j < plan.layers.len() && stack.layers[plan.layers[j].index].spec.blend == BlendMode::Mean {
+            while j < plan.layers.len() && plan.layers[j].blend == BlendMode::Mean {
                 let (l, u) = range(j);
                 (lo, hi) = (lo.min(l), hi.max(u));
                 j += 1;

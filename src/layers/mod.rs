@@ -19,9 +19,12 @@ pub mod noise;
 pub mod spec;
 pub mod stack;
 
-pub use compose::{DataAt, LayerTiles, compose_quad, compose_sample, fold, range_bound};
-pub use spec::{BlendMode, DetailWhere, ExtentSpec, LayerKind, LayerSpec, NoiseSpec, NoiseType, SourceSpec};
-pub use stack::{Layer, MaskPlan, PlannedLayer, QuadPlan, Stack};
+pub use compose::{DataAt, LayerTiles, compose_difference, compose_quad, compose_sample, fold, range_bound};
+pub use spec::{
+    BlendMode, DetailWhere, DifferenceStyle, ExtentSpec, LayerKind, LayerSpec, NoiseSpec, NoiseType, Operand,
+    SourceSpec,
+};
+pub use stack::{DifferencePlan, Layer, MaskPlan, PlannedLayer, QuadPlan, Stack};
 
 /// A layer that cannot be used, naming the layer, the field and the problem.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]

@@ -6,11 +6,14 @@
 //! { "name": "detail", "kind": "procedural", "blend": "add",
 //!   "noise": { "type": "fbm", "seed": 7, "amplitude_m": 30, "wavelength_m": 2000, "octaves": 8 } }
 //! { "name": "sea", "kind": "constant", "height_m": 0, "blend": "max" }
+//! { "name": "dh", "kind": "difference", "of": ["srtm", ["copernicus", "detail"]],
+//!   "style": { "percentile": 98, "isolines_m": 5 } }
 //! ```
 //!
 //! Every layer has the common fields; the kind-specific ones (`store`, `dataset`, `source` for
-//! datasets, `height_m` for constants, `noise` for procedural layers) are refused on other kinds,
-//! so a misplaced field is an error rather than silently ignored.
+//! datasets, `height_m` for constants, `noise` for procedural layers, `of` and `style` for
+//! differences) are refused on other kinds, so a misplaced field is an error rather than silently
+//! ignored. A difference layer changes no height, so it refuses the fields that shape one.
 
 use std::path::PathBuf;
 
@@ -28,6 +31,9 @@ pub enum LayerKind {
     Procedural,
     /// One height everywhere (a sea level, a datum plane).
     Constant,
+    /// A − B of two operands, drawn over the terrain with a diverging colour map; changes no
+    /// height (see [`DifferenceSpec`]).
+    Difference,
 }
 
 impl LayerKind {
@@ -37,6 +43,7 @@ impl LayerKind {
             LayerKind::Dataset => "dataset",
             LayerKind::Procedural => "procedural",
             LayerKind::Constant => "constant",
+            LayerKind::Difference => "difference",
         }
     }
 }
@@ -153,6 +160,81 @@ fn default_gain() -> f64 {
     0.5
 }
 
+/// One side of a difference or a comparison: a layer alone (its value wherever it has data, its
+/// own scale, offset, shift, valid range and extent; shown, `over`, whatever the project's
+/// visibility) or a composed group (the listed layers folded bottom to top in the stack's order by
+/// their own blend modes and opacities, shown).
+///
+/// In files a layer is its name and a group a list of names: `"srtm"`, `["srtm", "detail"]`. On
+/// the command line a group is its names joined by `+` (`srtm+detail`).
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum Operand {
+    /// One layer alone.
+    Layer(String),
+    /// Several layers composed.
+    Group(Vec<String>),
+}
+
+impl Operand {
+    /// From the command line's form: `NAME`, or `NAME+NAME+…` for a group (a layer whose name
+    /// contains `+` is taken whole when `known` has it).
+    pub fn parse(text: &str, known: &dyn Fn(&str) -> bool) -> Operand {
+        if known(text) || !text.contains('+') {
+            Operand::Layer(text.to_string())
+        } else {
+            Operand::Group(text.split('+').map(|n| n.trim().to_string()).collect())
+        }
+    }
+
+    /// The layer names it reads.
+    pub fn names(&self) -> Vec<&str> {
+        match self {
+            Operand::Layer(n) => vec![n.as_str()],
+            Operand::Group(names) => names.iter().map(String::as_str).collect(),
+        }
+    }
+
+    /// Its command-line form.
+    pub fn label(&self) -> String {
+        self.names().join("+")
+    }
+}
+
+impl std::fmt::Display for Operand {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.label())
+    }
+}
+
+/// How a difference layer is drawn. The range is symmetric: dh = ±range maps to the ends of the
+/// diverging colour map (red below zero, blue above, white at zero, as xDEM plots dh); without a
+/// `range_m` it is the `percentile` of |dh| over the operands' overlap (computed by the tools
+/// that open the project: [`crate::compare::difference_range`]).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DifferenceStyle {
+    /// Half the colour map's span, metres (absent: from `percentile`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub range_m: Option<f64>,
+    /// Percentile of |dh| that sets the range when `range_m` is absent (0–100, default 98).
+    #[serde(default = "default_percentile")]
+    pub percentile: f64,
+    /// Isolines of dh at ±k × this many metres, k ≥ 1 (0: none; zero is the map's white).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub isolines_m: f64,
+}
+
+fn default_percentile() -> f64 {
+    98.0
+}
+
+impl Default for DifferenceStyle {
+    fn default() -> DifferenceStyle {
+        DifferenceStyle { range_m: None, percentile: default_percentile(), isolines_m: 0.0 }
+    }
+}
+
 /// Where a dataset's store comes from when it is not there yet: the source files to import.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -225,6 +307,12 @@ pub struct LayerSpec {
     /// Procedural: the noise.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub noise: Option<NoiseSpec>,
+    /// Difference: the operands A and B (the layer draws A − B).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub of: Option<[Operand; 2]>,
+    /// Difference: how dh is drawn.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub style: Option<DifferenceStyle>,
 }
 
 fn yes() -> bool {
@@ -269,6 +357,20 @@ impl LayerSpec {
         LayerSpec { noise: Some(noise), blend: BlendMode::Add, ..LayerSpec::bare(name, LayerKind::Procedural) }
     }
 
+    /// A difference layer A − B with the default style.
+    pub fn difference(name: &str, a: Operand, b: Operand) -> LayerSpec {
+        LayerSpec {
+            of: Some([a, b]),
+            style: Some(DifferenceStyle::default()),
+            ..LayerSpec::bare(name, LayerKind::Difference)
+        }
+    }
+
+    /// A difference layer's style (the default where the file has none).
+    pub fn difference_style(&self) -> DifferenceStyle {
+        self.style.clone().unwrap_or_default()
+    }
+
     fn bare(name: &str, kind: LayerKind) -> LayerSpec {
         LayerSpec {
             name: name.into(),
@@ -289,6 +391,8 @@ impl LayerSpec {
             source: None,
             height_m: None,
             noise: None,
+            of: None,
+            style: None,
         }
     }
 
@@ -374,6 +478,27 @@ impl LayerSpec {
         if self.kind != LayerKind::Procedural && self.noise.is_some() {
             return wrong_kind("noise");
         }
+        let difference = self.kind == LayerKind::Difference;
+        if !difference && self.of.is_some() {
+            return wrong_kind("of");
+        }
+        if !difference && self.style.is_some() {
+            return wrong_kind("style");
+        }
+        if difference {
+            // A difference changes no height: the fields that shape one do not apply.
+            let unused = [
+                ("blend", self.blend != BlendMode::Over),
+                ("weight", self.weight != 1.0),
+                ("scale", self.scale != 1.0),
+                ("offset_m", self.offset_m != 0.0),
+                ("valid_range_m", self.valid_range_m.is_some()),
+                ("extent", self.extent.is_some()),
+            ];
+            if let Some((field, _)) = unused.iter().find(|(_, set)| *set) {
+                return wrong_kind(field);
+            }
+        }
         match self.kind {
             LayerKind::Dataset if self.store.is_none() => bad("store", "a dataset layer needs its store".into()),
             LayerKind::Constant => match self.height_m {
@@ -388,6 +513,33 @@ impl LayerSpec {
                 None => bad("noise", "a procedural layer needs its noise settings".into()),
             },
             LayerKind::Dataset => Ok(()),
+            LayerKind::Difference => {
+                let Some(of) = &self.of else {
+                    return bad("of", "a difference layer needs its operands [A, B]".into());
+                };
+                for (side, operand) in ["A", "B"].iter().zip(of) {
+                    let names = operand.names();
+                    if names.is_empty() || names.iter().any(|n| n.trim().is_empty()) {
+                        return bad("of", format!("operand {side} '{operand}' names no layer"));
+                    }
+                }
+                if of[0] == of[1] {
+                    return bad("of", format!("A and B are both '{}': the difference would be 0", of[0]));
+                }
+                let style = self.difference_style();
+                if let Some(r) = style.range_m
+                    && !(r.is_finite() && r > 0.0)
+                {
+                    return bad("style.range_m", format!("{r} must be a positive height in metres"));
+                }
+                if !(style.percentile > 0.0 && style.percentile <= 100.0) {
+                    return bad("style.percentile", format!("{} must lie in (0, 100]", style.percentile));
+                }
+                if !(style.isolines_m.is_finite() && style.isolines_m >= 0.0) {
+                    return bad("style.isolines_m", format!("{} must be an interval ≥ 0 in metres", style.isolines_m));
+                }
+                Ok(())
+            }
         }
     }
 }

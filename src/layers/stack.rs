@@ -9,7 +9,7 @@ use glam::DVec3;
 use super::LayerError;
 use super::extent::{Extent, Relation};
 use super::noise;
-use super::spec::{BlendMode, LayerKind, LayerSpec};
+use super::spec::{BlendMode, LayerKind, LayerSpec, Operand};
 use crate::ecm::{CubeProjection, FacePoint, QuadId};
 use crate::geodesy::{Ellipsoid, Geodetic, ecef_from_geodetic};
 use crate::store::grid::{GRID, spacing_m};
@@ -53,6 +53,8 @@ impl Layer {
                 (h, h)
             }
             LayerKind::Procedural => self.spec.noise.as_ref().map_or((0.0, 0.0), noise::noise_range_m),
+            // Changes no height.
+            LayerKind::Difference => return (f64::INFINITY, f64::NEG_INFINITY),
         };
         let (a, b) = (raw.0 * self.spec.scale + self.spec.offset_m, raw.1 * self.spec.scale + self.spec.offset_m);
         let (lo, hi) = (a.min(b), a.max(b));
@@ -81,6 +83,22 @@ pub struct PlannedLayer {
     pub mask: MaskPlan,
     /// Procedural layers: octaves the quad evaluates (finer ones are below its sample spacing).
     pub octaves: u32,
+    /// How it folds in: its own blend mode, or `over` for a layer alone (a difference's operand).
+    pub blend: BlendMode,
+    /// Its opacity: its own, or 1 for a layer alone.
+    pub opacity: f64,
+}
+
+/// What a quad's difference layer reads: operands A and B planned like heights (each its own
+/// composition), drawn as A − B.
+#[derive(Clone, Debug, PartialEq)]
+pub struct DifferencePlan {
+    /// The difference layer's index in the stack.
+    pub layer: usize,
+    /// A's plan.
+    pub a: QuadPlan,
+    /// B's plan.
+    pub b: QuadPlan,
 }
 
 /// What composing a quad reads, and the stamp it is cached under.
@@ -94,18 +112,27 @@ pub struct QuadPlan {
     pub layers: Vec<PlannedLayer>,
     /// Sample spacing of the quad, metres.
     pub spacing_m: f64,
+    /// The drawn difference layer's operands at the quad (the topmost shown difference layer),
+    /// composed beside the heights; its stamp is part of the quad's.
+    pub difference: Option<Box<DifferencePlan>>,
 }
 
 impl QuadPlan {
     /// Whether composing the quad can give data: a planned layer other than `add` (which adds
     /// only where there is data already).
-    pub fn has_data(&self, stack: &Stack) -> bool {
-        self.layers.iter().any(|l| stack.layers[l.index].spec.blend != BlendMode::Add)
+    pub fn has_data(&self, _stack: &Stack) -> bool {
+        self.layers.iter().any(|l| l.blend != BlendMode::Add)
     }
 
     /// Indices of the dataset layers the plan reads (their source tiles must be loaded).
     pub fn datasets<'a>(&'a self, stack: &'a Stack) -> impl Iterator<Item = usize> + 'a {
         self.layers.iter().map(|l| l.index).filter(|&i| stack.layers[i].spec.kind == LayerKind::Dataset)
+    }
+
+    /// Every planned layer the quad reads: the heights', then the difference's A and B.
+    pub fn all_layers(&self) -> impl Iterator<Item = &PlannedLayer> {
+        let operands = self.difference.iter().flat_map(|d| d.a.layers.iter().chain(d.b.layers.iter()));
+        self.layers.iter().chain(operands)
     }
 }
 
@@ -150,9 +177,58 @@ impl Stack {
     pub fn new(ellipsoid: Ellipsoid, specs: &[LayerSpec]) -> Result<Stack, LayerError> {
         let mut stack = Stack { ellipsoid, layers: Vec::new(), next_uid: 1 };
         for spec in specs {
-            stack.insert(stack.layers.len(), spec.clone())?;
+            stack.insert_unchecked(stack.layers.len(), spec.clone())?;
+        }
+        for layer in &stack.layers {
+            stack.check_operands(&layer.spec)?;
         }
         Ok(stack)
+    }
+
+    /// The index of the layer called `name`.
+    pub fn index_of(&self, name: &str) -> Option<usize> {
+        self.layers.iter().position(|l| l.spec.name == name)
+    }
+
+    /// A difference layer's operands must name layers of the stack that are not differences.
+    fn check_operands(&self, spec: &LayerSpec) -> Result<(), LayerError> {
+        let Some(of) = &spec.of else { return Ok(()) };
+        for (side, operand) in ["A", "B"].iter().zip(of) {
+            for name in operand.names() {
+                match self.index_of(name) {
+                    None => {
+                        let known = self.layers.iter().map(|l| l.spec.name.as_str()).collect::<Vec<_>>().join(", ");
+                        return Err(LayerError::field(
+                            &spec.name,
+                            "of",
+                            format!("operand {side} names '{name}', which is not a layer (layers: {known})"),
+                        ));
+                    }
+                    Some(i) if self.layers[i].spec.kind == LayerKind::Difference => {
+                        return Err(LayerError::field(
+                            &spec.name,
+                            "of",
+                            format!("operand {side} names '{name}', a difference layer: operands are heights"),
+                        ));
+                    }
+                    Some(_) => {}
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// The difference layer whose operands name layer `name`, if one does.
+    fn used_by(&self, name: &str) -> Option<&str> {
+        self.layers
+            .iter()
+            .find(|l| l.spec.of.as_ref().is_some_and(|of| of.iter().any(|o| o.names().contains(&name))))
+            .map(|l| l.spec.name.as_str())
+    }
+
+    /// The difference layer drawn: the topmost shown one with opacity.
+    pub fn drawn_difference(&self) -> Option<usize> {
+        self.layers.iter().rposition(|l| l.spec.kind == LayerKind::Difference && l.spec.visible && l.spec.opacity > 0.0)
     }
 
     fn compile(&self, spec: &LayerSpec) -> Result<Option<Extent>, LayerError> {
@@ -160,8 +236,14 @@ impl Stack {
         Ok(spec.extent.as_ref().map(|e| Extent::new(e, spec.feather_m, &self.ellipsoid)))
     }
 
-    /// Inserts a layer at `index` (0: bottom). Names must stay unique.
+    /// Inserts a layer at `index` (0: bottom). Names must stay unique; a difference's operands
+    /// must be layers of the stack.
     pub fn insert(&mut self, index: usize, spec: LayerSpec) -> Result<(), LayerError> {
+        self.check_operands(&spec)?;
+        self.insert_unchecked(index, spec)
+    }
+
+    fn insert_unchecked(&mut self, index: usize, spec: LayerSpec) -> Result<(), LayerError> {
         if self.layers.iter().any(|l| l.spec.name == spec.name) {
             return Err(LayerError::field(&spec.name, "name", "is used by another layer".into()));
         }
@@ -179,6 +261,17 @@ impl Stack {
             return Err(LayerError::field(&spec.name, "name", "is used by another layer".into()));
         }
         let extent = self.compile(&spec)?;
+        self.check_operands(&spec)?;
+        let old = &self.layers[index].spec.name;
+        if *old != spec.name
+            && let Some(user) = self.used_by(old)
+        {
+            return Err(LayerError::field(
+                old,
+                "name",
+                format!("difference layer '{user}' reads it: change its operands before renaming"),
+            ));
+        }
         let layer = &mut self.layers[index];
         if layer.spec != spec {
             layer.spec = spec;
@@ -188,9 +281,17 @@ impl Stack {
         Ok(())
     }
 
-    /// Removes a layer.
-    pub fn remove(&mut self, index: usize) -> Layer {
-        self.layers.remove(index)
+    /// Removes a layer (not one a difference layer reads).
+    pub fn remove(&mut self, index: usize) -> Result<Layer, LayerError> {
+        let name = &self.layers[index].spec.name;
+        if let Some(user) = self.used_by(name) {
+            return Err(LayerError::field(
+                name,
+                "name",
+                format!("difference layer '{user}' reads it: remove that layer or change its operands first"),
+            ));
+        }
+        Ok(self.layers.remove(index))
     }
 
     /// Moves a layer from one position to another (0: bottom).
@@ -218,35 +319,111 @@ impl Stack {
         let spacing = spacing_m(&self.ellipsoid, quad.level);
         let ball =
             if self.layers.iter().any(|l| l.extent.is_some()) { Some(quad_ball(&self.ellipsoid, quad)) } else { None };
+        let touch = |index: usize| self.touches(index, covers, ball);
         let mut stamp = 0xcbf2_9ce4_8422_2325u64;
         let mut layers = Vec::new();
         for (index, layer) in self.layers.iter().enumerate() {
-            if layer.spec.kind == LayerKind::Dataset && !covers(index) {
+            if layer.spec.kind == LayerKind::Difference {
                 continue;
             }
-            let mask = match (&layer.extent, ball) {
-                (Some(extent), Some((centre, lon_lat, radius))) => match extent.relation(centre, lon_lat, radius) {
-                    Relation::Outside => continue,
-                    Relation::Inside => MaskPlan::Full,
-                    Relation::Partial(segments) => MaskPlan::Partial(segments),
-                },
-                _ => MaskPlan::Full,
-            };
+            let Some(mask) = touch(index) else { continue };
             stamp = mix(mix(mix(stamp, index as u64), layer.uid), layer.revision);
             if !layer.active() {
                 continue;
             }
-            let octaves = match &layer.spec.noise {
-                Some(n) if octave_skipping => noise::octaves_resolved(n, spacing),
-                Some(n) => n.octaves,
-                None => 0,
-            };
-            if layer.spec.kind == LayerKind::Procedural && octaves == 0 {
+            layers.extend(self.planned(index, mask, spacing, octave_skipping, layer.spec.blend, layer.spec.opacity));
+        }
+        let spacing_m = if octave_skipping { spacing } else { 0.0 };
+        let difference = self.drawn_difference().and_then(|d| {
+            let of = self.layers[d].spec.of.as_ref()?;
+            // Its operands' layers are in the stamp already (every layer that touches the quad
+            // is); the difference adds which one is drawn and what it reads, not its colours.
+            stamp = mix(stamp, self.layers[d].uid);
+            for name in of.iter().flat_map(|o| o.names()).chain(["|"]) {
+                stamp = name.bytes().fold(stamp, |h, b| mix(h, u64::from(b)));
+            }
+            let [a, b] = [&of[0], &of[1]].map(|operand| QuadPlan {
+                quad,
+                stamp: 0,
+                layers: self.operand_layers(operand, &touch, spacing, octave_skipping),
+                spacing_m,
+                difference: None,
+            });
+            Some(Box::new(DifferencePlan { layer: d, a, b }))
+        });
+        QuadPlan { quad, stamp, layers, spacing_m, difference }
+    }
+
+    /// How layer `index` meets the quad: None where it does not (a dataset without data there, an
+    /// extent outside it), else its mask.
+    fn touches(
+        &self,
+        index: usize,
+        covers: &dyn Fn(usize) -> bool,
+        ball: Option<(DVec3, (f64, f64), f64)>,
+    ) -> Option<MaskPlan> {
+        let layer = &self.layers[index];
+        if layer.spec.kind == LayerKind::Dataset && !covers(index) {
+            return None;
+        }
+        match (&layer.extent, ball) {
+            (Some(extent), Some((centre, lon_lat, radius))) => match extent.relation(centre, lon_lat, radius) {
+                Relation::Outside => None,
+                Relation::Inside => Some(MaskPlan::Full),
+                Relation::Partial(segments) => Some(MaskPlan::Partial(segments)),
+            },
+            _ => Some(MaskPlan::Full),
+        }
+    }
+
+    /// A planned layer (None for a procedural layer with no octave resolved at the quad).
+    fn planned(
+        &self,
+        index: usize,
+        mask: MaskPlan,
+        spacing: f64,
+        octave_skipping: bool,
+        blend: BlendMode,
+        opacity: f64,
+    ) -> Option<PlannedLayer> {
+        let layer = &self.layers[index];
+        let octaves = match &layer.spec.noise {
+            Some(n) if octave_skipping => noise::octaves_resolved(n, spacing),
+            Some(n) => n.octaves,
+            None => 0,
+        };
+        if layer.spec.kind == LayerKind::Procedural && octaves == 0 {
+            return None;
+        }
+        Some(PlannedLayer { index, mask, octaves, blend, opacity })
+    }
+
+    /// The planned layers of one operand: a layer alone (`over`, opacity 1), or a group's layers in
+    /// the stack's order with their own blend modes and opacities (shown, whatever the project's
+    /// visibility; transparent ones and weightless mean members read nothing).
+    fn operand_layers(
+        &self,
+        operand: &Operand,
+        touch: &dyn Fn(usize) -> Option<MaskPlan>,
+        spacing: f64,
+        octave_skipping: bool,
+    ) -> Vec<PlannedLayer> {
+        let names = operand.names();
+        let alone = matches!(operand, Operand::Layer(_));
+        let mut layers = Vec::new();
+        for (index, layer) in self.layers.iter().enumerate() {
+            if !names.contains(&layer.spec.name.as_str()) || layer.spec.kind == LayerKind::Difference {
                 continue;
             }
-            layers.push(PlannedLayer { index, mask, octaves });
+            let Some(mask) = touch(index) else { continue };
+            let spec = &layer.spec;
+            let (blend, opacity) = if alone { (BlendMode::Over, 1.0) } else { (spec.blend, spec.opacity) };
+            if opacity <= 0.0 || (blend == BlendMode::Mean && spec.weight == 0.0) {
+                continue;
+            }
+            layers.extend(self.planned(index, mask, spacing, octave_skipping, blend, opacity));
         }
-        QuadPlan { quad, stamp, layers, spacing_m: if octave_skipping { spacing } else { 0.0 } }
+        layers
     }
 
     /// Whether splitting `quad` adds detail that the layers make beyond the datasets: a child

@@ -281,3 +281,69 @@ fn detail_beyond_the_data_leaves_what_the_data_resolve() {
     let expected = 1000.0 + super::noise::noise_at(&n, p.ecef, &weights);
     assert!((with_data - expected).abs() < 1e-9, "{with_data} vs {expected}");
 }
+
+#[test]
+fn difference_layers_name_their_operands_and_refuse_what_would_break_them() {
+    use super::spec::{DifferenceStyle, Operand};
+    let layer = |n: &str| Operand::Layer(n.into());
+    let dh = |a: &str, b: &str| LayerSpec::difference("dh", layer(a), layer(b));
+    let cases: Vec<(LayerSpec, &str)> = vec![
+        (dh("a", "a"), "layer 'dh': of: A and B are both 'a'"),
+        (
+            LayerSpec { blend: BlendMode::Max, ..dh("a", "b") },
+            "layer 'dh': blend: is not a field of a difference layer",
+        ),
+        (LayerSpec { offset_m: 3.0, ..dh("a", "b") }, "layer 'dh': offset_m: is not a field of a difference layer"),
+        (LayerSpec { of: None, ..dh("a", "b") }, "layer 'dh': of: a difference layer needs its operands"),
+        (
+            LayerSpec { style: Some(DifferenceStyle { range_m: Some(-2.0), ..Default::default() }), ..dh("a", "b") },
+            "layer 'dh': style.range_m: -2 must be a positive height",
+        ),
+        (
+            LayerSpec { style: Some(DifferenceStyle { percentile: 0.0, ..Default::default() }), ..dh("a", "b") },
+            "layer 'dh': style.percentile: 0 must lie in (0, 100]",
+        ),
+        (
+            LayerSpec { of: Some([layer("a"), layer("b")]), ..LayerSpec::constant("c", 0.0) },
+            "layer 'c': of: is not a field",
+        ),
+    ];
+    for (spec, expected) in cases {
+        let e = spec.check(6.4e6).unwrap_err().to_string();
+        assert!(e.contains(expected), "{e}\n  expected: {expected}");
+    }
+    let base = [constant("a", 1.0, BlendMode::Over, 1.0), constant("b", 2.0, BlendMode::Over, 1.0)];
+    let with = |d: LayerSpec| [base[0].clone(), base[1].clone(), d];
+    let e = Stack::new(Ellipsoid::MOON, &with(dh("a", "nope"))).unwrap_err().to_string();
+    assert!(e.contains("layer 'dh': of: operand B names 'nope', which is not a layer (layers: a, b, dh)"), "{e}");
+    let e = Stack::new(
+        Ellipsoid::MOON,
+        &[base[0].clone(), dh("a", "dh2"), LayerSpec::difference("dh2", layer("a"), layer("b"))],
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("operand B names 'dh2', a difference layer"), "{e}");
+    // Operands may be listed above the difference; the stack refuses to remove or rename them.
+    let mut stack = Stack::new(Ellipsoid::MOON, &[dh("a", "b"), base[0].clone(), base[1].clone()]).unwrap();
+    let e = stack.remove(1).unwrap_err().to_string();
+    assert!(e.contains("layer 'a': name: difference layer 'dh' reads it"), "{e}");
+    let e = stack.set(2, LayerSpec { name: "c".into(), ..base[1].clone() }).unwrap_err().to_string();
+    assert!(e.contains("layer 'b': name: difference layer 'dh' reads it"), "{e}");
+    stack.set(2, constant("b", 5.0, BlendMode::Over, 1.0)).unwrap();
+    // A group operand: a + b composed (b over a) minus a alone: 5 − 1 everywhere.
+    let group = Operand::Group(vec!["a".into(), "b".into()]);
+    stack.set(0, LayerSpec::difference("dh", group, layer("a"))).unwrap();
+    let quad = QuadId::root(Face::Front);
+    let plan = stack.plan(quad, &|_| true, true);
+    let d = plan.difference.as_ref().expect("drawn");
+    assert_eq!((d.a.layers.len(), d.b.layers.len()), (2, 1));
+    let dh = super::compose::compose_difference(&stack, d, &|_| super::LayerTiles::default());
+    assert!(dh.iter().all(|v| *v == 4.0), "{:?}", &dh[..4]);
+    // The heights' plan reads the two constants only, and the difference is part of the stamp.
+    assert_eq!(plan.layers.iter().map(|l| l.index).collect::<Vec<_>>(), vec![1, 2]);
+    let mut hidden = stack.layers[0].spec.clone();
+    hidden.visible = false;
+    stack.set(0, hidden).unwrap();
+    let plain = stack.plan(quad, &|_| true, true);
+    assert!(plain.difference.is_none() && plain.stamp != plan.stamp && plain.layers == plan.layers);
+}

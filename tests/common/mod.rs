@@ -70,7 +70,9 @@ pub fn sample_project(name: &str, dir: &std::path::Path) -> PathBuf {
         }
     }
     // Keep the tests light: the global Moon grid only, no procedural detail, small GPU pools.
-    p.layers.retain(|d| d.name != "lola_north" && d.kind == terrafuse::layers::LayerKind::Dataset);
+    // Difference layers stay (they change no height; the sample's read datasets only).
+    use terrafuse::layers::LayerKind;
+    p.layers.retain(|d| d.name != "lola_north" && matches!(d.kind, LayerKind::Dataset | LayerKind::Difference));
     p.detail.gpu_cache_mib = 256;
     std::fs::create_dir_all(dir).unwrap();
     let path = dir.join(format!("{name}.json"));

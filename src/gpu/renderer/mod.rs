@@ -75,6 +75,16 @@ pub struct ComposeCounters {
     /// Source tiles uploaded to the GPU.
     pub sources_uploaded: u64,
 }
+/// The overlay pool: `slots` quads of 257² f32 (0: a 16-byte stand-in).
+fn overlay_buffer(device: &wgpu::Device, slots: u64) -> wgpu::Buffer {
+    device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("overlay"),
+        size: if slots == 0 { 16 } else { slots * u64::from(SAMPLES * SAMPLES) * 4 },
+        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+        mapped_at_creation: false,
+    })
+}
+
 /// Loader threads: the cores, at most 4.
 fn loader_threads() -> usize {
     std::thread::available_parallelism().map_or(2, |n| n.get()).clamp(1, 4)
@@ -91,6 +101,9 @@ pub struct Renderer {
     frame_buffer: wgpu::Buffer,
     quad_buffer: wgpu::Buffer,
     heights_buffer: wgpu::Buffer,
+    /// A − B of the drawn difference layer, one slot per height slot (a stand-in of one sample
+    /// until a difference is drawn).
+    overlay_buffer: wgpu::Buffer,
     sources_buffer: wgpu::Buffer,
     map_buffers: [wgpu::Buffer; 3],
     heights_pool: SlotPool,
@@ -110,6 +123,8 @@ pub struct Renderer {
     drawn: Vec<QuadId>,
     camera: Option<Camera>,
     size: (u32, u32),
+    /// The drawn difference's range from its percentile (set by the tool that computed it).
+    auto_range_m: Option<f64>,
 }
 
 impl Renderer {
@@ -142,6 +157,7 @@ impl Renderer {
             mapped_at_creation: false,
         });
         let sources_buffer = storage("sources", u64::from(height_slots) * height_slot);
+        let overlay_buffer = overlay_buffer(&device, 0);
         let map_buffers = ["map o", "map n", "map dn"].map(|l| storage(l, u64::from(map_slots) * map_slot));
         let max_quads = scene.detail.max_quads.max(6);
         let quad_buffer = storage("quads", (max_quads * std::mem::size_of::<QuadInstance>()) as u64);
@@ -164,6 +180,7 @@ impl Renderer {
                 &map_buffers[1],
                 &map_buffers[2],
                 &ramp_buffer,
+                &overlay_buffer,
             ],
         );
 
@@ -180,6 +197,7 @@ impl Renderer {
             frame_buffer,
             quad_buffer,
             heights_buffer,
+            overlay_buffer,
             sources_buffer,
             map_buffers,
             heights_pool: SlotPool::new(height_slots),
@@ -198,6 +216,7 @@ impl Renderer {
             drawn: Vec::new(),
             camera: None,
             size: (1, 1),
+            auto_range_m: None,
         })
     }
 
@@ -218,24 +237,68 @@ impl Renderer {
     pub fn set_visuals(&mut self, visuals: crate::project::Visuals, ramp: crate::colour::Ramp) {
         if ramp != self.scene.ramp {
             self.ramp_buffer = ramp_buffer(&self.device, &ramp);
-            self.bind_group = self.terrain.bind_group(
-                &self.device,
-                [
-                    &self.frame_buffer,
-                    &self.quad_buffer,
-                    &self.heights_buffer,
-                    &self.map_buffers[0],
-                    &self.map_buffers[1],
-                    &self.map_buffers[2],
-                    &self.ramp_buffer,
-                ],
-            );
+            self.rebind();
             self.scene.ramp = ramp;
         }
         if visuals.exaggeration != self.scene.visuals.exaggeration {
             self.flat = flat_rule_for(&self.scene.ellipsoid, exaggerated_range(&self.scene, visuals.exaggeration));
         }
         self.scene.visuals = visuals;
+    }
+
+    /// Sets the drawn difference layer's range from its percentile, metres (what
+    /// [`crate::compare::difference_range`] found; a `range_m` in its style overrides it).
+    pub fn set_difference_range(&mut self, range_m: Option<f64>) {
+        self.auto_range_m = range_m.filter(|r| r.is_finite() && *r > 0.0);
+    }
+
+    /// The drawn difference layer's range, metres: its style's `range_m`, else the one set from
+    /// its percentile, else (until that is known) 1 % of the height span of the layers its
+    /// operands read (at least 1 m).
+    pub fn difference_range_m(&self) -> f64 {
+        let stack = &self.scene.stack;
+        let Some(d) = stack.drawn_difference() else { return 1.0 };
+        let spec = &stack.layers[d].spec;
+        if let Some(r) = spec.difference_style().range_m.or(self.auto_range_m) {
+            return r;
+        }
+        let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+        for name in spec.of.iter().flatten().flat_map(|o| o.names()) {
+            if let Some(i) = stack.index_of(name) {
+                let (a, b) = stack.layers[i].value_range_m();
+                (lo, hi) = (lo.min(a), hi.max(b));
+            }
+        }
+        if hi > lo { ((hi - lo) / 100.0).max(1.0) } else { 1.0 }
+    }
+
+    /// Rebuilds the terrain's bind group (after a buffer it binds was replaced).
+    fn rebind(&mut self) {
+        self.bind_group = self.terrain.bind_group(
+            &self.device,
+            [
+                &self.frame_buffer,
+                &self.quad_buffer,
+                &self.heights_buffer,
+                &self.map_buffers[0],
+                &self.map_buffers[1],
+                &self.map_buffers[2],
+                &self.ramp_buffer,
+                &self.overlay_buffer,
+            ],
+        );
+    }
+
+    /// Gives the overlay pool a slot per height slot once a difference layer is drawn (it costs
+    /// one sample until then); the quads composed before it have no difference and are
+    /// composed anew.
+    fn ensure_overlay(&mut self) {
+        if self.scene.stack.drawn_difference().is_none() || self.overlay_buffer.size() > 16 {
+            return;
+        }
+        self.overlay_buffer = overlay_buffer(&self.device, u64::from(self.heights_pool.capacity));
+        self.rebind();
+        self.composed.clear();
     }
 
     /// The camera placed for a spec, with a near plane from its clearance over the terrain.
@@ -338,6 +401,7 @@ impl Renderer {
         self.frame += 1;
         let mut stats = FrameStats::default();
         self.take_arrivals(&mut stats.errors);
+        self.ensure_overlay();
         let camera = self.camera(spec);
         let exaggeration = self.scene.visuals.exaggeration;
         let lowest = self.scene.range_m.0.min(0.0) * exaggeration;
@@ -533,6 +597,14 @@ impl Renderer {
             below: rgba(self.scene.ramp.below),
             above: rgba(self.scene.ramp.above),
             nodata: rgba(self.scene.ramp.nodata),
+            difference: match self.scene.stack.drawn_difference() {
+                Some(d) => {
+                    let spec = &self.scene.stack.layers[d].spec;
+                    let style = spec.difference_style();
+                    [self.difference_range_m() as f32, style.isolines_m as f32, spec.opacity as f32, 1.0]
+                }
+                None => [1.0, 0.0, 0.0, 0.0],
+            },
         };
         self.queue.write_buffer(&self.frame_buffer, 0, bytemuck::bytes_of(&uniform));
     }

@@ -3,6 +3,7 @@
 //! counters, and composing or reading heights on demand for tools and tests.
 
 use super::*;
+use crate::gpu::compose::ComposePools;
 use crate::gpu::data::{EdgeFields, read_tile};
 
 impl Renderer {
@@ -74,7 +75,7 @@ impl Renderer {
         if index >= self.scene.stack.layers.len() {
             return Err(LayerError::field("?", "index", format!("{index} is not a layer of the stack")));
         }
-        let layer = self.scene.stack.remove(index);
+        let layer = self.scene.stack.remove(index)?;
         self.scene.dataset_of.remove(&layer.uid);
         self.cache.plans.clear();
         Ok(())
@@ -108,6 +109,20 @@ impl Renderer {
     /// The composed heights of a resident quad, read back from the GPU (NaN where no data), or
     /// `None` when the quad has no composed slot. Waits for the GPU: for tests and tools.
     pub fn read_heights(&self, quad: QuadId) -> Result<Option<Vec<f32>>, GpuError> {
+        self.read_slot(&self.heights_buffer, quad)
+    }
+
+    /// The drawn difference A − B at a resident quad, read back from the overlay pool (NaN where
+    /// either side has no data), or `None` when the quad has no composed slot or no difference is
+    /// drawn. Waits for the GPU: for tests and tools.
+    pub fn read_difference(&self, quad: QuadId) -> Result<Option<Vec<f32>>, GpuError> {
+        if self.overlay_buffer.size() <= 16 {
+            return Ok(None);
+        }
+        self.read_slot(&self.overlay_buffer, quad)
+    }
+
+    fn read_slot(&self, buffer: &wgpu::Buffer, quad: QuadId) -> Result<Option<Vec<f32>>, GpuError> {
         let Some(slot) = self.heights_pool.get(quad) else { return Ok(None) };
         let bytes = u64::from(SAMPLES * SAMPLES) * 4;
         let read = self.device.create_buffer(&wgpu::BufferDescriptor {
@@ -117,7 +132,7 @@ impl Renderer {
             mapped_at_creation: false,
         });
         let mut encoder = self.device.create_command_encoder(&Default::default());
-        encoder.copy_buffer_to_buffer(&self.heights_buffer, u64::from(slot) * bytes, &read, 0, bytes);
+        encoder.copy_buffer_to_buffer(buffer, u64::from(slot) * bytes, &read, 0, bytes);
         self.queue.submit([encoder.finish()]);
         read.slice(..).map_async(wgpu::MapMode::Read, |_| {});
         self.device
@@ -148,7 +163,7 @@ impl Renderer {
         }
         let mut ready = self.missing_maps(quad).is_none();
         let mut slots = Vec::with_capacity(plan.layers.len());
-        for planned in &plan.layers {
+        for planned in plan.all_layers() {
             let Some((source, edge)) = self.scene.layer_tiles(planned.index, quad) else {
                 slots.push((NO_SLOT, NO_SLOT));
                 continue;
@@ -198,6 +213,7 @@ impl Renderer {
     /// composition's statistics; [`Renderer::read_heights`] then reads each quad back.
     pub fn compose_now(&mut self, quads: &[QuadId]) -> Result<FrameStats, GpuError> {
         self.frame += 1;
+        self.ensure_overlay();
         let mut stats = FrameStats::default();
         let mut batch = ComposeBatch::default();
         let mut stores: Vec<Option<crate::store::Store>> = self.scene.datasets.iter().map(|_| None).collect();
@@ -217,7 +233,7 @@ impl Renderer {
                 }
             }
             let plan = self.cache.plan(&self.scene, quad);
-            for planned in &plan.layers {
+            for planned in plan.all_layers() {
                 let Some((source, edge)) = self.scene.layer_tiles(planned.index, quad) else { continue };
                 for key in std::iter::once(source).chain(edge) {
                     if self.sources_pool.touch(key, self.frame).is_some() {
@@ -255,14 +271,13 @@ impl Renderer {
             return;
         }
         let mut encoder = self.device.create_command_encoder(&Default::default());
-        self.compose.encode(
-            &self.device,
-            &mut encoder,
-            batch,
-            &self.sources_buffer,
-            &self.map_buffers[0],
-            &self.heights_buffer,
-        );
+        let pools = ComposePools {
+            sources: &self.sources_buffer,
+            map_o: &self.map_buffers[0],
+            heights: &self.heights_buffer,
+            overlay: &self.overlay_buffer,
+        };
+        self.compose.encode(&self.device, &mut encoder, batch, pools);
         self.queue.submit([encoder.finish()]);
     }
 }

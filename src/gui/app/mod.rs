@@ -82,6 +82,8 @@ pub struct App {
     swipe_request: Option<(String, String)>,
     /// The profile tool.
     profile: profile::ProfileTool,
+    /// The drawn difference layer's range from its percentile.
+    difference_range: crate::gui::difference_ui::AutoRange,
 }
 
 impl App {
@@ -128,6 +130,7 @@ impl App {
             closing: false,
             add_dataset: Default::default(),
             compare: Default::default(),
+            difference_range: Default::default(),
             swipe: None,
             swipe_request: None,
             profile: Default::default(),
@@ -170,6 +173,11 @@ impl App {
     /// The *Compare* section (its last results).
     pub fn compare_panel(&self) -> &crate::gui::compare_panel::ComparePanel {
         &self.compare
+    }
+
+    /// The drawn difference layer's range (metres) and whether its percentile is being computed.
+    pub fn difference_range(&self) -> (f64, bool) {
+        (self.renderer.difference_range_m(), self.difference_range.busy())
     }
 
     /// Whether a dataset is being imported or opened in the background.

@@ -144,6 +144,15 @@ impl App {
 
             ui.separator();
             ui.heading("Layers");
+            if self.difference_range.poll(&self.project, &mut self.renderer) {
+                self.dirty = true;
+            }
+            if self.difference_range.busy() {
+                ui.ctx().request_repaint_after(std::time::Duration::from_millis(100));
+            }
+            if let Some(e) = &self.difference_range.error {
+                ui.colored_label(egui::Color32::LIGHT_RED, format!("difference range: {e}"));
+            }
             let change = crate::gui::layers_panel::layers_ui(ui, &mut self.renderer, &mut self.project);
             if change.changed {
                 self.dirty = true;
@@ -176,10 +185,24 @@ impl App {
 
             ui.separator();
             ui.heading("Compare");
-            if let crate::gui::compare_panel::CompareAction::Apply { layer, shift_m, up_m } =
-                self.compare.ui(ui, &self.project)
-            {
-                self.apply_coregistration(&layer, shift_m, up_m);
+            match self.compare.ui(ui, &self.project) {
+                crate::gui::compare_panel::CompareAction::Apply { layer, shift_m, up_m } => {
+                    self.apply_coregistration(&layer, shift_m, up_m);
+                }
+                crate::gui::compare_panel::CompareAction::ShowDifference { a, b } => {
+                    let spec = crate::gui::difference_ui::new_layer(&self.project, &a, &b);
+                    let mut change = crate::gui::layers_panel::LayersChange::default();
+                    crate::gui::layers_panel::insert(&mut self.renderer, &mut self.project, spec, &mut change);
+                    if change.changed {
+                        self.dirty = true;
+                        self.unsaved = true;
+                        self.message = format!("drawing {a} - {b} over the terrain (layer on top of the stack)");
+                    }
+                    if let Some(e) = change.error {
+                        self.message = e;
+                    }
+                }
+                crate::gui::compare_panel::CompareAction::None => {}
             }
             self.profile_ui(ui);
             let (a, b) = self.compare.selection();

@@ -5,7 +5,7 @@
 
 use super::*;
 use crate::gpu::GpuContext;
-use crate::layers::LayerSpec;
+use crate::layers::{LayerKind, LayerSpec};
 
 /// Within this many points of the line a drag moves the line instead of the camera.
 const GRAB_PT: f32 = 8.0;
@@ -40,7 +40,11 @@ impl App {
                 .ok_or(format!("layer '{name}' is not in the project"))
         };
         let (ia, ib) = (index(a)?, index(b)?);
-        for (i, visible) in [(ia, true), (ib, false)] {
+        // A swipe shows the layers themselves: no difference drawn over either side.
+        let differences =
+            self.project.layers.iter().enumerate().filter(|(_, l)| l.kind == LayerKind::Difference && l.visible);
+        let hide: Vec<(usize, bool)> = differences.map(|(i, _)| (i, false)).collect();
+        for (i, visible) in [(ia, true), (ib, false)].into_iter().chain(hide) {
             let spec = LayerSpec { visible, ..self.project.layers[i].clone() };
             self.renderer.update_layer(i, spec.clone()).map_err(|e| e.to_string())?;
             self.project.layers[i] = spec;
