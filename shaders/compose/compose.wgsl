@@ -331,6 +331,22 @@ fn compose_layers(job: Job, first: u32, count: u32, i: u32, j: u32, local: vec3<
     return r;
 }
 
+struct SamplePosition {
+    local: vec3<f32>,
+    lon: f32,
+    lat: f32,
+}
+
+// The sample's position relative to O, its longitude and latitude.
+fn sample_position(job: Job, i: u32, j: u32) -> SamplePosition {
+    let local = sample_local(job, i, j);
+    let p = job.origin.xyz + local;
+    let lon = precise_atan2(p.y, p.x);
+    let lat = precise_atan2(p.z, (1.0 - job.origin.w) * length(p.xy));
+    return SamplePosition(local, lon, lat);
+}
+
+// The heights: every job's layers folded into its height slot.
 @compute @workgroup_size(16, 16, 1)
 fn compose(@builtin(global_invocation_id) id: vec3<u32>) {
     let i = id.x;
@@ -339,18 +355,25 @@ fn compose(@builtin(global_invocation_id) id: vec3<u32>) {
         return;
     }
     let job = jobs[id.z];
-    let local = sample_local(job, i, j);
-    let p = job.origin.xyz + local;
-    let lon = precise_atan2(p.y, p.x);
-    let lat = precise_atan2(p.z, (1.0 - job.origin.w) * length(p.xy));
-    let at = job.slots.x * N * N + j * N + i;
-    let first = job.layers.x;
-    let r = compose_layers(job, first, job.layers.y, i, j, local, lon, lat);
-    heights[at] = select(NODATA_STORED, r.h, r.has);
-    if job.params.y > 0.5 {
-        // layers::compose::compose_difference: A and B each composed alone, A − B.
-        let a = compose_layers(job, first + job.layers.y, job.layers.z, i, j, local, lon, lat);
-        let b = compose_layers(job, first + job.layers.y + job.layers.z, job.layers.w, i, j, local, lon, lat);
-        overlay[at] = select(NODATA_STORED, a.h - b.h, a.has && b.has);
+    let at = sample_position(job, i, j);
+    let r = compose_layers(job, job.layers.x, job.layers.y, i, j, at.local, at.lon, at.lat);
+    heights[job.slots.x * N * N + j * N + i] = select(NODATA_STORED, r.h, r.has);
+}
+
+// The drawn difference (a second dispatch, only when a job has one, so that the heights' kernel
+// stays as small as it was): A and B each composed from their layers, listed after the heights',
+// A − B into the overlay slot (layers::compose::compose_difference).
+@compute @workgroup_size(16, 16, 1)
+fn compose_difference(@builtin(global_invocation_id) id: vec3<u32>) {
+    let i = id.x;
+    let j = id.y;
+    let job = jobs[id.z];
+    if i >= N || j >= N || job.params.y < 0.5 {
+        return;
     }
+    let at = sample_position(job, i, j);
+    let first = job.layers.x + job.layers.y;
+    let a = compose_layers(job, first, job.layers.z, i, j, at.local, at.lon, at.lat);
+    let b = compose_layers(job, first + job.layers.z, job.layers.w, i, j, at.local, at.lon, at.lat);
+    overlay[job.slots.x * N * N + j * N + i] = select(NODATA_STORED, a.h - b.h, a.has && b.has);
 }

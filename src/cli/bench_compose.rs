@@ -11,7 +11,7 @@ use std::time::{Duration, Instant};
 
 use crate::ecm::{CubeProjection, QuadId};
 use crate::gpu::{GpuContext, IMAGE_FORMAT, Renderer, Scene};
-use crate::layers::{BlendMode, DetailWhere, ExtentSpec, LayerSpec, NoiseSpec, NoiseType};
+use crate::layers::{BlendMode, DetailWhere, ExtentSpec, LayerSpec, NoiseSpec, NoiseType, Operand};
 use crate::project::{CameraSpec, Project};
 
 /// Settings.
@@ -217,6 +217,7 @@ pub fn bench_compose(settings: &ComposeBenchSettings) -> Result<(Vec<ComposeBenc
     rows[k].skip_error_m = Some((worst, (sum2 / count.max(1) as f64).sqrt()));
 
     let recompose = recompose_cost(&ctx, &base, &pool[..4])?;
+    let difference = difference_cost(&ctx, &base, &pool[..4], &quads, repeats)?;
     let mut report = String::new();
     let _ = writeln!(
         report,
@@ -253,8 +254,60 @@ pub fn bench_compose(settings: &ComposeBenchSettings) -> Result<(Vec<ComposeBenc
     }
     report.push_str(&fields);
     report.push_str(&recompose);
+    report.push_str(&difference);
     write_csv(&settings.out, &rows)?;
     Ok((rows, report))
+}
+
+/// What a drawn difference layer adds: the same 4-layer stack composed with and without a
+/// difference of its top dataset alone minus the whole stack as a group (both operands composed
+/// beside the heights), and the difference's largest |GPU − CPU|.
+fn difference_cost(
+    ctx: &GpuContext,
+    base: &Project,
+    layers: &[LayerSpec],
+    quads: &[QuadId],
+    repeats: usize,
+) -> Result<String, String> {
+    let names: Vec<String> = layers.iter().map(|l| l.name.clone()).collect();
+    let dataset = layers.iter().find(|l| l.store.is_some()).ok_or("the stack has no dataset")?.name.clone();
+    let mut with = layers.to_vec();
+    with.push(LayerSpec::difference("dh", Operand::Layer(dataset), Operand::Group(names)));
+    let time = |layers: Vec<LayerSpec>| -> Result<(f64, Renderer, Scene), String> {
+        let mut p = base.clone();
+        p.layers = layers;
+        let (scene, _) = Scene::open(&p)?;
+        let mut renderer = Renderer::new(ctx, scene.clone(), IMAGE_FORMAT).map_err(|e| e.to_string())?;
+        renderer.compose_now(quads).map_err(|e| e.to_string())?;
+        let mut gpu = Vec::new();
+        for _ in 0..repeats {
+            renderer.invalidate_composed();
+            let t = Instant::now();
+            renderer.compose_now(quads).map_err(|e| e.to_string())?;
+            renderer.read_heights(quads[0]).map_err(|e| e.to_string())?;
+            gpu.push(t.elapsed().as_secs_f64() * 1e3);
+        }
+        Ok((median(gpu), renderer, scene))
+    };
+    let (plain_ms, _, _) = time(layers.to_vec())?;
+    let (with_ms, renderer, scene) = time(with)?;
+    let cpu = scene.compose_cpu_with_difference(quads)?;
+    let mut worst = 0f64;
+    for q in quads {
+        let gpu = renderer.read_difference(*q).map_err(|e| e.to_string())?.unwrap_or_default();
+        let Some(Some(c)) = cpu.get(q).map(|(_, d)| d.as_ref()) else { continue };
+        for (a, b) in gpu.iter().zip(c) {
+            if a.is_nan() != b.is_nan() {
+                worst = f64::INFINITY;
+            } else if !a.is_nan() {
+                worst = worst.max(f64::from((a - b).abs()));
+            }
+        }
+    }
+    Ok(format!(
+        "a drawn difference (dataset alone − the 4-layer stack as a group): GPU {plain_ms:.2} ms → {with_ms:.2} ms ({:.2}×) for the same quads; dh max |GPU − CPU| {worst:.2e} m\n",
+        with_ms / plain_ms
+    ))
 }
 
 /// What the loader spends on no-data edge distances: one field per level-9 quad (the edge

@@ -236,6 +236,8 @@ pub(crate) struct ComposePools<'a> {
 /// The compose pipeline.
 pub(crate) struct ComposePass {
     pipeline: wgpu::ComputePipeline,
+    /// The drawn difference's A − B, dispatched only for batches with one.
+    difference: wgpu::ComputePipeline,
     layout: wgpu::BindGroupLayout,
 }
 
@@ -282,7 +284,15 @@ impl ComposePass {
             compilation_options: Default::default(),
             cache: None,
         });
-        Ok(ComposePass { pipeline, layout })
+        let difference = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some("compose difference"),
+            layout: Some(&pipeline_layout),
+            module: &module,
+            entry_point: Some("compose_difference"),
+            compilation_options: Default::default(),
+            cache: None,
+        });
+        Ok(ComposePass { pipeline, difference, layout })
     }
 
     /// Records the batch's dispatch into `encoder` (nothing for an empty batch).
@@ -323,5 +333,9 @@ impl ComposePass {
         let groups = N.div_ceil(WORKGROUP);
         // At most 65 535 workgroups along z: batches are far smaller (one job per quad).
         pass.dispatch_workgroups(groups, groups, batch.jobs.len() as u32);
+        if batch.jobs.iter().any(|j| j.params[1] > 0.5) {
+            pass.set_pipeline(&self.difference);
+            pass.dispatch_workgroups(groups, groups, batch.jobs.len() as u32);
+        }
     }
 }

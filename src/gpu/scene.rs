@@ -9,13 +9,16 @@ use super::data::{DataKey, DatasetInfo, EdgeFields, read_tile};
 use crate::colour::Ramp;
 use crate::ecm::QuadId;
 use crate::geodesy::Ellipsoid;
-use crate::layers::{LayerKind, LayerSpec, LayerTiles, QuadPlan, Stack, compose_quad};
+use crate::layers::{LayerKind, LayerSpec, LayerTiles, QuadPlan, Stack, compose_difference, compose_quad};
 use crate::project::{ColourMapSpec, DetailSpec, Project, Visuals};
 use crate::store::grid::spacing_m;
 use crate::store::{ImportOptions, LevelChoice, Resampling, Store, VerticalDatum};
 
 /// A quad's 257² values.
 type Grid = Vec<f32>;
+
+/// A quad's composed heights and, where a difference layer is drawn, its A − B.
+pub type Composed = (Grid, Option<Grid>);
 
 /// Everything the renderer needs from a project.
 #[derive(Clone, Debug)]
@@ -124,14 +127,20 @@ impl Scene {
     /// Composes quads with the CPU reference, reading their source and edge tiles here (on the
     /// caller's thread): for export, comparison, benchmarks and tests.
     pub fn compose_cpu(&self, quads: &[QuadId]) -> Result<HashMap<QuadId, Vec<f32>>, String> {
+        Ok(self.compose_cpu_with_difference(quads)?.into_iter().map(|(q, (h, _))| (q, h)).collect())
+    }
+
+    /// [`Scene::compose_cpu`], with the drawn difference layer's A − B where the quad's plan has
+    /// one (the CPU reference of the overlay pool).
+    pub fn compose_cpu_with_difference(&self, quads: &[QuadId]) -> Result<HashMap<QuadId, Composed>, String> {
         let mut stores: Vec<Option<Store>> = self.datasets.iter().map(|_| None).collect();
         let fields = EdgeFields::default();
         let mut grids = HashMap::new();
         for &quad in quads {
             let plan = self.plan(quad);
-            // Per planned layer: its raw and edge tiles (datasets).
+            // Per planned layer (the heights', then the difference's): its raw and edge tiles.
             let mut tiles: Vec<(Option<Grid>, Option<Grid>)> = Vec::with_capacity(plan.layers.len());
-            for l in &plan.layers {
+            for l in plan.all_layers() {
                 let mut read = |key| read_tile(key, &self.datasets, &mut stores, &fields).map(|t| t.grid);
                 tiles.push(match self.layer_tiles(l.index, quad) {
                     Some((source, edge)) => (Some(read(source)?), edge.map(&mut read).transpose()?),
@@ -139,7 +148,11 @@ impl Scene {
                 });
             }
             let layer_tiles = |k: usize| LayerTiles { raw: tiles[k].0.as_deref(), edge_m: tiles[k].1.as_deref() };
-            grids.insert(quad, compose_quad(&self.stack, &plan, &layer_tiles));
+            let heights = compose_quad(&self.stack, &plan, &layer_tiles);
+            let offset = plan.layers.len();
+            let difference =
+                plan.difference.as_ref().map(|d| compose_difference(&self.stack, d, &|k| layer_tiles(offset + k)));
+            grids.insert(quad, (heights, difference));
         }
         Ok(grids)
     }

@@ -71,7 +71,7 @@ mod tests {
                 assert_eq!(entries, ["vs_main", "fs_main", "fs_probe"]);
             }
             if *name == "compose/compose.wgsl" {
-                assert_eq!(entries, ["compose"]);
+                assert_eq!(entries, ["compose", "compose_difference"]);
             }
         }
         // The validator does catch errors.
