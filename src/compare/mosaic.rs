@@ -25,6 +25,16 @@ impl Mosaic {
         Mosaic { scene, level, grids: HashMap::new() }
     }
 
+    /// The body.
+    pub(crate) fn ellipsoid(&self) -> crate::geodesy::Ellipsoid {
+        self.scene.ellipsoid
+    }
+
+    /// The level it is composed at.
+    pub(crate) fn level(&self) -> u8 {
+        self.level
+    }
+
     /// Composes the quads the points fall in that are not composed yet.
     pub(crate) fn prefetch(&mut self, points: &[DVec3]) -> Result<(), CompareError> {
         let e = self.scene.ellipsoid;
@@ -34,9 +44,14 @@ impl Mosaic {
             .filter_map(|p| locate(&e, level, *p).map(|l| l.0))
             .collect::<std::collections::HashSet<_>>()
             .into_iter()
-            .filter(|q| !self.grids.contains_key(q))
             .collect();
         wanted.sort();
+        self.prefetch_quads(&wanted)
+    }
+
+    /// Composes those of `quads` (of the mosaic's level) not composed yet, in order.
+    pub(crate) fn prefetch_quads(&mut self, quads: &[QuadId]) -> Result<(), CompareError> {
+        let wanted: Vec<QuadId> = quads.iter().copied().filter(|q| !self.grids.contains_key(q)).collect();
         for chunk in wanted.chunks(16) {
             self.grids.extend(self.scene.compose_cpu(chunk).map_err(CompareError::Open)?);
         }
@@ -46,6 +61,11 @@ impl Mosaic {
     /// A's value at a point, bilinear (NaN outside its data or its composed quads).
     pub(crate) fn value(&self, p: DVec3) -> f64 {
         let Some((q, u, v)) = locate(&self.scene.ellipsoid, self.level, p) else { return f64::NAN };
-        self.grids.get(&q).map_or(f64::NAN, |g| bilinear(g, u, v))
+        self.value_at(q, u, v)
+    }
+
+    /// A's value at grid position (u, v) ∈ [0, 256]² of a quad, bilinear (NaN where it has none).
+    pub(crate) fn value_at(&self, quad: QuadId, u: f64, v: f64) -> f64 {
+        self.grids.get(&quad).map_or(f64::NAN, |g| bilinear(g, u, v))
     }
 }
