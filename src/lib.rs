@@ -9,6 +9,7 @@ pub mod cli;
 pub mod colour;
 pub mod compare;
 pub mod ecm;
+pub mod edit;
 pub mod files;
 pub mod geodesy;
 pub mod gpu;
