@@ -147,6 +147,49 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// Appends a brush stroke to an edit layer (made on top when missing), or moves its undo
+    /// position, and saves the project atomically.
+    Brush {
+        /// The project file (JSON).
+        project: PathBuf,
+        /// The edit layer.
+        #[arg(long)]
+        layer: String,
+        /// raise, lower, noise or restore (smooth, flatten and ramp are not rasterised yet).
+        #[arg(long)]
+        tool: Option<String>,
+        /// Brush radius on the surface, metres.
+        #[arg(long = "radius-m")]
+        radius_m: Option<f64>,
+        /// Metres per dab (raise, lower, noise).
+        #[arg(long = "strength-m", allow_hyphen_values = true)]
+        strength_m: Option<f64>,
+        /// A fraction 0–1 per dab (restore and the tools that read the terrain).
+        #[arg(long)]
+        strength: Option<f64>,
+        /// The path: LAT,LON;LAT,LON;… degrees.
+        #[arg(long, allow_hyphen_values = true)]
+        path: Option<String>,
+        /// smooth, linear, spherical or tip.
+        #[arg(long)]
+        falloff: Option<String>,
+        /// Dab spacing, a fraction of the radius (default 0.25).
+        #[arg(long)]
+        spacing: Option<f64>,
+        /// The level it is rasterised at (default: the coarsest with samples at most a tenth of
+        /// the radius apart).
+        #[arg(long)]
+        level: Option<u8>,
+        /// Noise seed.
+        #[arg(long)]
+        seed: Option<u32>,
+        /// Undo this many strokes (no stroke).
+        #[arg(long)]
+        undo: Option<usize>,
+        /// Redo this many strokes (no stroke).
+        #[arg(long)]
+        redo: Option<usize>,
+    },
     /// Every visible layer's elevation (each alone) and the composed stack's along the geodesic
     /// between two points.
     Profile {
@@ -313,6 +356,16 @@ impl RasterArgs {
 
 #[derive(Subcommand)]
 enum Bench {
+    /// Brushing: rebuilding an edit layer from N scripted strokes on the CPU, one more stroke,
+    /// and its undo.
+    Brush {
+        /// Strokes in the session.
+        #[arg(long, default_value_t = 1000)]
+        strokes: usize,
+        /// The level they are rasterised at.
+        #[arg(long, default_value_t = 6)]
+        level: u8,
+    },
     /// Comparison statistics and co-registration: time on the Erzurum pair and on a synthetic
     /// pair with a known shift, beside xDEM's in the same run, and both tools' shift error;
     /// writes compare.txt.
@@ -617,6 +670,38 @@ fn run(args: Args) -> Result<ExitCode> {
             let request = cli::CompareRequest { project, a, b, level, region, unweighted, json, samples };
             print!("{}", cli::compare_command(&request).map_err(anyhow::Error::msg)?);
         }
+        Command::Brush {
+            project,
+            layer,
+            tool,
+            radius_m,
+            strength_m,
+            strength,
+            path,
+            falloff,
+            spacing,
+            level,
+            seed,
+            undo,
+            redo,
+        } => {
+            let request = cli::BrushRequest {
+                project,
+                layer,
+                tool,
+                radius_m,
+                strength_m,
+                strength,
+                path,
+                falloff,
+                spacing,
+                level,
+                seed,
+                undo,
+                redo,
+            };
+            print!("{}", cli::brush_command(&request).map_err(anyhow::Error::msg)?);
+        }
         Command::Coregister { project, a, b, level, region, apply, json } => {
             let request = cli::CoregRequest { project, a, b, level, region, apply, json };
             print!("{}", cli::coregister_command(&request).map_err(anyhow::Error::msg)?);
@@ -715,6 +800,9 @@ fn run(args: Args) -> Result<ExitCode> {
                 report.level,
                 report.valid
             );
+        }
+        Command::Bench { bench: Bench::Brush { strokes, level } } => {
+            print!("{}", cli::bench_brush(strokes, level).map_err(anyhow::Error::msg)?);
         }
         Command::Bench { bench: Bench::Compare { project, size, out } } => {
             anyhow::ensure!((64..=16384).contains(&size), "--size {size} must lie within 64–16384 pixels");

@@ -34,7 +34,7 @@ struct Job {
 
 // One planned layer of a job (JobLayer in src/gpu/compose.rs; keep in sync).
 struct JobLayer {
-    // Kind (0 dataset, 1 procedural, 2 constant), blend (0 over, 1 add, 2 min, 3 max, 4 mean),
+    // Kind (0 dataset, 1 procedural, 2 constant, 3 edit), blend (0 over, 1 add, 2 min, 3 max, 4 mean),
     // source slot (datasets), mask (0 full, 1 partial).
     head: vec4<u32>,
     // First segment, segment count, first ring vertex, ring count (in `shapes`; a box has no
@@ -276,7 +276,8 @@ fn compose_layers(job: Job, first: u32, count: u32, i: u32, j: u32, local: vec3<
         var base = 0.0;
         var valid = true;
         switch l.head.x {
-            case 0u: {
+            // A dataset's raw heights, or an edit layer's deltas.
+            case 0u, 3u: {
                 base = sources[l.head.z * N * N + j * N + i];
                 valid = base > NODATA_BELOW;
             }

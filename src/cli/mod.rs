@@ -1,9 +1,11 @@
 //! The logic behind the `terrafuse` subcommands, kept out of `main.rs` so it can be tested:
 //! batch coordinate conversion in the manner of PROJ's `cct` and the analysis reports.
 
+mod bench_brush;
 mod bench_compare;
 mod bench_compose;
 mod bench_render;
+mod brush;
 mod compare;
 mod export;
 mod geo;
@@ -13,9 +15,11 @@ mod render;
 mod report;
 mod store;
 
+pub use bench_brush::{bench_brush, scripted_strokes};
 pub use bench_compare::{CompareBenchSettings, bench_compare};
 pub use bench_compose::{ComposeBenchRow, ComposeBenchSettings, bench_compose};
 pub use bench_render::{RenderBenchRow, RenderBenchSettings, bench_render, render_bench_csv, write_render_bench};
+pub use brush::{BrushRequest, brush_command};
 pub use compare::{CompareRequest, CoregRequest, compare_command, coregister_command, table as compare_table};
 pub use export::{ComposeOn, ComposedExport, ComposedReport, export_composed};
 pub use geo::{BatchReport, GeoOperation, run_batch};

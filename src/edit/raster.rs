@@ -18,11 +18,11 @@ use rayon::prelude::*;
 
 use super::dabs::dab_centres;
 use super::stroke::{Stroke, Tool};
-use crate::ecm::{Face, QuadId};
-use crate::geodesy::Ellipsoid;
+use crate::ecm::{CubeProjection, Face, FacePoint, QuadId};
+use crate::geodesy::{Ellipsoid, geodetic_from_ecef};
 use crate::layers::noise;
 use crate::layers::stack::{quad_ball, sample_point};
-use crate::store::grid::GRID;
+use crate::store::grid::{GRID, spacing_m};
 
 const N: usize = GRID as usize;
 
@@ -38,14 +38,22 @@ pub struct StrokeError {
     pub problem: String,
 }
 
-/// One dab, ready to apply.
+/// One dab, ready to apply: its centre and where that lies on the cube.
 #[derive(Clone, Copy, Debug)]
 struct Dab {
     centre: DVec3,
+    at: FacePoint,
 }
 
-/// The raster.
-#[derive(Clone, Debug, PartialEq)]
+impl Dab {
+    fn new(ellipsoid: &Ellipsoid, centre: DVec3) -> Dab {
+        let g = geodetic_from_ecef(ellipsoid, centre);
+        Dab { centre, at: CubeProjection::Qsc.face_point_from_geodetic(ellipsoid, g.lat_rad, g.lon_rad) }
+    }
+}
+
+/// The raster. Two rasters are equal when their tiles are, bit for bit (not their generations).
+#[derive(Clone)]
 pub struct EditRaster {
     /// The body.
     pub ellipsoid: Ellipsoid,
@@ -53,12 +61,35 @@ pub struct EditRaster {
     pub level: u8,
     /// δ per touched quad, 257² row by row from the south, metres.
     pub tiles: BTreeMap<QuadId, Vec<f32>>,
+    /// Bumped by every change (renderers key resident tiles by it).
+    pub generation: u32,
+}
+
+impl PartialEq for EditRaster {
+    fn eq(&self, other: &EditRaster) -> bool {
+        let bits = |t: &Vec<f32>| t.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+        self.ellipsoid == other.ellipsoid
+            && self.level == other.level
+            && self.tiles.len() == other.tiles.len()
+            && self.tiles.iter().zip(&other.tiles).all(|((q, a), (p, b))| q == p && bits(a) == bits(b))
+    }
+}
+
+impl std::fmt::Debug for EditRaster {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        // The tiles' quads, not their 66 049 values each.
+        f.debug_struct("EditRaster")
+            .field("level", &self.level)
+            .field("tiles", &self.tiles.keys().collect::<Vec<_>>())
+            .field("generation", &self.generation)
+            .finish()
+    }
 }
 
 impl EditRaster {
     /// An empty raster at `level`.
     pub fn new(ellipsoid: Ellipsoid, level: u8) -> EditRaster {
-        EditRaster { ellipsoid, level, tiles: BTreeMap::new() }
+        EditRaster { ellipsoid, level, tiles: BTreeMap::new(), generation: 0 }
     }
 
     /// The raster of `strokes`, at the finest of their levels (each checked; the tools that read
@@ -88,6 +119,7 @@ impl EditRaster {
             })
             .collect();
         self.tiles.extend(tiles);
+        self.generation = self.generation.wrapping_add(1);
         Ok(quads)
     }
 
@@ -111,7 +143,7 @@ impl EditRaster {
                 let mut tile: Option<Vec<f32>> = None;
                 for (stroke, (centres, quads)) in strokes[..keep].iter().zip(&kept) {
                     if quads.contains(q) {
-                        let dabs: Vec<Dab> = centres.iter().map(|&centre| Dab { centre }).collect();
+                        let dabs: Vec<Dab> = centres.iter().map(|&centre| Dab::new(&self.ellipsoid, centre)).collect();
                         let t = tile.get_or_insert_with(|| vec![0.0; N * N]);
                         apply_to_tile(&self.ellipsoid, *q, t, stroke, &dabs);
                     }
@@ -125,6 +157,7 @@ impl EditRaster {
                 None => self.tiles.remove(&q),
             };
         }
+        self.generation = self.generation.wrapping_add(1);
         Ok(())
     }
 
@@ -145,7 +178,7 @@ impl EditRaster {
             return Err(err("level", format!("{} is finer than the raster's level {}", stroke.level, self.level)));
         }
         let centres = dab_centres(&self.ellipsoid, stroke).map_err(|p| err("path", p))?;
-        let dabs: Vec<Dab> = centres.into_iter().map(|centre| Dab { centre }).collect();
+        let dabs: Vec<Dab> = centres.into_iter().map(|centre| Dab::new(&self.ellipsoid, centre)).collect();
         let mut quads = BTreeSet::new();
         let all: Vec<usize> = (0..dabs.len()).collect();
         for face in Face::ALL {
@@ -175,6 +208,104 @@ impl EditRaster {
     pub fn tile(&self, quad: QuadId) -> Option<&[f32]> {
         self.tiles.get(&quad).map(Vec::as_slice)
     }
+
+    /// Whether δ may be non-zero somewhere in `quad` (of any level).
+    pub fn covers(&self, quad: QuadId) -> bool {
+        if quad.level >= self.level {
+            let mut q = quad;
+            while q.level > self.level {
+                q = q.parent().expect("a quad below the raster's level has a parent");
+            }
+            return self.tiles.contains_key(&q);
+        }
+        // A quad coarser than the raster: any tile below it.
+        let k = self.level - quad.level;
+        self.tiles.keys().any(|t| t.face == quad.face && t.x >> k == quad.x && t.y >> k == quad.y)
+    }
+
+    /// δ at the 257² samples of any quad: the raster's own tile at its level, bilinear from the
+    /// ancestor's below it, and above it the raster's sample at the same point (the coarser
+    /// grid's samples are points of the finer one; a dab smaller than the coarse spacing can
+    /// fall between them: area means are not made yet). None where no stroke touched.
+    pub fn grid(&self, quad: QuadId) -> Option<Vec<f32>> {
+        if !self.covers(quad) {
+            return None;
+        }
+        if quad.level >= self.level {
+            let mut a = quad;
+            while a.level > self.level {
+                a = a.parent().expect("a quad below the raster's level has a parent");
+            }
+            let tile = self.tiles.get(&a)?;
+            return Some(if a == quad { tile.clone() } else { crate::gpu::data::upsample(tile, a, quad) });
+        }
+        let k = u32::from(self.level - quad.level);
+        let cells = N as u64 - 1;
+        let mut out = vec![0.0f32; N * N];
+        for (idx, value) in out.iter_mut().enumerate() {
+            let (i, j) = ((idx % N) as u64, (idx / N) as u64);
+            // The sample's index on the raster level's grid across the quad's span.
+            let (gi, gj) = (i << k, j << k);
+            let (mut qi, mut li) = (gi / cells, gi % cells);
+            let (mut qj, mut lj) = (gj / cells, gj % cells);
+            if qi == 1 << k {
+                (qi, li) = (qi - 1, cells);
+            }
+            if qj == 1 << k {
+                (qj, lj) = (qj - 1, cells);
+            }
+            let q = QuadId {
+                face: quad.face,
+                level: self.level,
+                x: (quad.x << k) + qi as u32,
+                y: (quad.y << k) + qj as u32,
+            };
+            if let Some(t) = self.tiles.get(&q) {
+                *value = t[lj as usize * N + li as usize];
+            }
+        }
+        Some(out)
+    }
+
+    /// The smallest and largest δ over the tiles, metres ((0, 0) without tiles).
+    pub fn range_m(&self) -> (f64, f64) {
+        let mut range = (0f64, 0f64);
+        for v in self.tiles.values().flatten() {
+            range = (range.0.min(f64::from(*v)), range.1.max(f64::from(*v)));
+        }
+        range
+    }
+}
+
+/// The samples of a quad a stroke's dabs can reach: `[i0, i1, j0, j1]`, inclusive. Each dab on
+/// the quad's face reaches at most 2r / s + 2 samples from its own grid position (s the level's
+/// mean spacing: QSC's grid spacing stays within a factor 2 of it over a face); a dab on another
+/// face gives the whole quad. Samples outside the window are beyond every dab (the tests check
+/// every sample of the touched quads against the formula).
+fn window(ellipsoid: &Ellipsoid, quad: QuadId, dabs: &[Dab], r: f64) -> [usize; 4] {
+    let whole = [0, N - 1, 0, N - 1];
+    let reach = 2.0 * r / spacing_m(ellipsoid, quad.level) + 2.0;
+    let cells = (N - 1) as f64;
+    let n = f64::from(1u32 << quad.level);
+    let (mut lo_i, mut hi_i, mut lo_j, mut hi_j) = (f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY);
+    for dab in dabs {
+        if dab.at.face != quad.face {
+            return whole;
+        }
+        let u = ((dab.at.x + 1.0) * 0.5 * n - f64::from(quad.x)) * cells;
+        let v = ((dab.at.y + 1.0) * 0.5 * n - f64::from(quad.y)) * cells;
+        (lo_i, hi_i, lo_j, hi_j) = (lo_i.min(u - reach), hi_i.max(u + reach), lo_j.min(v - reach), hi_j.max(v + reach));
+    }
+    let clamp = |x: f64| x.clamp(0.0, cells);
+    if hi_i < 0.0 || hi_j < 0.0 || lo_i > cells || lo_j > cells {
+        return [1, 0, 1, 0]; // empty
+    }
+    [
+        clamp(lo_i).floor() as usize,
+        clamp(hi_i).ceil() as usize,
+        clamp(lo_j).floor() as usize,
+        clamp(hi_j).ceil() as usize,
+    ]
 }
 
 /// Folds one stroke's dabs, in order, into a tile: each sample in f64 from its stored f32 value,
@@ -182,7 +313,9 @@ impl EditRaster {
 fn apply_to_tile(ellipsoid: &Ellipsoid, quad: QuadId, tile: &mut [f32], stroke: &Stroke, dabs: &[Dab]) {
     let r = stroke.radius_m;
     let wavelength = r / 2.0;
-    for (k, value) in tile.iter_mut().enumerate() {
+    let [i0, i1, j0, j1] = window(ellipsoid, quad, dabs, r);
+    for k in (j0..=j1).flat_map(|j| (i0..=i1).map(move |i| j * N + i)) {
+        let value = &mut tile[k];
         let (p, _, _) = sample_point(ellipsoid, quad, GRID, (k % N) as u32, (k / N) as u32);
         let mut delta = f64::from(*value);
         let mut touched = false;

@@ -134,6 +134,9 @@ pub enum DataKey {
     Edge(u32, QuadId, u8),
     /// The static maps of a canonical quad.
     Maps(QuadId),
+    /// An edit layer's deltas at a quad: the layer's uid (low 32 bits), the quad, the raster's
+    /// generation (a tile of an older raster is another key). Made by the scene, not loaded.
+    Edit(u32, QuadId, u32),
 }
 
 impl std::fmt::Display for DataKey {
@@ -142,6 +145,7 @@ impl std::fmt::Display for DataKey {
             DataKey::Source(_, q) => write!(f, "quad {q}"),
             DataKey::Edge(_, q, level) => write!(f, "no-data edge distances at quad {q} (edge level {level})"),
             DataKey::Maps(q) => write!(f, "static maps of quad {q}"),
+            DataKey::Edit(_, q, _) => write!(f, "edit deltas at quad {q}"),
         }
     }
 }
@@ -151,7 +155,7 @@ impl DataKey {
     pub fn dataset(self) -> Option<u32> {
         match self {
             DataKey::Source(d, _) | DataKey::Edge(d, _, _) => Some(d),
-            DataKey::Maps(_) => None,
+            DataKey::Maps(_) | DataKey::Edit(..) => None,
         }
     }
 }
@@ -297,6 +301,7 @@ pub fn read_tile(
             read_edge(quad, level, &datasets[d as usize], &mut stores[d as usize], fields, d)
         }
         DataKey::Maps(quad) => Err(format!("the static maps of {quad} are not a tile")),
+        DataKey::Edit(_, quad, _) => Err(format!("the edit deltas at {quad} are made by the scene, not read")),
     }
 }
 

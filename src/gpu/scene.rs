@@ -5,12 +5,14 @@
 use std::collections::HashMap;
 use std::sync::Arc;
 
-use super::data::{DataKey, DatasetInfo, EdgeFields, read_tile};
+use super::data::{DataKey, DatasetInfo, EdgeFields, QuadHeights, read_tile};
 use crate::colour::Ramp;
 use crate::ecm::QuadId;
+use crate::edit::EditRaster;
 use crate::geodesy::Ellipsoid;
 use crate::layers::{LayerKind, LayerSpec, LayerTiles, QuadPlan, Stack, compose_difference, compose_quad};
 use crate::project::{ColourMapSpec, DetailSpec, Project, Visuals};
+use crate::store::grid::GRID;
 use crate::store::grid::spacing_m;
 use crate::store::{ImportOptions, LevelChoice, Resampling, Store, VerticalDatum};
 
@@ -42,6 +44,8 @@ pub struct Scene {
     pub ramp: Ramp,
     /// Height range over all datasets, metres (0, 0 without data).
     pub range_m: (f64, f64),
+    /// Per edit layer (by its uid), its raster of deltas.
+    pub edits: HashMap<u64, Arc<EditRaster>>,
 }
 
 /// What opening a scene did besides opening (imports), for the command line to report.
@@ -58,8 +62,12 @@ impl Scene {
     }
 
     /// The tiles stack layer `index` reads at `quad`, if it is a dataset: its source tile, and
-    /// where it fades in from its no-data edge, its edge tile.
+    /// where it fades in from its no-data edge, its edge tile; for an edit layer, its deltas.
     pub fn layer_tiles(&self, index: usize, quad: QuadId) -> Option<(DataKey, Option<DataKey>)> {
+        let layer = &self.stack.layers[index];
+        if let Some(raster) = self.edits.get(&layer.uid) {
+            return Some((DataKey::Edit(layer.uid as u32, quad, raster.generation), None));
+        }
         let d = self.dataset_of_layer(index)? as u32;
         let feather = self.stack.layers[index].spec.feather_edge_m;
         let edge = (feather > 0.0)
@@ -70,6 +78,9 @@ impl Scene {
     /// Whether stack layer `index` has data at `quad` (a dataset's tile there or at an ancestor;
     /// always for layers of other kinds).
     pub fn covers(&self, index: usize, quad: QuadId) -> bool {
+        if let Some(raster) = self.edits.get(&self.stack.layers[index].uid) {
+            return raster.covers(quad);
+        }
         self.dataset_of_layer(index).is_none_or(|d| self.datasets[d].covers(quad))
     }
 
@@ -101,8 +112,13 @@ impl Scene {
             detail: project.detail.clone(),
             ramp,
             range_m,
+            edits: HashMap::new(),
         };
         for (index, d) in project.layers.iter().enumerate() {
+            if d.kind == LayerKind::Edit {
+                scene.attach_edit(index)?;
+                continue;
+            }
             if d.kind != LayerKind::Dataset || d.store.is_none() {
                 continue;
             }
@@ -141,7 +157,7 @@ impl Scene {
             // Per planned layer (the heights', then the difference's): its raw and edge tiles.
             let mut tiles: Vec<(Option<Grid>, Option<Grid>)> = Vec::with_capacity(plan.layers.len());
             for l in plan.all_layers() {
-                let mut read = |key| read_tile(key, &self.datasets, &mut stores, &fields).map(|t| t.grid);
+                let mut read = |key| self.read_layer_tile(key, &mut stores, &fields).map(|t| t.grid);
                 tiles.push(match self.layer_tiles(l.index, quad) {
                     Some((source, edge)) => (Some(read(source)?), edge.map(&mut read).transpose()?),
                     None => (None, None),
@@ -155,6 +171,41 @@ impl Scene {
             grids.insert(quad, (heights, difference));
         }
         Ok(grids)
+    }
+
+    /// A tile a layer reads: a dataset's from its store, an edit layer's from its raster.
+    pub fn read_layer_tile(
+        &self,
+        key: DataKey,
+        stores: &mut [Option<Store>],
+        fields: &EdgeFields,
+    ) -> Result<QuadHeights, String> {
+        if let DataKey::Edit(uid, quad, _) = key {
+            let raster = self
+                .stack
+                .layers
+                .iter()
+                .find(|l| l.uid as u32 == uid)
+                .and_then(|l| self.edits.get(&l.uid))
+                .ok_or_else(|| format!("no edit layer reads {key}"))?;
+            return Ok(QuadHeights::new(raster.grid(quad).unwrap_or_else(|| vec![0.0; (GRID * GRID) as usize])));
+        }
+        read_tile(key, &self.datasets, stores, fields)
+    }
+
+    /// Builds edit layer `index`'s raster from its strokes in effect and records its range.
+    pub fn attach_edit(&mut self, index: usize) -> Result<(), String> {
+        let layer = &self.stack.layers[index];
+        let raster = EditRaster::build(self.ellipsoid, layer.spec.applied_strokes())
+            .map_err(|e| format!("layer '{}': {e}", layer.spec.name))?;
+        self.set_edit(index, raster);
+        Ok(())
+    }
+
+    /// Puts a raster on edit layer `index` (after a stroke, an undo or a redo).
+    pub fn set_edit(&mut self, index: usize, raster: EditRaster) {
+        self.stack.set_dataset_info(index, raster.range_m(), f64::INFINITY);
+        self.edits.insert(self.stack.layers[index].uid, Arc::new(raster));
     }
 
     /// Points dataset layer `index` at its dataset moved by its current `shift_m` (after the

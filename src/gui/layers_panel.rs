@@ -236,6 +236,10 @@ fn layer_settings_ui(ui: &mut egui::Ui, spec: &mut LayerSpec) {
             }
         }
         LayerKind::Difference => {}
+        LayerKind::Edit => {
+            let applied = spec.applied_strokes().len();
+            ui.label(format!("{applied} strokes applied of {}", spec.strokes.len()));
+        }
         LayerKind::Dataset => {
             ui.add(
                 egui::DragValue::new(&mut spec.feather_edge_m)

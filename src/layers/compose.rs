@@ -127,7 +127,8 @@ pub fn layer_sample(
     let layer = &stack.layers[planned.index];
     let spec = &layer.spec;
     let base = match spec.kind {
-        LayerKind::Dataset => data.raw,
+        // An edit layer's tile holds its deltas (0 where no stroke reached).
+        LayerKind::Dataset | LayerKind::Edit => data.raw,
         LayerKind::Constant => spec.height_m.unwrap_or(0.0),
         LayerKind::Procedural => {
             let n = spec.noise.as_ref().expect("a checked procedural layer has noise");

@@ -32,8 +32,10 @@ pub enum LayerKind {
     /// One height everywhere (a sea level, a datum plane).
     Constant,
     /// A − B of two operands, drawn over the terrain with a diverging colour map; changes no
-    /// height (see [`DifferenceSpec`]).
+    /// height (see [`DifferenceStyle`]).
     Difference,
+    /// Height deltas brushed by recorded strokes (`crate::edit`), blended with `add`.
+    Edit,
 }
 
 impl LayerKind {
@@ -44,6 +46,7 @@ impl LayerKind {
             LayerKind::Procedural => "procedural",
             LayerKind::Constant => "constant",
             LayerKind::Difference => "difference",
+            LayerKind::Edit => "edit",
         }
     }
 }
@@ -313,6 +316,13 @@ pub struct LayerSpec {
     /// Difference: how dh is drawn.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub style: Option<DifferenceStyle>,
+    /// Edit: the strokes, in order.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub strokes: Vec<crate::edit::Stroke>,
+    /// Edit: the undo position: `strokes[..applied]` are in effect (absent: all of them); the
+    /// rest can be redone until a new stroke replaces them.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub applied: Option<usize>,
 }
 
 fn yes() -> bool {
@@ -366,6 +376,16 @@ impl LayerSpec {
         }
     }
 
+    /// An empty edit layer (blend `add`).
+    pub fn edit(name: &str) -> LayerSpec {
+        LayerSpec { blend: BlendMode::Add, ..LayerSpec::bare(name, LayerKind::Edit) }
+    }
+
+    /// An edit layer's strokes in effect (those before its undo position).
+    pub fn applied_strokes(&self) -> &[crate::edit::Stroke] {
+        &self.strokes[..self.applied.unwrap_or(self.strokes.len()).min(self.strokes.len())]
+    }
+
     /// A difference layer's style (the default where the file has none).
     pub fn difference_style(&self) -> DifferenceStyle {
         self.style.clone().unwrap_or_default()
@@ -393,6 +413,8 @@ impl LayerSpec {
             noise: None,
             of: None,
             style: None,
+            strokes: Vec::new(),
+            applied: None,
         }
     }
 
@@ -485,6 +507,31 @@ impl LayerSpec {
         if !difference && self.style.is_some() {
             return wrong_kind("style");
         }
+        let edit = self.kind == LayerKind::Edit;
+        if !edit && !self.strokes.is_empty() {
+            return wrong_kind("strokes");
+        }
+        if !edit && self.applied.is_some() {
+            return wrong_kind("applied");
+        }
+        if edit {
+            if self.blend != BlendMode::Add {
+                return bad(
+                    "blend",
+                    format!("{}: an edit layer holds height deltas and blends with add", self.blend.name()),
+                );
+            }
+            if let Some(k) = self.applied
+                && k > self.strokes.len()
+            {
+                return bad("applied", format!("{k} is past the {} strokes", self.strokes.len()));
+            }
+            for (k, stroke) in self.strokes.iter().enumerate() {
+                stroke
+                    .check(radius_m)
+                    .map_err(|(f, p)| LayerError::field(&self.name, &format!("strokes[{k}].{f}"), p))?;
+            }
+        }
         if difference {
             // A difference changes no height: the fields that shape one do not apply.
             let unused = [
@@ -512,7 +559,7 @@ impl LayerSpec {
                 }
                 None => bad("noise", "a procedural layer needs its noise settings".into()),
             },
-            LayerKind::Dataset => Ok(()),
+            LayerKind::Dataset | LayerKind::Edit => Ok(()),
             LayerKind::Difference => {
                 let Some(of) = &self.of else {
                     return bad("of", "a difference layer needs its operands [A, B]".into());

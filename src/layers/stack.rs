@@ -47,7 +47,8 @@ impl Layer {
     /// range instead of the whole dataset's); other kinds ignore it.
     pub fn value_range_from_raw_m(&self, dataset_raw_m: (f64, f64)) -> (f64, f64) {
         let raw = match self.spec.kind {
-            LayerKind::Dataset => dataset_raw_m,
+            // An edit layer's raw range is its deltas' (recorded like a dataset's).
+            LayerKind::Dataset | LayerKind::Edit => dataset_raw_m,
             LayerKind::Constant => {
                 let h = self.spec.height_m.unwrap_or(0.0);
                 (h, h)
@@ -300,7 +301,8 @@ impl Stack {
         self.layers.insert(to.min(self.layers.len()), layer);
     }
 
-    /// Records what a dataset layer's store says: raw height range and finest sample spacing.
+    /// Records what a dataset layer's store says (raw height range and finest sample spacing), or
+    /// an edit layer's raster (its deltas' range; spacing ∞).
     pub fn set_dataset_info(&mut self, index: usize, raw_range_m: (f64, f64), data_spacing_m: f64) {
         let layer = &mut self.layers[index];
         layer.raw_range_m = raw_range_m;

@@ -366,7 +366,7 @@ impl Renderer {
     /// Fills a GPU slot from the CPU cache; false if the data are not there or no slot is free.
     fn upload(&mut self, key: DataKey) -> bool {
         match key {
-            DataKey::Source(..) | DataKey::Edge(..) => {
+            DataKey::Source(..) | DataKey::Edge(..) | DataKey::Edit(..) => {
                 let Some(h) = self.cpu.tile(key) else { return false };
                 let Some(slot) = self.sources_pool.allocate(key, self.frame) else { return false };
                 let values: Vec<f32> = h.grid.iter().map(|&v| if v.is_nan() { NODATA_STORED } else { v }).collect();

@@ -4,7 +4,7 @@
 
 use super::*;
 use crate::gpu::compose::ComposePools;
-use crate::gpu::data::{EdgeFields, read_tile};
+use crate::gpu::data::EdgeFields;
 
 impl Renderer {
     /// Replaces layer `index`'s settings (its identity stays, its revision is bumped): the
@@ -24,7 +24,12 @@ impl Renderer {
             ));
         }
         let shifted = old.spec.shift_m != spec.shift_m;
+        let restroked = (&old.spec.strokes, old.spec.applied) != (&spec.strokes, spec.applied);
+        let name = spec.name.clone();
         self.scene.stack.set(index, spec)?;
+        if restroked {
+            self.scene.attach_edit(index).map_err(|e| LayerError::field(&name, "strokes", e))?;
+        }
         if shifted {
             // Other tiles: the dataset under its new shift (the loader learns of it).
             let before = self.scene.datasets.len();
@@ -37,8 +42,9 @@ impl Renderer {
         Ok(())
     }
 
-    /// Inserts a constant or procedural layer at `index` (0: bottom); the quads it touches are
-    /// recomposed. Dataset layers need their store opened with the scene (reopen the project).
+    /// Inserts a constant, procedural, difference or edit layer at `index` (0: bottom); the quads
+    /// it touches are recomposed. Dataset layers need their store opened with the scene (reopen
+    /// the project, or [`Renderer::insert_dataset_layer`]).
     pub fn insert_layer(&mut self, index: usize, spec: LayerSpec) -> Result<(), LayerError> {
         if spec.kind == crate::layers::LayerKind::Dataset {
             return Err(LayerError::field(
@@ -47,9 +53,87 @@ impl Renderer {
                 "a dataset layer is added to the project file and opened with it".into(),
             ));
         }
+        let edit = spec.kind == crate::layers::LayerKind::Edit;
+        let name = spec.name.clone();
         self.scene.stack.insert(index, spec)?;
+        if edit && let Err(e) = self.scene.attach_edit(index) {
+            let _ = self.scene.stack.remove(index);
+            return Err(LayerError::field(&name, "strokes", e));
+        }
         self.cache.plans.clear();
         Ok(())
+    }
+
+    /// Brushes a stroke onto edit layer `index`: strokes past its undo position are dropped (a
+    /// new stroke ends redo), the stroke is appended and rasterised into the layer's tiles, and
+    /// the quads it touches are recomposed. Returns the layer's new spec (for the project).
+    pub fn apply_stroke(&mut self, index: usize, stroke: crate::edit::Stroke) -> Result<LayerSpec, LayerError> {
+        let (mut spec, mut raster) = self.edit_of(index)?;
+        let applied = spec.applied_strokes().len();
+        spec.strokes.truncate(applied);
+        let mut grown = raster.clone();
+        if stroke.level > grown.level {
+            // A finer stroke: the raster moves to its level (rebuilt from every stroke).
+            let mut all = spec.strokes.clone();
+            all.push(stroke.clone());
+            grown = crate::edit::EditRaster::build(self.scene.ellipsoid, &all)
+                .map_err(|e| LayerError::field(&spec.name, "strokes", e.to_string()))?;
+        } else {
+            grown.apply(applied, &stroke).map_err(|e| LayerError::field(&spec.name, "strokes", e.to_string()))?;
+        }
+        raster = grown;
+        spec.strokes.push(stroke);
+        spec.applied = None;
+        self.finish_edit(index, spec, raster)
+    }
+
+    /// Moves edit layer `index`'s undo position to `applied` strokes (back: undo, recomputing only
+    /// the quads the undone strokes touched; forward: redo). Returns the layer's new spec.
+    pub fn set_applied(&mut self, index: usize, applied: usize) -> Result<LayerSpec, LayerError> {
+        let (mut spec, mut raster) = self.edit_of(index)?;
+        let now = spec.applied_strokes().len();
+        if applied > spec.strokes.len() {
+            return Err(LayerError::field(
+                &spec.name,
+                "applied",
+                format!("{applied} is past the {} strokes", spec.strokes.len()),
+            ));
+        }
+        let fail = |e: crate::edit::StrokeError| LayerError::field(&spec.name, "strokes", e.to_string());
+        if applied < now {
+            raster.undo_to(&spec.strokes[..now], applied).map_err(fail)?;
+        } else {
+            for k in now..applied {
+                raster.apply(k, &spec.strokes[k]).map_err(fail)?;
+            }
+        }
+        spec.applied = (applied < spec.strokes.len()).then_some(applied);
+        self.finish_edit(index, spec, raster)
+    }
+
+    fn edit_of(&self, index: usize) -> Result<(LayerSpec, crate::edit::EditRaster), LayerError> {
+        let layer = self
+            .scene
+            .stack
+            .layers
+            .get(index)
+            .ok_or_else(|| LayerError::field("?", "index", format!("{index} is not a layer of the stack")))?;
+        let raster = self.scene.edits.get(&layer.uid).ok_or_else(|| {
+            LayerError::field(&layer.spec.name, "kind", format!("{} is not an edit layer", layer.spec.kind.name()))
+        })?;
+        Ok((layer.spec.clone(), (**raster).clone()))
+    }
+
+    fn finish_edit(
+        &mut self,
+        index: usize,
+        spec: LayerSpec,
+        raster: crate::edit::EditRaster,
+    ) -> Result<LayerSpec, LayerError> {
+        self.scene.stack.set(index, spec.clone())?;
+        self.scene.set_edit(index, raster);
+        self.cache.plans.clear();
+        Ok(spec)
     }
 
     /// Inserts a dataset layer at `index` (0: bottom) reading `info` (opened off the frame's
@@ -77,6 +161,7 @@ impl Renderer {
         }
         let layer = self.scene.stack.remove(index)?;
         self.scene.dataset_of.remove(&layer.uid);
+        self.scene.edits.remove(&layer.uid);
         self.cache.plans.clear();
         Ok(())
     }
@@ -193,6 +278,13 @@ impl Renderer {
         if let Some(slot) = self.sources_pool.touch(key, self.frame) {
             return Some(slot);
         }
+        if let DataKey::Edit(..) = key
+            && !self.cpu.contains(key)
+        {
+            // An edit layer's deltas are in memory: made here, within the frame.
+            let tile = self.scene.read_layer_tile(key, &mut [], &EdgeFields::default()).ok()?;
+            self.cpu.insert(Loaded::Tile(key, Ok(std::sync::Arc::new(tile))));
+        }
         if self.cpu.contains(key) && stats.uploads < UPLOADS_PER_FRAME && self.upload(key) {
             stats.uploads += 1;
             return self.sources_pool.get(key);
@@ -239,7 +331,7 @@ impl Renderer {
                     if self.sources_pool.touch(key, self.frame).is_some() {
                         continue;
                     }
-                    let tile = read_tile(key, &self.scene.datasets, &mut stores, &fields).map_err(GpuError::Stack)?;
+                    let tile = self.scene.read_layer_tile(key, &mut stores, &fields).map_err(GpuError::Stack)?;
                     if let DataKey::Source(d, q) = key {
                         self.cache.tile_ranges.insert((d, q), (tile.range_m.0, tile.range_m.1, tile.edge_roughness_m));
                     }

@@ -1,0 +1,67 @@
+//! `terrafuse bench brush`: the time to rebuild an edit layer from N strokes on the CPU (the
+//! reference replay checks against), and the time of one more stroke and of undoing it, on a
+//! scripted session of every rasterised tool scattered over a 4° patch of the Moon across the
+//! front/right face edge. Deterministic: the strokes come from a fixed PCG sequence.
+
+use std::fmt::Write as _;
+use std::time::Instant;
+
+use crate::edit::{EditRaster, Falloff, Stroke, Tool};
+use crate::geodesy::Ellipsoid;
+use crate::layers::noise::pcg;
+
+/// The session: `n` strokes of 1–4 points, radius 2–8 km, at `level`.
+pub fn scripted_strokes(n: usize, level: u8) -> Vec<Stroke> {
+    let mut state = 12_345u32;
+    let mut next = || {
+        state = pcg(state);
+        f64::from(state) / f64::from(u32::MAX)
+    };
+    let tools = [Tool::Raise, Tool::Lower, Tool::Noise, Tool::Restore];
+    (0..n)
+        .map(|k| {
+            let tool = tools[k % tools.len()];
+            let (lat, lon) = (-2.0 + 4.0 * next(), 43.0 + 4.0 * next());
+            let points = 1 + (next() * 4.0) as usize;
+            let path = (0..points).map(|p| [lat + 0.05 * p as f64 * next(), lon + 0.05 * p as f64]).collect();
+            Stroke {
+                tool,
+                radius_m: 2000.0 + 6000.0 * next(),
+                strength: if tool.strength_in_metres() { 5.0 + 20.0 * next() } else { 0.3 },
+                falloff: Falloff::ALL[k % 4],
+                spacing: 0.25,
+                level,
+                path,
+                seed: k as u32,
+                height_m: None,
+            }
+        })
+        .collect()
+}
+
+/// Runs the benchmark; returns the report.
+pub fn bench_brush(strokes: usize, level: u8) -> Result<String, String> {
+    let e = Ellipsoid::MOON;
+    let session = scripted_strokes(strokes, level);
+    let t = Instant::now();
+    let mut raster = EditRaster::build(e, &session).map_err(|e| e.to_string())?;
+    let build_s = t.elapsed().as_secs_f64();
+    let extra = scripted_strokes(strokes + 1, level).pop().ok_or("no stroke")?;
+    let t = Instant::now();
+    let touched = raster.apply(strokes, &extra).map_err(|e| e.to_string())?;
+    let stroke_ms = t.elapsed().as_secs_f64() * 1e3;
+    let mut all = session.clone();
+    all.push(extra);
+    let t = Instant::now();
+    raster.undo_to(&all, strokes).map_err(|e| e.to_string())?;
+    let undo_ms = t.elapsed().as_secs_f64() * 1e3;
+    let mut out = String::new();
+    let _ = writeln!(
+        out,
+        "terrafuse bench brush: {strokes} strokes (raise, lower, noise, restore; radius 2–8 km) at level {level} on the Moon, CPU ({} threads)",
+        rayon::current_num_threads()
+    );
+    let _ = writeln!(out, "rebuild from the strokes: {build_s:.2} s ({} tiles)", raster.tiles.len());
+    let _ = writeln!(out, "one more stroke: {stroke_ms:.1} ms ({} quads); its undo: {undo_ms:.1} ms", touched.len());
+    Ok(out)
+}

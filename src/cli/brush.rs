@@ -1,0 +1,194 @@
+//! `terrafuse brush`: appends a stroke to an edit layer of a project (or moves its undo position)
+//! and saves the project atomically, so brushing sessions can be scripted and checked. The stroke
+//! is checked and rasterised before anything is written: a refused stroke leaves the file as it was.
+
+use std::fmt::Write as _;
+use std::path::PathBuf;
+
+use crate::edit::{EditRaster, Falloff, Stroke, Tool};
+use crate::layers::{LayerKind, LayerSpec};
+use crate::project::Project;
+use crate::store::grid::spacing_m;
+
+/// What `terrafuse brush` was asked.
+#[derive(Clone, Debug, Default)]
+pub struct BrushRequest {
+    /// The project file.
+    pub project: PathBuf,
+    /// The edit layer (made on top of the stack when the project has none of that name).
+    pub layer: String,
+    /// The tool's name (None with `undo` or `redo`).
+    pub tool: Option<String>,
+    /// Radius, metres.
+    pub radius_m: Option<f64>,
+    /// Metres per dab (raise, lower, noise).
+    pub strength_m: Option<f64>,
+    /// A fraction per dab (smooth, flatten, ramp, restore).
+    pub strength: Option<f64>,
+    /// `lat,lon;lat,lon;…` degrees.
+    pub path: Option<String>,
+    /// Falloff name.
+    pub falloff: Option<String>,
+    /// Spacing, a fraction of the radius.
+    pub spacing: Option<f64>,
+    /// Level (default: the coarsest whose samples are at most a tenth of the radius apart).
+    pub level: Option<u8>,
+    /// Noise seed.
+    pub seed: Option<u32>,
+    /// Undo this many strokes.
+    pub undo: Option<usize>,
+    /// Redo this many strokes.
+    pub redo: Option<usize>,
+}
+
+fn parse_path(text: &str) -> Result<Vec<[f64; 2]>, String> {
+    text.split(';')
+        .filter(|p| !p.trim().is_empty())
+        .enumerate()
+        .map(|(k, p)| {
+            let v: Vec<f64> = p
+                .split(',')
+                .map(|x| x.trim().parse::<f64>())
+                .collect::<Result<_, _>>()
+                .map_err(|_| format!("--path: point {k} '{p}' is not LAT,LON in degrees"))?;
+            match v.as_slice() {
+                [lat, lon] => Ok([*lat, *lon]),
+                _ => Err(format!("--path: point {k} '{p}' is not LAT,LON in degrees")),
+            }
+        })
+        .collect()
+}
+
+fn named<T: Copy>(what: &str, name: &str, all: &[T], name_of: fn(T) -> &'static str) -> Result<T, String> {
+    all.iter().copied().find(|t| name_of(*t) == name).ok_or_else(|| {
+        format!("--{what} {name}: not one of {}", all.iter().map(|t| name_of(*t)).collect::<Vec<_>>().join(", "))
+    })
+}
+
+/// Runs the command; returns the report.
+pub fn brush_command(request: &BrushRequest) -> Result<String, String> {
+    let path = &request.project;
+    let mut project = Project::load(path).map_err(|e| e.to_string())?;
+    let ellipsoid = project.ellipsoid()?;
+    let mut out = String::new();
+    let index = match project.layers.iter().position(|l| l.name == request.layer) {
+        Some(i) if project.layers[i].kind == LayerKind::Edit => i,
+        Some(i) => {
+            return Err(format!(
+                "--layer {}: a {} layer, not an edit layer",
+                request.layer,
+                project.layers[i].kind.name()
+            ));
+        }
+        None => {
+            project.layers.push(LayerSpec::edit(&request.layer));
+            let _ = writeln!(out, "made edit layer '{}' on top of the stack", request.layer);
+            project.layers.len() - 1
+        }
+    };
+    let spec = &mut project.layers[index];
+    let applied = spec.applied_strokes().len();
+    match (request.undo, request.redo, &request.tool) {
+        (Some(n), None, None) => {
+            let to = applied.checked_sub(n).ok_or_else(|| format!("--undo {n}: only {applied} strokes are applied"))?;
+            spec.applied = Some(to);
+            let _ = writeln!(out, "layer '{}': undone to {to} of {} strokes", spec.name, spec.strokes.len());
+        }
+        (None, Some(n), None) => {
+            let to = applied + n;
+            if to > spec.strokes.len() {
+                return Err(format!("--redo {n}: only {} strokes can be redone", spec.strokes.len() - applied));
+            }
+            spec.applied = (to < spec.strokes.len()).then_some(to);
+            let _ = writeln!(out, "layer '{}': redone to {to} of {} strokes", spec.name, spec.strokes.len());
+        }
+        (None, None, Some(tool)) => {
+            let stroke = stroke_of(request, tool, ellipsoid.a_m(), &ellipsoid)?;
+            let dabs = crate::edit::dabs::dab_centres(&ellipsoid, &stroke).map_err(|e| format!("--path: {e}"))?;
+            let dropped = spec.strokes.len() - applied;
+            spec.strokes.truncate(applied);
+            spec.strokes.push(stroke.clone());
+            spec.applied = None;
+            let _ = writeln!(
+                out,
+                "layer '{}': stroke {} ({}, radius {} m, strength {}, {} falloff, {} dabs, level {}){}",
+                spec.name,
+                spec.strokes.len() - 1,
+                stroke.tool.name(),
+                stroke.radius_m,
+                stroke.strength,
+                stroke.falloff.name(),
+                dabs.len(),
+                stroke.level,
+                if dropped > 0 { format!("; {dropped} undone strokes dropped") } else { String::new() }
+            );
+        }
+        _ => return Err("give either --tool with its stroke, or --undo N, or --redo N".into()),
+    }
+    // Rasterised before saving: a stroke that cannot be is refused and nothing is written.
+    let t = std::time::Instant::now();
+    let raster = EditRaster::build(ellipsoid, project.layers[index].applied_strokes())
+        .map_err(|e| format!("layer '{}': {e}", request.layer))?;
+    let (lo, hi) = raster.range_m();
+    let _ = writeln!(
+        out,
+        "rebuilt from {} strokes in {:.2} s: {} tiles at level {}, deltas {lo:.3} … {hi:.3} m",
+        project.layers[index].applied_strokes().len(),
+        t.elapsed().as_secs_f64(),
+        raster.tiles.len(),
+        raster.level
+    );
+    project.save(path).map_err(|e| e.to_string())?;
+    let _ = writeln!(out, "saved {}", path.display());
+    Ok(out)
+}
+
+fn stroke_of(
+    request: &BrushRequest,
+    tool: &str,
+    body_radius_m: f64,
+    ellipsoid: &crate::geodesy::Ellipsoid,
+) -> Result<Stroke, String> {
+    let tool = named("tool", tool, &Tool::ALL, Tool::name)?;
+    let falloff = match &request.falloff {
+        Some(f) => named("falloff", f, &Falloff::ALL, Falloff::name)?,
+        None => Falloff::Smooth,
+    };
+    let radius_m = request.radius_m.ok_or("--radius-m: a stroke needs its radius in metres")?;
+    let strength = match (tool.strength_in_metres(), request.strength_m, request.strength) {
+        (true, Some(s), None) | (false, None, Some(s)) => s,
+        (true, _, _) => return Err(format!("--strength-m: {} takes its strength in metres per dab", tool.name())),
+        (false, _, _) => return Err(format!("--strength: {} takes its strength as a fraction 0–1", tool.name())),
+    };
+    let path = parse_path(request.path.as_deref().ok_or("--path: a stroke needs its path LAT,LON;LAT,LON;…")?)?;
+    let level = match request.level {
+        Some(l) => l,
+        None => (0..=crate::edit::stroke::MAX_LEVEL)
+            .find(|l| spacing_m(ellipsoid, *l) <= radius_m.abs() / 10.0)
+            .unwrap_or(crate::edit::stroke::MAX_LEVEL),
+    };
+    let stroke = Stroke {
+        tool,
+        radius_m,
+        strength,
+        falloff,
+        spacing: request.spacing.unwrap_or(0.25),
+        level,
+        path,
+        seed: request.seed.unwrap_or(0),
+        height_m: None,
+    };
+    stroke.check(body_radius_m).map_err(|(field, problem)| {
+        let flag = match field {
+            "radius_m" => "--radius-m",
+            "strength" if tool.strength_in_metres() => "--strength-m",
+            "strength" => "--strength",
+            "spacing" => "--spacing",
+            "level" => "--level",
+            "path" => "--path",
+            other => other,
+        };
+        format!("{flag}: {problem}")
+    })?;
+    Ok(stroke)
+}
