@@ -31,6 +31,8 @@ struct Frame {
     // The drawn difference layer: range (metres: ±range are the colour map's ends), isoline
     // interval (metres, 0: none), opacity over the ramp, drawn (1) or not (0).
     difference: vec4<f32>,
+    // The brush's footprint: its centre relative to the camera (metres) and radius (0: none).
+    brush: vec4<f32>,
 }
 
 struct Quad {
@@ -239,7 +241,7 @@ fn ramp_colour(h: f32) -> vec4<f32> {
 
 // The pixel's colour, sRGB-encoded 0–1. fw_iso and fw_dh: the pixel's footprint in height and
 // dh isoline intervals.
-fn shade(in: VertexOut, fw_iso: f32, fw_dh: f32) -> vec4<f32> {
+fn shade(in: VertexOut, fw_iso: f32, fw_dh: f32, fw_brush: f32) -> vec4<f32> {
     if in.valid < 0.5 {
         return frame.nodata;
     }
@@ -271,6 +273,12 @@ fn shade(in: VertexOut, fw_iso: f32, fw_dh: f32) -> vec4<f32> {
         let coverage = isoline_coverage(x, fw_iso, width, frame.iso_width.z, spacing) * frame.iso_colour.a;
         colour = mix(colour, srgb_to_linear(frame.iso_colour.rgb), coverage);
     }
+    if frame.brush.w > 0.0 {
+        // The brush's rim: where the chord from its centre is its radius, 1.5 px wide, white.
+        let d = length(in.rel - frame.brush.xyz);
+        let coverage = clamp(1.5 - abs(d - frame.brush.w) / max(fw_brush, 1e-6), 0.0, 1.0);
+        colour = mix(colour, vec3<f32>(1.0), coverage);
+    }
     if frame.difference.w > 0.5 && frame.difference.y > 0.0 && in.dh_valid > 0.5 {
         // Isolines of dh at ±k·interval, k ≥ 1, dark grey (zero is the map's white already; its
         // line would trace the noise of two equal surfaces).
@@ -287,7 +295,8 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
     // Derivatives in uniform control flow, before any branch.
     let fw_iso = fwidth(in.height / frame.iso.x);
     let fw_dh = fwidth(in.dh / max(frame.difference.y, 1e-6));
-    return shade(in, fw_iso, fw_dh);
+    let fw_brush = fwidth(length(in.rel - frame.brush.xyz));
+    return shade(in, fw_iso, fw_dh, fw_brush);
 }
 
 struct ProbeOut {
@@ -303,8 +312,9 @@ struct ProbeOut {
 fn fs_probe(in: VertexOut) -> ProbeOut {
     let fw_iso = fwidth(in.height / frame.iso.x);
     let fw_dh = fwidth(in.dh / max(frame.difference.y, 1e-6));
+    let fw_brush = fwidth(length(in.rel - frame.brush.xyz));
     var out: ProbeOut;
-    out.colour = shade(in, fw_iso, fw_dh);
+    out.colour = shade(in, fw_iso, fw_dh, fw_brush);
     out.surface = vec4<f32>(in.rel, in.height);
     out.id = vec4<u32>(in.quad + 1u, in.sample.x, in.sample.y, select(0u, 1u, in.valid > 0.5) + 2u * in.sample.z);
     return out;

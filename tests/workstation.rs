@@ -489,3 +489,39 @@ fn a_profile_drawn_with_two_clicks_shows_each_visible_layer_and_saves_its_line()
     assert!(csv.starts_with("distance_m,lat_deg,lon_deg,srtm,composed\n"), "{}", &csv[..80.min(csv.len())]);
     assert_eq!(csv.lines().count(), 401);
 }
+
+#[test]
+fn a_left_drag_with_the_brush_on_paints_a_stroke_and_ctrl_z_undoes_it() {
+    let dir = repo_path("tests/out/workstation-brush");
+    let project = sample_project("moon-brushing", &dir);
+    let mut h = harness_of_size(&project, "sculpt", egui::vec2(900.0, 1700.0));
+    settle(&mut h);
+    let strokes = |h: &Harness<'static, App>| {
+        let l = h.state().project().layers.iter().find(|l| l.name == "sculpt").unwrap();
+        (l.strokes.len(), l.applied_strokes().len())
+    };
+    let (n, _) = strokes(&h);
+    h.get_by_label("brush (left drag paints)").click_accesskit();
+    h.run_steps(2);
+    assert!(h.state().brush_state().0, "the brush is on");
+    let camera = h.state().camera();
+    let r = h.state().viewport_rect_px().unwrap();
+    let (x, y) = (r.center().x, r.center().y);
+    drag(&mut h, egui::pos2(x - 80.0, y), egui::pos2(x + 80.0, y));
+    h.run_steps(2);
+    assert_eq!(h.state().camera(), camera, "painting does not move the camera");
+    assert_eq!(strokes(&h), (n + 1, n + 1), "{}", h.state().message());
+    assert!(h.state().message().starts_with(&format!("stroke {n} on 'sculpt'")), "{}", h.state().message());
+    let stroke = h.state().project().layers.iter().find(|l| l.name == "sculpt").unwrap().strokes[n].clone();
+    assert!(stroke.path.len() >= 2, "the drag's path: {:?}", stroke.path);
+    settle(&mut h);
+    h.render().unwrap().save(dir.join("brushed.png")).unwrap(); // for people, not compared
+    // Ctrl+Z undoes it, Ctrl+Shift+Z redoes it.
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::Z);
+    h.run_steps(2);
+    assert_eq!(strokes(&h), (n + 1, n), "{}", h.state().message());
+    h.key_press_modifiers(egui::Modifiers::COMMAND | egui::Modifiers::SHIFT, egui::Key::Z);
+    h.run_steps(2);
+    assert_eq!(strokes(&h), (n + 1, n + 1), "{}", h.state().message());
+    settle(&mut h);
+}

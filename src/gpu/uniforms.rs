@@ -21,6 +21,7 @@ pub(crate) struct FrameUniform {
     pub(crate) above: [f32; 4],
     pub(crate) nodata: [f32; 4],
     pub(crate) difference: [f32; 4],
+    pub(crate) brush: [f32; 4],
 }
 
 /// One quad's record for the shader (`Quad` in terrain.wgsl; keep in sync).
@@ -59,5 +60,5 @@ pub(crate) fn rgba(c: [u8; 4]) -> [f32; 4] {
     c.map(|v| f32::from(v) / 255.0)
 }
 
-const _: () = assert!(std::mem::size_of::<FrameUniform>() == 64 + 9 * 16);
+const _: () = assert!(std::mem::size_of::<FrameUniform>() == 64 + 10 * 16);
 const _: () = assert!(std::mem::size_of::<QuadInstance>() == 16 * (1 + 4 + 4 + 3 + 1 + 1));

@@ -125,6 +125,8 @@ pub struct Renderer {
     size: (u32, u32),
     /// The drawn difference's range from its percentile (set by the tool that computed it).
     auto_range_m: Option<f64>,
+    /// The brush's footprint to draw: centre (ECEF) and radius, metres.
+    brush: Option<(glam::DVec3, f64)>,
 }
 
 impl Renderer {
@@ -217,6 +219,7 @@ impl Renderer {
             camera: None,
             size: (1, 1),
             auto_range_m: None,
+            brush: None,
         })
     }
 
@@ -270,6 +273,12 @@ impl Renderer {
             }
         }
         if hi > lo { ((hi - lo) / 100.0).max(1.0) } else { 1.0 }
+    }
+
+    /// Draws the brush's footprint (a ring of its radius around a surface point, ECEF) from the
+    /// next prepared frame on, or none.
+    pub fn set_brush_ring(&mut self, ring: Option<(glam::DVec3, f64)>) {
+        self.brush = ring;
     }
 
     /// Rebuilds the terrain's bind group (after a buffer it binds was replaced).
@@ -605,6 +614,10 @@ impl Renderer {
                 }
                 None => [1.0, 0.0, 0.0, 0.0],
             },
+            brush: self.brush.map_or([0.0; 4], |(centre, radius)| {
+                let rel = centre - camera.position;
+                [rel.x as f32, rel.y as f32, rel.z as f32, radius as f32]
+            }),
         };
         self.queue.write_buffer(&self.frame_buffer, 0, bytemuck::bytes_of(&uniform));
     }

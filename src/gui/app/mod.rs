@@ -14,6 +14,7 @@ use crate::gpu::scene::resolve_ramp;
 use crate::gpu::{Camera, FrameStats, Renderer};
 use crate::project::{CameraSpec, Project, Visuals};
 
+mod brush;
 mod profile;
 mod side_panel;
 mod swipe;
@@ -84,6 +85,8 @@ pub struct App {
     profile: profile::ProfileTool,
     /// The drawn difference layer's range from its percentile.
     difference_range: crate::gui::difference_ui::AutoRange,
+    /// The brush.
+    brush: brush::BrushTool,
 }
 
 impl App {
@@ -131,6 +134,7 @@ impl App {
             add_dataset: Default::default(),
             compare: Default::default(),
             difference_range: Default::default(),
+            brush: Default::default(),
             swipe: None,
             swipe_request: None,
             profile: Default::default(),
@@ -178,6 +182,16 @@ impl App {
     /// The drawn difference layer's range (metres) and whether its percentile is being computed.
     pub fn difference_range(&self) -> (f64, bool) {
         (self.renderer.difference_range_m(), self.difference_range.busy())
+    }
+
+    /// Whether the brush is on, and the stroke in progress (its path so far).
+    pub fn brush_state(&self) -> (bool, usize) {
+        (self.brush.on, self.brush.path.len())
+    }
+
+    /// Turns the brush on or off (tests; people tick *brush*).
+    pub fn set_brush(&mut self, on: bool) {
+        self.brush.on = on;
     }
 
     /// Whether a dataset is being imported or opened in the background.
@@ -588,7 +602,11 @@ impl eframe::App for App {
             {
                 self.message = e;
             }
-            if !self.drag_swipe(ui, &response, rect) && !self.pick_profile(&response, view) {
+            self.brush_keys(ui);
+            if !self.drag_swipe(ui, &response, rect)
+                && !self.pick_profile(&response, view)
+                && !self.paint(ui, &response, view)
+            {
                 self.navigate(ui, &response, view);
             }
             self.render(frame, size_px);

@@ -184,6 +184,10 @@ impl App {
             }
 
             ui.separator();
+            ui.heading("Brush");
+            self.brush_ui(ui);
+
+            ui.separator();
             ui.heading("Compare");
             match self.compare.ui(ui, &self.project) {
                 crate::gui::compare_panel::CompareAction::Apply { layer, shift_m, up_m } => {

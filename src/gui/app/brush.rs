@@ -1,0 +1,247 @@
+//! Brushing in the workstation: the *Brush* section (tool, radius, strength, falloff, spacing, the
+//! edit layer painted on, undo and redo), the footprint drawn on the terrain under the cursor, and
+//! strokes by left drag while the brush is on (navigation stays on the other buttons and on
+//! Shift/Ctrl + left). The path is the terrain point under the cursor each frame (the probe's, or
+//! the mean sphere's until the probe catches up); the stroke is rasterised and composed when the
+//! button is released, through `Renderer::apply_stroke`, as `terrafuse brush` would append it.
+//! Ctrl+Z and Ctrl+Shift+Z undo and redo on the edit layer.
+
+use super::*;
+use crate::edit::{Falloff, Stroke, Tool};
+use crate::layers::{LayerKind, LayerSpec};
+use crate::store::grid::spacing_m;
+
+/// The brush's settings and the stroke in progress.
+pub(crate) struct BrushTool {
+    pub(crate) on: bool,
+    tool: Tool,
+    radius_m: f64,
+    /// Metres per dab for raise, lower and noise; a fraction for restore.
+    strength_m: f64,
+    fraction: f64,
+    falloff: Falloff,
+    spacing: f64,
+    seed: u32,
+    layer: String,
+    /// The path so far, `[lat, lon]` degrees.
+    pub(crate) path: Vec<[f64; 2]>,
+    painting: bool,
+}
+
+impl Default for BrushTool {
+    fn default() -> BrushTool {
+        BrushTool {
+            on: false,
+            tool: Tool::Raise,
+            radius_m: 2000.0,
+            strength_m: 20.0,
+            fraction: 0.5,
+            falloff: Falloff::Smooth,
+            spacing: 0.25,
+            seed: 1,
+            layer: "sculpt".into(),
+            path: Vec::new(),
+            painting: false,
+        }
+    }
+}
+
+/// The tools the rasteriser draws today (smooth, flatten and ramp read the terrain: not yet).
+const TOOLS: [Tool; 4] = [Tool::Raise, Tool::Lower, Tool::Noise, Tool::Restore];
+
+impl App {
+    /// The *Brush* section.
+    pub(super) fn brush_ui(&mut self, ui: &mut egui::Ui) {
+        let b = &mut self.brush;
+        ui.checkbox(&mut b.on, "brush (left drag paints)")
+            .on_hover_text("navigate with the right or middle button, or Shift/Ctrl + left");
+        egui::ComboBox::from_label("tool").selected_text(b.tool.name()).show_ui(ui, |ui| {
+            for t in TOOLS {
+                ui.selectable_value(&mut b.tool, t, t.name());
+            }
+        });
+        ui.add(egui::Slider::new(&mut b.radius_m, 10.0..=200_000.0).logarithmic(true).text("radius m"));
+        if b.tool.strength_in_metres() {
+            ui.add(egui::Slider::new(&mut b.strength_m, 0.1..=2000.0).logarithmic(true).text("m per dab"));
+        } else {
+            ui.add(egui::Slider::new(&mut b.fraction, 0.01..=1.0).text("fraction per dab"));
+        }
+        egui::ComboBox::from_label("falloff").selected_text(b.falloff.name()).show_ui(ui, |ui| {
+            for f in Falloff::ALL {
+                ui.selectable_value(&mut b.falloff, f, f.name());
+            }
+        });
+        ui.add(egui::Slider::new(&mut b.spacing, 0.05..=2.0).text("spacing (radius)"));
+        if b.tool == Tool::Noise {
+            ui.add(egui::DragValue::new(&mut b.seed).prefix("seed "));
+        }
+        ui.horizontal(|ui| {
+            let label = ui.label("edit layer").id;
+            ui.text_edit_singleline(&mut b.layer).labelled_by(label);
+        });
+        let index = self.project.layers.iter().position(|l| l.name == self.brush.layer && l.kind == LayerKind::Edit);
+        ui.horizontal(|ui| {
+            let (applied, total) = index.map_or((0, 0), |i| {
+                let l = &self.project.layers[i];
+                (l.applied_strokes().len(), l.strokes.len())
+            });
+            if ui.add_enabled(applied > 0, egui::Button::new("undo")).on_hover_text("Ctrl+Z").clicked() {
+                self.move_undo(-1);
+            }
+            if ui.add_enabled(applied < total, egui::Button::new("redo")).on_hover_text("Ctrl+Shift+Z").clicked() {
+                self.move_undo(1);
+            }
+            ui.label(format!("{applied} of {total} strokes"));
+        });
+    }
+
+    /// Ctrl+Z and Ctrl+Shift+Z (when no text field has the keyboard).
+    pub(super) fn brush_keys(&mut self, ui: &egui::Ui) {
+        if ui.ctx().egui_wants_keyboard_input() {
+            return;
+        }
+        let (undo, redo) = ui.input(|i| {
+            let z = i.key_pressed(egui::Key::Z) && i.modifiers.command;
+            (z && !i.modifiers.shift, z && i.modifiers.shift)
+        });
+        if undo {
+            self.move_undo(-1);
+        } else if redo {
+            self.move_undo(1);
+        }
+    }
+
+    fn move_undo(&mut self, by: i64) {
+        let Some(index) = self.project.layers.iter().position(|l| l.name == self.brush.layer) else { return };
+        let applied = self.project.layers[index].applied_strokes().len() as i64 + by;
+        let total = self.project.layers[index].strokes.len() as i64;
+        if !(0..=total).contains(&applied) {
+            return;
+        }
+        match self.renderer.set_applied(index, applied as usize) {
+            Ok(spec) => {
+                self.project.layers[index] = spec;
+                self.dirty = true;
+                self.unsaved = true;
+                self.message = format!("{} to {applied} of {total} strokes", if by < 0 { "undone" } else { "redone" });
+            }
+            Err(e) => self.message = e.to_string(),
+        }
+    }
+
+    /// Takes the viewport's input while the brush is on: the footprint follows the cursor, a left
+    /// drag records a stroke, its release applies it. True when the input was the brush's.
+    pub(super) fn paint(&mut self, ui: &egui::Ui, response: &egui::Response, rect: egui::Rect) -> bool {
+        if !self.brush.on {
+            self.renderer.set_brush_ring(None);
+            return false;
+        }
+        let under = response.hover_pos().or(response.interact_pointer_pos()).and_then(|p| self.surface_at(p, rect));
+        let ring = under.map(|p| (p, self.brush.radius_m * self.renderer.scene().visuals.exaggeration.max(1.0)));
+        self.renderer.set_brush_ring(ring);
+        if response.hovered() {
+            self.dirty = true; // the ring moves with the cursor
+        }
+        let modifiers = ui.input(|i| i.modifiers);
+        let plain = !modifiers.shift && !modifiers.command;
+        if response.clicked_by(egui::PointerButton::Primary) && plain {
+            // A click is one dab.
+            if let Some(p) = under {
+                let g = geodesy::geodetic_from_ecef(&self.renderer.scene().ellipsoid, p);
+                self.apply_brush_stroke(vec![[g.lat_rad.to_degrees(), g.lon_rad.to_degrees()]]);
+            }
+            return true;
+        }
+        if response.drag_started_by(egui::PointerButton::Primary) && plain {
+            self.brush.painting = true;
+            self.brush.path.clear();
+        }
+        if !self.brush.painting {
+            return false;
+        }
+        if let Some(p) = under {
+            let g = geodesy::geodetic_from_ecef(&self.renderer.scene().ellipsoid, p);
+            let point = [g.lat_rad.to_degrees(), g.lon_rad.to_degrees()];
+            if self.brush.path.last() != Some(&point) {
+                self.brush.path.push(point);
+            }
+        }
+        if response.drag_stopped() || !response.dragged() {
+            self.brush.painting = false;
+            let path = std::mem::take(&mut self.brush.path);
+            if !path.is_empty() {
+                self.apply_brush_stroke(path);
+            }
+        }
+        true
+    }
+
+    /// The terrain point (ECEF) under a window position: the probe's when it is for that pixel,
+    /// else the mean sphere's.
+    fn surface_at(&self, pos: egui::Pos2, rect: egui::Rect) -> Option<DVec3> {
+        let vp = self.viewport.as_ref()?;
+        let (w, h) = vp.size();
+        let px = (
+            f64::from((pos.x - rect.min.x) / rect.width()) * f64::from(w),
+            f64::from((pos.y - rect.min.y) / rect.height()) * f64::from(h),
+        );
+        let hit = vp.hits[0]
+            .filter(|hit| (f64::from(hit.pixel.0) - px.0).abs() < 3.0 && (f64::from(hit.pixel.1) - px.1).abs() < 3.0);
+        Some(hit.map_or_else(
+            || {
+                let cam = self.placed();
+                navigate::fallback_target(&self.renderer.scene().ellipsoid, &cam, cam.ray(px.0, px.1, w, h))
+            },
+            |hit| hit.ecef,
+        ))
+    }
+
+    /// Appends a stroke along `path` to the brush's edit layer (made on top of the stack when the
+    /// project has none of that name).
+    pub(crate) fn apply_brush_stroke(&mut self, path: Vec<[f64; 2]>) {
+        let b = &self.brush;
+        let e = self.renderer.scene().ellipsoid;
+        let level = (0..=crate::edit::stroke::MAX_LEVEL)
+            .find(|l| spacing_m(&e, *l) <= b.radius_m / 10.0)
+            .unwrap_or(crate::edit::stroke::MAX_LEVEL);
+        let stroke = Stroke {
+            tool: b.tool,
+            radius_m: b.radius_m,
+            strength: if b.tool.strength_in_metres() { b.strength_m } else { b.fraction },
+            falloff: b.falloff,
+            spacing: b.spacing,
+            level,
+            path,
+            seed: b.seed,
+            height_m: None,
+        };
+        let name = b.layer.clone();
+        let index = match self.project.layers.iter().position(|l| l.name == name) {
+            Some(i) => i,
+            None => {
+                let spec = LayerSpec::edit(&name);
+                let top = self.project.layers.len();
+                if let Err(e) = self.renderer.insert_layer(top, spec.clone()) {
+                    self.message = e.to_string();
+                    return;
+                }
+                self.project.layers.push(spec);
+                top
+            }
+        };
+        let t = Instant::now();
+        match self.renderer.apply_stroke(index, stroke) {
+            Ok(spec) => {
+                self.message = format!(
+                    "stroke {} on '{name}' ({:.0} ms to rasterise)",
+                    spec.strokes.len() - 1,
+                    t.elapsed().as_secs_f64() * 1e3
+                );
+                self.project.layers[index] = spec;
+                self.dirty = true;
+                self.unsaved = true;
+            }
+            Err(e) => self.message = e.to_string(),
+        }
+    }
+}
