@@ -515,6 +515,10 @@ fn a_left_drag_with_the_brush_on_paints_a_stroke_and_ctrl_z_undoes_it() {
     let stroke = h.state().project().layers.iter().find(|l| l.name == "sculpt").unwrap().strokes[n].clone();
     assert!(stroke.path.len() >= 2, "the drag's path: {:?}", stroke.path);
     settle(&mut h);
+    // The footprint follows the cursor (a ring on the terrain).
+    h.hover_at(egui::pos2(x, y));
+    h.run_steps(3);
+    settle(&mut h);
     h.render().unwrap().save(dir.join("brushed.png")).unwrap(); // for people, not compared
     // Ctrl+Z undoes it, Ctrl+Shift+Z redoes it.
     h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::Z);

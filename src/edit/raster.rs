@@ -63,8 +63,18 @@ pub struct EditRaster {
     pub tiles: BTreeMap<QuadId, Vec<f32>>,
     /// Bumped by every change (renderers key resident tiles by it).
     pub generation: u32,
+    /// The latest strokes' before-images (stroke index, each touched quad's tile before it), so
+    /// that undoing them restores tiles instead of recomputing them; the oldest are dropped past
+    /// [`HISTORY_BYTES`] (undo then recomputes).
+    history: std::collections::VecDeque<(usize, Vec<(QuadId, Option<Vec<f32>>)>)>,
+    history_bytes: usize,
 }
 
+/// Memory the undo history may hold.
+pub const HISTORY_BYTES: usize = 256 << 20;
+
+/// Equal tiles (bit for bit) at the same level on the same body; generations and undo histories
+/// are not compared.
 impl PartialEq for EditRaster {
     fn eq(&self, other: &EditRaster) -> bool {
         let bits = |t: &Vec<f32>| t.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
@@ -89,7 +99,14 @@ impl std::fmt::Debug for EditRaster {
 impl EditRaster {
     /// An empty raster at `level`.
     pub fn new(ellipsoid: Ellipsoid, level: u8) -> EditRaster {
-        EditRaster { ellipsoid, level, tiles: BTreeMap::new(), generation: 0 }
+        EditRaster {
+            ellipsoid,
+            level,
+            tiles: BTreeMap::new(),
+            generation: 0,
+            history: Default::default(),
+            history_bytes: 0,
+        }
     }
 
     /// The raster of `strokes`, at the finest of their levels (each checked; the tools that read
@@ -110,6 +127,14 @@ impl EditRaster {
     /// Applies one stroke (`index` names it in errors); returns the quads it touched.
     pub fn apply(&mut self, index: usize, stroke: &Stroke) -> Result<BTreeSet<QuadId>, StrokeError> {
         let (dabs, quads) = self.footprint(index, stroke)?;
+        let before: Vec<(QuadId, Option<Vec<f32>>)> = quads.iter().map(|q| (*q, self.tiles.get(q).cloned())).collect();
+        self.history_bytes += before.iter().map(|(_, t)| t.as_ref().map_or(0, |t| t.len() * 4)).sum::<usize>();
+        self.history.push_back((index, before));
+        while self.history_bytes > HISTORY_BYTES
+            && let Some((_, old)) = self.history.pop_front()
+        {
+            self.history_bytes -= old.iter().map(|(_, t)| t.as_ref().map_or(0, |t| t.len() * 4)).sum::<usize>();
+        }
         let tiles: Vec<(QuadId, Vec<f32>)> = quads
             .par_iter()
             .map(|q| {
@@ -123,9 +148,30 @@ impl EditRaster {
         Ok(quads)
     }
 
-    /// Undoes back to `strokes[..keep]` after `strokes[keep..]` were applied: the quads those
-    /// touched are recomputed from the kept strokes; every other tile stays as it is.
+    /// Undoes back to `strokes[..keep]` after `strokes[keep..]` were applied: the latest strokes'
+    /// tiles are restored from their before-images while the history has them; the quads of the
+    /// rest are recomputed from the kept strokes; every other tile stays as it is.
     pub fn undo_to(&mut self, strokes: &[Stroke], keep: usize) -> Result<(), StrokeError> {
+        let mut top = strokes.len();
+        while top > keep && self.history.back().is_some_and(|(index, _)| *index == top - 1) {
+            let (_, before) = self.history.pop_back().expect("checked");
+            self.history_bytes -= before.iter().map(|(_, t)| t.as_ref().map_or(0, |t| t.len() * 4)).sum::<usize>();
+            for (q, tile) in before {
+                match tile {
+                    Some(t) => self.tiles.insert(q, t),
+                    None => self.tiles.remove(&q),
+                };
+            }
+            top -= 1;
+        }
+        self.generation = self.generation.wrapping_add(1);
+        if top == keep {
+            return Ok(());
+        }
+        // Beyond the history: recomputed (and no history below this point matches any more).
+        self.history.clear();
+        self.history_bytes = 0;
+        let strokes = &strokes[..top];
         let mut touched = BTreeSet::new();
         for (index, stroke) in strokes.iter().enumerate().skip(keep) {
             touched.extend(self.footprint(index, stroke)?.1);
@@ -159,6 +205,12 @@ impl EditRaster {
         }
         self.generation = self.generation.wrapping_add(1);
         Ok(())
+    }
+
+    /// Forgets the undo history (undo then recomputes: for tests and benchmarks of that path).
+    pub fn clear_history(&mut self) {
+        self.history.clear();
+        self.history_bytes = 0;
     }
 
     /// A stroke's dabs and the quads of the raster's level within reach of one of them.

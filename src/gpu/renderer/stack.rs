@@ -68,29 +68,32 @@ impl Renderer {
     /// new stroke ends redo), the stroke is appended and rasterised into the layer's tiles, and
     /// the quads it touches are recomposed. Returns the layer's new spec (for the project).
     pub fn apply_stroke(&mut self, index: usize, stroke: crate::edit::Stroke) -> Result<LayerSpec, LayerError> {
-        let (mut spec, mut raster) = self.edit_of(index)?;
+        let mut spec = self.edit_spec(index)?;
         let applied = spec.applied_strokes().len();
         spec.strokes.truncate(applied);
-        let mut grown = raster.clone();
-        if stroke.level > grown.level {
+        let ellipsoid = self.scene.ellipsoid;
+        let name = spec.name.clone();
+        let fail = |e: crate::edit::StrokeError| LayerError::field(&name, "strokes", e.to_string());
+        let raster = self.raster_mut(index);
+        if stroke.level > raster.level {
             // A finer stroke: the raster moves to its level (rebuilt from every stroke).
             let mut all = spec.strokes.clone();
             all.push(stroke.clone());
-            grown = crate::edit::EditRaster::build(self.scene.ellipsoid, &all)
-                .map_err(|e| LayerError::field(&spec.name, "strokes", e.to_string()))?;
+            *raster = crate::edit::EditRaster::build(ellipsoid, &all).map_err(fail)?;
         } else {
-            grown.apply(applied, &stroke).map_err(|e| LayerError::field(&spec.name, "strokes", e.to_string()))?;
+            // Checked before anything changes: a refused stroke leaves the raster as it was.
+            raster.apply(applied, &stroke).map_err(fail)?;
         }
-        raster = grown;
         spec.strokes.push(stroke);
         spec.applied = None;
-        self.finish_edit(index, spec, raster)
+        self.finish_edit(index, spec)
     }
 
-    /// Moves edit layer `index`'s undo position to `applied` strokes (back: undo, recomputing only
-    /// the quads the undone strokes touched; forward: redo). Returns the layer's new spec.
+    /// Moves edit layer `index`'s undo position to `applied` strokes (back: undo, restoring the
+    /// touched quads from the undo history or recomputing them; forward: redo). Returns the
+    /// layer's new spec.
     pub fn set_applied(&mut self, index: usize, applied: usize) -> Result<LayerSpec, LayerError> {
-        let (mut spec, mut raster) = self.edit_of(index)?;
+        let mut spec = self.edit_spec(index)?;
         let now = spec.applied_strokes().len();
         if applied > spec.strokes.len() {
             return Err(LayerError::field(
@@ -99,39 +102,51 @@ impl Renderer {
                 format!("{applied} is past the {} strokes", spec.strokes.len()),
             ));
         }
-        let fail = |e: crate::edit::StrokeError| LayerError::field(&spec.name, "strokes", e.to_string());
+        let name = spec.name.clone();
+        let fail = |e: crate::edit::StrokeError| LayerError::field(&name, "strokes", e.to_string());
+        let strokes = spec.strokes.clone();
+        let raster = self.raster_mut(index);
         if applied < now {
-            raster.undo_to(&spec.strokes[..now], applied).map_err(fail)?;
+            raster.undo_to(&strokes[..now], applied).map_err(fail)?;
         } else {
-            for k in now..applied {
-                raster.apply(k, &spec.strokes[k]).map_err(fail)?;
+            for (k, stroke) in strokes.iter().enumerate().take(applied).skip(now) {
+                raster.apply(k, stroke).map_err(fail)?;
             }
         }
         spec.applied = (applied < spec.strokes.len()).then_some(applied);
-        self.finish_edit(index, spec, raster)
+        self.finish_edit(index, spec)
     }
 
-    fn edit_of(&self, index: usize) -> Result<(LayerSpec, crate::edit::EditRaster), LayerError> {
+    /// Edit layer `index`'s spec (an error for any other layer).
+    fn edit_spec(&self, index: usize) -> Result<LayerSpec, LayerError> {
         let layer = self
             .scene
             .stack
             .layers
             .get(index)
             .ok_or_else(|| LayerError::field("?", "index", format!("{index} is not a layer of the stack")))?;
-        let raster = self.scene.edits.get(&layer.uid).ok_or_else(|| {
-            LayerError::field(&layer.spec.name, "kind", format!("{} is not an edit layer", layer.spec.kind.name()))
-        })?;
-        Ok((layer.spec.clone(), (**raster).clone()))
+        if !self.scene.edits.contains_key(&layer.uid) {
+            return Err(LayerError::field(
+                &layer.spec.name,
+                "kind",
+                format!("{} is not an edit layer", layer.spec.kind.name()),
+            ));
+        }
+        Ok(layer.spec.clone())
     }
 
-    fn finish_edit(
-        &mut self,
-        index: usize,
-        spec: LayerSpec,
-        raster: crate::edit::EditRaster,
-    ) -> Result<LayerSpec, LayerError> {
+    /// Edit layer `index`'s raster, changed in place (copied first only if another scene shares
+    /// it).
+    fn raster_mut(&mut self, index: usize) -> &mut crate::edit::EditRaster {
+        let uid = self.scene.stack.layers[index].uid;
+        std::sync::Arc::make_mut(self.scene.edits.get_mut(&uid).expect("checked by edit_spec"))
+    }
+
+    fn finish_edit(&mut self, index: usize, spec: LayerSpec) -> Result<LayerSpec, LayerError> {
         self.scene.stack.set(index, spec.clone())?;
-        self.scene.set_edit(index, raster);
+        let uid = self.scene.stack.layers[index].uid;
+        let range = self.scene.edits[&uid].range_m();
+        self.scene.stack.set_dataset_info(index, range, f64::INFINITY);
         self.cache.plans.clear();
         Ok(spec)
     }
