@@ -66,9 +66,12 @@ pub struct EditRaster {
     /// The latest strokes' before-images (stroke index, each touched quad's tile before it), so
     /// that undoing them restores tiles instead of recomputing them; the oldest are dropped past
     /// [`HISTORY_BYTES`] (undo then recomputes).
-    history: std::collections::VecDeque<(usize, Vec<(QuadId, Option<Vec<f32>>)>)>,
+    history: std::collections::VecDeque<(usize, BeforeImages)>,
     history_bytes: usize,
 }
+
+/// The tiles one stroke touched as they were before it (None: no tile yet).
+type BeforeImages = Vec<(QuadId, Option<Vec<f32>>)>;
 
 /// Memory the undo history may hold.
 pub const HISTORY_BYTES: usize = 256 << 20;
@@ -127,7 +130,7 @@ impl EditRaster {
     /// Applies one stroke (`index` names it in errors); returns the quads it touched.
     pub fn apply(&mut self, index: usize, stroke: &Stroke) -> Result<BTreeSet<QuadId>, StrokeError> {
         let (dabs, quads) = self.footprint(index, stroke)?;
-        let before: Vec<(QuadId, Option<Vec<f32>>)> = quads.iter().map(|q| (*q, self.tiles.get(q).cloned())).collect();
+        let before: BeforeImages = quads.iter().map(|q| (*q, self.tiles.get(q).cloned())).collect();
         self.history_bytes += before.iter().map(|(_, t)| t.as_ref().map_or(0, |t| t.len() * 4)).sum::<usize>();
         self.history.push_back((index, before));
         while self.history_bytes > HISTORY_BYTES
