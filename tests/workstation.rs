@@ -507,13 +507,27 @@ fn a_left_drag_with_the_brush_on_paints_a_stroke_and_ctrl_z_undoes_it() {
     let camera = h.state().camera();
     let r = h.state().viewport_rect_px().unwrap();
     let (x, y) = (r.center().x, r.center().y);
-    drag(&mut h, egui::pos2(x - 80.0, y), egui::pos2(x + 80.0, y));
+    let (from, to) = (egui::pos2(x - 80.0, y), egui::pos2(x + 80.0, y));
+    h.hover_at(from);
+    h.step();
+    h.drag_at(from);
+    h.step();
+    for k in 1..=4 {
+        h.hover_at(from + (to - from) * (k as f32 / 4.0));
+        h.step();
+        std::thread::sleep(std::time::Duration::from_millis(100));
+    }
+    // The terrain updates during the drag: the stroke so far is applied provisionally.
+    assert_eq!(strokes(&h), (n + 1, n + 1), "a provisional stroke while dragging");
+    let partial = h.state().project().layers.iter().find(|l| l.name == "sculpt").unwrap().strokes[n].path.len();
+    h.drop_at(to);
+    h.step();
     h.run_steps(2);
     assert_eq!(h.state().camera(), camera, "painting does not move the camera");
     assert_eq!(strokes(&h), (n + 1, n + 1), "{}", h.state().message());
     assert!(h.state().message().starts_with(&format!("stroke {n} on 'sculpt'")), "{}", h.state().message());
     let stroke = h.state().project().layers.iter().find(|l| l.name == "sculpt").unwrap().strokes[n].clone();
-    assert!(stroke.path.len() >= 2, "the drag's path: {:?}", stroke.path);
+    assert!(stroke.path.len() >= 2 && stroke.path.len() >= partial, "the drag's path: {:?}", stroke.path);
     settle(&mut h);
     // The footprint follows the cursor (a ring on the terrain).
     h.hover_at(egui::pos2(x, y));

@@ -2,8 +2,10 @@
 //! edit layer painted on, undo and redo), the footprint drawn on the terrain under the cursor, and
 //! strokes by left drag while the brush is on (navigation stays on the other buttons and on
 //! Shift/Ctrl + left). The path is the terrain point under the cursor each frame (the probe's, or
-//! the mean sphere's until the probe catches up); the stroke is rasterised and composed when the
-//! button is released, through `Renderer::apply_stroke`, as `terrafuse brush` would append it.
+//! the mean sphere's until the probe catches up); while dragging, the stroke so far is applied
+//! provisionally every few frames (the previous provisional version undone from the undo history,
+//! which is instant), and on release the whole stroke replaces it, through
+//! `Renderer::apply_stroke`, as `terrafuse brush` would append it.
 //! Ctrl+Z and Ctrl+Shift+Z undo and redo on the edit layer.
 
 use super::*;
@@ -26,6 +28,10 @@ pub(crate) struct BrushTool {
     /// The path so far, `[lat, lon]` degrees.
     pub(crate) path: Vec<[f64; 2]>,
     painting: bool,
+    /// While dragging: the edit layer and its strokes in effect before the stroke, once the
+    /// stroke so far has been applied provisionally (the terrain updates during the drag).
+    preview: Option<(usize, usize)>,
+    last_preview: Option<Instant>,
 }
 
 impl Default for BrushTool {
@@ -42,6 +48,8 @@ impl Default for BrushTool {
             layer: "sculpt".into(),
             path: Vec::new(),
             painting: false,
+            preview: None,
+            last_preview: None,
         }
     }
 }
@@ -164,10 +172,17 @@ impl App {
             let point = [g.lat_rad.to_degrees(), g.lon_rad.to_degrees()];
             if self.brush.path.last() != Some(&point) {
                 self.brush.path.push(point);
+                let due = self.brush.last_preview.is_none_or(|t| t.elapsed() > Duration::from_millis(80));
+                if due && response.dragged() && !response.drag_stopped() {
+                    self.brush.last_preview = Some(Instant::now());
+                    let path = self.brush.path.clone();
+                    self.apply_brush_stroke(path);
+                }
             }
         }
         if response.drag_stopped() || !response.dragged() {
             self.brush.painting = false;
+            self.brush.last_preview = None;
             let path = std::mem::take(&mut self.brush.path);
             if !path.is_empty() {
                 self.apply_brush_stroke(path);
@@ -199,6 +214,16 @@ impl App {
     /// Appends a stroke along `path` to the brush's edit layer (made on top of the stack when the
     /// project has none of that name).
     pub(crate) fn apply_brush_stroke(&mut self, path: Vec<[f64; 2]>) {
+        // The provisional version of this stroke, if any, goes first (instant: from the history).
+        if let Some((index, before)) = self.brush.preview.take() {
+            match self.renderer.set_applied(index, before) {
+                Ok(spec) => self.project.layers[index] = spec,
+                Err(e) => {
+                    self.message = e.to_string();
+                    return;
+                }
+            }
+        }
         let b = &self.brush;
         let e = self.renderer.scene().ellipsoid;
         let level = (0..=crate::edit::stroke::MAX_LEVEL)
@@ -230,8 +255,12 @@ impl App {
             }
         };
         let t = Instant::now();
+        let before = self.project.layers[index].applied_strokes().len();
         match self.renderer.apply_stroke(index, stroke) {
             Ok(spec) => {
+                if self.brush.painting {
+                    self.brush.preview = Some((index, before));
+                }
                 self.message = format!(
                     "stroke {} on '{name}' ({:.0} ms to rasterise)",
                     spec.strokes.len() - 1,
