@@ -149,9 +149,10 @@ fn the_workstation_draws_probes_navigates_and_saves() {
     h.step();
     let tycho = h.state().camera();
     assert_eq!(tycho, Project::load(&project).unwrap().views["tycho"]);
-    h.get_by_role(egui::accesskit::Role::TextInput).focus();
+    // The view name is the first text field of the panel (the brush's edit layer is another).
+    h.get_all_by_role(egui::accesskit::Role::TextInput).next().unwrap().focus();
     h.step();
-    h.get_by_role(egui::accesskit::Role::TextInput).type_text("tycho-again");
+    h.get_all_by_role(egui::accesskit::Role::TextInput).next().unwrap().type_text("tycho-again");
     h.step();
     h.get_by_label("save view").click();
     h.step();
