@@ -66,6 +66,11 @@ fn the_moon_session_composes_on_the_gpu_as_on_the_cpu_across_a_face_edge_and_a_c
         }
     }
     println!("edit layer GPU − CPU: worst {worst:.2e} m; {edited} samples moved by more than 1 m");
+    // Far from every stroke the edit layer is not even read.
+    let edit_index = r.scene().stack.index_of("sculpt").unwrap();
+    let far = quad_at(&e, -40.0, -100.0, 4);
+    assert!(r.scene().plan(far).layers.iter().all(|l| l.index != edit_index), "read where no stroke reached");
+    assert!(r.scene().plan(quads[0]).layers.iter().any(|l| l.index == edit_index));
     assert!(edited > 20_000, "the strokes change the terrain there: {edited}");
     // Heights of ±6 km in f32 (half an ulp 2.4·10⁻⁴ m), an add of the delta: 10⁻³ m.
     assert!(worst < 1e-3, "GPU − CPU {worst} m");

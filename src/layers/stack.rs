@@ -315,7 +315,7 @@ impl Stack {
     }
 
     /// The plan of a quad: `covers(i)` says whether dataset layer i has data at the quad (its own
-    /// tile or an ancestor's). `octave_skipping` off evaluates every octave at every level (the
+    /// tile or an ancestor's), or edit layer i a stroke that reaches it. `octave_skipping` off evaluates every octave at every level (the
     /// reference the skipping's error is measured against).
     pub fn plan(&self, quad: QuadId, covers: &dyn Fn(usize) -> bool, octave_skipping: bool) -> QuadPlan {
         let spacing = spacing_m(&self.ellipsoid, quad.level);
@@ -365,7 +365,8 @@ impl Stack {
         ball: Option<(DVec3, (f64, f64), f64)>,
     ) -> Option<MaskPlan> {
         let layer = &self.layers[index];
-        if layer.spec.kind == LayerKind::Dataset && !covers(index) {
+        // Datasets without a tile there, and edit layers no stroke reached there, add nothing.
+        if matches!(layer.spec.kind, LayerKind::Dataset | LayerKind::Edit) && !covers(index) {
             return None;
         }
         match (&layer.extent, ball) {
