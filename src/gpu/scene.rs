@@ -143,17 +143,25 @@ impl Scene {
     /// Composes quads with the CPU reference, reading their source and edge tiles here (on the
     /// caller's thread): for export, comparison, benchmarks and tests.
     pub fn compose_cpu(&self, quads: &[QuadId]) -> Result<HashMap<QuadId, Vec<f32>>, String> {
-        Ok(self.compose_cpu_with_difference(quads)?.into_iter().map(|(q, (h, _))| (q, h)).collect())
+        Ok(self.compose_cpu_of(quads, false)?.into_iter().map(|(q, (h, _))| (q, h)).collect())
     }
 
     /// [`Scene::compose_cpu`], with the drawn difference layer's A − B where the quad's plan has
     /// one (the CPU reference of the overlay pool).
     pub fn compose_cpu_with_difference(&self, quads: &[QuadId]) -> Result<HashMap<QuadId, Composed>, String> {
+        self.compose_cpu_of(quads, true)
+    }
+
+    fn compose_cpu_of(&self, quads: &[QuadId], difference: bool) -> Result<HashMap<QuadId, Composed>, String> {
         let mut stores: Vec<Option<Store>> = self.datasets.iter().map(|_| None).collect();
         let fields = EdgeFields::default();
         let mut grids = HashMap::new();
         for &quad in quads {
-            let plan = self.plan(quad);
+            let mut plan = self.plan(quad);
+            if !difference {
+                // Heights only: the difference's operands are not read.
+                plan.difference = None;
+            }
             // Per planned layer (the heights', then the difference's): its raw and edge tiles.
             let mut tiles: Vec<(Option<Grid>, Option<Grid>)> = Vec::with_capacity(plan.layers.len());
             for l in plan.all_layers() {
