@@ -155,7 +155,7 @@ enum Command {
         /// The edit layer.
         #[arg(long)]
         layer: String,
-        /// raise, lower, noise or restore (smooth, flatten and ramp are not rasterised yet).
+        /// raise, lower, smooth, flatten, ramp, noise or restore.
         #[arg(long)]
         tool: Option<String>,
         /// Brush radius on the surface, metres.
@@ -183,6 +183,10 @@ enum Command {
         /// Noise seed.
         #[arg(long)]
         seed: Option<u32>,
+        /// Flatten: the height to flatten to, metres above the ellipsoid (default: the terrain's
+        /// under the path's first point, before the stroke).
+        #[arg(long = "height-m", allow_hyphen_values = true)]
+        height_m: Option<f64>,
         /// Undo this many strokes (no stroke).
         #[arg(long)]
         undo: Option<usize>,
@@ -682,6 +686,7 @@ fn run(args: Args) -> Result<ExitCode> {
             spacing,
             level,
             seed,
+            height_m,
             undo,
             redo,
         } => {
@@ -697,6 +702,7 @@ fn run(args: Args) -> Result<ExitCode> {
                 spacing,
                 level,
                 seed,
+                height_m,
                 undo,
                 redo,
             };

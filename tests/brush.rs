@@ -96,12 +96,10 @@ fn the_brushed_corner_seen_straight_down_has_no_crack_and_the_session_rebuilds_b
     assert_eq!(faces.len(), 3, "the corner's three faces are drawn");
     // Replay: the strokes rebuild the same tiles, twice and in another thread pool.
     let edit = p.layers.iter().find(|l| l.kind == LayerKind::Edit).unwrap();
-    let once = EditRaster::build(Ellipsoid::MOON, edit.applied_strokes()).unwrap();
-    let again = rayon::ThreadPoolBuilder::new()
-        .num_threads(1)
-        .build()
-        .unwrap()
-        .install(|| EditRaster::build(Ellipsoid::MOON, edit.applied_strokes()).unwrap());
+    let once = EditRaster::build(Ellipsoid::MOON, edit.applied_strokes(), &terrafuse::edit::ellipsoid_below).unwrap();
+    let again = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap().install(|| {
+        EditRaster::build(Ellipsoid::MOON, edit.applied_strokes(), &terrafuse::edit::ellipsoid_below).unwrap()
+    });
     assert_eq!(once, again);
     let scene_raster = r.scene().edits.values().next().unwrap();
     assert_eq!(**scene_raster, once);
@@ -172,6 +170,16 @@ fn strokes_undo_and_redo_from_the_command_line_and_bad_strokes_leave_the_file_as
         "12,32",
     ]);
     assert!(report.contains("made edit layer 'more' on top of the stack"), "{report}");
+    // The tools that read the terrain below: a flatten to a given height and a ramp.
+    for args in [
+        vec!["--tool", "flatten", "--radius-m", "6000", "--strength", "0.7", "--path", "12,32", "--height-m", "-900"],
+        vec!["--tool", "ramp", "--radius-m", "5000", "--strength", "0.9", "--path", "12,31.8;12.1,32.2"],
+    ] {
+        let mut all = vec!["brush", p, "--layer", "more"];
+        all.extend(args.iter().copied());
+        let report = run(&all);
+        assert!(report.contains(&format!("({}, radius", args[1])), "{report}");
+    }
     let before = std::fs::read(&path).unwrap();
     for (args, expected) in [
         (
@@ -195,8 +203,12 @@ fn strokes_undo_and_redo_from_the_command_line_and_bad_strokes_leave_the_file_as
             "--path: point 0 [95, 0]",
         ),
         (
-            vec!["--tool", "smooth", "--radius-m", "100", "--strength", "0.5", "--path", "0,0"],
-            "smooth reads the terrain",
+            vec!["--tool", "ramp", "--radius-m", "100", "--strength", "0.5", "--path", "0,0"],
+            "--path: a ramp runs from the path's first point to its last",
+        ),
+        (
+            vec!["--tool", "raise", "--radius-m", "100", "--strength-m", "1", "--path", "0,0", "--height-m", "5"],
+            "--height-m: is the flatten height",
         ),
         (vec!["--undo", "99"], "--undo 99: only"),
     ] {

@@ -6,7 +6,7 @@
 use std::fmt::Write as _;
 use std::time::Instant;
 
-use crate::edit::{EditRaster, Falloff, Stroke, Tool};
+use crate::edit::{EditRaster, Falloff, Stroke, Tool, ellipsoid_below};
 use crate::geodesy::Ellipsoid;
 use crate::layers::noise::pcg;
 
@@ -44,21 +44,21 @@ pub fn bench_brush(strokes: usize, level: u8) -> Result<String, String> {
     let e = Ellipsoid::MOON;
     let session = scripted_strokes(strokes, level);
     let t = Instant::now();
-    let mut raster = EditRaster::build(e, &session).map_err(|e| e.to_string())?;
+    let mut raster = EditRaster::build(e, &session, &ellipsoid_below).map_err(|e| e.to_string())?;
     let build_s = t.elapsed().as_secs_f64();
     let extra = scripted_strokes(strokes + 1, level).pop().ok_or("no stroke")?;
     let t = Instant::now();
-    let touched = raster.apply(strokes, &extra).map_err(|e| e.to_string())?;
+    let touched = raster.apply(strokes, &extra, &ellipsoid_below).map_err(|e| e.to_string())?;
     let stroke_ms = t.elapsed().as_secs_f64() * 1e3;
     let mut all = session.clone();
     all.push(extra);
     let mut without_history = raster.clone();
     without_history.clear_history();
     let t = Instant::now();
-    raster.undo_to(&all, strokes).map_err(|e| e.to_string())?;
+    raster.undo_to(&all, strokes, &ellipsoid_below).map_err(|e| e.to_string())?;
     let undo_ms = t.elapsed().as_secs_f64() * 1e3;
     let t = Instant::now();
-    without_history.undo_to(&all, strokes).map_err(|e| e.to_string())?;
+    without_history.undo_to(&all, strokes, &ellipsoid_below).map_err(|e| e.to_string())?;
     let recompute_ms = t.elapsed().as_secs_f64() * 1e3;
     if without_history != raster {
         return Err("the two undo paths disagree".into());

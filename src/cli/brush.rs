@@ -5,7 +5,8 @@
 use std::fmt::Write as _;
 use std::path::PathBuf;
 
-use crate::edit::{EditRaster, Falloff, Stroke, Tool};
+use crate::edit::{Falloff, Stroke, Tool};
+use crate::gpu::scene::Scene;
 use crate::layers::{LayerKind, LayerSpec};
 use crate::project::Project;
 use crate::store::grid::spacing_m;
@@ -35,6 +36,8 @@ pub struct BrushRequest {
     pub level: Option<u8>,
     /// Noise seed.
     pub seed: Option<u32>,
+    /// Flatten: the height to flatten to, metres.
+    pub height_m: Option<f64>,
     /// Undo this many strokes.
     pub undo: Option<usize>,
     /// Redo this many strokes.
@@ -125,10 +128,15 @@ pub fn brush_command(request: &BrushRequest) -> Result<String, String> {
         }
         _ => return Err("give either --tool with its stroke, or --undo N, or --redo N".into()),
     }
-    // Rasterised before saving: a stroke that cannot be is refused and nothing is written.
+    // Rasterised before saving, with the project's layers (smooth, flatten and ramp read the
+    // terrain below): a stroke that cannot be is refused and nothing is written.
     let t = std::time::Instant::now();
-    let raster = EditRaster::build(ellipsoid, project.layers[index].applied_strokes())
-        .map_err(|e| format!("layer '{}': {e}", request.layer))?;
+    let (scene, report) = Scene::open(&project).map_err(|e| format!("layer '{}': {e}", request.layer))?;
+    for line in report.imported {
+        let _ = writeln!(out, "{line}");
+    }
+    let raster =
+        scene.stack.layers.get(index).and_then(|l| scene.edits.get(&l.uid)).ok_or("the edit layer was not built")?;
     let (lo, hi) = raster.range_m();
     let _ = writeln!(
         out,
@@ -176,7 +184,7 @@ fn stroke_of(
         level,
         path,
         seed: request.seed.unwrap_or(0),
-        height_m: None,
+        height_m: request.height_m,
     };
     stroke.check(body_radius_m).map_err(|(field, problem)| {
         let flag = match field {
@@ -186,6 +194,7 @@ fn stroke_of(
             "spacing" => "--spacing",
             "level" => "--level",
             "path" => "--path",
+            "height_m" => "--height-m",
             other => other,
         };
         format!("{flag}: {problem}")

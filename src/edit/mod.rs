@@ -13,11 +13,14 @@
 //! views, `terrafuse brush` and the workstation's brush tools.
 
 pub mod dabs;
+pub mod kernel;
 pub mod raster;
 pub mod stroke;
+pub mod terrain;
 
 pub use raster::{EditRaster, StrokeError};
 pub use stroke::{Falloff, Stroke, Tool};
+pub use terrain::{Below, ellipsoid_below};
 
 #[cfg(test)]
 mod tests;

@@ -9,20 +9,22 @@
 //! an edge shared by two quads of a face gets the same value in both; across a cube face edge the
 //! two quads' points agree to rounding (≈ 10⁻⁹ m), and so do their values.
 //!
-//! Undo recomputes only the quads the undone strokes touched, from the strokes before them.
+//! Undo restores the quads the undone strokes touched from their before-images, or recomputes
+//! them from the strokes before (see [`EditRaster::undo_to`]). Smooth, flatten and ramp read the
+//! terrain under the layer through a [`Below`] (see [`super::terrain`]).
 
 use std::collections::{BTreeMap, BTreeSet};
 
-use glam::DVec3;
 use rayon::prelude::*;
 
 use super::dabs::dab_centres;
-use super::stroke::{Stroke, Tool};
-use crate::ecm::{CubeProjection, Face, FacePoint, QuadId};
-use crate::geodesy::{Ellipsoid, geodetic_from_ecef};
-use crate::layers::noise;
-use crate::layers::stack::{quad_ball, sample_point};
-use crate::store::grid::{GRID, spacing_m};
+use super::kernel::{Dab, apply_to_tile};
+use super::stroke::Stroke;
+use super::terrain::{Below, Snapshot, Target, smooth_ring_m};
+use crate::ecm::{Face, QuadId};
+use crate::geodesy::Ellipsoid;
+use crate::layers::stack::quad_ball;
+use crate::store::grid::GRID;
 
 const N: usize = GRID as usize;
 
@@ -36,20 +38,6 @@ pub struct StrokeError {
     pub field: String,
     /// What is wrong.
     pub problem: String,
-}
-
-/// One dab, ready to apply: its centre and where that lies on the cube.
-#[derive(Clone, Copy, Debug)]
-struct Dab {
-    centre: DVec3,
-    at: FacePoint,
-}
-
-impl Dab {
-    fn new(ellipsoid: &Ellipsoid, centre: DVec3) -> Dab {
-        let g = geodetic_from_ecef(ellipsoid, centre);
-        Dab { centre, at: CubeProjection::Qsc.face_point_from_geodetic(ellipsoid, g.lat_rad, g.lon_rad) }
-    }
 }
 
 /// The raster. Two rasters are equal when their tiles are, bit for bit (not their generations).
@@ -112,9 +100,9 @@ impl EditRaster {
         }
     }
 
-    /// The raster of `strokes`, at the finest of their levels (each checked; the tools that read
-    /// the terrain below are refused until they are rasterised).
-    pub fn build(ellipsoid: Ellipsoid, strokes: &[Stroke]) -> Result<EditRaster, StrokeError> {
+    /// The raster of `strokes`, at the finest of their levels (each checked first); `below` gives
+    /// the terrain under the layer to the strokes that read it (see [`super::terrain`]).
+    pub fn build(ellipsoid: Ellipsoid, strokes: &[Stroke], below: &Below) -> Result<EditRaster, StrokeError> {
         // Every stroke checked before any is rasterised (a bad level must not set the raster's).
         for (index, stroke) in strokes.iter().enumerate() {
             stroke.check(ellipsoid.a_m()).map_err(|(f, p)| StrokeError { index, field: f.into(), problem: p })?;
@@ -122,14 +110,17 @@ impl EditRaster {
         let level = strokes.iter().map(|s| s.level).max().unwrap_or(0);
         let mut raster = EditRaster::new(ellipsoid, level);
         for (index, stroke) in strokes.iter().enumerate() {
-            raster.apply(index, stroke)?;
+            raster.apply(index, stroke, below)?;
         }
         Ok(raster)
     }
 
-    /// Applies one stroke (`index` names it in errors); returns the quads it touched.
-    pub fn apply(&mut self, index: usize, stroke: &Stroke) -> Result<BTreeSet<QuadId>, StrokeError> {
+    /// Applies one stroke (`index` names it in errors; `below`: the terrain under the layer, read
+    /// by smooth, flatten and ramp); returns the quads it touched.
+    pub fn apply(&mut self, index: usize, stroke: &Stroke, below: &Below) -> Result<BTreeSet<QuadId>, StrokeError> {
         let (dabs, quads) = self.footprint(index, stroke)?;
+        // What the stroke reads is taken before it writes anything.
+        let (target, snapshot) = self.read_terrain(index, stroke, &dabs, below)?;
         let before: BeforeImages = quads.iter().map(|q| (*q, self.tiles.get(q).cloned())).collect();
         self.history_bytes += before.iter().map(|(_, t)| t.as_ref().map_or(0, |t| t.len() * 4)).sum::<usize>();
         self.history.push_back((index, before));
@@ -142,7 +133,7 @@ impl EditRaster {
             .par_iter()
             .map(|q| {
                 let mut tile = self.tiles.get(q).cloned().unwrap_or_else(|| vec![0.0; N * N]);
-                apply_to_tile(&self.ellipsoid, *q, &mut tile, stroke, &dabs);
+                apply_to_tile(&self.ellipsoid, *q, &mut tile, stroke, &dabs, target, snapshot.as_ref());
                 (*q, tile)
             })
             .collect();
@@ -153,8 +144,10 @@ impl EditRaster {
 
     /// Undoes back to `strokes[..keep]` after `strokes[keep..]` were applied: the latest strokes'
     /// tiles are restored from their before-images while the history has them; the quads of the
-    /// rest are recomputed from the kept strokes; every other tile stays as it is.
-    pub fn undo_to(&mut self, strokes: &[Stroke], keep: usize) -> Result<(), StrokeError> {
+    /// rest are recomputed from the kept strokes; every other tile stays as it is. When a kept
+    /// stroke reads the terrain, what it wrote depends on tiles beyond the undone strokes' quads
+    /// as they were before it: the raster is then rebuilt from the kept strokes.
+    pub fn undo_to(&mut self, strokes: &[Stroke], keep: usize, below: &Below) -> Result<(), StrokeError> {
         let mut top = strokes.len();
         while top > keep && self.history.back().is_some_and(|(index, _)| *index == top - 1) {
             let (_, before) = self.history.pop_back().expect("checked");
@@ -174,12 +167,23 @@ impl EditRaster {
         // Beyond the history: recomputed (and no history below this point matches any more).
         self.history.clear();
         self.history_bytes = 0;
+        if strokes[..keep].iter().any(|s| s.tool.reads_terrain()) {
+            let generation = self.generation;
+            let mut rebuilt = EditRaster::new(self.ellipsoid, self.level);
+            for (index, stroke) in strokes[..keep].iter().enumerate() {
+                rebuilt.apply(index, stroke, below)?;
+            }
+            rebuilt.clear_history();
+            *self = rebuilt;
+            self.generation = generation.wrapping_add(1);
+            return Ok(());
+        }
         let strokes = &strokes[..top];
         let mut touched = BTreeSet::new();
         for (index, stroke) in strokes.iter().enumerate().skip(keep) {
             touched.extend(self.footprint(index, stroke)?.1);
         }
-        let kept: Vec<(Vec<DVec3>, BTreeSet<QuadId>)> = strokes[..keep]
+        let kept: Vec<(Vec<glam::DVec3>, BTreeSet<QuadId>)> = strokes[..keep]
             .iter()
             .enumerate()
             .map(|(index, stroke)| {
@@ -194,7 +198,7 @@ impl EditRaster {
                     if quads.contains(q) {
                         let dabs: Vec<Dab> = centres.iter().map(|&centre| Dab::new(&self.ellipsoid, centre)).collect();
                         let t = tile.get_or_insert_with(|| vec![0.0; N * N]);
-                        apply_to_tile(&self.ellipsoid, *q, t, stroke, &dabs);
+                        apply_to_tile(&self.ellipsoid, *q, t, stroke, &dabs, Target::None, None);
                     }
                 }
                 (*q, tile)
@@ -220,26 +224,52 @@ impl EditRaster {
     fn footprint(&self, index: usize, stroke: &Stroke) -> Result<(Vec<Dab>, BTreeSet<QuadId>), StrokeError> {
         let err = |field: &str, problem: String| StrokeError { index, field: field.into(), problem };
         stroke.check(self.ellipsoid.a_m()).map_err(|(f, p)| err(f, p))?;
-        if stroke.tool.reads_terrain() {
-            return Err(err(
-                "tool",
-                format!(
-                    "{} reads the terrain below the edit layer and is not rasterised yet (issue #14)",
-                    stroke.tool.name()
-                ),
-            ));
-        }
         if stroke.level > self.level {
             return Err(err("level", format!("{} is finer than the raster's level {}", stroke.level, self.level)));
         }
         let centres = dab_centres(&self.ellipsoid, stroke).map_err(|p| err("path", p))?;
         let dabs: Vec<Dab> = centres.into_iter().map(|centre| Dab::new(&self.ellipsoid, centre)).collect();
+        let quads = self.within(&dabs, stroke.radius_m);
+        Ok((dabs, quads))
+    }
+
+    /// The quads of the raster's level within `radius_m` of a dab.
+    fn within(&self, dabs: &[Dab], radius_m: f64) -> BTreeSet<QuadId> {
         let mut quads = BTreeSet::new();
         let all: Vec<usize> = (0..dabs.len()).collect();
         for face in Face::ALL {
-            self.reach(QuadId::root(face), &dabs, &all, stroke.radius_m, &mut quads);
+            self.reach(QuadId::root(face), dabs, &all, radius_m, &mut quads);
         }
-        Ok((dabs, quads))
+        quads
+    }
+
+    /// A terrain-reading stroke's target and the snapshot of H over every quad it reads (its
+    /// dabs' discs, widened by the smoothing ring, and the quads under its target's points);
+    /// `(Target::None, None)` for the other tools.
+    fn read_terrain(
+        &self,
+        index: usize,
+        stroke: &Stroke,
+        dabs: &[Dab],
+        below: &Below,
+    ) -> Result<(Target, Option<Snapshot>), StrokeError> {
+        if !stroke.tool.reads_terrain() {
+            return Ok((Target::None, None));
+        }
+        let ring =
+            if stroke.tool == super::Tool::Smooth { smooth_ring_m(&self.ellipsoid, stroke, self.level) } else { 0.0 };
+        let mut quads = self.within(dabs, stroke.radius_m + ring);
+        let points: Vec<Dab> =
+            Target::points(&self.ellipsoid, stroke).into_iter().map(|p| Dab::new(&self.ellipsoid, p)).collect();
+        // A target point's quad and, when it lies on a quad's edge, its neighbour's (1 m reach).
+        quads.extend(self.within(&points, 1.0));
+        let delta = |q: QuadId| self.tiles.get(&q).cloned();
+        let snapshot = Snapshot::take(self.ellipsoid, self.level, &quads, &delta, below).map_err(|p| StrokeError {
+            index,
+            field: "terrain below".into(),
+            problem: p,
+        })?;
+        Ok((Target::of(&self.ellipsoid, stroke, self.level, Some(&snapshot)), Some(snapshot)))
     }
 
     /// Descends from `quad` to the raster's level through the quads whose ball meets a dab's disc.
@@ -329,68 +359,5 @@ impl EditRaster {
             range = (range.0.min(f64::from(*v)), range.1.max(f64::from(*v)));
         }
         range
-    }
-}
-
-/// The samples of a quad a stroke's dabs can reach: `[i0, i1, j0, j1]`, inclusive. Each dab on
-/// the quad's face reaches at most 2r / s + 2 samples from its own grid position (s the level's
-/// mean spacing: QSC's grid spacing stays within a factor 2 of it over a face); a dab on another
-/// face gives the whole quad. Samples outside the window are beyond every dab (the tests check
-/// every sample of the touched quads against the formula).
-fn window(ellipsoid: &Ellipsoid, quad: QuadId, dabs: &[Dab], r: f64) -> [usize; 4] {
-    let whole = [0, N - 1, 0, N - 1];
-    let reach = 2.0 * r / spacing_m(ellipsoid, quad.level) + 2.0;
-    let cells = (N - 1) as f64;
-    let n = f64::from(1u32 << quad.level);
-    let (mut lo_i, mut hi_i, mut lo_j, mut hi_j) = (f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY);
-    for dab in dabs {
-        if dab.at.face != quad.face {
-            return whole;
-        }
-        let u = ((dab.at.x + 1.0) * 0.5 * n - f64::from(quad.x)) * cells;
-        let v = ((dab.at.y + 1.0) * 0.5 * n - f64::from(quad.y)) * cells;
-        (lo_i, hi_i, lo_j, hi_j) = (lo_i.min(u - reach), hi_i.max(u + reach), lo_j.min(v - reach), hi_j.max(v + reach));
-    }
-    let clamp = |x: f64| x.clamp(0.0, cells);
-    if hi_i < 0.0 || hi_j < 0.0 || lo_i > cells || lo_j > cells {
-        return [1, 0, 1, 0]; // empty
-    }
-    [
-        clamp(lo_i).floor() as usize,
-        clamp(hi_i).ceil() as usize,
-        clamp(lo_j).floor() as usize,
-        clamp(hi_j).ceil() as usize,
-    ]
-}
-
-/// Folds one stroke's dabs, in order, into a tile: each sample in f64 from its stored f32 value,
-/// rounded to f32 once at the end.
-fn apply_to_tile(ellipsoid: &Ellipsoid, quad: QuadId, tile: &mut [f32], stroke: &Stroke, dabs: &[Dab]) {
-    let r = stroke.radius_m;
-    let wavelength = r / 2.0;
-    let [i0, i1, j0, j1] = window(ellipsoid, quad, dabs, r);
-    for k in (j0..=j1).flat_map(|j| (i0..=i1).map(move |i| j * N + i)) {
-        let value = &mut tile[k];
-        let (p, _, _) = sample_point(ellipsoid, quad, GRID, (k % N) as u32, (k / N) as u32);
-        let mut delta = f64::from(*value);
-        let mut touched = false;
-        for dab in dabs {
-            let d = (p - dab.centre).length();
-            if d >= r {
-                continue;
-            }
-            touched = true;
-            let w = stroke.falloff.weight(d / r);
-            delta = match stroke.tool {
-                Tool::Raise => delta + stroke.strength * w,
-                Tool::Lower => delta - stroke.strength * w,
-                Tool::Noise => delta + stroke.strength * w * noise::octave_at(p, wavelength, stroke.seed),
-                Tool::Restore => delta * (1.0 - stroke.strength * w),
-                Tool::Smooth | Tool::Flatten | Tool::Ramp => delta,
-            };
-        }
-        if touched {
-            *value = delta as f32;
-        }
     }
 }

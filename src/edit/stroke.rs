@@ -14,9 +14,15 @@
 //!   wavelength `radius_m` / 2 and the stroke's `seed` (values in about ±1);
 //! - `restore`: δ ← δ·(1 − strength·w) (strength a fraction 0–1: fades the edit back to zero).
 //!
-//! `smooth`, `flatten` and `ramp` read the terrain below the edit layer; they are part of the
-//! format (so files that use them are read) but not rasterised yet: a layer with one is refused
-//! when it is built, by stroke and tool.
+//! `smooth`, `flatten` and `ramp` move δ towards the δ that brings the terrain to a target height
+//! T(P): δ ← δ + strength·w·((T − B) − δ), B the terrain below the edit layer at the sample (see
+//! [`super::terrain`] for exactly what they read: the stack below composed at the raster's
+//! level, plus this layer's δ, both as they were before the stroke):
+//! - `smooth`: T is the mean of H over 8 points on a ring of radius max(r/4, one sample spacing)
+//!   around the sample;
+//! - `flatten`: T is `height_m`, or H under the path's first point;
+//! - `ramp`: T runs linearly from H under the path's first point to H under its last, by the
+//!   sample's position along the chord between them (clamped beyond both).
 
 use serde::{Deserialize, Serialize};
 
@@ -194,6 +200,12 @@ impl Stroke {
             && !h.is_finite()
         {
             return Err(("height_m", format!("{h} must be finite")));
+        }
+        if self.tool == Tool::Ramp && (self.path.len() < 2 || self.path.first() == self.path.last()) {
+            return Err((
+                "path",
+                "a ramp runs from the path's first point to its last: give two different points".into(),
+            ));
         }
         if self.height_m.is_some() && self.tool != Tool::Flatten {
             return Err(("height_m", format!("is the flatten height; a {} stroke has none", self.tool.name())));

@@ -1,7 +1,7 @@
 use glam::DVec3;
 
 use super::dabs::dab_centres;
-use super::{EditRaster, Falloff, Stroke, Tool};
+use super::{EditRaster, Falloff, Stroke, Tool, ellipsoid_below};
 use crate::ecm::QuadId;
 use crate::geodesy::{Ellipsoid, Geodetic, ecef_from_geodetic};
 use crate::layers::stack::sample_point;
@@ -65,7 +65,7 @@ fn one_dab_raises_each_sample_by_strength_times_the_falloff_of_its_distance_at_8
     for (lat, lon, falloff) in [(80.0, 10.0, Falloff::Tip), (corner_lat.to_degrees(), 45.0, Falloff::Spherical)] {
         let mut s = stroke(Tool::Raise, 3000.0, 7.5, 11, &[[lat, lon]]);
         s.falloff = falloff;
-        let r = EditRaster::build(e, std::slice::from_ref(&s)).unwrap();
+        let r = EditRaster::build(e, std::slice::from_ref(&s), &ellipsoid_below).unwrap();
         let c = centre(&e, lat, lon);
         let (mut inside, mut faces) = (0usize, std::collections::BTreeSet::new());
         for (q, _, p, v) in samples(&r) {
@@ -92,7 +92,7 @@ fn shared_samples_agree_across_a_face_edge_and_strokes_are_circular_there() {
     // on each side reaches r from the path and no further.
     let e = Ellipsoid::WGS84;
     let s = stroke(Tool::Raise, 2000.0, 10.0, 10, &[[0.0, 44.97], [0.0, 45.03]]);
-    let r = EditRaster::build(e, std::slice::from_ref(&s)).unwrap();
+    let r = EditRaster::build(e, std::slice::from_ref(&s), &ellipsoid_below).unwrap();
     let dabs = dab_centres(&e, &s).unwrap();
     let mut on_edge: Vec<(DVec3, f32)> = Vec::new();
     let mut faces = std::collections::BTreeSet::new();
@@ -128,38 +128,150 @@ fn the_same_strokes_give_the_same_tiles_whatever_the_threads_and_undo_and_redo_r
         stroke(Tool::Noise, 3000.0, 8.0, 9, &[[10.02, 20.05], [10.02, 20.15]]),
         stroke(Tool::Lower, 2500.0, 12.0, 9, &[[9.98, 20.12]]),
         Stroke { strength: 0.6, ..stroke(Tool::Restore, 3500.0, 0.6, 9, &[[10.0, 20.0], [10.01, 20.08]]) },
+        stroke(Tool::Smooth, 3000.0, 0.7, 9, &[[10.0, 20.02], [10.04, 20.1]]),
         stroke(Tool::Raise, 5000.0, 4.0, 9, &[[10.3, 20.5], [10.35, 20.55]]),
+        stroke(Tool::Flatten, 2000.0, 0.5, 9, &[[10.02, 20.0], [10.0, 20.06]]),
+        stroke(Tool::Ramp, 2500.0, 0.8, 9, &[[10.3, 20.45], [10.33, 20.6]]),
     ];
     let in_pool = |threads: usize| {
         rayon::ThreadPoolBuilder::new()
             .num_threads(threads)
             .build()
             .unwrap()
-            .install(|| EditRaster::build(e, &strokes).unwrap())
+            .install(|| EditRaster::build(e, &strokes, &rough_below).unwrap())
     };
     let one = in_pool(1);
     let three = in_pool(3);
     assert!(one.tiles.len() >= 2, "{} tiles", one.tiles.len());
     assert_eq!(one, three, "1 and 3 threads");
-    // Undo the last three strokes: the quads they touched are recomputed from the first two and
-    // equal a fresh build of those two, bit for bit; the untouched ones were never changed.
-    // Both ways: from the before-images, and recomputed without them.
-    let two = EditRaster::build(e, &strokes[..2]).unwrap();
+    // Undo all but the first two strokes: the quads they touched are recomputed from the first
+    // two and equal a fresh build of those two, bit for bit; the untouched ones were never
+    // changed. Both ways: from the before-images, and recomputed without them.
+    let two = EditRaster::build(e, &strokes[..2], &rough_below).unwrap();
     let mut recomputed = one.clone();
     recomputed.clear_history();
-    recomputed.undo_to(&strokes, 2).unwrap();
+    recomputed.undo_to(&strokes, 2, &rough_below).unwrap();
     assert!(recomputed == two, "recomputed undo");
     let mut edited = one.clone();
-    edited.undo_to(&strokes, 2).unwrap();
+    edited.undo_to(&strokes, 2, &rough_below).unwrap();
     assert!(edited == two, "undo from the history");
     // Redo: applying them again gives the full raster bit for bit.
     for (k, s) in strokes.iter().enumerate().skip(2) {
-        edited.apply(k, s).unwrap();
+        edited.apply(k, s, &rough_below).unwrap();
     }
     assert_eq!(edited, one, "redo");
+    // Undo past a terrain-reading stroke without the history: rebuilt, equal to a fresh build.
+    let mut rebuilt = one.clone();
+    rebuilt.clear_history();
+    rebuilt.undo_to(&strokes, 6, &rough_below).unwrap();
+    assert!(rebuilt == EditRaster::build(e, &strokes[..6], &rough_below).unwrap(), "undo past smooth");
     // Undo to nothing: no tile left.
-    edited.undo_to(&strokes, 0).unwrap();
+    edited.undo_to(&strokes, 0, &rough_below).unwrap();
     assert!(edited.tiles.is_empty());
+}
+
+/// Terrain under the edit layer for the tests: a tilt of 5 cm per metre along a fixed direction
+/// plus waves of 100 m amplitude and about 1.9 km wavelength (`rough_at`), at every sample.
+fn rough_below(q: QuadId) -> Result<Vec<f32>, String> {
+    terrain_below(q, rough_at)
+}
+
+fn rough_at(p: DVec3) -> f64 {
+    tilt_at(p) + 100.0 * (p.dot(DVec3::new(0.6, 0.8, 0.0)) / 300.0).sin()
+}
+
+fn tilt_at(p: DVec3) -> f64 {
+    0.05 * p.dot(DVec3::new(0.0, 0.6, 0.8))
+}
+
+fn terrain_below(q: QuadId, height: fn(DVec3) -> f64) -> Result<Vec<f32>, String> {
+    let e = Ellipsoid::MOON;
+    Ok((0..N * N).map(|k| height(sample_point(&e, q, GRID, (k % N) as u32, (k / N) as u32).0) as f32).collect())
+}
+
+#[test]
+fn flatten_moves_each_sample_by_strength_times_falloff_towards_its_height() {
+    // One flatten dab to 500 m over the tilted terrain: δ = s·w·(500 − B) at every sample within
+    // the radius (f32 rounding of B and δ); without a height, the target is the terrain under
+    // the first point (bilinear between samples: within 1 mm of the tilt there).
+    let e = Ellipsoid::MOON;
+    let path = [[10.0, 20.0]];
+    let tilt = |q| terrain_below(q, tilt_at);
+    let to_500 = Stroke { height_m: Some(500.0), ..stroke(Tool::Flatten, 3000.0, 0.8, 10, &path) };
+    let r = EditRaster::build(e, std::slice::from_ref(&to_500), &tilt).unwrap();
+    let c = centre(&e, 10.0, 20.0);
+    let mut inside = 0;
+    for (_, _, p, v) in samples(&r) {
+        let w = Falloff::Smooth.weight((p - c).length() / 3000.0);
+        let expected = 0.8 * w * (500.0 - f64::from(tilt_at(p) as f32));
+        assert!((f64::from(v) - expected).abs() <= 1e-4 * expected.abs().max(1.0), "{v} vs {expected}");
+        inside += usize::from(w > 0.0);
+    }
+    assert!(inside > 1000, "{inside} samples in the disc");
+    let first = stroke(Tool::Flatten, 3000.0, 1.0, 10, &path);
+    let target = super::terrain::Target::of(&e, &first, 10, None);
+    assert!(matches!(target, super::terrain::Target::Flatten { height_m } if height_m.is_nan()), "no snapshot");
+    let r = EditRaster::build(e, std::slice::from_ref(&first), &tilt).unwrap();
+    // At the centre sample nearest the first point w ≈ 1: the terrain there is the target.
+    let (p, v) = samples(&r)
+        .into_iter()
+        .map(|(_, _, p, v)| (p, v))
+        .min_by(|a, b| (a.0 - c).length().total_cmp(&(b.0 - c).length()))
+        .unwrap();
+    let w = Falloff::Smooth.weight((p - c).length() / 3000.0);
+    let terrain = tilt_at(p) + f64::from(v);
+    assert!(
+        ((terrain - tilt_at(c)) - (1.0 - w) * (tilt_at(p) - tilt_at(c))).abs() < 1e-3,
+        "{terrain} vs {}",
+        tilt_at(c)
+    );
+}
+
+#[test]
+fn ramp_brings_the_terrain_to_the_line_between_its_ends_and_smooth_leaves_a_tilt_alone() {
+    // A full-strength ramp over the rough terrain, dabs every 10 % of the radius: along the path
+    // (within r/10 of the chord, between 10 % and 90 % of it) the terrain is the line from the
+    // height under the first point to the height under the last, to 1 % of the waves' height.
+    let e = Ellipsoid::MOON;
+    let ramp = Stroke { spacing: 0.1, ..stroke(Tool::Ramp, 3000.0, 1.0, 10, &[[10.0, 20.0], [10.0, 20.3]]) };
+    let r = EditRaster::build(e, std::slice::from_ref(&ramp), &rough_below).unwrap();
+    let (a, b) = (centre(&e, 10.0, 20.0), centre(&e, 10.0, 20.3));
+    let (ha, hb) = (rough_at(a), rough_at(b));
+    let mut on_line = 0;
+    for (_, _, p, v) in samples(&r) {
+        let t = (p - a).dot(b - a) / (b - a).length_squared();
+        let off = (p - (a + t * (b - a))).length();
+        if (0.1..0.9).contains(&t) && off < 300.0 {
+            let terrain = f64::from(rough_at(p) as f32) + f64::from(v);
+            let line = ha + (hb - ha) * t;
+            assert!((terrain - line).abs() < 1.0, "t {t:.3}: terrain {terrain:.2} vs the line {line:.2}");
+            on_line += 1;
+        }
+    }
+    assert!(on_line > 500, "{on_line} samples along the ramp");
+    // Smooth over a tilt: the ring mean of a linear function is the function, but this tilt is
+    // linear in ECEF, and the surface under the ring (radius h) lies h²/2R below its tangent
+    // plane: the mean is lower by at most 0.05·h²/2R (8 mm for h = 750 m on the Moon). δ stays
+    // within that, plus 1 mm for the bilinear reading between samples.
+    let smooth = stroke(Tool::Smooth, 3000.0, 1.0, 10, &[[10.0, 20.0], [10.02, 20.1]]);
+    let r = EditRaster::build(e, std::slice::from_ref(&smooth), &|q| terrain_below(q, tilt_at)).unwrap();
+    let (lo, hi) = r.range_m();
+    let bound = 0.05 * 750f64.powi(2) / (2.0 * e.a_m()) + 1e-3;
+    assert!(lo > -bound && hi < 1e-3, "smooth moved a tilt by {lo} … {hi} m (bound {bound})");
+    // Over the waves it takes their amplitude down: the ring mean of a sine of wavenumber k over
+    // a ring of radius h is J₀(kh) of it (0.38 here, h = 750 m); after a full-strength stroke the
+    // waves' deviation from the tilt near the path is at most 0.6 of what it was.
+    let r = EditRaster::build(e, std::slice::from_ref(&smooth), &rough_below).unwrap();
+    let (c0, c1) = (centre(&e, 10.0, 20.0), centre(&e, 10.02, 20.1));
+    let (mut before, mut after) = (0.0, 0.0);
+    for (_, _, p, v) in samples(&r) {
+        let t = ((p - c0).dot(c1 - c0) / (c1 - c0).length_squared()).clamp(0.0, 1.0);
+        if (p - (c0 + t * (c1 - c0))).length() < 300.0 {
+            before += (rough_at(p) - tilt_at(p)).powi(2);
+            after += (rough_at(p) + f64::from(v) - tilt_at(p)).powi(2);
+        }
+    }
+    assert!(before > 0.0 && (after / before).sqrt() < 0.6, "rms of the waves {:.3} of before", (after / before).sqrt());
 }
 
 #[test]
@@ -202,10 +314,13 @@ fn bad_strokes_name_the_stroke_the_field_and_the_problem() {
         (Stroke { path: vec![[95.0, 0.0]], ..ok.clone() }, "strokes[1]: path: point 0 [95, 0]"),
         (Stroke { level: 40, ..ok.clone() }, "strokes[1]: level: 40 must be at most 24"),
         (Stroke { height_m: Some(5.0), ..ok.clone() }, "strokes[1]: height_m: is the flatten height"),
-        (Stroke { tool: Tool::Smooth, strength: 0.5, ..ok.clone() }, "strokes[1]: tool: smooth reads the terrain"),
+        (
+            Stroke { tool: Tool::Ramp, strength: 0.5, ..ok.clone() },
+            "strokes[1]: path: a ramp runs from the path's first point to its last",
+        ),
     ];
     for (bad, expected) in cases {
-        let e = EditRaster::build(e, &[ok.clone(), bad]).unwrap_err().to_string();
+        let e = EditRaster::build(e, &[ok.clone(), bad], &ellipsoid_below).unwrap_err().to_string();
         assert!(e.contains(expected), "{e}\n  expected: {expected}");
     }
 }

@@ -203,11 +203,32 @@ impl Scene {
 
     /// Builds edit layer `index`'s raster from its strokes in effect and records its range.
     pub fn attach_edit(&mut self, index: usize) -> Result<(), String> {
+        let below = self.below(index)?;
         let layer = &self.stack.layers[index];
-        let raster = EditRaster::build(self.ellipsoid, layer.spec.applied_strokes())
+        let raster = EditRaster::build(self.ellipsoid, layer.spec.applied_strokes(), &|q| below.heights_cpu(q))
             .map_err(|e| format!("layer '{}': {e}", layer.spec.name))?;
         self.set_edit(index, raster);
         Ok(())
+    }
+
+    /// The scene of the layers below stack layer `index` (it and every layer above hidden): what
+    /// an edit layer's smooth, flatten and ramp read, through [`Scene::heights_cpu`].
+    pub fn below(&self, index: usize) -> Result<Scene, String> {
+        let mut below = self.clone();
+        for k in index..below.stack.layers.len() {
+            let mut spec = below.stack.layers[k].spec.clone();
+            // Hidden, they are never planned; their strokes are not needed.
+            spec.visible = false;
+            spec.strokes.clear();
+            spec.applied = None;
+            below.stack.set(k, spec).map_err(|e| e.to_string())?;
+        }
+        Ok(below)
+    }
+
+    /// One quad's composed heights by the CPU reference (NaN where no layer has data).
+    pub fn heights_cpu(&self, quad: QuadId) -> Result<Vec<f32>, String> {
+        self.compose_cpu(&[quad])?.remove(&quad).ok_or_else(|| format!("{quad} was not composed"))
     }
 
     /// Puts a raster on edit layer `index` (after a stroke, an undo or a redo).

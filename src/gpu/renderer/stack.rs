@@ -74,15 +74,17 @@ impl Renderer {
         let ellipsoid = self.scene.ellipsoid;
         let name = spec.name.clone();
         let fail = |e: crate::edit::StrokeError| LayerError::field(&name, "strokes", e.to_string());
+        let below = self.scene.below(index).map_err(|e| LayerError::field(&name, "strokes", e))?;
+        let below = |q| below.heights_cpu(q);
         let raster = self.raster_mut(index);
         if stroke.level > raster.level {
             // A finer stroke: the raster moves to its level (rebuilt from every stroke).
             let mut all = spec.strokes.clone();
             all.push(stroke.clone());
-            *raster = crate::edit::EditRaster::build(ellipsoid, &all).map_err(fail)?;
+            *raster = crate::edit::EditRaster::build(ellipsoid, &all, &below).map_err(fail)?;
         } else {
             // Checked before anything changes: a refused stroke leaves the raster as it was.
-            raster.apply(applied, &stroke).map_err(fail)?;
+            raster.apply(applied, &stroke, &below).map_err(fail)?;
         }
         spec.strokes.push(stroke);
         spec.applied = None;
@@ -105,12 +107,14 @@ impl Renderer {
         let name = spec.name.clone();
         let fail = |e: crate::edit::StrokeError| LayerError::field(&name, "strokes", e.to_string());
         let strokes = spec.strokes.clone();
+        let below = self.scene.below(index).map_err(|e| LayerError::field(&name, "strokes", e))?;
+        let below = |q| below.heights_cpu(q);
         let raster = self.raster_mut(index);
         if applied < now {
-            raster.undo_to(&strokes[..now], applied).map_err(fail)?;
+            raster.undo_to(&strokes[..now], applied, &below).map_err(fail)?;
         } else {
             for (k, stroke) in strokes.iter().enumerate().take(applied).skip(now) {
-                raster.apply(k, stroke).map_err(fail)?;
+                raster.apply(k, stroke, &below).map_err(fail)?;
             }
         }
         spec.applied = (applied < spec.strokes.len()).then_some(applied);

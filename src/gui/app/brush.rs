@@ -18,12 +18,14 @@ pub(crate) struct BrushTool {
     pub(crate) on: bool,
     tool: Tool,
     radius_m: f64,
-    /// Metres per dab for raise, lower and noise; a fraction for restore.
+    /// Metres per dab for raise, lower and noise; a fraction for the others.
     strength_m: f64,
     fraction: f64,
     falloff: Falloff,
     spacing: f64,
     seed: u32,
+    /// Flatten: to this height (else to the terrain's under the stroke's first point).
+    flatten_to: Option<f64>,
     layer: String,
     /// The path so far, `[lat, lon]` degrees.
     pub(crate) path: Vec<[f64; 2]>,
@@ -45,6 +47,7 @@ impl Default for BrushTool {
             falloff: Falloff::Smooth,
             spacing: 0.25,
             seed: 1,
+            flatten_to: None,
             layer: "sculpt".into(),
             path: Vec::new(),
             painting: false,
@@ -54,9 +57,6 @@ impl Default for BrushTool {
     }
 }
 
-/// The tools the rasteriser draws today (smooth, flatten and ramp read the terrain: not yet).
-const TOOLS: [Tool; 4] = [Tool::Raise, Tool::Lower, Tool::Noise, Tool::Restore];
-
 impl App {
     /// The *Brush* section.
     pub(super) fn brush_ui(&mut self, ui: &mut egui::Ui) {
@@ -64,7 +64,7 @@ impl App {
         ui.checkbox(&mut b.on, "brush (left drag paints)")
             .on_hover_text("navigate with the right or middle button, or Shift/Ctrl + left");
         egui::ComboBox::from_label("tool").selected_text(b.tool.name()).show_ui(ui, |ui| {
-            for t in TOOLS {
+            for t in Tool::ALL {
                 ui.selectable_value(&mut b.tool, t, t.name());
             }
         });
@@ -82,6 +82,24 @@ impl App {
         ui.add(egui::Slider::new(&mut b.spacing, 0.05..=2.0).text("spacing (radius)"));
         if b.tool == Tool::Noise {
             ui.add(egui::DragValue::new(&mut b.seed).prefix("seed "));
+        }
+        if b.tool == Tool::Flatten {
+            ui.horizontal(|ui| {
+                let mut fixed = b.flatten_to.is_some();
+                ui.checkbox(&mut fixed, "to height")
+                    .on_hover_text("off: to the terrain's height under the stroke's first point");
+                match (fixed, b.flatten_to) {
+                    (true, None) => b.flatten_to = Some(0.0),
+                    (false, Some(_)) => b.flatten_to = None,
+                    _ => {}
+                }
+                if let Some(h) = &mut b.flatten_to {
+                    ui.add(egui::DragValue::new(h).speed(1.0).suffix(" m"));
+                }
+            });
+        }
+        if b.tool == Tool::Ramp {
+            ui.label("ramp: from the terrain under the drag's start to that under its end");
         }
         ui.horizontal(|ui| {
             let label = ui.label("edit layer").id;
@@ -173,7 +191,9 @@ impl App {
             if self.brush.path.last() != Some(&point) {
                 self.brush.path.push(point);
                 let due = self.brush.last_preview.is_none_or(|t| t.elapsed() > Duration::from_millis(80));
-                if due && response.dragged() && !response.drag_stopped() {
+                // A ramp needs its two ends before it shows.
+                let shows = self.brush.tool != Tool::Ramp || self.brush.path.len() >= 2;
+                if due && shows && response.dragged() && !response.drag_stopped() {
                     self.brush.last_preview = Some(Instant::now());
                     let path = self.brush.path.clone();
                     self.apply_brush_stroke(path);
@@ -238,7 +258,7 @@ impl App {
             level,
             path,
             seed: b.seed,
-            height_m: None,
+            height_m: if b.tool == Tool::Flatten { b.flatten_to } else { None },
         };
         let name = b.layer.clone();
         let index = match self.project.layers.iter().position(|l| l.name == name) {
