@@ -288,15 +288,46 @@ fn convert_heights(t: &CoordTransform, body: &Ellipsoid, quad: QuadId, j0: i64, 
 /// per axis over the child samples at and beside it, across quad and face edges), ignoring no
 /// data; no data where less than half the cell has data.
 pub fn average_quad(reader: &mut GridReader, quad: QuadId) -> Result<Option<QuadGrid>, StoreError> {
+    let mut region = vec![f32::NAN; AREA_MEAN_SPAN * AREA_MEAN_SPAN];
+    let mut err = None;
+    fill_area_mean_region(quad, &mut region, &mut |face, level, i, j| {
+        reader.sample(face, level, i, j).unwrap_or_else(|e| {
+            err.get_or_insert(e);
+            f32::NAN
+        })
+    });
+    if let Some(e) = err {
+        return Err(e);
+    }
+    let grid = area_mean(quad, &region);
+    Ok((!grid.is_empty()).then_some(grid))
+}
+
+/// Child samples an area mean reads per axis: −1 ..= 513 around the quad's two children.
+pub const AREA_MEAN_SPAN: usize = 2 * GRID as usize + 1;
+
+/// Fills the region [`area_mean`] reads (`AREA_MEAN_SPAN`², row by row from the south) from
+/// `sample(face, level, i, j)`, the child level's global samples (indices off the face are the
+/// sampler's to fold).
+pub fn fill_area_mean_region(
+    quad: QuadId,
+    region: &mut [f32],
+    sample: &mut dyn FnMut(crate::ecm::Face, u8, i64, i64) -> f32,
+) {
     let child = quad.level + 1;
     let (ci0, cj0) = (2 * i64::from(quad.x) * i64::from(TILE), 2 * i64::from(quad.y) * i64::from(TILE));
-    let span = 2 * GRID as usize + 1; // child samples −1 ..= 513
-    let mut region = vec![f32::NAN; span * span];
+    let span = AREA_MEAN_SPAN;
     for b in 0..span {
         for a in 0..span {
-            region[b * span + a] = reader.sample(quad.face, child, ci0 - 1 + a as i64, cj0 - 1 + b as i64)?;
+            region[b * span + a] = sample(quad.face, child, ci0 - 1 + a as i64, cj0 - 1 + b as i64);
         }
     }
+}
+
+/// The area means of a quad from its children's samples around it (see [`average_quad`]; the
+/// region from [`fill_area_mean_region`]; NaN there is no data).
+pub fn area_mean(quad: QuadId, region: &[f32]) -> QuadGrid {
+    let span = AREA_MEAN_SPAN;
     let mut grid = QuadGrid::empty();
     // Weights in sixteenths: the full-weighting stencil, and at a cube corner (where a cell has
     // three quadrants, one per face) the same quadrants counted once each, so that the three
@@ -332,5 +363,5 @@ pub fn average_quad(reader: &mut GridReader, quad: QuadId) -> Result<Option<Quad
             }
         }
     }
-    Ok((!grid.is_empty()).then_some(grid))
+    grid
 }
