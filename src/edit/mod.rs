@@ -14,6 +14,7 @@
 
 pub mod dabs;
 pub mod kernel;
+pub mod pyramid;
 pub mod raster;
 pub mod stroke;
 pub mod terrain;

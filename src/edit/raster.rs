@@ -19,6 +19,7 @@ use rayon::prelude::*;
 
 use super::dabs::dab_centres;
 use super::kernel::{Dab, apply_to_tile};
+use super::pyramid::Pyramid;
 use super::stroke::Stroke;
 use super::terrain::{Below, Snapshot, Target, smooth_ring_m};
 use crate::ecm::{Face, QuadId};
@@ -49,6 +50,8 @@ pub struct EditRaster {
     pub level: u8,
     /// δ per touched quad, 257² row by row from the south, metres.
     pub tiles: BTreeMap<QuadId, Vec<f32>>,
+    /// The coarser levels' area means, made on demand.
+    pyramid: Pyramid,
     /// Bumped by every change (renderers key resident tiles by it).
     pub generation: u32,
     /// The latest strokes' before-images (stroke index, each touched quad's tile before it), so
@@ -94,6 +97,7 @@ impl EditRaster {
             ellipsoid,
             level,
             tiles: BTreeMap::new(),
+            pyramid: Pyramid::default(),
             generation: 0,
             history: Default::default(),
             history_bytes: 0,
@@ -137,7 +141,7 @@ impl EditRaster {
                 (*q, tile)
             })
             .collect();
-        self.tiles.extend(tiles);
+        self.put(tiles.into_iter().map(|(q, t)| (q, Some(t))).collect());
         self.generation = self.generation.wrapping_add(1);
         Ok(quads)
     }
@@ -152,12 +156,7 @@ impl EditRaster {
         while top > keep && self.history.back().is_some_and(|(index, _)| *index == top - 1) {
             let (_, before) = self.history.pop_back().expect("checked");
             self.history_bytes -= before.iter().map(|(_, t)| t.as_ref().map_or(0, |t| t.len() * 4)).sum::<usize>();
-            for (q, tile) in before {
-                match tile {
-                    Some(t) => self.tiles.insert(q, t),
-                    None => self.tiles.remove(&q),
-                };
-            }
+            self.put(before);
             top -= 1;
         }
         self.generation = self.generation.wrapping_add(1);
@@ -204,14 +203,29 @@ impl EditRaster {
                 (*q, tile)
             })
             .collect();
-        for (q, tile) in rebuilt {
-            match tile {
-                Some(t) => self.tiles.insert(q, t),
-                None => self.tiles.remove(&q),
-            };
-        }
+        self.put(rebuilt);
         self.generation = self.generation.wrapping_add(1);
         Ok(())
+    }
+
+    /// Puts tiles in place (None: removes the quad's) and forgets the coarse means they change.
+    fn put(&mut self, changes: Vec<(QuadId, Option<Vec<f32>>)>) {
+        let changed: BTreeSet<QuadId> = changes.iter().map(|(q, _)| *q).collect();
+        let mut removed = false;
+        for (q, tile) in changes {
+            match tile {
+                Some(t) => {
+                    self.tiles.insert(q, t);
+                }
+                None => removed |= self.tiles.remove(&q).is_some(),
+            }
+        }
+        if removed {
+            self.pyramid.reset(self.tiles.keys().copied());
+        } else {
+            self.pyramid.add(changed.iter().copied());
+            self.pyramid.invalidate(&changed);
+        }
     }
 
     /// Forgets the undo history (undo then recomputes: for tests and benchmarks of that path).
@@ -303,15 +317,12 @@ impl EditRaster {
             }
             return self.tiles.contains_key(&q);
         }
-        // A quad coarser than the raster: any tile below it.
-        let k = self.level - quad.level;
-        self.tiles.keys().any(|t| t.face == quad.face && t.x >> k == quad.x && t.y >> k == quad.y)
+        self.pyramid.near(quad)
     }
 
     /// δ at the 257² samples of any quad: the raster's own tile at its level, bilinear from the
-    /// ancestor's below it, and above it the raster's sample at the same point (the coarser
-    /// grid's samples are points of the finer one; a dab smaller than the coarse spacing can
-    /// fall between them: area means are not made yet). None where no stroke touched.
+    /// ancestor's below it, and above it the area means of the level below, level by level (see
+    /// [`super::pyramid`]). None where no stroke reached.
     pub fn grid(&self, quad: QuadId) -> Option<Vec<f32>> {
         if !self.covers(quad) {
             return None;
@@ -324,32 +335,8 @@ impl EditRaster {
             let tile = self.tiles.get(&a)?;
             return Some(if a == quad { tile.clone() } else { crate::gpu::data::upsample(tile, a, quad) });
         }
-        let k = u32::from(self.level - quad.level);
-        let cells = N as u64 - 1;
-        let mut out = vec![0.0f32; N * N];
-        for (idx, value) in out.iter_mut().enumerate() {
-            let (i, j) = ((idx % N) as u64, (idx / N) as u64);
-            // The sample's index on the raster level's grid across the quad's span.
-            let (gi, gj) = (i << k, j << k);
-            let (mut qi, mut li) = (gi / cells, gi % cells);
-            let (mut qj, mut lj) = (gj / cells, gj % cells);
-            if qi == 1 << k {
-                (qi, li) = (qi - 1, cells);
-            }
-            if qj == 1 << k {
-                (qj, lj) = (qj - 1, cells);
-            }
-            let q = QuadId {
-                face: quad.face,
-                level: self.level,
-                x: (quad.x << k) + qi as u32,
-                y: (quad.y << k) + qj as u32,
-            };
-            if let Some(t) = self.tiles.get(&q) {
-                *value = t[lj as usize * N + li as usize];
-            }
-        }
-        Some(out)
+        let mean = self.pyramid.mean(quad, self.level, &|q| self.tiles.get(&q).map(Vec::as_slice))?;
+        Some(mean.to_vec())
     }
 
     /// The smallest and largest δ over the tiles, metres ((0, 0) without tiles).

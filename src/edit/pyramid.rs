@@ -1,0 +1,138 @@
+//! The edit raster's coarser levels, so that an edit shows from far away: each sample the area
+//! mean of its cell on the level below, with the store's stencil (`store::resample::area_mean`,
+//! weights ¼ ½ ¼ per axis, across quad and face edges), down from the raster's level one level at
+//! a time. A coarse tile is computed when first asked for and kept until a stroke changes a quad
+//! it reads; each is a pure function of the raster's tiles, so it is the same whichever order
+//! tiles are asked for in.
+
+use std::collections::{BTreeSet, HashMap, HashSet};
+use std::sync::{Arc, Mutex};
+
+use crate::ecm::QuadId;
+use crate::store::grid::{GRID, TILE, fold_sample, quad_of_sample};
+use crate::store::resample::{AREA_MEAN_SPAN, area_mean, fill_area_mean_region};
+
+/// The coarse tiles made so far and the quads above the raster's tiles.
+#[derive(Default)]
+pub struct Pyramid {
+    made: Mutex<HashMap<QuadId, Arc<Vec<f32>>>>,
+    /// Every strict ancestor of a raster tile.
+    above: HashSet<QuadId>,
+}
+
+impl Clone for Pyramid {
+    fn clone(&self) -> Pyramid {
+        Pyramid { made: Mutex::new(self.made.lock().expect("not poisoned").clone()), above: self.above.clone() }
+    }
+}
+
+/// The quad and its eight neighbours at its level (across face edges; fewer at a cube corner).
+pub fn with_neighbours(quad: QuadId) -> Vec<QuadId> {
+    let (ci, cj) = (i64::from(quad.x) * i64::from(TILE) + 128, i64::from(quad.y) * i64::from(TILE) + 128);
+    let mut out = Vec::with_capacity(9);
+    for dj in -1..=1i64 {
+        for di in -1..=1i64 {
+            if let Some((f, i, j)) = fold_sample(quad.face, quad.level, ci + 256 * di, cj + 256 * dj) {
+                let q = quad_of_sample(f, quad.level, i, j).0;
+                if !out.contains(&q) {
+                    out.push(q);
+                }
+            }
+        }
+    }
+    out
+}
+
+impl Pyramid {
+    /// Records raster tiles (new ones: their ancestors are above a tile from now on).
+    pub fn add(&mut self, tiles: impl IntoIterator<Item = QuadId>) {
+        for t in tiles {
+            let mut q = t;
+            while let Some(p) = q.parent() {
+                if !self.above.insert(p) {
+                    break;
+                }
+                q = p;
+            }
+        }
+    }
+
+    /// Starts over from these raster tiles (after tiles were removed).
+    pub fn reset(&mut self, tiles: impl IntoIterator<Item = QuadId>) {
+        *self = Pyramid::default();
+        self.add(tiles);
+    }
+
+    /// Forgets the coarse tiles that read any of `changed` (raster tiles), level by level: a
+    /// coarse quad reads its children and one sample of their neighbours.
+    pub fn invalidate(&mut self, changed: &BTreeSet<QuadId>) {
+        let made = self.made.get_mut().expect("not poisoned");
+        let mut dirty: BTreeSet<QuadId> = changed.clone();
+        while !dirty.is_empty() {
+            let mut up = BTreeSet::new();
+            for q in &dirty {
+                for n in with_neighbours(*q) {
+                    if let Some(p) = n.parent() {
+                        up.insert(p);
+                    }
+                }
+            }
+            for p in &up {
+                made.remove(p);
+            }
+            dirty = up;
+        }
+    }
+
+    /// Whether a quad coarser than the raster may have a non-zero mean: a raster tile lies under
+    /// it or under one of its neighbours.
+    pub fn near(&self, quad: QuadId) -> bool {
+        with_neighbours(quad).iter().any(|q| self.above.contains(q))
+    }
+
+    /// The area means at a quad coarser than the raster's `level` (None: all zero); `tile(q)`
+    /// gives the raster's tiles.
+    pub fn mean<'a>(
+        &self,
+        quad: QuadId,
+        level: u8,
+        tile: &dyn Fn(QuadId) -> Option<&'a [f32]>,
+    ) -> Option<Arc<Vec<f32>>> {
+        if quad.level >= level || !self.near(quad) {
+            return None;
+        }
+        if let Some(t) = self.made.lock().expect("not poisoned").get(&quad) {
+            return Some(t.clone());
+        }
+        // The children's level: the raster's tiles, or means read through this same function
+        // (kept as they are made).
+        enum Child<'a> {
+            Raster(&'a [f32]),
+            Mean(Arc<Vec<f32>>),
+        }
+        let mut children: HashMap<QuadId, Option<Child<'a>>> = HashMap::new();
+        let mut region = vec![0f32; AREA_MEAN_SPAN * AREA_MEAN_SPAN];
+        fill_area_mean_region(quad, &mut region, &mut |face, child_level, i, j| {
+            let Some((f, i, j)) = fold_sample(face, child_level, i, j) else { return f32::NAN };
+            let (q, li, lj) = quad_of_sample(f, child_level, i, j);
+            let child = children.entry(q).or_insert_with(|| {
+                if child_level == level {
+                    tile(q).map(Child::Raster)
+                } else {
+                    self.mean(q, level, tile).map(Child::Mean)
+                }
+            });
+            let k = lj as usize * GRID as usize + li as usize;
+            match child {
+                Some(Child::Raster(t)) => t[k],
+                Some(Child::Mean(t)) => t[k],
+                None => 0.0,
+            }
+        });
+        let values: Vec<f32> =
+            area_mean(quad, &region).values.into_iter().map(|v| if v.is_nan() { 0.0 } else { v }).collect();
+        let values = Arc::new(values);
+        self.made.lock().expect("not poisoned").insert(quad, values.clone());
+        Some(values)
+    }
+}
