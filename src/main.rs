@@ -369,6 +369,25 @@ enum Bench {
         /// The level they are rasterised at.
         #[arg(long, default_value_t = 6)]
         level: u8,
+        /// Rebuild on the GPU rasteriser as well (and compare with the CPU's).
+        #[arg(long)]
+        gpu: bool,
+    },
+    /// A stroke's latency in the workstation: pointer release to the updated image read back
+    /// (rasterise, recompose, draw), per tool, on the Moon sample session.
+    BrushLatency {
+        /// The brushing project (edit layer and view `sculpt`).
+        #[arg(long, default_value = concat!(env!("CARGO_MANIFEST_DIR"), "/projects/moon-brushing.json"))]
+        project: PathBuf,
+        /// Strokes per tool.
+        #[arg(long, default_value_t = 5)]
+        rounds: usize,
+        /// Image width, pixels.
+        #[arg(long, default_value_t = 1280)]
+        width: u32,
+        /// Image height, pixels.
+        #[arg(long, default_value_t = 800)]
+        height: u32,
     },
     /// Comparison statistics and co-registration: time on the Erzurum pair and on a synthetic
     /// pair with a known shift, beside xDEM's in the same run, and both tools' shift error;
@@ -807,8 +826,11 @@ fn run(args: Args) -> Result<ExitCode> {
                 report.valid
             );
         }
-        Command::Bench { bench: Bench::Brush { strokes, level } } => {
-            print!("{}", cli::bench_brush(strokes, level).map_err(anyhow::Error::msg)?);
+        Command::Bench { bench: Bench::BrushLatency { project, rounds, width, height } } => {
+            print!("{}", cli::bench_brush_latency(&project, rounds, width, height).map_err(anyhow::Error::msg)?);
+        }
+        Command::Bench { bench: Bench::Brush { strokes, level, gpu } } => {
+            print!("{}", cli::bench_brush(strokes, level, gpu).map_err(anyhow::Error::msg)?);
         }
         Command::Bench { bench: Bench::Compare { project, size, out } } => {
             anyhow::ensure!((64..=16384).contains(&size), "--size {size} must lie within 64–16384 pixels");

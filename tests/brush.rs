@@ -94,15 +94,27 @@ fn the_brushed_corner_seen_straight_down_has_no_crack_and_the_session_rebuilds_b
     assert_eq!(cracks, 0, "{cracks} background pixels in a view filled by terrain");
     let faces: std::collections::BTreeSet<_> = r.drawn().iter().map(|q| q.face as u8).collect();
     assert_eq!(faces.len(), 3, "the corner's three faces are drawn");
-    // Replay: the strokes rebuild the same tiles, twice and in another thread pool.
+    // Replay: the strokes (every tool; smooth, flatten and ramp read the LOLA grid below) rebuild
+    // the same tiles, twice and in another thread pool, and as the scene built them.
     let edit = p.layers.iter().find(|l| l.kind == LayerKind::Edit).unwrap();
-    let once = EditRaster::build(Ellipsoid::MOON, edit.applied_strokes(), &terrafuse::edit::ellipsoid_below).unwrap();
-    let again = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap().install(|| {
-        EditRaster::build(Ellipsoid::MOON, edit.applied_strokes(), &terrafuse::edit::ellipsoid_below).unwrap()
-    });
+    for tool in terrafuse::edit::Tool::ALL {
+        assert!(edit.strokes.iter().any(|s| s.tool == tool), "the session has a {} stroke", tool.name());
+    }
+    let index = p.layers.iter().position(|l| l.kind == LayerKind::Edit).unwrap();
+    let below = r.scene().below(index).unwrap();
+    let below = |q| below.heights_cpu(q);
+    let once = EditRaster::build(Ellipsoid::MOON, edit.applied_strokes(), &below).unwrap();
+    let again = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap()
+        .install(|| EditRaster::build(Ellipsoid::MOON, edit.applied_strokes(), &below).unwrap());
     assert_eq!(once, again);
     let scene_raster = r.scene().edits.values().next().unwrap();
     assert_eq!(**scene_raster, once);
+    // Without the terrain below, the strokes that read it give other tiles (they did read it).
+    let blind = EditRaster::build(Ellipsoid::MOON, edit.applied_strokes(), &terrafuse::edit::ellipsoid_below).unwrap();
+    assert_ne!(blind, once);
 }
 
 #[test]
@@ -221,4 +233,133 @@ fn strokes_undo_and_redo_from_the_command_line_and_bad_strokes_leave_the_file_as
     }
     let out = terrafuse(&["brush", p, "--layer", "lola_global", "--undo", "1"], "");
     assert!(String::from_utf8_lossy(&out.stderr).contains("--layer lola_global: a dataset layer, not an edit layer"));
+}
+
+#[test]
+fn the_gpu_rasteriser_agrees_with_the_cpu_reference_for_every_tool_across_a_face_edge_and_a_corner() {
+    // One stroke of each tool on the GPU and on the CPU, in sequence on the same raster: across
+    // the front/right face edge at 45°E, over the cube corner (45°E, 35.26°N) and over the front
+    // face's centre (where the GPU reads exact points), with terrain
+    // below for flatten and ramp (a tilt of 3 cm per metre plus 50 m waves). The GPU's δ stays
+    // within GPU_TOLERANCE × scale × dabs of the CPU's at every sample (scale: the largest of
+    // the strengths in metres and the |δ| and |goal| involved), and both touch the same tiles.
+    use terrafuse::edit::kernel::CpuRasteriser;
+    use terrafuse::edit::{Falloff, Stroke, Tool};
+    use terrafuse::gpu::brush::{GPU_TOLERANCE, StrokeKernel};
+    use terrafuse::layers::stack::sample_point;
+    let e = Ellipsoid::MOON;
+    let height = |p: glam::DVec3| 0.03 * p.dot(glam::DVec3::new(0.0, 0.6, 0.8)) + 50.0 * (p.x / 700.0).sin();
+    let below = |q: QuadId| -> Result<Vec<f32>, String> {
+        Ok((0..257 * 257)
+            .map(|k| height(sample_point(&e, q, 257, (k % 257) as u32, (k / 257) as u32).0) as f32)
+            .collect())
+    };
+    let stroke = |tool, strength, falloff, path: &[[f64; 2]]| Stroke {
+        tool,
+        radius_m: 4000.0,
+        strength,
+        falloff,
+        spacing: 0.25,
+        level: 9,
+        path: path.to_vec(),
+        seed: 7,
+        height_m: None,
+    };
+    let edge = [[0.2, 44.9], [0.25, 45.1]];
+    let corner = [[35.2, 44.9], [35.3, 45.1]];
+    let strokes = vec![
+        stroke(Tool::Raise, 40.0, Falloff::Smooth, &edge),
+        stroke(Tool::Lower, 15.0, Falloff::Tip, &corner),
+        stroke(Tool::Noise, 25.0, Falloff::Linear, &corner),
+        stroke(Tool::Raise, 30.0, Falloff::Spherical, &corner),
+        Stroke { height_m: Some(-200.0), ..stroke(Tool::Flatten, 0.6, Falloff::Smooth, &edge) },
+        stroke(Tool::Flatten, 0.5, Falloff::Linear, &corner),
+        stroke(Tool::Ramp, 0.8, Falloff::Smooth, &corner),
+        stroke(Tool::Restore, 0.4, Falloff::Smooth, &edge),
+        stroke(Tool::Smooth, 0.7, Falloff::Smooth, &corner),
+        // The front face's centre, where QSC's four sectors meet.
+        stroke(Tool::Raise, 20.0, Falloff::Linear, &[[0.0, -0.05], [0.02, 0.05]]),
+    ];
+    let ctx = GpuContext::headless().expect("a GPU adapter (lavapipe in CI)");
+    let kernel = StrokeKernel::new(&ctx.device).unwrap();
+    let gpu = kernel.on_context(&ctx);
+    let mut on_cpu = EditRaster::new(e, 9);
+    let mut on_gpu = EditRaster::new(e, 9);
+    let mut worst = 0f64;
+    for (k, s) in strokes.iter().enumerate() {
+        let a = on_cpu.apply_with(k, s, &below, &CpuRasteriser).unwrap();
+        let b = on_gpu.apply_with(k, s, &below, &gpu).unwrap();
+        assert_eq!(a, b, "stroke {k}: the same tiles touched");
+        // Carry on from the same δ (the CPU's), so that each stroke is compared alone.
+        let dabs = terrafuse::edit::dabs::dab_centres(&e, s).unwrap().len() as f64;
+        let (lo, hi) = on_cpu.range_m();
+        let scale =
+            if s.tool.strength_in_metres() { s.strength.abs() } else { 0.0 }.max(lo.abs().max(hi.abs())).max(400.0); // the goals: terrain of ±(tilt + waves) and the -200 m flatten
+        for q in &a {
+            let (c, g) = (on_cpu.tile(*q).unwrap(), on_gpu.tile(*q).unwrap());
+            for (x, y) in c.iter().zip(g) {
+                let d = f64::from(x - y).abs() / (scale * dabs);
+                worst = worst.max(d);
+                assert!(d <= GPU_TOLERANCE, "stroke {k} ({:?}) at {q}: CPU {x}, GPU {y}", s.tool);
+            }
+        }
+        on_gpu = on_cpu.clone();
+    }
+    eprintln!("worst GPU − CPU: {worst:.2e} of scale × dabs (tolerance {GPU_TOLERANCE:.0e})");
+}
+
+#[test]
+fn a_stroke_recomposes_only_the_quads_it_changed_and_undo_restores_their_heights() {
+    // The sample session composed at level 4 (its edit layer's level) over the strokes' area;
+    // one more small stroke inside one quad: composing the same quads again recomposes that quad
+    // alone (the layer's other quads keep their stamps), and its heights moved; undone, they are
+    // back bit for bit.
+    use terrafuse::edit::{Falloff, Stroke, Tool};
+    let dir = repo_path("tests/out/brush-recompose");
+    let p = Project::load(&sample_project("moon-brushing", &dir)).unwrap();
+    let mut r = renderer(&p);
+    let e = Ellipsoid::MOON;
+    let index = r.scene().stack.index_of("sculpt").unwrap();
+    let target = quad_at(&e, -1.0, 44.0, 4);
+    // The target and its neighbours on its face (the right face's across the edge are not needed).
+    let quads: Vec<QuadId> = (0..3u32)
+        .flat_map(|dx| (0..3u32).map(move |dy| (target.x + dx, target.y + dy)))
+        .filter_map(|(x, y)| QuadId::new(target.face, 4, x.checked_sub(1)?, y.checked_sub(1)?).ok())
+        .collect();
+    let covered = quads.iter().filter(|q| r.scene().plan(**q).layers.iter().any(|l| l.index == index)).count();
+    assert!(covered >= 3, "{covered} of the quads read the edit layer");
+    r.compose_now(&quads).unwrap();
+    let before = r.read_heights(target).unwrap().unwrap();
+    let n0 = r.compose_counters().quads;
+    r.compose_now(&quads).unwrap();
+    assert_eq!(r.compose_counters().quads, n0, "nothing changed, nothing recomposed");
+    // 3 km radius at the quad's centre (the quad spans about 170 km).
+    let (lat, lon) = {
+        let (p, _, _) = terrafuse::layers::stack::sample_point(&e, target, 257, 128, 128);
+        let g = terrafuse::geodesy::geodetic_from_ecef(&e, p);
+        (g.lat_rad.to_degrees(), g.lon_rad.to_degrees())
+    };
+    let stroke = Stroke {
+        tool: Tool::Raise,
+        radius_m: 3000.0,
+        strength: 100.0,
+        falloff: Falloff::Smooth,
+        spacing: 0.25,
+        level: 4,
+        path: vec![[lat, lon]],
+        seed: 0,
+        height_m: None,
+    };
+    let applied = p.layers[index].applied_strokes().len();
+    r.apply_stroke(index, stroke).unwrap();
+    r.compose_now(&quads).unwrap();
+    assert_eq!(r.compose_counters().quads, n0 + 1, "the stroke's quad alone is recomposed");
+    let after = r.read_heights(target).unwrap().unwrap();
+    let moved = before.iter().zip(&after).filter(|(a, b)| (*a - *b).abs() > 50.0).count();
+    assert!(moved > 0, "the raise shows");
+    r.set_applied(index, applied).unwrap();
+    r.compose_now(&quads).unwrap();
+    assert_eq!(r.compose_counters().quads, n0 + 2, "undo recomposes the same quad");
+    let undone = r.read_heights(target).unwrap().unwrap();
+    assert!(undone.iter().zip(&before).all(|(a, b)| a.to_bits() == b.to_bits()), "undo restores the heights");
 }

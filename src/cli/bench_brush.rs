@@ -6,9 +6,12 @@
 use std::fmt::Write as _;
 use std::time::Instant;
 
-use crate::edit::{EditRaster, Falloff, Stroke, Tool, ellipsoid_below};
+use crate::ecm::QuadId;
+use crate::edit::{EditRaster, Falloff, Stroke, Tool};
 use crate::geodesy::Ellipsoid;
 use crate::layers::noise::pcg;
+use crate::layers::stack::sample_point;
+use crate::store::grid::GRID;
 
 /// The session: `n` strokes of 1–4 points, radius 2–8 km, at `level`.
 pub fn scripted_strokes(n: usize, level: u8) -> Vec<Stroke> {
@@ -17,17 +20,18 @@ pub fn scripted_strokes(n: usize, level: u8) -> Vec<Stroke> {
         state = pcg(state);
         f64::from(state) / f64::from(u32::MAX)
     };
-    let tools = [Tool::Raise, Tool::Lower, Tool::Noise, Tool::Restore];
     (0..n)
         .map(|k| {
-            let tool = tools[k % tools.len()];
+            let tool = Tool::ALL[k % Tool::ALL.len()];
             let (lat, lon) = (-2.0 + 4.0 * next(), 43.0 + 4.0 * next());
-            let points = 1 + (next() * 4.0) as usize;
+            // A ramp runs between two points at least.
+            let points = 1 + (next() * 4.0) as usize + usize::from(tool == Tool::Ramp);
             let path = (0..points).map(|p| [lat + 0.05 * p as f64 * next(), lon + 0.05 * p as f64]).collect();
+            let strength = if tool.strength_in_metres() { 5.0 + 20.0 * next() } else { 0.3 };
             Stroke {
                 tool,
                 radius_m: 2000.0 + 6000.0 * next(),
-                strength: if tool.strength_in_metres() { 5.0 + 20.0 * next() } else { 0.3 },
+                strength,
                 falloff: Falloff::ALL[k % 4],
                 spacing: 0.25,
                 level,
@@ -39,26 +43,38 @@ pub fn scripted_strokes(n: usize, level: u8) -> Vec<Stroke> {
         .collect()
 }
 
-/// Runs the benchmark; returns the report.
-pub fn bench_brush(strokes: usize, level: u8) -> Result<String, String> {
+/// The terrain under the scripted session's edit layer: waves of 300 m over 5 km (a function of
+/// the position, so that smooth, flatten and ramp have something to read).
+fn waves_below(q: QuadId) -> Result<Vec<f32>, String> {
+    let e = Ellipsoid::MOON;
+    Ok((0..GRID * GRID)
+        .map(|k| {
+            let p = sample_point(&e, q, GRID, k % GRID, k / GRID).0;
+            (300.0 * (p.x / 800.0).sin() * (p.z / 800.0).cos()) as f32
+        })
+        .collect())
+}
+
+/// Runs the benchmark (`gpu`: the rebuild on the GPU rasteriser as well); returns the report.
+pub fn bench_brush(strokes: usize, level: u8, gpu: bool) -> Result<String, String> {
     let e = Ellipsoid::MOON;
     let session = scripted_strokes(strokes, level);
     let t = Instant::now();
-    let mut raster = EditRaster::build(e, &session, &ellipsoid_below).map_err(|e| e.to_string())?;
+    let mut raster = EditRaster::build(e, &session, &waves_below).map_err(|e| e.to_string())?;
     let build_s = t.elapsed().as_secs_f64();
     let extra = scripted_strokes(strokes + 1, level).pop().ok_or("no stroke")?;
     let t = Instant::now();
-    let touched = raster.apply(strokes, &extra, &ellipsoid_below).map_err(|e| e.to_string())?;
+    let touched = raster.apply(strokes, &extra, &waves_below).map_err(|e| e.to_string())?;
     let stroke_ms = t.elapsed().as_secs_f64() * 1e3;
     let mut all = session.clone();
     all.push(extra);
     let mut without_history = raster.clone();
     without_history.clear_history();
     let t = Instant::now();
-    raster.undo_to(&all, strokes, &ellipsoid_below).map_err(|e| e.to_string())?;
+    raster.undo_to(&all, strokes, &waves_below).map_err(|e| e.to_string())?;
     let undo_ms = t.elapsed().as_secs_f64() * 1e3;
     let t = Instant::now();
-    without_history.undo_to(&all, strokes, &ellipsoid_below).map_err(|e| e.to_string())?;
+    without_history.undo_to(&all, strokes, &waves_below).map_err(|e| e.to_string())?;
     let recompute_ms = t.elapsed().as_secs_f64() * 1e3;
     if without_history != raster {
         return Err("the two undo paths disagree".into());
@@ -66,7 +82,7 @@ pub fn bench_brush(strokes: usize, level: u8) -> Result<String, String> {
     let mut out = String::new();
     let _ = writeln!(
         out,
-        "terrafuse bench brush: {strokes} strokes (raise, lower, noise, restore; radius 2–8 km) at level {level} on the Moon, CPU ({} threads)",
+        "terrafuse bench brush: {strokes} strokes (every tool in turn; radius 2–8 km) at level {level} on the Moon, CPU ({} threads)",
         rayon::current_num_threads()
     );
     let _ = writeln!(out, "rebuild from the strokes: {build_s:.2} s ({} tiles)", raster.tiles.len());
@@ -75,5 +91,26 @@ pub fn bench_brush(strokes: usize, level: u8) -> Result<String, String> {
         "one more stroke: {stroke_ms:.1} ms ({} quads); its undo: {undo_ms:.2} ms from the history, {recompute_ms:.0} ms recomputed (same tiles)",
         touched.len()
     );
+    if gpu {
+        let ctx = crate::gpu::GpuContext::headless().map_err(|e| e.to_string())?;
+        let kernel = crate::gpu::brush::StrokeKernel::new(&ctx.device).map_err(|e| e.to_string())?;
+        let rasteriser = kernel.on_context(&ctx);
+        let t = Instant::now();
+        let mut on_gpu = EditRaster::new(e, level);
+        for (k, stroke) in session.iter().enumerate() {
+            on_gpu.apply_with(k, stroke, &waves_below, &rasteriser).map_err(|e| e.to_string())?;
+        }
+        let gpu_s = t.elapsed().as_secs_f64();
+        let mut worst = 0f64;
+        for (q, tile) in &raster.tiles {
+            let other = on_gpu.tile(*q).ok_or_else(|| format!("{q}: on the CPU, not on the GPU"))?;
+            worst = tile.iter().zip(other).fold(worst, |w, (a, b)| w.max(f64::from(a - b).abs()));
+        }
+        let _ = writeln!(
+            out,
+            "rebuild on the GPU ({}; smooth on the CPU): {gpu_s:.2} s, largest |GPU − CPU| over the layer {worst:.2e} m",
+            ctx.describe()
+        );
+    }
     Ok(out)
 }

@@ -2,6 +2,7 @@
 //! batch coordinate conversion in the manner of PROJ's `cct` and the analysis reports.
 
 mod bench_brush;
+mod bench_brush_latency;
 mod bench_compare;
 mod bench_compose;
 mod bench_render;
@@ -16,6 +17,7 @@ mod report;
 mod store;
 
 pub use bench_brush::{bench_brush, scripted_strokes};
+pub use bench_brush_latency::bench_brush_latency;
 pub use bench_compare::{CompareBenchSettings, bench_compare};
 pub use bench_compose::{ComposeBenchRow, ComposeBenchSettings, bench_compose};
 pub use bench_render::{RenderBenchRow, RenderBenchSettings, bench_render, render_bench_csv, write_render_bench};

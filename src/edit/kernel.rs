@@ -3,6 +3,7 @@
 //! rasteriser (`shaders/edit/stroke.wgsl`) reads like it.
 
 use glam::DVec3;
+use rayon::prelude::*;
 
 use super::stroke::{Stroke, Tool};
 use super::terrain::{Snapshot, Target};
@@ -120,5 +121,39 @@ pub fn apply_to_tile(
         if touched {
             *value = delta as f32;
         }
+    }
+}
+
+/// One stroke as a rasteriser receives it: everything fixed before its first dab.
+pub struct StrokeJob<'a> {
+    /// The body.
+    pub ellipsoid: &'a Ellipsoid,
+    /// The stroke.
+    pub stroke: &'a Stroke,
+    /// Its dabs, in order.
+    pub dabs: &'a [Dab],
+    /// What a terrain-reading stroke moves towards.
+    pub target: Target,
+    /// H before the stroke over every quad it reads (terrain-reading strokes).
+    pub snapshot: Option<&'a Snapshot>,
+}
+
+/// Applies a stroke to tiles (each δ before the stroke, changed in place): the CPU reference
+/// ([`CpuRasteriser`]) or the GPU's (`gpu::brush`).
+pub trait Rasteriser: Sync {
+    /// Applies `job` to every tile; an error is the rasteriser's (a GPU that failed).
+    fn rasterise(&self, job: &StrokeJob, tiles: &mut [(QuadId, Vec<f32>)]) -> Result<(), String>;
+}
+
+/// The CPU reference: [`apply_to_tile`] per tile, tiles in parallel (each tile's result does
+/// not depend on the others' or on the order).
+pub struct CpuRasteriser;
+
+impl Rasteriser for CpuRasteriser {
+    fn rasterise(&self, job: &StrokeJob, tiles: &mut [(QuadId, Vec<f32>)]) -> Result<(), String> {
+        tiles.par_iter_mut().for_each(|(q, tile)| {
+            apply_to_tile(job.ellipsoid, *q, tile, job.stroke, job.dabs, job.target, job.snapshot);
+        });
+        Ok(())
     }
 }

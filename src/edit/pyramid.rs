@@ -18,11 +18,20 @@ pub struct Pyramid {
     made: Mutex<HashMap<QuadId, Arc<Vec<f32>>>>,
     /// Every strict ancestor of a raster tile.
     above: HashSet<QuadId>,
+    /// Per coarse quad, the raster's generation that last changed what it reads.
+    stamps: HashMap<QuadId, u32>,
+    /// The stamp of coarse quads not changed since the last reset (None: the raster's floor).
+    floor: Option<u32>,
 }
 
 impl Clone for Pyramid {
     fn clone(&self) -> Pyramid {
-        Pyramid { made: Mutex::new(self.made.lock().expect("not poisoned").clone()), above: self.above.clone() }
+        Pyramid {
+            made: Mutex::new(self.made.lock().expect("not poisoned").clone()),
+            above: self.above.clone(),
+            stamps: self.stamps.clone(),
+            floor: self.floor,
+        }
     }
 }
 
@@ -57,15 +66,30 @@ impl Pyramid {
         }
     }
 
-    /// Starts over from these raster tiles (after tiles were removed).
-    pub fn reset(&mut self, tiles: impl IntoIterator<Item = QuadId>) {
-        *self = Pyramid::default();
+    /// Starts over from these raster tiles (after tiles were removed at generation `stamp`:
+    /// every coarse quad's stamp becomes it).
+    pub fn reset(&mut self, tiles: impl IntoIterator<Item = QuadId>, stamp: u32) {
+        *self = Pyramid { floor: Some(stamp), ..Pyramid::default() };
         self.add(tiles);
     }
 
-    /// Forgets the coarse tiles that read any of `changed` (raster tiles), level by level: a
-    /// coarse quad reads its children and one sample of their neighbours.
-    pub fn invalidate(&mut self, changed: &BTreeSet<QuadId>) {
+    /// A coarse quad's stamp (None: the raster's floor).
+    pub fn stamp(&self, quad: QuadId) -> Option<u32> {
+        self.stamps.get(&quad).copied().or(self.floor)
+    }
+
+    /// Adds `base` to every stamp (see `EditRaster::succeed`).
+    pub fn shift_stamps(&mut self, base: u32) {
+        for s in self.stamps.values_mut() {
+            *s = s.wrapping_add(base);
+        }
+        self.floor = self.floor.map(|f| f.wrapping_add(base));
+    }
+
+    /// Forgets the coarse tiles that read any of `changed` (raster tiles), level by level (a
+    /// coarse quad reads its children and one sample of their neighbours), and stamps them with
+    /// the generation that changed them.
+    pub fn invalidate(&mut self, changed: &BTreeSet<QuadId>, stamp: u32) {
         let made = self.made.get_mut().expect("not poisoned");
         let mut dirty: BTreeSet<QuadId> = changed.clone();
         while !dirty.is_empty() {
@@ -79,6 +103,7 @@ impl Pyramid {
             }
             for p in &up {
                 made.remove(p);
+                self.stamps.insert(*p, stamp);
             }
             dirty = up;
         }

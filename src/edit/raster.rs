@@ -18,10 +18,10 @@ use std::collections::{BTreeMap, BTreeSet};
 use rayon::prelude::*;
 
 use super::dabs::dab_centres;
-use super::kernel::{Dab, apply_to_tile};
+use super::kernel::{CpuRasteriser, Dab, Rasteriser, StrokeJob, apply_to_tile};
 use super::pyramid::Pyramid;
 use super::stroke::Stroke;
-use super::terrain::{Below, Snapshot, Target, smooth_ring_m};
+use super::terrain::{Below, KeptBelow, Snapshot, Target, smooth_ring_m};
 use crate::ecm::{Face, QuadId};
 use crate::geodesy::Ellipsoid;
 use crate::layers::stack::quad_ball;
@@ -52,8 +52,13 @@ pub struct EditRaster {
     pub tiles: BTreeMap<QuadId, Vec<f32>>,
     /// The coarser levels' area means, made on demand.
     pyramid: Pyramid,
-    /// Bumped by every change (renderers key resident tiles by it).
+    /// Bumped by every change.
     pub generation: u32,
+    /// Per quad of the raster's level, the generation that last changed it (see
+    /// [`EditRaster::stamp`]).
+    stamps: std::collections::HashMap<QuadId, u32>,
+    /// The stamp of quads no change has reached since the raster was made.
+    floor: u32,
     /// The latest strokes' before-images (stroke index, each touched quad's tile before it), so
     /// that undoing them restores tiles instead of recomputing them; the oldest are dropped past
     /// [`HISTORY_BYTES`] (undo then recomputes).
@@ -99,6 +104,8 @@ impl EditRaster {
             tiles: BTreeMap::new(),
             pyramid: Pyramid::default(),
             generation: 0,
+            stamps: Default::default(),
+            floor: 0,
             history: Default::default(),
             history_bytes: 0,
         }
@@ -113,18 +120,39 @@ impl EditRaster {
         }
         let level = strokes.iter().map(|s| s.level).max().unwrap_or(0);
         let mut raster = EditRaster::new(ellipsoid, level);
+        let kept = KeptBelow::new(below);
         for (index, stroke) in strokes.iter().enumerate() {
-            raster.apply(index, stroke, below)?;
+            raster.apply(index, stroke, &|q| kept.get(q))?;
         }
         Ok(raster)
     }
 
     /// Applies one stroke (`index` names it in errors; `below`: the terrain under the layer, read
-    /// by smooth, flatten and ramp); returns the quads it touched.
+    /// by smooth, flatten and ramp) with the CPU reference; returns the quads it touched.
     pub fn apply(&mut self, index: usize, stroke: &Stroke, below: &Below) -> Result<BTreeSet<QuadId>, StrokeError> {
+        self.apply_with(index, stroke, below, &CpuRasteriser)
+    }
+
+    /// [`EditRaster::apply`] with another rasteriser (the GPU's: its tiles agree with the CPU
+    /// reference's within its stated tolerance, not bit for bit).
+    pub fn apply_with(
+        &mut self,
+        index: usize,
+        stroke: &Stroke,
+        below: &Below,
+        rasteriser: &dyn Rasteriser,
+    ) -> Result<BTreeSet<QuadId>, StrokeError> {
         let (dabs, quads) = self.footprint(index, stroke)?;
         // What the stroke reads is taken before it writes anything.
         let (target, snapshot) = self.read_terrain(index, stroke, &dabs, below)?;
+        let mut tiles: Vec<(QuadId, Vec<f32>)> =
+            quads.iter().map(|q| (*q, self.tiles.get(q).cloned().unwrap_or_else(|| vec![0.0; N * N]))).collect();
+        let job = StrokeJob { ellipsoid: &self.ellipsoid, stroke, dabs: &dabs, target, snapshot: snapshot.as_ref() };
+        rasteriser.rasterise(&job, &mut tiles).map_err(|problem| StrokeError {
+            index,
+            field: "rasteriser".into(),
+            problem,
+        })?;
         let before: BeforeImages = quads.iter().map(|q| (*q, self.tiles.get(q).cloned())).collect();
         self.history_bytes += before.iter().map(|(_, t)| t.as_ref().map_or(0, |t| t.len() * 4)).sum::<usize>();
         self.history.push_back((index, before));
@@ -133,16 +161,7 @@ impl EditRaster {
         {
             self.history_bytes -= old.iter().map(|(_, t)| t.as_ref().map_or(0, |t| t.len() * 4)).sum::<usize>();
         }
-        let tiles: Vec<(QuadId, Vec<f32>)> = quads
-            .par_iter()
-            .map(|q| {
-                let mut tile = self.tiles.get(q).cloned().unwrap_or_else(|| vec![0.0; N * N]);
-                apply_to_tile(&self.ellipsoid, *q, &mut tile, stroke, &dabs, target, snapshot.as_ref());
-                (*q, tile)
-            })
-            .collect();
         self.put(tiles.into_iter().map(|(q, t)| (q, Some(t))).collect());
-        self.generation = self.generation.wrapping_add(1);
         Ok(quads)
     }
 
@@ -159,7 +178,6 @@ impl EditRaster {
             self.put(before);
             top -= 1;
         }
-        self.generation = self.generation.wrapping_add(1);
         if top == keep {
             return Ok(());
         }
@@ -167,14 +185,14 @@ impl EditRaster {
         self.history.clear();
         self.history_bytes = 0;
         if strokes[..keep].iter().any(|s| s.tool.reads_terrain()) {
-            let generation = self.generation;
             let mut rebuilt = EditRaster::new(self.ellipsoid, self.level);
+            let kept = KeptBelow::new(below);
             for (index, stroke) in strokes[..keep].iter().enumerate() {
-                rebuilt.apply(index, stroke, below)?;
+                rebuilt.apply(index, stroke, &|q| kept.get(q))?;
             }
             rebuilt.clear_history();
+            rebuilt.succeed(self);
             *self = rebuilt;
-            self.generation = generation.wrapping_add(1);
             return Ok(());
         }
         let strokes = &strokes[..top];
@@ -204,13 +222,43 @@ impl EditRaster {
             })
             .collect();
         self.put(rebuilt);
-        self.generation = self.generation.wrapping_add(1);
         Ok(())
+    }
+
+    /// Makes this raster's stamps follow `old`'s (the raster it replaces on a layer): every
+    /// quad's stamp differs from any `old` gave, so that nothing composed from `old` is taken for
+    /// this raster's.
+    pub fn succeed(&mut self, old: &EditRaster) {
+        let base = old.generation.wrapping_add(1);
+        self.generation = self.generation.wrapping_add(base);
+        self.floor = self.floor.wrapping_add(base);
+        for s in self.stamps.values_mut() {
+            *s = s.wrapping_add(base);
+        }
+        self.pyramid.shift_stamps(base);
+    }
+
+    /// A number that changes whenever δ at `quad` (of any level) may have: what renderers key
+    /// the composed quad and its uploaded deltas by, so that a stroke recomposes only the quads
+    /// it changed.
+    pub fn stamp(&self, quad: QuadId) -> u32 {
+        if quad.level >= self.level {
+            let mut q = quad;
+            while q.level > self.level {
+                q = q.parent().expect("a quad below the raster's level has a parent");
+            }
+            return self.stamps.get(&q).copied().unwrap_or(self.floor);
+        }
+        self.pyramid.stamp(quad).unwrap_or(self.floor)
     }
 
     /// Puts tiles in place (None: removes the quad's) and forgets the coarse means they change.
     fn put(&mut self, changes: Vec<(QuadId, Option<Vec<f32>>)>) {
+        self.generation = self.generation.wrapping_add(1);
         let changed: BTreeSet<QuadId> = changes.iter().map(|(q, _)| *q).collect();
+        for q in &changed {
+            self.stamps.insert(*q, self.generation);
+        }
         let mut removed = false;
         for (q, tile) in changes {
             match tile {
@@ -221,10 +269,10 @@ impl EditRaster {
             }
         }
         if removed {
-            self.pyramid.reset(self.tiles.keys().copied());
+            self.pyramid.reset(self.tiles.keys().copied(), self.generation);
         } else {
             self.pyramid.add(changed.iter().copied());
-            self.pyramid.invalidate(&changed);
+            self.pyramid.invalidate(&changed, self.generation);
         }
     }
 

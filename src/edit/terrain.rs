@@ -25,6 +25,30 @@ const N: usize = GRID as usize;
 /// cannot be read), passed through.
 pub type Below<'a> = dyn Fn(QuadId) -> Result<Vec<f32>, String> + Sync + 'a;
 
+/// A [`Below`] that keeps what it read (the terrain below does not change while a layer's strokes
+/// are replayed, and terrain-reading strokes read the same quads again and again).
+pub struct KeptBelow<'a> {
+    below: &'a Below<'a>,
+    kept: std::sync::Mutex<HashMap<QuadId, std::sync::Arc<Vec<f32>>>>,
+}
+
+impl<'a> KeptBelow<'a> {
+    /// Keeps what `below` gives.
+    pub fn new(below: &'a Below<'a>) -> KeptBelow<'a> {
+        KeptBelow { below, kept: Default::default() }
+    }
+
+    /// The terrain below `quad`, read once.
+    pub fn get(&self, quad: QuadId) -> Result<Vec<f32>, String> {
+        if let Some(t) = self.kept.lock().expect("not poisoned").get(&quad) {
+            return Ok(t.to_vec());
+        }
+        let t = (self.below)(quad)?;
+        self.kept.lock().expect("not poisoned").insert(quad, std::sync::Arc::new(t.clone()));
+        Ok(t)
+    }
+}
+
 /// A [`Below`] for layers with nothing under them: the ellipsoid (B = 0 everywhere).
 pub fn ellipsoid_below(_quad: QuadId) -> Result<Vec<f32>, String> {
     Ok(vec![0.0; N * N])

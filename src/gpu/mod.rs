@@ -2,6 +2,7 @@
 //! caches, and the terrain pipelines that mirror the CPU references in [`crate::ecm::geometry`]
 //! and [`crate::colour`].
 
+pub mod brush;
 pub mod camera;
 pub mod compose;
 pub mod context;

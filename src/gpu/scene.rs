@@ -66,7 +66,7 @@ impl Scene {
     pub fn layer_tiles(&self, index: usize, quad: QuadId) -> Option<(DataKey, Option<DataKey>)> {
         let layer = &self.stack.layers[index];
         if let Some(raster) = self.edits.get(&layer.uid) {
-            return Some((DataKey::Edit(layer.uid as u32, quad, raster.generation), None));
+            return Some((DataKey::Edit(layer.uid as u32, quad, raster.stamp(quad)), None));
         }
         let d = self.dataset_of_layer(index)? as u32;
         let feather = self.stack.layers[index].spec.feather_edge_m;
@@ -84,9 +84,20 @@ impl Scene {
         self.dataset_of_layer(index).is_none_or(|d| self.datasets[d].covers(quad))
     }
 
-    /// What composing `quad` reads.
+    /// What composing `quad` reads. Its stamp also holds, per edit layer it reads, that layer's
+    /// stamp at the quad: a stroke changes the stamps of the quads it changed only (strokes do
+    /// not bump the layer's revision: [`Stack::set_strokes`]).
     pub fn plan(&self, quad: QuadId) -> QuadPlan {
-        self.stack.plan(quad, &|i| self.covers(i, quad), self.octave_skipping)
+        let mut plan = self.stack.plan(quad, &|i| self.covers(i, quad), self.octave_skipping);
+        let stamps: Vec<u64> = plan
+            .all_layers()
+            .filter_map(|l| self.edits.get(&self.stack.layers[l.index].uid))
+            .map(|raster| u64::from(raster.stamp(quad)))
+            .collect();
+        for s in stamps {
+            plan.stamp = (plan.stamp ^ s.wrapping_mul(0x9e37_79b9_7f4a_7c15)).wrapping_mul(0x100_0000_01b3);
+        }
+        plan
     }
 
     /// The finest level of the datasets a plan reads, if it reads any.
@@ -231,8 +242,12 @@ impl Scene {
         self.compose_cpu(&[quad])?.remove(&quad).ok_or_else(|| format!("{quad} was not composed"))
     }
 
-    /// Puts a raster on edit layer `index` (after a stroke, an undo or a redo).
-    pub fn set_edit(&mut self, index: usize, raster: EditRaster) {
+    /// Puts a raster on edit layer `index` (after a stroke, an undo or a redo; its stamps are
+    /// made to follow the raster it replaces).
+    pub fn set_edit(&mut self, index: usize, mut raster: EditRaster) {
+        if let Some(old) = self.edits.get(&self.stack.layers[index].uid) {
+            raster.succeed(old);
+        }
         self.stack.set_dataset_info(index, raster.range_m(), f64::INFINITY);
         self.edits.insert(self.stack.layers[index].uid, Arc::new(raster));
     }

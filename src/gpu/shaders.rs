@@ -8,6 +8,7 @@ pub const FILES: &[(&str, &str)] = &[
     ("shared/shading.wgsl", include_str!("../../shaders/shared/shading.wgsl")),
     ("shared/noise.wgsl", include_str!("../../shaders/shared/noise.wgsl")),
     ("compose/compose.wgsl", include_str!("../../shaders/compose/compose.wgsl")),
+    ("edit/stroke.wgsl", include_str!("../../shaders/edit/stroke.wgsl")),
 ];
 
 /// A shader with its includes expanded. Panics only on a missing include, which the naga test
@@ -51,7 +52,7 @@ mod tests {
         // Every file on disk is embedded (none forgotten) ...
         let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("shaders");
         let mut on_disk = Vec::new();
-        for sub in ["", "shared", "compose"] {
+        for sub in ["", "shared", "compose", "edit"] {
             for entry in std::fs::read_dir(dir.join(sub)).unwrap() {
                 let path = entry.unwrap().path();
                 if path.extension().is_some_and(|e| e == "wgsl") {
@@ -72,6 +73,9 @@ mod tests {
             }
             if *name == "compose/compose.wgsl" {
                 assert_eq!(entries, ["compose", "compose_difference"]);
+            }
+            if *name == "edit/stroke.wgsl" {
+                assert_eq!(entries, ["apply_stroke"]);
             }
         }
         // The validator does catch errors.

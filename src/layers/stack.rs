@@ -282,6 +282,15 @@ impl Stack {
         Ok(())
     }
 
+    /// Sets an edit layer's strokes and undo position without bumping its revision: what the
+    /// strokes change is stamped per quad by the layer's raster (`EditRaster::stamp`, mixed into
+    /// plans by the scene), so that a stroke recomposes only the quads it changed.
+    pub fn set_strokes(&mut self, index: usize, strokes: Vec<crate::edit::Stroke>, applied: Option<usize>) {
+        let spec = &mut self.layers[index].spec;
+        spec.strokes = strokes;
+        spec.applied = applied;
+    }
+
     /// Removes a layer (not one a difference layer reads).
     pub fn remove(&mut self, index: usize) -> Result<Layer, LayerError> {
         let name = &self.layers[index].spec.name;

@@ -127,6 +127,9 @@ pub struct Renderer {
     auto_range_m: Option<f64>,
     /// The brush's footprint to draw: centre (ECEF) and radius, metres.
     brush: Option<(glam::DVec3, f64)>,
+    /// The GPU stroke rasteriser, on hardware adapters (on a software one the CPU reference is
+    /// faster: BENCHMARKS.md); used for the strokes shown while dragging.
+    stroke_kernel: Option<super::brush::StrokeKernel>,
 }
 
 impl Renderer {
@@ -189,7 +192,11 @@ impl Renderer {
         let flat = flat_rule_for(&scene.ellipsoid, exaggerated_range(&scene, scene.visuals.exaggeration));
         let loader = Loader::start(scene.datasets.clone(), scene.ellipsoid, loader_threads());
         let cpu = CpuCache::new((scene.detail.cpu_cache_mib.max(16) << 20) as usize);
+        let stroke_kernel = (ctx.info.device_type != wgpu::DeviceType::Cpu)
+            .then(|| super::brush::StrokeKernel::new(&device))
+            .transpose()?;
         Ok(Renderer {
+            stroke_kernel,
             device,
             queue: ctx.queue.clone(),
             timestamps: ctx.timestamps,

@@ -68,6 +68,18 @@ impl Renderer {
     /// new stroke ends redo), the stroke is appended and rasterised into the layer's tiles, and
     /// the quads it touches are recomposed. Returns the layer's new spec (for the project).
     pub fn apply_stroke(&mut self, index: usize, stroke: crate::edit::Stroke) -> Result<LayerSpec, LayerError> {
+        self.apply_stroke_on(index, stroke, false)
+    }
+
+    /// [`Renderer::apply_stroke`], on the GPU rasteriser when `gpu` and the adapter is hardware
+    /// (for the provisional strokes shown while dragging; the stroke kept is rasterised by the
+    /// CPU reference, which replay checks against).
+    pub fn apply_stroke_on(
+        &mut self,
+        index: usize,
+        stroke: crate::edit::Stroke,
+        gpu: bool,
+    ) -> Result<LayerSpec, LayerError> {
         let mut spec = self.edit_spec(index)?;
         let applied = spec.applied_strokes().len();
         spec.strokes.truncate(applied);
@@ -76,15 +88,23 @@ impl Renderer {
         let fail = |e: crate::edit::StrokeError| LayerError::field(&name, "strokes", e.to_string());
         let below = self.scene.below(index).map_err(|e| LayerError::field(&name, "strokes", e))?;
         let below = |q| below.heights_cpu(q);
-        let raster = self.raster_mut(index);
+        let uid = self.scene.stack.layers[index].uid;
+        let raster = std::sync::Arc::make_mut(self.scene.edits.get_mut(&uid).expect("checked by edit_spec"));
         if stroke.level > raster.level {
             // A finer stroke: the raster moves to its level (rebuilt from every stroke).
             let mut all = spec.strokes.clone();
             all.push(stroke.clone());
-            *raster = crate::edit::EditRaster::build(ellipsoid, &all, &below).map_err(fail)?;
+            let mut finer = crate::edit::EditRaster::build(ellipsoid, &all, &below).map_err(fail)?;
+            finer.succeed(raster);
+            *raster = finer;
         } else {
             // Checked before anything changes: a refused stroke leaves the raster as it was.
-            raster.apply(applied, &stroke, &below).map_err(fail)?;
+            let on_gpu = self.stroke_kernel.as_ref().filter(|_| gpu).map(|k| k.on(&self.device, &self.queue));
+            let rasteriser: &dyn crate::edit::kernel::Rasteriser = match &on_gpu {
+                Some(r) => r,
+                None => &crate::edit::kernel::CpuRasteriser,
+            };
+            raster.apply_with(applied, &stroke, &below, rasteriser).map_err(fail)?;
         }
         spec.strokes.push(stroke);
         spec.applied = None;
@@ -147,7 +167,8 @@ impl Renderer {
     }
 
     fn finish_edit(&mut self, index: usize, spec: LayerSpec) -> Result<LayerSpec, LayerError> {
-        self.scene.stack.set(index, spec.clone())?;
+        // Strokes only: the raster's per-quad stamps say which quads to recompose.
+        self.scene.stack.set_strokes(index, spec.strokes.clone(), spec.applied);
         let uid = self.scene.stack.layers[index].uid;
         let range = self.scene.edits[&uid].range_m();
         self.scene.stack.set_dataset_info(index, range, f64::INFINITY);

@@ -276,7 +276,9 @@ impl App {
         };
         let t = Instant::now();
         let before = self.project.layers[index].applied_strokes().len();
-        match self.renderer.apply_stroke(index, stroke) {
+        // While dragging, the stroke so far is shown from the GPU rasteriser (where the adapter
+        // is hardware); the stroke kept, on release, is the CPU reference's.
+        match self.renderer.apply_stroke_on(index, stroke, self.brush.painting) {
             Ok(spec) => {
                 if self.brush.painting {
                     self.brush.preview = Some((index, before));

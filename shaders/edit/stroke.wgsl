@@ -1,0 +1,148 @@
+// One brush stroke on an edit layer's tiles: one invocation per sample of a 257² tile, one
+// workgroup layer (z) per tile. The GPU twin of terrafuse::edit::kernel::apply_to_tile (keep in
+// sync): each sample within the radius of a dab is folded through the stroke's dabs in order.
+// Differences from the CPU reference, which the tolerance of the test covers: the fold is in f32
+// (the CPU's in f64), and the sample's position is interpolated between exact points every 1 to 8
+// samples (the CPU's is exact), relative to the tile's origin O. Smooth is not rasterised here (it reads
+// the terrain around each sample; the CPU does it).
+//!include shared/noise.wgsl
+
+const N: u32 = 257u;
+// No diagonal of the face crosses the tile (Tile.diag).
+const NO_DIAGONAL: i32 = -2147483647;
+// No terrain below (the `below` buffer): samples there are left as they are.
+const NODATA: f32 = -1.0e37;
+
+// One tile (StrokeTile in src/gpu/brush.rs; keep in sync).
+struct Tile {
+    // The samples a dab can reach: i0, i1, j0, j1 (inclusive; i0 > i1: none).
+    window: vec4<u32>,
+    // First dab (in `dabs`), dab count, tool (0 raise, 1 lower, 2 noise, 3 restore, 4 flatten,
+    // 5 ramp), falloff (0 smooth, 1 linear, 2 spherical, 3 tip).
+    head: vec4<u32>,
+    // Noise: the lattice cell of O at the stroke's wavelength (xyz) and its seed (w).
+    cell: vec4<u32>,
+    // Noise: the fraction of O / λ (xyz) and λ (w, metres).
+    frac: vec4<f32>,
+    // Radius (metres), strength, flatten height (metres), unused.
+    params: vec4<f32>,
+    // Ramp: its first point relative to O (xyz) and the height there (w).
+    ramp_a: vec4<f32>,
+    // Ramp: its last point relative to O and the height there.
+    ramp_b: vec4<f32>,
+    // The tile's exact points: the first (in `lattice`), the step between them in samples (1,
+    // 2, 4 or 8), points per edge, unused.
+    lat: vec4<u32>,
+    // Where the face's diagonals cross the tile, in samples: a point (i, j) of the tile is on
+    // the main diagonal where i − j = x, on the other where i + j = y (NO_DIAGONAL: nowhere).
+    diag: vec4<i32>,
+}
+
+@group(0) @binding(0) var<storage, read> tiles: array<Tile>;
+// Per tile, L² exact sample points relative to its O, metres.
+@group(0) @binding(1) var<storage, read> lattice: array<vec4<f32>>;
+// Per tile, the stroke's dab centres relative to its O, metres.
+@group(0) @binding(2) var<storage, read> dabs: array<vec4<f32>>;
+// Per tile (flatten and ramp), the terrain below the edit layer B, metres (NODATA: none).
+@group(0) @binding(3) var<storage, read> below: array<f32>;
+// Per tile, δ: read before the stroke, written after it.
+@group(0) @binding(4) var<storage, read_write> delta: array<f32>;
+
+// edit::stroke::Falloff::weight.
+fn falloff_weight(falloff: u32, t: f32) -> f32 {
+    if t >= 1.0 {
+        return 0.0;
+    }
+    let u = max(t, 0.0);
+    switch falloff {
+        case 0u: { return 1.0 - u * u * (3.0 - 2.0 * u); }
+        case 1u: { return 1.0 - u; }
+        case 2u: { return sqrt(1.0 - u * u); }
+        default: { return (1.0 - u) * (1.0 - u) * (1.0 - u); }
+    }
+}
+
+// The sample's point relative to O, interpolated between the exact points around it: bilinear,
+// except in a cell a diagonal of the face runs through, where QSC's mapping has a kink (its
+// sectors meet there): there linear in the cell's triangle on the sample's side of it.
+fn sample_local(tile: Tile, i: u32, j: u32) -> vec3<f32> {
+    let step = tile.lat.y;
+    let m = tile.lat.z;
+    let a = min(i / step, m - 2u);
+    let b = min(j / step, m - 2u);
+    let s = f32(i - a * step) / f32(step);
+    let t = f32(j - b * step) / f32(step);
+    let base = tile.lat.x;
+    let p00 = lattice[base + b * m + a].xyz;
+    let p10 = lattice[base + b * m + a + 1u].xyz;
+    let p01 = lattice[base + (b + 1u) * m + a].xyz;
+    let p11 = lattice[base + (b + 1u) * m + a + 1u].xyz;
+    let ci = i32(a * step);
+    let cj = i32(b * step);
+    if ci - cj == tile.diag.x {
+        // The main diagonal runs from p00 to p11.
+        if s >= t {
+            return p00 + s * (p10 - p00) + t * (p11 - p10);
+        }
+        return p00 + t * (p01 - p00) + s * (p11 - p01);
+    }
+    if ci + cj + i32(step) == tile.diag.y {
+        // The other runs from p10 to p01.
+        if s + t <= 1.0 {
+            return p00 + s * (p10 - p00) + t * (p01 - p00);
+        }
+        return p11 + (1.0 - s) * (p01 - p11) + (1.0 - t) * (p10 - p11);
+    }
+    return mix(mix(p00, p10, s), mix(p01, p11, s), t);
+}
+
+@compute @workgroup_size(16, 16, 1)
+fn apply_stroke(@builtin(global_invocation_id) id: vec3<u32>) {
+    let i = id.x;
+    let j = id.y;
+    let tile = tiles[id.z];
+    if i < tile.window.x || i > tile.window.y || j < tile.window.z || j > tile.window.w {
+        return;
+    }
+    let p = sample_local(tile, i, j);
+    let k = id.z * N * N + j * N + i;
+    let before = delta[k];
+    let r = tile.params.x;
+    let strength = tile.params.y;
+    let tool = tile.head.z;
+    // Flatten and ramp: the δ that brings the terrain to the target (T − B).
+    var goal = 0.0;
+    if tool == 4u || tool == 5u {
+        let b = below[k];
+        if b <= NODATA {
+            return;
+        }
+        var aim = tile.params.z;
+        if tool == 5u {
+            let ab = tile.ramp_b.xyz - tile.ramp_a.xyz;
+            let t = clamp(dot(p - tile.ramp_a.xyz, ab) / dot(ab, ab), 0.0, 1.0);
+            aim = tile.ramp_a.w + (tile.ramp_b.w - tile.ramp_a.w) * t;
+        }
+        goal = aim - b;
+    }
+    var value = before;
+    var touched = false;
+    for (var d = 0u; d < tile.head.y; d++) {
+        let dist = length(p - dabs[tile.head.x + d].xyz);
+        if dist >= r {
+            continue;
+        }
+        touched = true;
+        let s = strength * falloff_weight(tile.head.w, dist / r);
+        switch tool {
+            case 0u: { value = value + s; }
+            case 1u: { value = value - s; }
+            case 2u: { value = value + s * noise_octave(tile.cell.xyz, tile.frac.xyz, p, tile.frac.w, tile.cell.w); }
+            case 3u: { value = value * (1.0 - s); }
+            default: { value = value + s * (goal - value); }
+        }
+    }
+    if touched {
+        delta[k] = value;
+    }
+}

@@ -1,0 +1,320 @@
+//! The GPU rasteriser of brush strokes: `shaders/edit/stroke.wgsl`, one dispatch per stroke over
+//! the tiles it touches, read back into the edit raster (which stays the cache the renderer
+//! uploads from). It agrees with the CPU reference ([`crate::edit::kernel::apply_to_tile`])
+//! within [`GPU_TOLERANCE`], not bit for bit: replay checks against the CPU. Smooth reads the
+//! terrain around each sample and is rasterised by the CPU reference here too.
+//!
+//! Every position the kernel sees is relative to its tile's origin O (the tile's centre sample),
+//! cast from f64: the tile's exact points (every 1 to 8 samples, at most [`LATTICE_M`] apart,
+//! every sample at a face's centre), and the stroke's dab centres.
+
+use bytemuck::{Pod, Zeroable};
+use glam::DVec3;
+use wgpu::util::DeviceExt;
+
+use super::context::{GpuContext, GpuError};
+use super::terrain::bind_buffers;
+use crate::ecm::QuadId;
+use crate::edit::kernel::{CpuRasteriser, Rasteriser, StrokeJob, window};
+use crate::edit::terrain::Target;
+use crate::edit::{Falloff, Tool};
+use crate::layers::noise;
+use crate::layers::stack::sample_point;
+use crate::store::grid::GRID;
+
+const N: usize = GRID as usize;
+/// Largest distance between a tile's exact points, metres: the surface sags below the chord
+/// between two by d²/8R, 0.26 mm on the Moon and 0.07 mm on Earth.
+const LATTICE_M: f64 = 60.0;
+/// `NO_DIAGONAL` in stroke.wgsl.
+const NO_DIAGONAL: i32 = -2_147_483_647;
+const WORKGROUP: u32 = 16;
+/// Tiles per dispatch (the δ and below buffers are 264 KB per tile).
+const TILES_PER_DISPATCH: usize = 256;
+
+/// How far the GPU's δ may be from the CPU reference's, as a fraction of the stroke's scale (the
+/// largest of its strength in metres and the |δ| and |goal| involved) times its dab count. The
+/// f32 fold rounds by 6·10⁻⁸ of the running value per dab; the interpolated positions are within
+/// 4 mm of the exact ones (measured over whole tiles at levels 9 and 14, face centres, edges and
+/// corners included), which moves a weight by at most 3·4 mm / 2r. Measured on lavapipe: 9·10⁻⁷
+/// (tests/brush.rs).
+pub const GPU_TOLERANCE: f64 = 1e-5;
+
+/// One tile (`Tile` in stroke.wgsl; keep in sync).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+struct StrokeTile {
+    window: [u32; 4],
+    head: [u32; 4],
+    cell: [u32; 4],
+    frac: [f32; 4],
+    params: [f32; 4],
+    ramp_a: [f32; 4],
+    ramp_b: [f32; 4],
+    lat: [u32; 4],
+    diag: [i32; 4],
+}
+
+const _: () = assert!(std::mem::size_of::<StrokeTile>() == 16 * 9);
+
+/// The step between a tile's exact points, in samples: the largest of 8, 4, 2 with the points at
+/// most [`LATTICE_M`] apart; 1 (every sample exact) at the face's centre, where QSC's four
+/// sectors meet in a point no interpolation follows.
+fn lattice_step(e: &crate::geodesy::Ellipsoid, q: QuadId) -> u32 {
+    let half = (1u32 << q.level) / 2;
+    let at_centre = q.level == 0 || ((half - 1..=half).contains(&q.x) && (half - 1..=half).contains(&q.y));
+    if at_centre {
+        return 1;
+    }
+    let spacing = crate::store::grid::spacing_m(e, q.level);
+    [8, 4, 2].into_iter().find(|s| f64::from(*s) * spacing <= LATTICE_M).unwrap_or(1)
+}
+
+/// Where the face's diagonals cross a tile, in its samples: [i − j on the main one, i + j on the
+/// other] (NO_DIAGONAL where one does not).
+fn diagonals(q: QuadId) -> [i32; 4] {
+    let tile = 256i64;
+    let (x, y) = (i64::from(q.x) * tile, i64::from(q.y) * tile);
+    let main = y - x; // i − j = y − x on the main diagonal (global x + i = y + j)
+    let other = (tile << q.level) - x - y; // global (x + i) + (y + j) = 256·2^level
+    let fit = |v: i64| if (-2 * tile..=2 * tile).contains(&v) { v as i32 } else { NO_DIAGONAL };
+    [fit(main), fit(other), 0, 0]
+}
+
+fn v4(v: DVec3, w: f64) -> [f32; 4] {
+    [v.x as f32, v.y as f32, v.z as f32, w as f32]
+}
+
+/// The stroke kernel, compiled for a device.
+pub struct StrokeKernel {
+    pipeline: wgpu::ComputePipeline,
+    layout: wgpu::BindGroupLayout,
+    /// Per tile its origin, lattice step and exact points (they never change; at most
+    /// [`KEPT_LATTICES`] kept).
+    lattices: std::sync::Mutex<std::collections::HashMap<QuadId, std::sync::Arc<Lattice>>>,
+}
+
+/// Tiles whose exact points are kept (about 1 MB each at step 1, 17 KB at step 8).
+const KEPT_LATTICES: usize = 1024;
+
+/// A tile's origin O, the step between its exact points and the points relative to O.
+struct Lattice {
+    origin: DVec3,
+    step: u32,
+    points: Vec<[f32; 4]>,
+}
+
+impl Lattice {
+    fn of(e: &crate::geodesy::Ellipsoid, q: QuadId) -> Lattice {
+        let (origin, _, _) = sample_point(e, q, GRID, 128, 128);
+        let step = lattice_step(e, q);
+        let m = 256 / step + 1;
+        let mut points = Vec::with_capacity((m * m) as usize);
+        for j in 0..m {
+            for i in 0..m {
+                points.push(v4(sample_point(e, q, GRID, i * step, j * step).0 - origin, 0.0));
+            }
+        }
+        Lattice { origin, step, points }
+    }
+}
+
+/// The kernel with the device and queue it runs on: a [`Rasteriser`].
+pub struct GpuRasteriser<'a> {
+    device: &'a wgpu::Device,
+    queue: &'a wgpu::Queue,
+    kernel: &'a StrokeKernel,
+}
+
+impl StrokeKernel {
+    /// Compiles the kernel.
+    pub fn new(device: &wgpu::Device) -> Result<StrokeKernel, GpuError> {
+        let source = super::shaders::composed("edit/stroke.wgsl").map_err(GpuError::Shader)?;
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("stroke.wgsl"),
+            source: wgpu::ShaderSource::Wgsl(source.into()),
+        });
+        let entry = |binding: u32, read_only: bool| wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility: wgpu::ShaderStages::COMPUTE,
+            ty: wgpu::BindingType::Buffer {
+                ty: wgpu::BufferBindingType::Storage { read_only },
+                has_dynamic_offset: false,
+                min_binding_size: None,
+            },
+            count: None,
+        };
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("stroke"),
+            entries: &[entry(0, true), entry(1, true), entry(2, true), entry(3, true), entry(4, false)],
+        });
+        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("stroke"),
+            bind_group_layouts: &[Some(&layout)],
+            immediate_size: 0,
+        });
+        let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some("stroke"),
+            layout: Some(&pipeline_layout),
+            module: &module,
+            entry_point: Some("apply_stroke"),
+            compilation_options: Default::default(),
+            cache: None,
+        });
+        Ok(StrokeKernel { pipeline, layout, lattices: Default::default() })
+    }
+
+    /// The rasteriser on a device and queue (the kernel's device).
+    pub fn on<'a>(&'a self, device: &'a wgpu::Device, queue: &'a wgpu::Queue) -> GpuRasteriser<'a> {
+        GpuRasteriser { device, queue, kernel: self }
+    }
+
+    /// The rasteriser on a context's device.
+    pub fn on_context<'a>(&'a self, gpu: &'a GpuContext) -> GpuRasteriser<'a> {
+        self.on(&gpu.device, &gpu.queue)
+    }
+}
+
+impl GpuRasteriser<'_> {
+    /// One dispatch over a chunk of tiles; their δ replaced by the kernel's.
+    fn dispatch(&self, job: &StrokeJob, tiles: &mut [(QuadId, Vec<f32>)]) -> Result<(), GpuError> {
+        let e = job.ellipsoid;
+        let stroke = job.stroke;
+        let tool = match stroke.tool {
+            Tool::Raise => 0,
+            Tool::Lower => 1,
+            Tool::Noise => 2,
+            Tool::Restore => 3,
+            Tool::Flatten => 4,
+            Tool::Ramp => 5,
+            Tool::Smooth => unreachable!("smooth is rasterised by the CPU"),
+        };
+        let falloff = match stroke.falloff {
+            Falloff::Smooth => 0,
+            Falloff::Linear => 1,
+            Falloff::Spherical => 2,
+            Falloff::Tip => 3,
+        };
+        let wavelength = stroke.radius_m / 2.0;
+        let (flat, ramp) = match job.target {
+            Target::Flatten { height_m } => (height_m, None),
+            Target::Ramp { a, b, height_a_m, height_b_m } => (0.0, Some((a, b, height_a_m, height_b_m))),
+            _ => (0.0, None),
+        };
+        let reads_below = matches!(stroke.tool, Tool::Flatten | Tool::Ramp);
+        let mut heads = Vec::with_capacity(tiles.len());
+        let mut lattice: Vec<[f32; 4]> = Vec::new();
+        let mut dabs: Vec<[f32; 4]> = Vec::with_capacity(tiles.len() * job.dabs.len());
+        let mut below: Vec<f32> = Vec::new();
+        let mut delta: Vec<f32> = Vec::with_capacity(tiles.len() * N * N);
+        for (q, tile) in tiles.iter() {
+            let kept = self.kernel.lattices.lock().expect("not poisoned").get(q).cloned();
+            let tile_lattice = kept.unwrap_or_else(|| {
+                let made = std::sync::Arc::new(Lattice::of(e, *q));
+                let mut all = self.kernel.lattices.lock().expect("not poisoned");
+                if all.len() >= KEPT_LATTICES {
+                    all.clear();
+                }
+                all.insert(*q, made.clone());
+                made
+            });
+            let (origin, step) = (tile_lattice.origin, tile_lattice.step);
+            let lat = [lattice.len() as u32, step, 256 / step + 1, 0];
+            lattice.extend_from_slice(&tile_lattice.points);
+            let first = dabs.len() as u32;
+            dabs.extend(job.dabs.iter().map(|d| v4(d.centre - origin, 0.0)));
+            let [i0, i1, j0, j1] = window(e, *q, job.dabs, stroke.radius_m);
+            let (cell, frac) = noise::lattice_origin(origin, wavelength);
+            let (ra, rb) = ramp.map_or(([0.0; 4], [0.0; 4]), |(a, b, ha, hb)| (v4(a - origin, ha), v4(b - origin, hb)));
+            heads.push(StrokeTile {
+                window: [i0 as u32, i1 as u32, j0 as u32, j1 as u32],
+                head: [first, job.dabs.len() as u32, tool, falloff],
+                cell: [cell[0], cell[1], cell[2], stroke.seed],
+                frac: [frac[0] as f32, frac[1] as f32, frac[2] as f32, wavelength as f32],
+                params: [stroke.radius_m as f32, stroke.strength as f32, flat as f32, 0.0],
+                ramp_a: ra,
+                ramp_b: rb,
+                lat,
+                diag: diagonals(*q),
+            });
+            if reads_below {
+                let s = job.snapshot.expect("flatten and ramp have a snapshot");
+                below.extend((0..N * N).map(|k| {
+                    let b = s.sample(*q, k) - f64::from(tile[k]);
+                    if b.is_finite() { b as f32 } else { -3.0e37 }
+                }));
+            }
+            delta.extend_from_slice(tile);
+        }
+        let device = self.device;
+        let storage = |label: &str, bytes: &[u8], extra: wgpu::BufferUsages| {
+            let contents = if bytes.is_empty() { &[0u8; 16][..] } else { bytes };
+            device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(label),
+                contents,
+                usage: wgpu::BufferUsages::STORAGE | extra,
+            })
+        };
+        let none = wgpu::BufferUsages::empty();
+        let heads_buffer = storage("stroke tiles", bytemuck::cast_slice(&heads), none);
+        let lattice_buffer = storage("stroke lattice", bytemuck::cast_slice(&lattice), none);
+        let dabs_buffer = storage("stroke dabs", bytemuck::cast_slice(&dabs), none);
+        let below_buffer = storage("stroke below", bytemuck::cast_slice(&below), none);
+        let delta_buffer = storage("stroke delta", bytemuck::cast_slice(&delta), wgpu::BufferUsages::COPY_SRC);
+        let bytes = (delta.len() * 4) as u64;
+        let read = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("stroke read"),
+            size: bytes,
+            usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+            mapped_at_creation: false,
+        });
+        let bind = bind_buffers(
+            device,
+            &self.kernel.layout,
+            "stroke",
+            &[&heads_buffer, &lattice_buffer, &dabs_buffer, &below_buffer, &delta_buffer],
+        );
+        let mut encoder = device.create_command_encoder(&Default::default());
+        {
+            let mut pass = encoder
+                .begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("stroke"), timestamp_writes: None });
+            pass.set_pipeline(&self.kernel.pipeline);
+            pass.set_bind_group(0, &bind, &[]);
+            let groups = (N as u32).div_ceil(WORKGROUP);
+            pass.dispatch_workgroups(groups, groups, tiles.len() as u32);
+        }
+        encoder.copy_buffer_to_buffer(&delta_buffer, 0, &read, 0, bytes);
+        self.queue.submit([encoder.finish()]);
+        read.slice(..).map_async(wgpu::MapMode::Read, |_| {});
+        device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map_err(|e| GpuError::Readback(format!("the GPU did not finish: {e}")))?;
+        let data = read.slice(..).get_mapped_range().map_err(|e| GpuError::Readback(e.to_string()))?;
+        let values: &[f32] = bytemuck::cast_slice(&data);
+        for (k, (_, tile)) in tiles.iter_mut().enumerate() {
+            tile.copy_from_slice(&values[k * N * N..(k + 1) * N * N]);
+        }
+        Ok(())
+    }
+}
+
+impl Rasteriser for GpuRasteriser<'_> {
+    fn rasterise(&self, job: &StrokeJob, tiles: &mut [(QuadId, Vec<f32>)]) -> Result<(), String> {
+        let nothing = match job.target {
+            Target::Flatten { height_m } => !height_m.is_finite(),
+            Target::Ramp { height_a_m, height_b_m, .. } => !(height_a_m.is_finite() && height_b_m.is_finite()),
+            _ => false,
+        };
+        if nothing {
+            // No terrain under the target's points: the stroke changes nothing (as on the CPU).
+            return Ok(());
+        }
+        if job.stroke.tool == Tool::Smooth {
+            return CpuRasteriser.rasterise(job, tiles);
+        }
+        for chunk in tiles.chunks_mut(TILES_PER_DISPATCH) {
+            self.dispatch(job, chunk).map_err(|e| e.to_string())?;
+        }
+        Ok(())
+    }
+}
