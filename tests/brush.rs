@@ -363,3 +363,51 @@ fn a_stroke_recomposes_only_the_quads_it_changed_and_undo_restores_their_heights
     let undone = r.read_heights(target).unwrap().unwrap();
     assert!(undone.iter().zip(&before).all(|(a, b)| a.to_bits() == b.to_bits()), "undo restores the heights");
 }
+
+#[test]
+fn edit_rasters_are_cached_beside_the_project_and_rebuilt_when_stale_or_unreadable() {
+    let dir = repo_path("tests/out/brush-cache");
+    let path = sample_project("moon-brushing", &dir);
+    let stores = dir.join("stores");
+    let caches = || -> Vec<std::path::PathBuf> {
+        let mut v: Vec<_> = std::fs::read_dir(&stores)
+            .map(|d| d.flatten().map(|e| e.path()).filter(|p| p.to_string_lossy().contains("edits-sculpt-")).collect())
+            .unwrap_or_default();
+        v.sort();
+        v
+    };
+    for old in caches() {
+        std::fs::remove_file(old).unwrap(); // not left behind by an earlier run
+    }
+    let mut p = Project::load(&path).unwrap();
+    let open = |p: &Project| {
+        let (scene, report) = Scene::open(p).unwrap();
+        let raster = (**scene.edits.values().next().unwrap()).clone();
+        (raster, report.edits.join("\n"))
+    };
+    let (built, line) = open(&p);
+    assert!(line.contains("rebuilt from 8 strokes") && line.contains("saved to"), "{line}");
+    assert_eq!(caches().len(), 1);
+    let (read, line) = open(&p);
+    assert!(line.contains("8 strokes read from"), "{line}");
+    assert_eq!(read, built, "the cache gives the tiles bit for bit");
+    // Cut short: ignored, rebuilt (and saved again).
+    let cache = caches().pop().unwrap();
+    let bytes = std::fs::read(&cache).unwrap();
+    std::fs::write(&cache, &bytes[..bytes.len() / 2]).unwrap();
+    let (again, line) = open(&p);
+    assert!(line.contains("rebuilt"), "{line}");
+    assert_eq!(again, built);
+    // Another undo position: another digest; the older cache is replaced.
+    let index = p.layers.iter().position(|l| l.kind == LayerKind::Edit).unwrap();
+    p.layers[index].applied = Some(7);
+    let (undone, line) = open(&p);
+    assert!(line.contains("rebuilt from 7 strokes"), "{line}");
+    assert_ne!(undone, built);
+    assert_eq!(caches().len(), 1, "{:?}", caches());
+    // A layer below changed: the strokes that read the terrain read another one.
+    p.layers[index].applied = None;
+    p.layers[0].offset_m = 100.0;
+    let (_, line) = open(&p);
+    assert!(line.contains("rebuilt from 8 strokes"), "{line}");
+}

@@ -132,7 +132,7 @@ pub fn brush_command(request: &BrushRequest) -> Result<String, String> {
     // terrain below): a stroke that cannot be is refused and nothing is written.
     let t = std::time::Instant::now();
     let (scene, report) = Scene::open(&project).map_err(|e| format!("layer '{}': {e}", request.layer))?;
-    for line in report.imported {
+    for line in report.imported.iter().chain(&report.edits) {
         let _ = writeln!(out, "{line}");
     }
     let raster =

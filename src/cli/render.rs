@@ -112,6 +112,7 @@ pub fn open_renderer(project_path: &Path) -> Result<(Project, Renderer, Vec<Stri
     let (scene, report) = Scene::open(&project).map_err(|e| format!("{}: {e}", project_path.display()))?;
     let ctx = GpuContext::headless().map_err(|e| e.to_string())?;
     let mut lines = report.imported;
+    lines.extend(report.edits);
     lines.push(format!("device: {}", ctx.describe()));
     let mut renderer = Renderer::new(&ctx, scene, IMAGE_FORMAT).map_err(|e| e.to_string())?;
     if let Some(line) = resolve_difference_range(&project, &mut renderer)? {

@@ -4,14 +4,17 @@
 //!
 //! - [`stroke`]: strokes as project files hold them, the tools and the falloff formulas;
 //! - [`dabs`]: dabs along a stroke's path by arc length on the ellipsoid;
-//! - [`raster`]: the CPU reference rasteriser: sparse tiles of deltas at the strokes' level,
-//!   deterministic whatever the thread count or quad order; undo by recomputing only the quads
-//!   the undone strokes touched.
-//!
-//! Not built yet (see issue #14): the `edit` layer kind in the stack and its GPU rasteriser, the
-//! tools that read the terrain below (smooth, flatten, ramp), the pyramid of area means for far
-//! views, `terrafuse brush` and the workstation's brush tools.
+//! - [`terrain`]: what smooth, flatten and ramp read (the terrain below the layer and its own
+//!   deltas, before the stroke) and their targets;
+//! - [`kernel`]: the CPU reference of a stroke on a tile and the `Rasteriser` trait (the GPU's is
+//!   `gpu::brush`);
+//! - [`raster`]: the edit raster: sparse tiles of deltas at the strokes' level, deterministic
+//!   whatever the thread count or quad order; undo from a history of before-images or by
+//!   recomputing the touched quads; per-quad stamps;
+//! - [`pyramid`]: the coarser levels' area means;
+//! - [`cache`]: a raster saved beside its project, keyed by a digest of what it depends on.
 
+pub mod cache;
 pub mod dabs;
 pub mod kernel;
 pub mod pyramid;

@@ -111,6 +111,13 @@ impl EditRaster {
         }
     }
 
+    /// A raster of saved tiles (a cache read back: [`super::cache`]).
+    pub fn from_tiles(ellipsoid: Ellipsoid, level: u8, tiles: BTreeMap<QuadId, Vec<f32>>) -> EditRaster {
+        let mut raster = EditRaster::new(ellipsoid, level);
+        raster.put(tiles.into_iter().map(|(q, t)| (q, Some(t))).collect());
+        raster
+    }
+
     /// The raster of `strokes`, at the finest of their levels (each checked first); `below` gives
     /// the terrain under the layer to the strokes that read it (see [`super::terrain`]).
     pub fn build(ellipsoid: Ellipsoid, strokes: &[Stroke], below: &Below) -> Result<EditRaster, StrokeError> {

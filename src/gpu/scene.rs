@@ -46,6 +46,8 @@ pub struct Scene {
     pub range_m: (f64, f64),
     /// Per edit layer (by its uid), its raster of deltas.
     pub edits: HashMap<u64, Arc<EditRaster>>,
+    /// Where edit rasters are cached (the project's `stores/`; None: not cached).
+    pub edit_cache_dir: Option<std::path::PathBuf>,
 }
 
 /// What opening a scene did besides opening (imports), for the command line to report.
@@ -53,6 +55,8 @@ pub struct Scene {
 pub struct OpenReport {
     /// One line per dataset imported from its sources.
     pub imported: Vec<String>,
+    /// One line per edit layer: read from its cache, or rebuilt from its strokes (and cached).
+    pub edits: Vec<String>,
 }
 
 impl Scene {
@@ -124,10 +128,11 @@ impl Scene {
             ramp,
             range_m,
             edits: HashMap::new(),
+            edit_cache_dir: Some(project.base_dir.join("stores")),
         };
         for (index, d) in project.layers.iter().enumerate() {
             if d.kind == LayerKind::Edit {
-                scene.attach_edit(index)?;
+                report.edits.push(scene.attach_edit(index)?);
                 continue;
             }
             if d.kind != LayerKind::Dataset || d.store.is_none() {
@@ -212,14 +217,78 @@ impl Scene {
         read_tile(key, &self.datasets, stores, fields)
     }
 
-    /// Builds edit layer `index`'s raster from its strokes in effect and records its range.
-    pub fn attach_edit(&mut self, index: usize) -> Result<(), String> {
+    /// Gives edit layer `index` its raster: read from its cache when the cache is current, else
+    /// built from its strokes in effect (and cached); records its range. Returns a line saying
+    /// which.
+    pub fn attach_edit(&mut self, index: usize) -> Result<String, String> {
+        let t = std::time::Instant::now();
+        let name = self.stack.layers[index].spec.name.clone();
+        let strokes = self.stack.layers[index].spec.applied_strokes().len();
+        let path = self.edit_cache_path(index);
+        if let Some(raster) = path.as_deref().and_then(|p| crate::edit::cache::read(p, self.ellipsoid)) {
+            self.set_edit(index, raster);
+            return Ok(format!(
+                "edit layer '{name}': {strokes} strokes read from {} ({:.2} s)",
+                path.as_deref().map(|p| p.display().to_string()).unwrap_or_default(),
+                t.elapsed().as_secs_f64()
+            ));
+        }
         let below = self.below(index)?;
         let layer = &self.stack.layers[index];
         let raster = EditRaster::build(self.ellipsoid, layer.spec.applied_strokes(), &|q| below.heights_cpu(q))
             .map_err(|e| format!("layer '{}': {e}", layer.spec.name))?;
+        let mut line =
+            format!("edit layer '{name}': rebuilt from {strokes} strokes in {:.2} s", t.elapsed().as_secs_f64());
+        if let Some(p) = &path {
+            match crate::edit::cache::write(p, &raster) {
+                Ok(()) => line += &format!(", saved to {}", p.display()),
+                Err(e) => line += &format!(" (not cached: {e})"),
+            }
+        }
         self.set_edit(index, raster);
-        Ok(())
+        Ok(line)
+    }
+
+    /// Saves edit layer `index`'s raster in its cache unless the cache is current (after strokes
+    /// made in the workstation, when the project is saved). Returns the file written, if any.
+    pub fn save_edit_cache(&self, index: usize) -> Result<Option<std::path::PathBuf>, String> {
+        let (Some(path), Some(raster)) = (self.edit_cache_path(index), self.edits.get(&self.stack.layers[index].uid))
+        else {
+            return Ok(None);
+        };
+        if path.exists() {
+            return Ok(None);
+        }
+        crate::edit::cache::write(&path, raster).map_err(|e| e.to_string())?;
+        Ok(Some(path))
+    }
+
+    /// The cache file of edit layer `index` as the layer stands (None: no cache folder).
+    fn edit_cache_path(&self, index: usize) -> Option<std::path::PathBuf> {
+        let dir = self.edit_cache_dir.as_ref()?;
+        let layer = &self.stack.layers[index];
+        let strokes = layer.spec.applied_strokes();
+        let mut digest = crate::edit::cache::Digest::default()
+            .with(b"terrafuse edit raster 1")
+            .with(&self.ellipsoid.a_m().to_le_bytes())
+            .with(&self.ellipsoid.b_m().to_le_bytes())
+            .with(to_json(&strokes).as_bytes());
+        if strokes.iter().any(|s| s.tool.reads_terrain()) {
+            // What they read: the layers below, and the stores their datasets come from.
+            for (k, below) in self.stack.layers[..index].iter().enumerate() {
+                digest = digest.with(to_json(&below.spec).as_bytes());
+                if let Some(d) = self.dataset_of_layer(k) {
+                    let meta = std::fs::metadata(&self.datasets[d].store).ok();
+                    let len = meta.as_ref().map_or(0, |m| m.len());
+                    let modified = meta
+                        .and_then(|m| m.modified().ok())
+                        .and_then(|t| t.duration_since(std::time::UNIX_EPOCH).ok())
+                        .map_or(0, |d| d.as_nanos());
+                    digest = digest.with(&len.to_le_bytes()).with(&modified.to_le_bytes());
+                }
+            }
+        }
+        Some(crate::edit::cache::cache_path(dir, &layer.spec.name, digest.value()))
     }
 
     /// The scene of the layers below stack layer `index` (it and every layer above hidden): what
@@ -301,6 +370,11 @@ impl Scene {
         self.dataset_of.insert(self.stack.layers[index].uid, k);
         Ok(())
     }
+}
+
+/// A value as JSON (for digests: what a cache depends on).
+fn to_json<T: serde::Serialize + ?Sized>(value: &T) -> String {
+    serde_json::to_string(value).unwrap_or_default()
 }
 
 /// What importing a dataset layer's sources into its store takes, when the store lacks a

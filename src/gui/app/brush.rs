@@ -86,15 +86,17 @@ impl App {
         if b.tool == Tool::Flatten {
             ui.horizontal(|ui| {
                 let mut fixed = b.flatten_to.is_some();
-                ui.checkbox(&mut fixed, "to height")
-                    .on_hover_text("off: to the terrain's height under the stroke's first point");
+                let label = ui
+                    .checkbox(&mut fixed, "to height")
+                    .on_hover_text("off: to the terrain's height under the stroke's first point")
+                    .id;
                 match (fixed, b.flatten_to) {
                     (true, None) => b.flatten_to = Some(0.0),
                     (false, Some(_)) => b.flatten_to = None,
                     _ => {}
                 }
                 if let Some(h) = &mut b.flatten_to {
-                    ui.add(egui::DragValue::new(h).speed(1.0).suffix(" m"));
+                    ui.add(egui::DragValue::new(h).speed(1.0).suffix(" m")).labelled_by(label);
                 }
             });
         }

@@ -12,6 +12,7 @@ use super::viewport::{Viewport, frame_line};
 use crate::geodesy;
 use crate::gpu::scene::resolve_ramp;
 use crate::gpu::{Camera, FrameStats, Renderer};
+use crate::layers::LayerKind;
 use crate::project::{CameraSpec, Project, Visuals};
 
 mod brush;
@@ -255,6 +256,16 @@ impl App {
             Ok(()) => {
                 self.unsaved = false;
                 self.message = format!("saved {}", self.project_path.display());
+                // The edit layers' rasters beside it, so that the session reopens without
+                // replaying its strokes (a cache: a failure is reported, the project is saved).
+                let scene = self.renderer.scene();
+                for (index, layer) in scene.stack.layers.iter().enumerate() {
+                    if layer.spec.kind == LayerKind::Edit
+                        && let Err(e) = scene.save_edit_cache(index)
+                    {
+                        self.message += &format!("; edit layer '{}' not cached: {e}", layer.spec.name);
+                    }
+                }
             }
             Err(e) => self.message = e.to_string(),
         }
