@@ -10,6 +10,7 @@ pub mod colour;
 pub mod compare;
 pub mod ecm;
 pub mod edit;
+pub mod erosion;
 pub mod files;
 pub mod geodesy;
 pub mod gpu;

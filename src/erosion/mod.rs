@@ -1,0 +1,22 @@
+//! Hydraulic and thermal erosion (issue #15): the CPU reference of the model, on a grid of cells
+//! with their areas and lengths in metres.
+//!
+//! - [`params`]: the parameters with their units and ranges, presets;
+//! - [`grid`]: the grid (terrain, areas, lengths, masks, hardness) and the fixed-point volume
+//!   unit;
+//! - [`sim`]: the step (two gather-only passes), the CFL bound, exact budgets.
+//!
+//! Not built yet (see issue #15): the GPU kernels, the region assembled from a project's quads
+//! across face edges, the erosion layer and its cache, `terrafuse erode`, the workstation panel,
+//! the sample session and `terrafuse bench erosion`.
+
+pub mod grid;
+pub mod params;
+pub mod sim;
+
+pub use grid::Grid;
+pub use params::{Border, ParamError, Params};
+pub use sim::{Budget, Run, State, StepReport};
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,128 @@
+//! The parameters of an erosion run, each with its unit and range, and presets.
+
+use serde::{Deserialize, Serialize};
+
+/// Standard gravity on Earth, m/s² (a run on another body sets its own).
+pub const EARTH_G: f64 = 9.806_65;
+/// Surface gravity of the Moon, m/s².
+pub const MOON_G: f64 = 1.62;
+
+/// What an erosion run does per second of simulated time.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Params {
+    /// Rain, m/s of water depth (0 … 10⁻²; 10⁻⁵ m/s is 36 mm/h, a downpour).
+    pub rain_m_s: f64,
+    /// Evaporation, the fraction of the water lost per second (0 … 1).
+    pub evaporation_per_s: f64,
+    /// Sediment capacity: the depth of sediment water of 1 m depth flowing at 1 m/s down a slope
+    /// of sin α = 1 can carry, metres (0 … 10); capacity = this · sin α · |v| / (1 m/s) ·
+    /// min(depth, `capacity_depth_m`).
+    pub capacity: f64,
+    /// The water depth beyond which capacity no longer grows, metres (10⁻³ … 100).
+    pub capacity_depth_m: f64,
+    /// The least sin α capacity uses (flat ground still carries a little), 0 … 1.
+    pub min_slope: f64,
+    /// Dissolving: the fraction of the capacity deficit taken from the terrain per second (0 … 10).
+    pub dissolve_per_s: f64,
+    /// Deposition: the fraction of the capacity excess laid down per second (0 … 10).
+    pub deposit_per_s: f64,
+    /// Talus angle, degrees (0 … 89): ground steeper than this slides (thermal erosion).
+    pub talus_deg: f64,
+    /// Thermal erosion: the fraction of the excess over the talus moved per second (0 … 10).
+    pub thermal_per_s: f64,
+    /// Hardness (≥ 1; dissolving and sliding are divided by it).
+    pub hardness: f64,
+    /// Gravity along the ellipsoid normal, m/s² (0.1 … 30).
+    pub gravity_m_s2: f64,
+    /// The time step asked for, seconds (10⁻⁴ … 10⁴); the run takes less where the CFL bound
+    /// requires it.
+    pub dt_s: f64,
+    /// The CFL number (0.05 … 0.5): Δt ≤ CFL · cell length / (|v| + √(g·d)).
+    pub cfl: f64,
+    /// Borders: `closed` (walls) or `open` (water and sediment leave, counted).
+    #[serde(default)]
+    pub border: Border,
+}
+
+/// What a region's border does.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Border {
+    /// Walls: nothing leaves.
+    #[default]
+    Closed,
+    /// Water flows out (to a virtual cell at the border cell's terrain height, without water) and
+    /// takes its sediment; both are counted in the budgets.
+    Open,
+}
+
+/// A parameter outside its range: its name, value and range.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[error("{field}: {value} is outside {range}")]
+pub struct ParamError {
+    /// The field.
+    pub field: &'static str,
+    /// Its value.
+    pub value: f64,
+    /// Its range, in words.
+    pub range: &'static str,
+}
+
+impl Params {
+    /// The presets: `rain` (a downpour carving gullies), `river` (little rain, strong transport),
+    /// `thermal` (sliding only: scree slopes), `gentle` (light rain, slow dissolving).
+    pub const PRESETS: [&'static str; 4] = ["rain", "river", "thermal", "gentle"];
+
+    /// A preset by name, on a body with gravity `gravity_m_s2`.
+    pub fn preset(name: &str, gravity_m_s2: f64) -> Option<Params> {
+        let base = Params {
+            rain_m_s: 1e-4,
+            evaporation_per_s: 0.005,
+            capacity: 0.05,
+            capacity_depth_m: 1.0,
+            min_slope: 0.01,
+            dissolve_per_s: 0.5,
+            deposit_per_s: 0.5,
+            talus_deg: 40.0,
+            thermal_per_s: 0.1,
+            hardness: 1.0,
+            gravity_m_s2,
+            dt_s: 0.5,
+            cfl: 0.25,
+            border: Border::Open,
+        };
+        Some(match name {
+            "rain" => base,
+            "river" => Params { rain_m_s: 2e-5, capacity: 0.2, evaporation_per_s: 0.001, ..base },
+            "thermal" => Params { rain_m_s: 0.0, capacity: 0.0, thermal_per_s: 0.5, talus_deg: 33.0, ..base },
+            "gentle" => Params { rain_m_s: 2e-5, dissolve_per_s: 0.1, deposit_per_s: 0.2, ..base },
+            _ => return None,
+        })
+    }
+
+    /// Checks every field against its range.
+    pub fn check(&self) -> Result<(), ParamError> {
+        let within = |field, value: f64, lo: f64, hi: f64, range| {
+            if value.is_finite() && (lo..=hi).contains(&value) {
+                Ok(())
+            } else {
+                Err(ParamError { field, value, range })
+            }
+        };
+        within("rain_m_s", self.rain_m_s, 0.0, 1e-2, "[0, 0.01] m/s")?;
+        within("evaporation_per_s", self.evaporation_per_s, 0.0, 1.0, "[0, 1] per s")?;
+        within("capacity", self.capacity, 0.0, 10.0, "[0, 10]")?;
+        within("capacity_depth_m", self.capacity_depth_m, 1e-3, 100.0, "[0.001, 100] m")?;
+        within("min_slope", self.min_slope, 0.0, 1.0, "[0, 1]")?;
+        within("dissolve_per_s", self.dissolve_per_s, 0.0, 10.0, "[0, 10] per s")?;
+        within("deposit_per_s", self.deposit_per_s, 0.0, 10.0, "[0, 10] per s")?;
+        within("talus_deg", self.talus_deg, 0.0, 89.0, "[0, 89] degrees")?;
+        within("thermal_per_s", self.thermal_per_s, 0.0, 10.0, "[0, 10] per s")?;
+        within("hardness", self.hardness, 1.0, 1e6, "[1, 10⁶]")?;
+        within("gravity_m_s2", self.gravity_m_s2, 0.1, 30.0, "[0.1, 30] m/s²")?;
+        within("dt_s", self.dt_s, 1e-4, 1e4, "[10⁻⁴, 10⁴] s")?;
+        within("cfl", self.cfl, 0.05, 0.5, "[0.05, 0.5]")?;
+        Ok(())
+    }
+}

@@ -1,0 +1,393 @@
+//! The CPU reference of an erosion step: shallow water on eight virtual pipes (Mei, Decaudin & Hu
+//! 2007) with the fixes of `REFERENCES.md`, sediment carried in flux form, dissolving and
+//! deposition by a capacity that grows with speed, slope and depth, and thermal sliding beyond a
+//! talus angle. Two passes per step, gather-only, as the GPU's two kernels will be:
+//!
+//! 1. **outflows** (per cell, from the state at the step's start): each pipe's flux accelerated by
+//!    the difference of water surface heights, f ← max(0, f + Δt·g·c·Δh/l) with c the pipe's
+//!    cross-section (its weight × the cell's width across it × the water depth), then all scaled
+//!    by K = min(1, water / (Σf·Δt)) so that a cell never sends more than it holds (scaling, not
+//!    clamping: no water is made); the volumes sent, in whole units, floored; the sediment sent
+//!    with them, in proportion (flux form, upwind); soil sliding to lower neighbours beyond the
+//!    talus angle.
+//! 2. **update** (per cell): what it sent subtracted and what its neighbours sent it added (each
+//!    transfer is one integer that one cell loses exactly as the other gains); velocity from the
+//!    net flow over the mean depth (zero below 0.1 mm of water); capacity; dissolving or
+//!    deposition; evaporation; rain.
+//!
+//! Volumes are integers: water, suspended sediment and the terrain's change per cell in units of
+//! [`Grid::unit_m3`] (10 µm of depth on the smallest cell), so water and soil are conserved
+//! **exactly**, by construction: the budgets (rain in, evaporation and border or sink outflow
+//! out) explain every unit. The float parts (fluxes, velocities, capacities) are f64, computed in
+//! the same order whatever the thread count: the same inputs give the same result bit for bit.
+//!
+//! The time step is the one asked for, or less where the CFL bound requires:
+//! Δt ≤ CFL · l_min / (|v|_max + √(g·d_max)).
+
+// The pipe loops index several per-pipe arrays by the pipe's number, as the WGSL kernels will.
+#![allow(clippy::needless_range_loop)]
+
+use rayon::prelude::*;
+
+use super::grid::{Grid, MAX_UNITS, PIPE_WEIGHT, PIPES};
+use super::params::{Border, Params};
+
+/// Below this mean water depth a cell's velocity is taken as zero, metres.
+pub const DRY_M: f64 = 1e-4;
+
+/// The state of a run.
+#[derive(Clone, Debug, PartialEq)]
+pub struct State {
+    /// Water per cell, units.
+    pub water: Vec<i64>,
+    /// Suspended sediment per cell, units.
+    pub sediment: Vec<i64>,
+    /// The terrain's change per cell, units (height change = units × unit_m3 / area).
+    pub soil: Vec<i64>,
+    /// Per cell, the flux through each pipe, m³/s.
+    pub flux_m3_s: Vec<[f64; 8]>,
+    /// Per cell, the speed of its water, m/s (for the next step's CFL bound).
+    pub speed_m_s: Vec<f64>,
+}
+
+/// Where water and soil went, in units, since the run began.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Budget {
+    /// Rain added.
+    pub rain_in: i64,
+    /// Water evaporated.
+    pub evaporated: i64,
+    /// Water that left through an open border or into a sink.
+    pub water_out: i64,
+    /// Sediment that left with it.
+    pub soil_out: i64,
+}
+
+/// One step's figures.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct StepReport {
+    /// The step taken, seconds.
+    pub dt_s: f64,
+    /// The CFL bound at the step's start, seconds (∞ without water).
+    pub cfl_bound_s: f64,
+    /// The largest water speed after the step, m/s.
+    pub max_speed_m_s: f64,
+    /// The largest water depth after the step, metres.
+    pub max_depth_m: f64,
+}
+
+/// An erosion run on a grid.
+#[derive(Clone, Debug)]
+pub struct Run {
+    /// The grid.
+    pub grid: Grid,
+    /// The parameters.
+    pub params: Params,
+    /// The state.
+    pub state: State,
+    /// The budget so far.
+    pub budget: Budget,
+    /// Steps taken.
+    pub steps: u64,
+    /// Simulated time, seconds.
+    pub simulated_s: f64,
+    unit_m3: f64,
+}
+
+/// What one cell sends through each pipe in a step, units.
+#[derive(Clone, Copy, Debug, Default)]
+struct Outflow {
+    water: [i64; 8],
+    sediment: [i64; 8],
+    soil: [i64; 8],
+}
+
+impl Run {
+    /// A run on `grid` (dry, nothing moved yet). The parameters are checked.
+    pub fn new(grid: Grid, params: Params) -> Result<Run, super::params::ParamError> {
+        params.check()?;
+        let n = grid.len();
+        let unit_m3 = grid.unit_m3();
+        Ok(Run {
+            state: State {
+                water: vec![0; n],
+                sediment: vec![0; n],
+                soil: vec![0; n],
+                flux_m3_s: vec![[0.0; 8]; n],
+                speed_m_s: vec![0.0; n],
+            },
+            grid,
+            params,
+            budget: Budget::default(),
+            steps: 0,
+            simulated_s: 0.0,
+            unit_m3,
+        })
+    }
+
+    /// The volume of one unit, m³.
+    pub fn unit_m3(&self) -> f64 {
+        self.unit_m3
+    }
+
+    /// The terrain height of cell `i` now, metres (NaN for a no-data cell).
+    pub fn height_m(&self, i: usize) -> f64 {
+        self.grid.base_m[i] + self.state.soil[i] as f64 * self.unit_m3 / self.grid.area_m2[i]
+    }
+
+    /// The water depth of cell `i`, metres.
+    pub fn depth_m(&self, i: usize) -> f64 {
+        self.state.water[i] as f64 * self.unit_m3 / self.grid.area_m2[i]
+    }
+
+    /// The terrain's change per cell, metres (0 at no-data cells).
+    pub fn delta_m(&self) -> Vec<f64> {
+        (0..self.grid.len()).map(|i| self.state.soil[i] as f64 * self.unit_m3 / self.grid.area_m2[i]).collect()
+    }
+
+    /// Water and soil (terrain change + sediment) held now, units.
+    pub fn totals(&self) -> (i64, i64) {
+        let water = self.state.water.iter().sum();
+        let soil = self.state.soil.iter().sum::<i64>() + self.state.sediment.iter().sum::<i64>();
+        (water, soil)
+    }
+
+    /// What the budget does not explain, units: (water, soil). Zero by construction; the tests
+    /// hold the run to it.
+    pub fn unexplained(&self) -> (i64, i64) {
+        let (water, soil) = self.totals();
+        let b = &self.budget;
+        (water - (b.rain_in - b.evaporated - b.water_out), soil + b.soil_out)
+    }
+
+    /// The CFL bound on the step at the current state, seconds (∞ when nothing moves).
+    pub fn cfl_bound_s(&self) -> f64 {
+        let g = self.params.gravity_m_s2;
+        // The depth rain adds this step counts too (it is there before the next outflows).
+        let rain = self.params.rain_m_s * self.params.dt_s;
+        let mut bound = f64::INFINITY;
+        for i in 0..self.grid.len() {
+            let d = self.depth_m(i) + rain;
+            let speed = self.state.speed_m_s[i] + (g * d).sqrt();
+            if speed > 0.0 {
+                let l = self.grid.dx_m[i].min(self.grid.dy_m[i]);
+                bound = bound.min(self.params.cfl * l / speed);
+            }
+        }
+        bound
+    }
+
+    /// One step.
+    pub fn step(&mut self) -> StepReport {
+        let cfl_bound_s = self.cfl_bound_s();
+        let dt = self.params.dt_s.min(cfl_bound_s);
+        let outflows: Vec<(Outflow, [f64; 8])> =
+            (0..self.grid.len()).into_par_iter().map(|i| self.outflow(i, dt)).collect();
+        let updates: Vec<(i64, i64, i64, f64, Budget)> =
+            (0..self.grid.len()).into_par_iter().map(|i| self.update(i, dt, &outflows)).collect();
+        let mut report = StepReport { dt_s: dt, cfl_bound_s, max_speed_m_s: 0.0, max_depth_m: 0.0 };
+        // Fixed-order reduction (integers: exact whatever the order anyway).
+        for (i, ((water, sediment, soil, speed, budget), (_, flux))) in updates.into_iter().zip(outflows).enumerate() {
+            self.state.water[i] = water;
+            self.state.sediment[i] = sediment;
+            self.state.soil[i] = soil;
+            self.state.speed_m_s[i] = speed;
+            self.state.flux_m3_s[i] = flux;
+            self.budget.rain_in += budget.rain_in;
+            self.budget.evaporated += budget.evaporated;
+            self.budget.water_out += budget.water_out;
+            self.budget.soil_out += budget.soil_out;
+            report.max_speed_m_s = report.max_speed_m_s.max(speed);
+        }
+        report.max_depth_m = (0..self.grid.len()).map(|i| self.depth_m(i)).fold(0.0, f64::max);
+        self.steps += 1;
+        self.simulated_s += dt;
+        report
+    }
+
+    /// Pass 1 at cell `i`: what it sends through each pipe, and its new fluxes.
+    fn outflow(&self, i: usize, dt: f64) -> (Outflow, [f64; 8]) {
+        let mut out = Outflow::default();
+        let mut flux = [0.0; 8];
+        if self.grid.is_sink(i) {
+            return (out, flux);
+        }
+        let g = self.params.gravity_m_s2;
+        let grid = &self.grid;
+        let h = self.height_m(i);
+        let d = self.depth_m(i);
+        let open = self.params.border == Border::Open;
+        // The neighbour's terrain and water surface (a sink or an open border: a dry cell at this
+        // cell's terrain height); None where no pipe runs (a closed border).
+        let other = |k: usize| -> Option<(f64, f64)> {
+            match grid.neighbour(i, k) {
+                Some(n) if !grid.is_sink(n) => {
+                    let hn = self.height_m(n);
+                    Some((hn, hn + self.depth_m(n)))
+                }
+                Some(_) => Some((h, h)),
+                None if open => Some((h, h)),
+                None => None,
+            }
+        };
+        let mut total_m3 = 0.0;
+        for (k, f) in flux.iter_mut().enumerate() {
+            let Some((_, surface)) = other(k) else { continue };
+            let l = grid.pipe_length_m(i, k);
+            let (dx, dy) = PIPES[k];
+            let across = match (dx, dy) {
+                (0, _) => grid.dx_m[i],
+                (_, 0) => grid.dy_m[i],
+                _ => 0.5 * l,
+            };
+            let section = PIPE_WEIGHT[k] * across * d;
+            *f = (self.state.flux_m3_s[i][k] + dt * g * section * (h + d - surface) / l).max(0.0);
+            total_m3 += *f * dt;
+        }
+        let held_m3 = self.state.water[i] as f64 * self.unit_m3;
+        if total_m3 > held_m3 {
+            let scale = if total_m3 > 0.0 { held_m3 / total_m3 } else { 0.0 };
+            for f in &mut flux {
+                *f *= scale;
+            }
+        }
+        let water = self.state.water[i];
+        let mut sent = 0;
+        for k in 0..8 {
+            out.water[k] = ((flux[k] * dt / self.unit_m3).floor() as i64).clamp(0, water - sent);
+            sent += out.water[k];
+        }
+        if water > 0 {
+            let sediment = i128::from(self.state.sediment[i]);
+            for k in 0..8 {
+                out.sediment[k] = (sediment * i128::from(out.water[k]) / i128::from(water)) as i64;
+            }
+        }
+        // Thermal sliding towards lower neighbours beyond the talus angle.
+        let rate = (self.params.thermal_per_s * dt).min(1.0) / self.hardness(i);
+        if rate > 0.0 {
+            let tan = self.params.talus_deg.to_radians().tan();
+            let weights: f64 = PIPE_WEIGHT.iter().sum();
+            for k in 0..8 {
+                let Some(n) = grid.neighbour(i, k).filter(|n| !grid.is_sink(*n)) else { continue };
+                let excess = h - self.height_m(n) - grid.pipe_length_m(i, k) * tan;
+                if excess > 0.0 {
+                    let volume_m3 = rate * PIPE_WEIGHT[k] / weights * 0.5 * excess * grid.area_m2[i];
+                    out.soil[k] = (volume_m3 / self.unit_m3).floor() as i64;
+                }
+            }
+            // The terrain's change stays within the units a cell may hold.
+            let sum: i64 = out.soil.iter().sum();
+            let room = self.state.soil[i] + MAX_UNITS;
+            if sum > room {
+                for s in &mut out.soil {
+                    *s = (i128::from(*s) * i128::from(room.max(0)) / i128::from(sum)) as i64;
+                }
+            }
+        }
+        (out, flux)
+    }
+
+    fn hardness(&self, i: usize) -> f64 {
+        self.grid.hardness.as_ref().map_or(self.params.hardness, |h| h[i].max(1.0))
+    }
+
+    /// Pass 2 at cell `i`: its new water, sediment and soil, its speed, and what it adds to the
+    /// budget.
+    fn update(&self, i: usize, dt: f64, outflows: &[(Outflow, [f64; 8])]) -> (i64, i64, i64, f64, Budget) {
+        let grid = &self.grid;
+        let mut budget = Budget::default();
+        // What flows in: each neighbour's transfer through its pipe towards this cell.
+        let (mut water_in, mut sediment_in, mut soil_in) = (0i64, 0i64, 0i64);
+        let (mut flow_x, mut flow_y) = (0.0, 0.0);
+        for k in 0..8 {
+            if let Some(n) = grid.neighbour(i, k) {
+                let back = &outflows[n].0;
+                water_in += back.water[k ^ 1];
+                sediment_in += back.sediment[k ^ 1];
+                soil_in += back.soil[k ^ 1];
+                let (dx, dy) = PIPES[k];
+                let net = (outflows[i].0.water[k] - back.water[k ^ 1]) as f64;
+                flow_x += net * f64::from(dx);
+                flow_y += net * f64::from(dy);
+            }
+        }
+        let own = &outflows[i].0;
+        let sent_water: i64 = own.water.iter().sum();
+        let sent_sediment: i64 = own.sediment.iter().sum();
+        let sent_soil: i64 = own.soil.iter().sum();
+        if grid.is_sink(i) {
+            // Everything that flows in leaves the run here.
+            budget.water_out += water_in;
+            budget.soil_out += sediment_in + soil_in;
+            return (0, 0, 0, 0.0, budget);
+        }
+        // Through an open border: what went out through pipes with no cell beyond.
+        for k in 0..8 {
+            if grid.neighbour(i, k).is_none() {
+                budget.water_out += own.water[k];
+                budget.soil_out += own.sediment[k];
+            }
+        }
+        let before = self.state.water[i];
+        let mut water = before - sent_water + water_in;
+        let mut sediment = self.state.sediment[i] - sent_sediment + sediment_in;
+        let mut soil = self.state.soil[i] - sent_soil + soil_in;
+        // Velocity: the net flow through the cell over its mean depth.
+        let area = grid.area_m2[i];
+        let mean_depth = 0.5 * (before + water) as f64 * self.unit_m3 / area;
+        let speed = if mean_depth < DRY_M || dt <= 0.0 {
+            0.0
+        } else {
+            let u = 0.5 * flow_x * self.unit_m3 / dt / (grid.dy_m[i] * mean_depth);
+            let v = 0.5 * flow_y * self.unit_m3 / dt / (grid.dx_m[i] * mean_depth);
+            (u * u + v * v).sqrt()
+        };
+        // Capacity (a depth of sediment, at most the water's): speed, slope and depth.
+        let slope = self.sin_slope(i).max(self.params.min_slope);
+        let capacity_m =
+            (self.params.capacity * slope * speed * mean_depth.min(self.params.capacity_depth_m)).min(mean_depth);
+        let carried_m = sediment as f64 * self.unit_m3 / area;
+        let erodes = grid.erosion_mask.as_ref().map_or(1.0, |m| m[i].clamp(0.0, 1.0));
+        if capacity_m > carried_m {
+            let rate = (self.params.dissolve_per_s * dt).min(1.0) * erodes / self.hardness(i);
+            let taken =
+                (((capacity_m - carried_m) * rate * area / self.unit_m3).floor() as i64).min(soil + MAX_UNITS).max(0);
+            soil -= taken;
+            sediment += taken;
+        } else {
+            let rate = (self.params.deposit_per_s * dt).min(1.0);
+            let laid = (((carried_m - capacity_m) * rate * area / self.unit_m3).floor() as i64).clamp(0, sediment);
+            sediment -= laid;
+            soil += laid;
+        }
+        // Evaporation; water gone, its sediment settles.
+        let evaporated =
+            ((water as f64 * (self.params.evaporation_per_s * dt).min(1.0)).floor() as i64).clamp(0, water);
+        water -= evaporated;
+        budget.evaporated += evaporated;
+        if water == 0 && sediment > 0 {
+            soil += sediment;
+            sediment = 0;
+        }
+        // Rain (for the next step's outflows), within the units a cell may hold.
+        let mask = grid.rain_mask.as_ref().map_or(1.0, |m| m[i].clamp(0.0, 1.0));
+        let rain =
+            ((self.params.rain_m_s * dt * mask * area / self.unit_m3).floor() as i64).clamp(0, MAX_UNITS - water);
+        water += rain;
+        budget.rain_in += rain;
+        (water, sediment, soil, speed, budget)
+    }
+
+    /// sin α of the terrain's slope at cell `i` (central differences; a missing or no-data
+    /// neighbour is replaced by the cell itself).
+    fn sin_slope(&self, i: usize) -> f64 {
+        let grid = &self.grid;
+        let h = self.height_m(i);
+        let at = |k: usize| grid.neighbour(i, k).filter(|n| !grid.is_sink(*n)).map_or(h, |n| self.height_m(n));
+        let gx = (at(0) - at(1)) / (2.0 * grid.dx_m[i]);
+        let gy = (at(2) - at(3)) / (2.0 * grid.dy_m[i]);
+        let tan = (gx * gx + gy * gy).sqrt();
+        tan / (1.0 + tan * tan).sqrt()
+    }
+}
