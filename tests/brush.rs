@@ -277,6 +277,8 @@ fn the_gpu_rasteriser_agrees_with_the_cpu_reference_for_every_tool_across_a_face
         stroke(Tool::Ramp, 0.8, Falloff::Smooth, &corner),
         stroke(Tool::Restore, 0.4, Falloff::Smooth, &edge),
         stroke(Tool::Smooth, 0.7, Falloff::Smooth, &corner),
+        // Inside a face (the GPU's ring reads; near a face edge the CPU's).
+        stroke(Tool::Smooth, 0.9, Falloff::Spherical, &[[10.0, 20.0], [10.05, 20.1]]),
         // The front face's centre, where QSC's four sectors meet.
         stroke(Tool::Raise, 20.0, Falloff::Linear, &[[0.0, -0.05], [0.02, 0.05]]),
     ];

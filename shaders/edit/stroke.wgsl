@@ -3,8 +3,10 @@
 // sync): each sample within the radius of a dab is folded through the stroke's dabs in order.
 // Differences from the CPU reference, which the tolerance of the test covers: the fold is in f32
 // (the CPU's in f64), and the sample's position is interpolated between exact points every 1 to 8
-// samples (the CPU's is exact), relative to the tile's origin O. Smooth is not rasterised here (it reads
-// the terrain around each sample; the CPU does it).
+// samples (the CPU's is exact), relative to the tile's origin O. Smooth reads the terrain H on its
+// ring through the tile's grid extended by a margin from its neighbours (the CPU, through the
+// geodetic position of each ring point): each ring point's offset in the tangent plane is turned
+// into grid steps by the local Jacobian of the sample positions.
 //!include shared/noise.wgsl
 
 const N: u32 = 257u;
@@ -18,7 +20,7 @@ struct Tile {
     // The samples a dab can reach: i0, i1, j0, j1 (inclusive; i0 > i1: none).
     window: vec4<u32>,
     // First dab (in `dabs`), dab count, tool (0 raise, 1 lower, 2 noise, 3 restore, 4 flatten,
-    // 5 ramp), falloff (0 smooth, 1 linear, 2 spherical, 3 tip).
+    // 5 ramp, 6 smooth), falloff (0 smooth, 1 linear, 2 spherical, 3 tip).
     head: vec4<u32>,
     // Noise: the lattice cell of O at the stroke's wavelength (xyz) and its seed (w).
     cell: vec4<u32>,
@@ -36,6 +38,11 @@ struct Tile {
     // Where the face's diagonals cross the tile, in samples: a point (i, j) of the tile is on
     // the main diagonal where i − j = x, on the other where i + j = y (NO_DIAGONAL: nowhere).
     diag: vec4<i32>,
+    // Smooth: O in ECEF (xyz, metres) and a²/b² (w), for the ellipsoid normal.
+    origin: vec4<f32>,
+    // Smooth: the first value of the tile's extended H grid (in `ext`), its edge in samples, its
+    // margin in samples; the ring's radius in metres (bitcast).
+    ext_grid: vec4<u32>,
 }
 
 @group(0) @binding(0) var<storage, read> tiles: array<Tile>;
@@ -47,6 +54,73 @@ struct Tile {
 @group(0) @binding(3) var<storage, read> below: array<f32>;
 // Per tile, δ: read before the stroke, written after it.
 @group(0) @binding(4) var<storage, read_write> delta: array<f32>;
+// Smooth: per tile, H over its grid and a margin around it (NODATA: none).
+@group(0) @binding(5) var<storage, read> ext: array<f32>;
+
+// H at a fractional position of a tile's extended grid (bilinear; NODATA where a corner has none).
+fn ext_height(tile: Tile, u: f32, v: f32) -> f32 {
+    let e = tile.ext_grid.y;
+    let uc = clamp(u, 0.0, f32(e - 1u) - 0.001);
+    let vc = clamp(v, 0.0, f32(e - 1u) - 0.001);
+    let a = u32(floor(uc));
+    let b = u32(floor(vc));
+    let s = uc - f32(a);
+    let t = vc - f32(b);
+    let base = tile.ext_grid.x;
+    let h00 = ext[base + b * e + a];
+    let h10 = ext[base + b * e + a + 1u];
+    let h01 = ext[base + (b + 1u) * e + a];
+    let h11 = ext[base + (b + 1u) * e + a + 1u];
+    if min(min(h00, h10), min(h01, h11)) <= NODATA {
+        return NODATA;
+    }
+    return mix(mix(h00, h10, s), mix(h01, h11, s), t);
+}
+
+// Smooth: the mean of H over 8 points on the ring around sample (i, j) at `p` (NODATA: none has
+// terrain). Ring offsets in the ellipsoid's tangent plane become grid steps through the local
+// Jacobian of the sample positions (least squares: the plane's two axes onto the grid's).
+fn ring_mean(tile: Tile, i: u32, j: u32, p: vec3<f32>) -> f32 {
+    let i0 = select(i - 1u, i, i == 0u);
+    let i1 = min(i + 1u, N - 1u);
+    let j0 = select(j - 1u, j, j == 0u);
+    let j1 = min(j + 1u, N - 1u);
+    let dpi = (sample_local(tile, i1, j) - sample_local(tile, i0, j)) / f32(i1 - i0);
+    let dpj = (sample_local(tile, i, j1) - sample_local(tile, i, j0)) / f32(j1 - j0);
+    let q = tile.origin.xyz + p;
+    let n = normalize(vec3<f32>(q.x, q.y, q.z * tile.origin.w));
+    var east = cross(vec3<f32>(0.0, 0.0, 1.0), n);
+    if length(east) < 1e-6 {
+        east = vec3<f32>(0.0, 1.0, 0.0);
+    }
+    east = normalize(east);
+    let north = cross(n, east);
+    let a11 = dot(dpi, dpi);
+    let a12 = dot(dpi, dpj);
+    let a22 = dot(dpj, dpj);
+    let det = a11 * a22 - a12 * a12;
+    let ring = bitcast<f32>(tile.ext_grid.w);
+    let margin = f32(tile.ext_grid.z);
+    var sum = 0.0;
+    var count = 0.0;
+    for (var k = 0u; k < 8u; k++) {
+        let theta = 6.283185307179586 * f32(k) / 8.0;
+        let o = ring * (cos(theta) * east + sin(theta) * north);
+        let b1 = dot(dpi, o);
+        let b2 = dot(dpj, o);
+        let di = (a22 * b1 - a12 * b2) / det;
+        let dj = (a11 * b2 - a12 * b1) / det;
+        let h = ext_height(tile, margin + f32(i) + di, margin + f32(j) + dj);
+        if h > NODATA {
+            sum += h;
+            count += 1.0;
+        }
+    }
+    if count == 0.0 {
+        return NODATA;
+    }
+    return sum / count;
+}
 
 // edit::stroke::Falloff::weight.
 fn falloff_weight(falloff: u32, t: f32) -> f32 {
@@ -110,14 +184,28 @@ fn apply_stroke(@builtin(global_invocation_id) id: vec3<u32>) {
     let r = tile.params.x;
     let strength = tile.params.y;
     let tool = tile.head.z;
-    // Flatten and ramp: the δ that brings the terrain to the target (T − B).
+    // Flatten, ramp and smooth: the δ that brings the terrain to the target (T − B).
     var goal = 0.0;
-    if tool == 4u || tool == 5u {
+    if tool >= 4u {
         let b = below[k];
         if b <= NODATA {
             return;
         }
         var aim = tile.params.z;
+        if tool == 6u {
+            // Only where a dab reaches (the ring costs eight reads).
+            var reached = false;
+            for (var d = 0u; d < tile.head.y; d++) {
+                reached = reached || length(p - dabs[tile.head.x + d].xyz) < tile.params.x;
+            }
+            if !reached {
+                return;
+            }
+            aim = ring_mean(tile, i, j, p);
+            if aim <= NODATA {
+                return;
+            }
+        }
         if tool == 5u {
             let ab = tile.ramp_b.xyz - tile.ramp_a.xyz;
             let t = clamp(dot(p - tile.ramp_a.xyz, ab) / dot(ab, ab), 0.0, 1.0);

@@ -108,7 +108,7 @@ pub fn bench_brush(strokes: usize, level: u8, gpu: bool) -> Result<String, Strin
         }
         let _ = writeln!(
             out,
-            "rebuild on the GPU ({}; smooth on the CPU): {gpu_s:.2} s, largest |GPU − CPU| over the layer {worst:.2e} m",
+            "rebuild on the GPU ({}): {gpu_s:.2} s, largest |GPU − CPU| over the layer {worst:.2e} m",
             ctx.describe()
         );
     }

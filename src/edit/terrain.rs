@@ -126,6 +126,14 @@ impl Snapshot {
         south + (north - south) * fv
     }
 
+    /// H at a global sample (i, j) of a face at the snapshot's level, indices off the face folded
+    /// onto the adjacent one (NaN beyond a cube corner or outside the snapshot).
+    pub fn sample_global(&self, face: crate::ecm::Face, i: i64, j: i64) -> f64 {
+        let Some((f, i, j)) = crate::store::grid::fold_sample(face, self.level, i, j) else { return f64::NAN };
+        let (q, li, lj) = crate::store::grid::quad_of_sample(f, self.level, i, j);
+        self.tiles.get(&q).map_or(f64::NAN, |t| t[lj as usize * N + li as usize])
+    }
+
     /// H at sample k of `quad` (a snapshot quad: exact, no interpolation).
     pub fn sample(&self, quad: QuadId, k: usize) -> f64 {
         self.tiles.get(&quad).map_or(f64::NAN, |t| t[k])

@@ -2,7 +2,8 @@
 //! the tiles it touches, read back into the edit raster (which stays the cache the renderer
 //! uploads from). It agrees with the CPU reference ([`crate::edit::kernel::apply_to_tile`])
 //! within [`GPU_TOLERANCE`], not bit for bit: replay checks against the CPU. Smooth reads the
-//! terrain around each sample and is rasterised by the CPU reference here too.
+//! terrain on its ring from each tile's grid extended by a margin from its neighbours; tiles whose
+//! ring reaches across a face edge, or wider than [`MAX_MARGIN`] samples, go to the CPU reference.
 //!
 //! Every position the kernel sees is relative to its tile's origin O (the tile's centre sample),
 //! cast from f64: the tile's exact points (every 1 to 8 samples, at most [`LATTICE_M`] apart,
@@ -53,9 +54,21 @@ struct StrokeTile {
     ramp_b: [f32; 4],
     lat: [u32; 4],
     diag: [i32; 4],
+    origin: [f32; 4],
+    ext_grid: [u32; 4],
 }
 
-const _: () = assert!(std::mem::size_of::<StrokeTile>() == 16 * 9);
+const _: () = assert!(std::mem::size_of::<StrokeTile>() == 16 * 11);
+
+/// The largest margin of a tile's extended H grid (smooth), samples: a ring wider than this (a
+/// brush of more than about 500 sample spacings) is smoothed by the CPU reference.
+const MAX_MARGIN: u32 = 256;
+
+/// The margin a smoothing ring of `ring_m` needs around a tile at `level`, samples (QSC's sample
+/// spacing stays above half the level's mean).
+fn ring_margin(e: &crate::geodesy::Ellipsoid, level: u8, ring_m: f64) -> u32 {
+    (ring_m / (0.5 * crate::store::grid::spacing_m(e, level))).ceil() as u32 + 2
+}
 
 /// The step between a tile's exact points, in samples: the largest of 8, 4, 2 with the points at
 /// most [`LATTICE_M`] apart; 1 (every sample exact) at the face's centre, where QSC's four
@@ -146,7 +159,7 @@ impl StrokeKernel {
         };
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("stroke"),
-            entries: &[entry(0, true), entry(1, true), entry(2, true), entry(3, true), entry(4, false)],
+            entries: &[entry(0, true), entry(1, true), entry(2, true), entry(3, true), entry(4, false), entry(5, true)],
         });
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some("stroke"),
@@ -187,7 +200,7 @@ impl GpuRasteriser<'_> {
             Tool::Restore => 3,
             Tool::Flatten => 4,
             Tool::Ramp => 5,
-            Tool::Smooth => unreachable!("smooth is rasterised by the CPU"),
+            Tool::Smooth => 6,
         };
         let falloff = match stroke.falloff {
             Falloff::Smooth => 0,
@@ -201,7 +214,12 @@ impl GpuRasteriser<'_> {
             Target::Ramp { a, b, height_a_m, height_b_m } => (0.0, Some((a, b, height_a_m, height_b_m))),
             _ => (0.0, None),
         };
-        let reads_below = matches!(stroke.tool, Tool::Flatten | Tool::Ramp);
+        let reads_below = stroke.tool.reads_terrain();
+        let ring = match job.target {
+            Target::Smooth { ring_m } => Some(ring_m),
+            _ => None,
+        };
+        let mut ext: Vec<f32> = Vec::new();
         let mut heads = Vec::with_capacity(tiles.len());
         let mut lattice: Vec<[f32; 4]> = Vec::new();
         let mut dabs: Vec<[f32; 4]> = Vec::with_capacity(tiles.len() * job.dabs.len());
@@ -236,6 +254,24 @@ impl GpuRasteriser<'_> {
                 ramp_b: rb,
                 lat,
                 diag: diagonals(*q),
+                origin: v4(origin, e.a_m() * e.a_m() / (e.b_m() * e.b_m())),
+                ext_grid: match ring {
+                    Some(ring_m) => {
+                        let s = job.snapshot.expect("smooth has a snapshot");
+                        let m = ring_margin(e, q.level, ring_m);
+                        let edge = GRID + 2 * m;
+                        let first = ext.len() as u32;
+                        let (i0, j0) = (i64::from(q.x) * 256 - i64::from(m), i64::from(q.y) * 256 - i64::from(m));
+                        for b in 0..i64::from(edge) {
+                            for a in 0..i64::from(edge) {
+                                let h = s.sample_global(q.face, i0 + a, j0 + b);
+                                ext.push(if h.is_finite() { h as f32 } else { -3.0e37 });
+                            }
+                        }
+                        [first, edge, m, (ring_m as f32).to_bits()]
+                    }
+                    None => [0; 4],
+                },
             });
             if reads_below {
                 let s = job.snapshot.expect("flatten and ramp have a snapshot");
@@ -261,6 +297,7 @@ impl GpuRasteriser<'_> {
         let dabs_buffer = storage("stroke dabs", bytemuck::cast_slice(&dabs), none);
         let below_buffer = storage("stroke below", bytemuck::cast_slice(&below), none);
         let delta_buffer = storage("stroke delta", bytemuck::cast_slice(&delta), wgpu::BufferUsages::COPY_SRC);
+        let ext_buffer = storage("stroke ext", bytemuck::cast_slice(&ext), none);
         let bytes = (delta.len() * 4) as u64;
         let read = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("stroke read"),
@@ -272,7 +309,7 @@ impl GpuRasteriser<'_> {
             device,
             &self.kernel.layout,
             "stroke",
-            &[&heads_buffer, &lattice_buffer, &dabs_buffer, &below_buffer, &delta_buffer],
+            &[&heads_buffer, &lattice_buffer, &dabs_buffer, &below_buffer, &delta_buffer, &ext_buffer],
         );
         let mut encoder = device.create_command_encoder(&Default::default());
         {
@@ -309,8 +346,32 @@ impl Rasteriser for GpuRasteriser<'_> {
             // No terrain under the target's points: the stroke changes nothing (as on the CPU).
             return Ok(());
         }
-        if job.stroke.tool == Tool::Smooth {
-            return CpuRasteriser.rasterise(job, tiles);
+        if let Target::Smooth { ring_m } = job.target {
+            // Tiles whose ring reaches across a face edge (where the grid's index space bends, so
+            // that grid steps from the tile's Jacobian miss the ring) and rings wider than the
+            // largest margin: the CPU reference. The rest on the GPU.
+            let on_cpu = |q: &QuadId| {
+                let m = ring_margin(job.ellipsoid, q.level, ring_m);
+                let last = (256i64 << q.level) - 1;
+                let (x0, y0) = (i64::from(q.x) * 256 - i64::from(m), i64::from(q.y) * 256 - i64::from(m));
+                let (x1, y1) = (x0 + 256 + 2 * i64::from(m), y0 + 256 + 2 * i64::from(m));
+                m > MAX_MARGIN || x0 < 0 || y0 < 0 || x1 > last || y1 > last
+            };
+            let (mut cpu, mut gpu): (Vec<_>, Vec<_>) = tiles.iter_mut().partition(|(q, _)| on_cpu(q));
+            let mut cpu_tiles: Vec<(QuadId, Vec<f32>)> = cpu.iter_mut().map(|(q, t)| (*q, std::mem::take(t))).collect();
+            CpuRasteriser.rasterise(job, &mut cpu_tiles)?;
+            for ((_, t), (_, done)) in cpu.iter_mut().zip(cpu_tiles) {
+                *t = done;
+            }
+            let mut gpu_tiles: Vec<(QuadId, Vec<f32>)> = gpu.iter_mut().map(|(q, t)| (*q, std::mem::take(t))).collect();
+            // Smooth's extended grids are large: fewer tiles per dispatch.
+            for chunk in gpu_tiles.chunks_mut(32) {
+                self.dispatch(job, chunk).map_err(|e| e.to_string())?;
+            }
+            for ((_, t), (_, done)) in gpu.iter_mut().zip(gpu_tiles) {
+                *t = done;
+            }
+            return Ok(());
         }
         for chunk in tiles.chunks_mut(TILES_PER_DISPATCH) {
             self.dispatch(job, chunk).map_err(|e| e.to_string())?;
