@@ -373,6 +373,16 @@ enum Bench {
         #[arg(long)]
         gpu: bool,
     },
+    /// Erosion: cell-steps per second of the CPU reference on square grids, the bytes a step
+    /// moves, and the error against the step size.
+    Erosion {
+        /// Grid sizes, cells a side.
+        #[arg(long, value_delimiter = ',', default_value = "256,512,1024")]
+        sizes: Vec<usize>,
+        /// Steps timed per grid.
+        #[arg(long, default_value_t = 20)]
+        steps: u64,
+    },
     /// A stroke's latency in the workstation: pointer release to the updated image read back
     /// (rasterise, recompose, draw), per tool, on the Moon sample session.
     BrushLatency {
@@ -825,6 +835,9 @@ fn run(args: Args) -> Result<ExitCode> {
                 report.level,
                 report.valid
             );
+        }
+        Command::Bench { bench: Bench::Erosion { sizes, steps } } => {
+            print!("{}", cli::bench_erosion(&sizes, steps).map_err(anyhow::Error::msg)?);
         }
         Command::Bench { bench: Bench::BrushLatency { project, rounds, width, height } } => {
             print!("{}", cli::bench_brush_latency(&project, rounds, width, height).map_err(anyhow::Error::msg)?);

@@ -4,14 +4,16 @@
 //! - [`params`]: the parameters with their units and ranges, presets;
 //! - [`grid`]: the grid (terrain, areas, lengths, masks, hardness) and the fixed-point volume
 //!   unit;
-//! - [`sim`]: the step (two gather-only passes), the CFL bound, exact budgets.
+//! - [`sim`]: the step (two gather-only passes), the CFL bound, exact budgets;
+//! - [`region`]: a region of the planet (a box of a face's samples, folded across face edges) as
+//!   one grid, with its lengths and areas on the ellipsoid.
 //!
-//! Not built yet (see issue #15): the GPU kernels, the region assembled from a project's quads
-//! across face edges, the erosion layer and its cache, `terrafuse erode`, the workstation panel,
+//! Not built yet (see issue #15): the GPU kernels, the erosion layer and its cache, `terrafuse erode`, the workstation panel,
 //! the sample session and `terrafuse bench erosion`.
 
 pub mod grid;
 pub mod params;
+pub mod region;
 pub mod sim;
 
 pub use grid::Grid;

@@ -31,6 +31,10 @@ pub struct Params {
     pub talus_deg: f64,
     /// Thermal erosion: the fraction of the excess over the talus moved per second (0 … 10).
     pub thermal_per_s: f64,
+    /// Friction, the fraction of a pipe's flux lost per second (0 … 100): without it water on a
+    /// slope accelerates for ever (Mei et al.'s pipes have none); water on a slope of sin α
+    /// reaches about g·sin α / friction.
+    pub friction_per_s: f64,
     /// Hardness (≥ 1; dissolving and sliding are divided by it).
     pub hardness: f64,
     /// Gravity along the ellipsoid normal, m/s² (0.1 … 30).
@@ -86,6 +90,7 @@ impl Params {
             deposit_per_s: 0.5,
             talus_deg: 40.0,
             thermal_per_s: 0.1,
+            friction_per_s: 1.0,
             hardness: 1.0,
             gravity_m_s2,
             dt_s: 0.5,
@@ -119,6 +124,7 @@ impl Params {
         within("deposit_per_s", self.deposit_per_s, 0.0, 10.0, "[0, 10] per s")?;
         within("talus_deg", self.talus_deg, 0.0, 89.0, "[0, 89] degrees")?;
         within("thermal_per_s", self.thermal_per_s, 0.0, 10.0, "[0, 10] per s")?;
+        within("friction_per_s", self.friction_per_s, 0.0, 100.0, "[0, 100] per s")?;
         within("hardness", self.hardness, 1.0, 1e6, "[1, 10⁶]")?;
         within("gravity_m_s2", self.gravity_m_s2, 0.1, 30.0, "[0.1, 30] m/s²")?;
         within("dt_s", self.dt_s, 1e-4, 1e4, "[10⁻⁴, 10⁴] s")?;

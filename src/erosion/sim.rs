@@ -3,8 +3,9 @@
 //! deposition by a capacity that grows with speed, slope and depth, and thermal sliding beyond a
 //! talus angle. Two passes per step, gather-only, as the GPU's two kernels will be:
 //!
-//! 1. **outflows** (per cell, from the state at the step's start): each pipe's flux accelerated by
-//!    the difference of water surface heights, f ← max(0, f + Δt·g·c·Δh/l) with c the pipe's
+//! 1. **outflows** (per cell, from the state at the step's start): each pipe's flux, less its
+//!    friction, accelerated by the difference of water surface heights,
+//!    f ← max(0, f·(1 − k_f·Δt) + Δt·g·c·Δh/l) with c the pipe's
 //!    cross-section (its weight × the cell's width across it × the water depth), then all scaled
 //!    by K = min(1, water / (Σf·Δt)) so that a cell never sends more than it holds (scaling, not
 //!    clamping: no water is made); the volumes sent, in whole units, floored; the sediment sent
@@ -29,7 +30,7 @@
 
 use rayon::prelude::*;
 
-use super::grid::{Grid, MAX_UNITS, PIPE_WEIGHT, PIPES};
+use super::grid::{Grid, MAX_UNITS, PIPES};
 use super::params::{Border, Params};
 
 /// Below this mean water depth a cell's velocity is taken as zero, metres.
@@ -240,8 +241,9 @@ impl Run {
                 (_, 0) => grid.dy_m[i],
                 _ => 0.5 * l,
             };
-            let section = PIPE_WEIGHT[k] * across * d;
-            *f = (self.state.flux_m3_s[i][k] + dt * g * section * (h + d - surface) / l).max(0.0);
+            let section = grid.pipe_weight[k] * across * d;
+            let kept = self.state.flux_m3_s[i][k] * (1.0 - (self.params.friction_per_s * dt).min(1.0));
+            *f = (kept + dt * g * section * (h + d - surface) / l).max(0.0);
             total_m3 += *f * dt;
         }
         let held_m3 = self.state.water[i] as f64 * self.unit_m3;
@@ -267,12 +269,12 @@ impl Run {
         let rate = (self.params.thermal_per_s * dt).min(1.0) / self.hardness(i);
         if rate > 0.0 {
             let tan = self.params.talus_deg.to_radians().tan();
-            let weights: f64 = PIPE_WEIGHT.iter().sum();
+            let weights: f64 = grid.pipe_weight.iter().sum();
             for k in 0..8 {
                 let Some(n) = grid.neighbour(i, k).filter(|n| !grid.is_sink(*n)) else { continue };
                 let excess = h - self.height_m(n) - grid.pipe_length_m(i, k) * tan;
                 if excess > 0.0 {
-                    let volume_m3 = rate * PIPE_WEIGHT[k] / weights * 0.5 * excess * grid.area_m2[i];
+                    let volume_m3 = rate * grid.pipe_weight[k] / weights * 0.5 * excess * grid.area_m2[i];
                     out.soil[k] = (volume_m3 / self.unit_m3).floor() as i64;
                 }
             }
