@@ -11,8 +11,8 @@
 
 use bytemuck::{Pod, Zeroable};
 use glam::DVec3;
-use wgpu::util::DeviceExt;
 
+use super::compute::{compute_pipeline, shader_module, storage_buffer, storage_layout};
 use super::context::{GpuContext, GpuError};
 use super::terrain::bind_buffers;
 use crate::ecm::QuadId;
@@ -142,38 +142,9 @@ pub struct GpuRasteriser<'a> {
 impl StrokeKernel {
     /// Compiles the kernel.
     pub fn new(device: &wgpu::Device) -> Result<StrokeKernel, GpuError> {
-        let source = super::shaders::composed("edit/stroke.wgsl").map_err(GpuError::Shader)?;
-        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("stroke.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(source.into()),
-        });
-        let entry = |binding: u32, read_only: bool| wgpu::BindGroupLayoutEntry {
-            binding,
-            visibility: wgpu::ShaderStages::COMPUTE,
-            ty: wgpu::BindingType::Buffer {
-                ty: wgpu::BufferBindingType::Storage { read_only },
-                has_dynamic_offset: false,
-                min_binding_size: None,
-            },
-            count: None,
-        };
-        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("stroke"),
-            entries: &[entry(0, true), entry(1, true), entry(2, true), entry(3, true), entry(4, false), entry(5, true)],
-        });
-        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("stroke"),
-            bind_group_layouts: &[Some(&layout)],
-            immediate_size: 0,
-        });
-        let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some("stroke"),
-            layout: Some(&pipeline_layout),
-            module: &module,
-            entry_point: Some("apply_stroke"),
-            compilation_options: Default::default(),
-            cache: None,
-        });
+        let module = shader_module(device, "edit/stroke.wgsl")?;
+        let layout = storage_layout(device, "stroke", &[true, true, true, true, false, true]);
+        let pipeline = compute_pipeline(device, "stroke", &layout, &module, "apply_stroke");
         Ok(StrokeKernel { pipeline, layout, lattices: Default::default() })
     }
 
@@ -283,14 +254,7 @@ impl GpuRasteriser<'_> {
             delta.extend_from_slice(tile);
         }
         let device = self.device;
-        let storage = |label: &str, bytes: &[u8], extra: wgpu::BufferUsages| {
-            let contents = if bytes.is_empty() { &[0u8; 16][..] } else { bytes };
-            device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some(label),
-                contents,
-                usage: wgpu::BufferUsages::STORAGE | extra,
-            })
-        };
+        let storage = |label: &str, bytes: &[u8], extra| storage_buffer(device, label, bytes, extra);
         let none = wgpu::BufferUsages::empty();
         let heads_buffer = storage("stroke tiles", bytemuck::cast_slice(&heads), none);
         let lattice_buffer = storage("stroke lattice", bytemuck::cast_slice(&lattice), none);

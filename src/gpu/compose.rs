@@ -9,8 +9,8 @@
 
 use bytemuck::{Pod, Zeroable};
 use glam::DVec3;
-use wgpu::util::DeviceExt;
 
+use super::compute::{compute_pipeline, shader_module, storage_buffer, storage_layout};
 use super::context::GpuError;
 use super::terrain::bind_buffers;
 use super::uniforms::NO_SLOT;
@@ -244,55 +244,11 @@ pub(crate) struct ComposePass {
 
 impl ComposePass {
     pub(crate) fn new(device: &wgpu::Device) -> Result<ComposePass, GpuError> {
-        let source = super::shaders::composed("compose/compose.wgsl").map_err(GpuError::Shader)?;
-        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("compose.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(source.into()),
-        });
-        let entry = |binding: u32, read_only: bool| wgpu::BindGroupLayoutEntry {
-            binding,
-            visibility: wgpu::ShaderStages::COMPUTE,
-            ty: wgpu::BindingType::Buffer {
-                ty: wgpu::BufferBindingType::Storage { read_only },
-                has_dynamic_offset: false,
-                min_binding_size: None,
-            },
-            count: None,
-        };
-        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("compose"),
-            entries: &[
-                entry(0, true),
-                entry(1, true),
-                entry(2, true),
-                entry(3, true),
-                entry(4, true),
-                entry(5, true),
-                entry(6, false),
-                entry(7, false),
-            ],
-        });
-        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("compose"),
-            bind_group_layouts: &[Some(&layout)],
-            immediate_size: 0,
-        });
-        let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some("compose"),
-            layout: Some(&pipeline_layout),
-            module: &module,
-            entry_point: Some("compose"),
-            compilation_options: Default::default(),
-            cache: None,
-        });
-        let difference = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some("compose difference"),
-            layout: Some(&pipeline_layout),
-            module: &module,
-            entry_point: Some("compose_difference"),
-            compilation_options: Default::default(),
-            cache: None,
-        });
+        let module = shader_module(device, "compose/compose.wgsl")?;
+        let read_only = [true, true, true, true, true, true, false, false];
+        let layout = storage_layout(device, "compose", &read_only);
+        let pipeline = compute_pipeline(device, "compose", &layout, &module, "compose");
+        let difference = compute_pipeline(device, "compose difference", &layout, &module, "compose_difference");
         Ok(ComposePass { pipeline, difference, layout })
     }
 
@@ -308,15 +264,7 @@ impl ComposePass {
         if batch.is_empty() {
             return;
         }
-        let storage = |label: &str, bytes: &[u8]| {
-            // Bindings may not be empty: one zeroed element stands in.
-            let contents = if bytes.is_empty() { &[0u8; 32][..] } else { bytes };
-            device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some(label),
-                contents,
-                usage: wgpu::BufferUsages::STORAGE,
-            })
-        };
+        let storage = |label: &str, bytes: &[u8]| storage_buffer(device, label, bytes, wgpu::BufferUsages::empty());
         let jobs = storage("compose jobs", bytemuck::cast_slice(&batch.jobs));
         let layers = storage("compose layers", bytemuck::cast_slice(&batch.layers));
         let octaves = storage("compose octaves", bytemuck::cast_slice(&batch.octaves));

@@ -5,6 +5,7 @@
 pub mod brush;
 pub mod camera;
 pub mod compose;
+mod compute;
 pub mod context;
 pub mod data;
 mod quads;
