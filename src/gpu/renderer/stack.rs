@@ -86,8 +86,9 @@ impl Renderer {
         let ellipsoid = self.scene.ellipsoid;
         let name = spec.name.clone();
         let fail = |e: crate::edit::StrokeError| LayerError::field(&name, "strokes", e.to_string());
-        let below = self.scene.below(index).map_err(|e| LayerError::field(&name, "strokes", e))?;
-        let below = |q| below.heights_cpu(q);
+        let all = spec.strokes.iter().chain(std::iter::once(&stroke));
+        let below = self.terrain_below(index, all).map_err(|e| LayerError::field(&name, "strokes", e))?;
+        let below = |q| below.as_ref().map_or_else(|| crate::edit::ellipsoid_below(q), |s| s.heights_cpu(q));
         let uid = self.scene.stack.layers[index].uid;
         let raster = std::sync::Arc::make_mut(self.scene.edits.get_mut(&uid).expect("checked by edit_spec"));
         if stroke.level > raster.level {
@@ -127,8 +128,8 @@ impl Renderer {
         let name = spec.name.clone();
         let fail = |e: crate::edit::StrokeError| LayerError::field(&name, "strokes", e.to_string());
         let strokes = spec.strokes.clone();
-        let below = self.scene.below(index).map_err(|e| LayerError::field(&name, "strokes", e))?;
-        let below = |q| below.heights_cpu(q);
+        let below = self.terrain_below(index, strokes.iter()).map_err(|e| LayerError::field(&name, "strokes", e))?;
+        let below = |q| below.as_ref().map_or_else(|| crate::edit::ellipsoid_below(q), |s| s.heights_cpu(q));
         let raster = self.raster_mut(index);
         if applied < now {
             raster.undo_to(&strokes[..now], applied, &below).map_err(fail)?;
@@ -139,6 +140,16 @@ impl Renderer {
         }
         spec.applied = (applied < spec.strokes.len()).then_some(applied);
         self.finish_edit(index, spec)
+    }
+
+    /// The scene of the layers below edit layer `index`, when one of `strokes` reads the terrain
+    /// (only those call it: the others need no copy of the scene).
+    fn terrain_below<'a>(
+        &self,
+        index: usize,
+        mut strokes: impl Iterator<Item = &'a crate::edit::Stroke>,
+    ) -> Result<Option<crate::gpu::Scene>, String> {
+        if strokes.any(|s| s.tool.reads_terrain()) { self.scene.below(index).map(Some) } else { Ok(None) }
     }
 
     /// Edit layer `index`'s spec (an error for any other layer).
