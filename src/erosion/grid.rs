@@ -18,9 +18,10 @@ pub const PIPE_WEIGHT: [f64; 8] = [1.0; 8];
 pub const DEPTH_QUANTUM_M: f64 = 1e-5;
 
 /// The largest volume a cell may hold in units (water, sediment, or terrain change either way):
-/// 2³⁰ units, 10.7 km of depth on the smallest cell, so sums of a cell and its eight neighbours'
-/// transfers stay within i32 (the GPU's integers).
-pub const MAX_UNITS: i64 = 1 << 30;
+/// 2²⁷ units, 1 342 m of depth on the smallest cell, so that a cell's holding plus what its eight
+/// neighbours send it (each at most this) stays within i32, the GPU's integers. A cell that would
+/// hold more spills the excess out of the run, counted in the budget (see `sim`).
+pub const MAX_UNITS: i64 = 1 << 27;
 
 /// A region's grid, row by row from the south-west.
 #[derive(Clone, Debug)]

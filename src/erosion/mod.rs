@@ -11,6 +11,7 @@
 //! Not built yet (see issue #15): the GPU kernels, the erosion layer and its cache, `terrafuse erode`, the workstation panel,
 //! the sample session and `terrafuse bench erosion`.
 
+pub mod dither;
 pub mod grid;
 pub mod params;
 pub mod region;

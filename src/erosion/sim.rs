@@ -21,6 +21,11 @@
 //! **exactly**, by construction: the budgets (rain in, evaporation and border or sink outflow
 //! out) explain every unit. The float parts (fluxes, velocities, capacities) are f64, computed in
 //! the same order whatever the thread count: the same inputs give the same result bit for bit.
+//! Rain, evaporation, dissolving and deposition are rounded to whole units without bias by a
+//! seeded dither ([`super::dither`]); water sent through pipes is floored (the remainder stays).
+//! A cell holds at most [`MAX_UNITS`] of each (1 342 m of depth on the smallest cell): beyond it
+//! water and soil spill out of the run and are counted as outflow, so that the GPU's i32 sums
+//! cannot overflow.
 //!
 //! The time step is the one asked for, or less where the CFL bound requires:
 //! Δt ≤ CFL · l_min / (|v|_max + √(g·d_max)).
@@ -30,6 +35,7 @@
 
 use rayon::prelude::*;
 
+use super::dither;
 use super::grid::{Grid, MAX_UNITS, PIPES};
 use super::params::{Border, Params};
 
@@ -92,6 +98,8 @@ pub struct Run {
     pub steps: u64,
     /// Simulated time, seconds.
     pub simulated_s: f64,
+    /// The dither's seed (see [`super::dither`]).
+    pub seed: u32,
     unit_m3: f64,
 }
 
@@ -122,8 +130,21 @@ impl Run {
             budget: Budget::default(),
             steps: 0,
             simulated_s: 0.0,
+            seed: 0,
             unit_m3,
         })
+    }
+
+    /// The run with the dither drawn from `seed` (an operation's seed; see [`super::dither`]).
+    pub fn with_seed(mut self, seed: u64) -> Run {
+        self.seed = super::dither::fold_seed(seed);
+        self
+    }
+
+    /// An unbiased whole number of units for `x` units (x ≥ 0), drawn for this step, cell and
+    /// stream.
+    fn round(&self, x: f64, i: usize, stream: u32) -> i64 {
+        (x + super::dither::uniform(self.seed, self.steps as u32, i as u32, stream)).floor() as i64
     }
 
     /// The volume of one unit, m³.
@@ -260,9 +281,14 @@ impl Run {
             sent += out.water[k];
         }
         if water > 0 {
-            let sediment = i128::from(self.state.sediment[i]);
+            // In proportion to the water sent (the GPU in f32: each share is held to what is
+            // left, so the shares never sum past the sediment held).
+            let sediment = self.state.sediment[i];
+            let mut sent = 0;
             for k in 0..8 {
-                out.sediment[k] = (sediment * i128::from(out.water[k]) / i128::from(water)) as i64;
+                let share = (i128::from(sediment) * i128::from(out.water[k]) / i128::from(water)) as i64;
+                out.sediment[k] = share.min(sediment - sent);
+                sent += out.sediment[k];
             }
         }
         // Thermal sliding towards lower neighbours beyond the talus angle.
@@ -275,15 +301,18 @@ impl Run {
                 let excess = h - self.height_m(n) - grid.pipe_length_m(i, k) * tan;
                 if excess > 0.0 {
                     let volume_m3 = rate * grid.pipe_weight[k] / weights * 0.5 * excess * grid.area_m2[i];
-                    out.soil[k] = (volume_m3 / self.unit_m3).floor() as i64;
+                    out.soil[k] = (volume_m3 / self.unit_m3).floor().min(MAX_UNITS as f64) as i64;
                 }
             }
-            // The terrain's change stays within the units a cell may hold.
+            // The terrain's change stays within the units a cell may hold, and what it sends
+            // within one cell's worth (so that what a cell receives fits the GPU's i32).
             let sum: i64 = out.soil.iter().sum();
-            let room = self.state.soil[i] + MAX_UNITS;
+            let room = (self.state.soil[i] + MAX_UNITS).min(MAX_UNITS).max(0);
             if sum > room {
+                let mut sent = 0;
                 for s in &mut out.soil {
-                    *s = (i128::from(*s) * i128::from(room.max(0)) / i128::from(sum)) as i64;
+                    *s = ((i128::from(*s) * i128::from(room) / i128::from(sum)) as i64).min(room - sent);
+                    sent += *s;
                 }
             }
         }
@@ -353,19 +382,22 @@ impl Run {
         let erodes = grid.erosion_mask.as_ref().map_or(1.0, |m| m[i].clamp(0.0, 1.0));
         if capacity_m > carried_m {
             let rate = (self.params.dissolve_per_s * dt).min(1.0) * erodes / self.hardness(i);
-            let taken =
-                (((capacity_m - carried_m) * rate * area / self.unit_m3).floor() as i64).min(soil + MAX_UNITS).max(0);
+            let taken = self
+                .round((capacity_m - carried_m) * rate * area / self.unit_m3, i, dither::DISSOLVE)
+                .min(soil + MAX_UNITS)
+                .max(0);
             soil -= taken;
             sediment += taken;
         } else {
             let rate = (self.params.deposit_per_s * dt).min(1.0);
-            let laid = (((carried_m - capacity_m) * rate * area / self.unit_m3).floor() as i64).clamp(0, sediment);
+            let laid =
+                self.round((carried_m - capacity_m) * rate * area / self.unit_m3, i, dither::DEPOSIT).clamp(0, sediment);
             sediment -= laid;
             soil += laid;
         }
         // Evaporation; water gone, its sediment settles.
         let evaporated =
-            ((water as f64 * (self.params.evaporation_per_s * dt).min(1.0)).floor() as i64).clamp(0, water);
+            self.round(water as f64 * (self.params.evaporation_per_s * dt).min(1.0), i, dither::EVAPORATE).clamp(0, water);
         water -= evaporated;
         budget.evaporated += evaporated;
         if water == 0 && sediment > 0 {
@@ -375,9 +407,23 @@ impl Run {
         // Rain (for the next step's outflows), within the units a cell may hold.
         let mask = grid.rain_mask.as_ref().map_or(1.0, |m| m[i].clamp(0.0, 1.0));
         let rain =
-            ((self.params.rain_m_s * dt * mask * area / self.unit_m3).floor() as i64).clamp(0, MAX_UNITS - water);
+            self.round(self.params.rain_m_s * dt * mask * area / self.unit_m3, i, dither::RAIN).min(MAX_UNITS - water).max(0);
         water += rain;
         budget.rain_in += rain;
+        // Beyond what a cell may hold: water and soil spill out of the run (counted), sediment
+        // settles.
+        if water > MAX_UNITS {
+            budget.water_out += water - MAX_UNITS;
+            water = MAX_UNITS;
+        }
+        if sediment > MAX_UNITS {
+            soil += sediment - MAX_UNITS;
+            sediment = MAX_UNITS;
+        }
+        if soil > MAX_UNITS {
+            budget.soil_out += soil - MAX_UNITS;
+            soil = MAX_UNITS;
+        }
         (water, sediment, soil, speed, budget)
     }
 

@@ -79,16 +79,18 @@ fn a_closed_basin_keeps_every_unit_and_perfectly_flat_ground_does_not_move() {
     let (water, soil) = run.totals();
     assert_eq!(water, run.budget.rain_in - run.budget.evaporated);
     assert_eq!(soil, 0);
-    // Flat ground under even rain, closed: water rises evenly, nothing flows, nothing erodes
-    // (sin α = 0 gives the minimum slope's capacity, but no speed).
+    // Flat ground under even rain, closed: water rises evenly (the rain dither's units, 10 µm
+    // each, make ripples of a few tenths of a millimetre on 14 mm of water), nothing erodes
+    // (sin α = 0 gives the minimum slope's capacity, and the ripples no speed above the dry
+    // limit).
     let flat = Grid::flat_patch(8, 8, 10.0, vec![100.0; 64]);
     let mut run = Run::new(flat, Params { border: Border::Closed, ..params() }).unwrap();
     for _ in 0..500 {
         run.step();
     }
     assert!(run.state.soil.iter().all(|s| *s == 0), "flat ground moved");
-    let w0 = run.state.water[0];
-    assert!(w0 > 0 && run.state.water.iter().all(|w| *w == w0), "water level uneven");
+    let (lo, hi) = (run.state.water.iter().min().unwrap(), run.state.water.iter().max().unwrap());
+    assert!(*lo > 0 && hi - lo <= 50, "water level uneven: {lo} … {hi} units");
 }
 
 #[test]

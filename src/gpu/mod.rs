@@ -8,6 +8,7 @@ pub mod compose;
 mod compute;
 pub mod context;
 pub mod data;
+pub mod erosion;
 mod quads;
 pub mod renderer;
 pub mod scene;

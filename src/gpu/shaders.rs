@@ -9,6 +9,7 @@ pub const FILES: &[(&str, &str)] = &[
     ("shared/noise.wgsl", include_str!("../../shaders/shared/noise.wgsl")),
     ("compose/compose.wgsl", include_str!("../../shaders/compose/compose.wgsl")),
     ("edit/stroke.wgsl", include_str!("../../shaders/edit/stroke.wgsl")),
+    ("erosion/erosion.wgsl", include_str!("../../shaders/erosion/erosion.wgsl")),
 ];
 
 /// A shader with its includes expanded. Panics only on a missing include, which the naga test
@@ -52,7 +53,7 @@ mod tests {
         // Every file on disk is embedded (none forgotten) ...
         let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("shaders");
         let mut on_disk = Vec::new();
-        for sub in ["", "shared", "compose", "edit"] {
+        for sub in ["", "shared", "compose", "edit", "erosion"] {
             for entry in std::fs::read_dir(dir.join(sub)).unwrap() {
                 let path = entry.unwrap().path();
                 if path.extension().is_some_and(|e| e == "wgsl") {
@@ -76,6 +77,9 @@ mod tests {
             }
             if *name == "edit/stroke.wgsl" {
                 assert_eq!(entries, ["apply_stroke"]);
+            }
+            if *name == "erosion/erosion.wgsl" {
+                assert_eq!(entries, ["outflow", "update", "reduce"]);
             }
         }
         // The validator does catch errors.
