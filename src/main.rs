@@ -194,6 +194,50 @@ enum Command {
         #[arg(long)]
         redo: Option<usize>,
     },
+    /// Runs erosion headless on a region (the box rounded out to whole quads of the level),
+    /// appends the run to an erosion layer (made on top when missing) or moves its undo
+    /// position, prints the budgets and the time, and saves the project atomically.
+    Erode {
+        /// The project file (JSON).
+        project: PathBuf,
+        /// The erosion layer.
+        #[arg(long)]
+        layer: String,
+        /// The box: LAT_MIN,LON_MIN,LAT_MAX,LON_MAX degrees.
+        #[arg(long, allow_hyphen_values = true)]
+        region: Option<String>,
+        /// The level whose samples are the cells.
+        #[arg(long)]
+        level: Option<u8>,
+        /// Steps (each the preset's Δt or less, by the CFL bound).
+        #[arg(long)]
+        steps: Option<u64>,
+        /// rain, river, thermal or gentle (default rain).
+        #[arg(long)]
+        preset: Option<String>,
+        /// Overrides a parameter: FIELD=VALUE (repeatable), e.g. rain_m_s=2e-5, border=closed.
+        #[arg(long)]
+        set: Vec<String>,
+        /// The seed of the rounding dither.
+        #[arg(long)]
+        seed: Option<u64>,
+        /// Run on the GPU (lavapipe too).
+        #[arg(long, conflicts_with = "cpu")]
+        gpu: bool,
+        /// Run the CPU reference (bit for bit reproducible; the default without a hardware GPU).
+        #[arg(long)]
+        cpu: bool,
+        /// Print JSON (steps, simulated_s, water_unexplained_rel, soil_unexplained_rel,
+        /// water_out_m3, soil_out_m3, seconds, …).
+        #[arg(long)]
+        json: bool,
+        /// Undo this many runs (no run).
+        #[arg(long)]
+        undo: Option<usize>,
+        /// Redo this many runs (no run).
+        #[arg(long)]
+        redo: Option<usize>,
+    },
     /// Every visible layer's elevation (each alone) and the composed stack's along the geodesic
     /// between two points.
     Profile {
@@ -736,6 +780,16 @@ fn run(args: Args) -> Result<ExitCode> {
                 redo,
             };
             print!("{}", cli::brush_command(&request).map_err(anyhow::Error::msg)?);
+        }
+        Command::Erode { project, layer, region, level, steps, preset, set, seed, gpu, cpu, json, undo, redo } => {
+            let on = match (gpu, cpu) {
+                (true, _) => cli::ErodeOn::Gpu,
+                (_, true) => cli::ErodeOn::Cpu,
+                _ => cli::ErodeOn::Auto,
+            };
+            let request =
+                cli::ErodeRequest { project, layer, region, level, steps, preset, set, seed, on, json, undo, redo };
+            print!("{}", cli::erode_command(&request).map_err(anyhow::Error::msg)?);
         }
         Command::Coregister { project, a, b, level, region, apply, json } => {
             let request = cli::CoregRequest { project, a, b, level, region, apply, json };

@@ -197,8 +197,9 @@ fn outflow(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_inde
         let keep = 1.0 - min(P.friction * dt, 1.0);
         var total_m3 = 0.0;
         for (var k = 0u; k < 8u; k++) {
-            // The neighbour's water surface (a sink or an open border: a dry cell at this cell's
-            // terrain height); no pipe at a closed border.
+            // The neighbour's water surface (a sink: a dry cell at this cell's terrain height;
+            // an open border: a dry cell continuing the slope from the opposite neighbour, never
+            // above this cell); no pipe at a closed border.
             let nb = neighbour(i, k);
             var surface = h;
             if nb >= 0 {
@@ -207,6 +208,13 @@ fn outflow(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_inde
                 }
             } else if P.open_border == 0u {
                 continue;
+            } else {
+                let opp = neighbour(i, k ^ 1u);
+                var opposite = h;
+                if opp >= 0 && !is_sink(u32(opp)) {
+                    opposite = height_m(u32(opp));
+                }
+                surface = min(h, 2.0 * h - opposite);
             }
             let len = pipe_length_m(i, k);
             var across = 0.5 * len;
@@ -233,7 +241,7 @@ fn outflow(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_inde
         }
         var sent_w = 0;
         for (var k = 0u; k < 8u; k++) {
-            w[k] = min(units_floor(f[k] * dt / P.unit_m3), water - sent_w);
+            w[k] = clamp(round_units(f[k] * dt / P.unit_m3, i, 8u + k), 0, water - sent_w);
             sent_w += w[k];
         }
         if water > 0 {

@@ -160,7 +160,14 @@ impl EditRaster {
             field: "rasteriser".into(),
             problem,
         })?;
-        let before: BeforeImages = quads.iter().map(|q| (*q, self.tiles.get(q).cloned())).collect();
+        self.apply_tiles(index, tiles);
+        Ok(quads)
+    }
+
+    /// Puts the tiles operation `index` made (a stroke, an erosion run), keeping the tiles they
+    /// replace for undo.
+    pub fn apply_tiles(&mut self, index: usize, tiles: Vec<(QuadId, Vec<f32>)>) {
+        let before: BeforeImages = tiles.iter().map(|(q, _)| (*q, self.tiles.get(q).cloned())).collect();
         self.history_bytes += before.iter().map(|(_, t)| t.as_ref().map_or(0, |t| t.len() * 4)).sum::<usize>();
         self.history.push_back((index, before));
         while self.history_bytes > HISTORY_BYTES
@@ -169,7 +176,19 @@ impl EditRaster {
             self.history_bytes -= old.iter().map(|(_, t)| t.as_ref().map_or(0, |t| t.len() * 4)).sum::<usize>();
         }
         self.put(tiles.into_iter().map(|(q, t)| (q, Some(t))).collect());
-        Ok(quads)
+    }
+
+    /// Undoes operations `keep..top` from their before-images while the history has them;
+    /// returns how many operations are in effect after it (`keep` when the history reached).
+    pub fn restore_to(&mut self, top: usize, keep: usize) -> usize {
+        let mut top = top;
+        while top > keep && self.history.back().is_some_and(|(index, _)| *index == top - 1) {
+            let (_, before) = self.history.pop_back().expect("checked");
+            self.history_bytes -= before.iter().map(|(_, t)| t.as_ref().map_or(0, |t| t.len() * 4)).sum::<usize>();
+            self.put(before);
+            top -= 1;
+        }
+        top
     }
 
     /// Undoes back to `strokes[..keep]` after `strokes[keep..]` were applied: the latest strokes'
@@ -178,13 +197,7 @@ impl EditRaster {
     /// stroke reads the terrain, what it wrote depends on tiles beyond the undone strokes' quads
     /// as they were before it: the raster is then rebuilt from the kept strokes.
     pub fn undo_to(&mut self, strokes: &[Stroke], keep: usize, below: &Below) -> Result<(), StrokeError> {
-        let mut top = strokes.len();
-        while top > keep && self.history.back().is_some_and(|(index, _)| *index == top - 1) {
-            let (_, before) = self.history.pop_back().expect("checked");
-            self.history_bytes -= before.iter().map(|(_, t)| t.as_ref().map_or(0, |t| t.len() * 4)).sum::<usize>();
-            self.put(before);
-            top -= 1;
-        }
+        let top = self.restore_to(strokes.len(), keep);
         if top == keep {
             return Ok(());
         }

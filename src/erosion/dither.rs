@@ -13,6 +13,8 @@ pub const DEPOSIT: u32 = 2;
 pub const EVAPORATE: u32 = 3;
 /// Rain.
 pub const RAIN: u32 = 4;
+/// The water sent through pipe k: stream `PIPE + k`.
+pub const PIPE: u32 = 8;
 
 /// PCG's hash of a u32.
 pub fn pcg(x: u32) -> u32 {

@@ -11,8 +11,14 @@
 //! Not built yet (see issue #15): the GPU kernels, the erosion layer and its cache, `terrafuse erode`, the workstation panel,
 //! the sample session and `terrafuse bench erosion`.
 
+/// The version of the model: part of every erosion cache's digest, bumped whenever a change of
+/// the model changes what a run makes (so that no cache of an older model is read as current).
+pub const MODEL_VERSION: u32 = 2;
+
 pub mod dither;
 pub mod grid;
+pub mod layer;
+pub mod operation;
 pub mod params;
 pub mod region;
 pub mod sim;

@@ -6,6 +6,17 @@ use serde::{Deserialize, Serialize};
 pub const EARTH_G: f64 = 9.806_65;
 /// Surface gravity of the Moon, m/s².
 pub const MOON_G: f64 = 1.62;
+/// Surface gravity of Mars, m/s².
+pub const MARS_G: f64 = 3.721;
+
+/// The surface gravity of a project's body (`moon`, `mars`; the Earth's otherwise), m/s².
+pub fn gravity_of_body(body: &str) -> f64 {
+    match body.to_ascii_lowercase().as_str() {
+        "moon" => MOON_G,
+        "mars" => MARS_G,
+        _ => EARTH_G,
+    }
+}
 
 /// What an erosion run does per second of simulated time.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]

@@ -13,7 +13,7 @@ use super::grid::Grid;
 use crate::ecm::{Face, QuadId};
 use crate::geodesy::Ellipsoid;
 use crate::layers::stack::sample_point;
-use crate::store::grid::{GRID, TILE, fold_sample, quad_of_sample};
+use crate::store::grid::{GRID, TILE, fold_sample, quad_of_sample, spacing_m};
 
 /// A box of global sample indices of one face at one level (it may run past the face's edges).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -32,6 +32,42 @@ pub struct Region {
     pub height: usize,
 }
 
+/// Sample (i, j) of face `other` in the extended index space of `face` (beyond one of its
+/// edges), or None when `other` is not adjacent to `face`. The fold is a rigid map of the integer
+/// lattice across each edge: it is found by folding three points just beyond the edge, then
+/// inverted.
+fn unfold(face: Face, other: Face, level: u8, i: i64, j: i64) -> Option<(i64, i64)> {
+    let m = crate::store::grid::intervals_per_face_edge(level);
+    let c = m / 2;
+    // Three points just beyond each edge: a base, one step further out, one step along.
+    let edges = [
+        [(m + 1, c), (m + 2, c), (m + 1, c + 1)],
+        [(-1, c), (-2, c), (-1, c + 1)],
+        [(c, m + 1), (c, m + 2), (c + 1, m + 1)],
+        [(c, -1), (c, -2), (c + 1, -1)],
+    ];
+    for [p0, p1, p2] in edges {
+        let (Some((f0, a0, b0)), Some((_, a1, b1)), Some((_, a2, b2))) =
+            (fold_sample(face, level, p0.0, p0.1), fold_sample(face, level, p1.0, p1.1), fold_sample(face, level, p2.0, p2.1))
+        else {
+            continue;
+        };
+        if f0 != other {
+            continue;
+        }
+        // folded = q0 + A·(ext − p0), A's columns the images of the steps out and along.
+        let (e_out, e_along) = ((p1.0 - p0.0, p1.1 - p0.1), (p2.0 - p0.0, p2.1 - p0.1));
+        let (img_out, img_along) = ((a1 - a0, b1 - b0), (a2 - a0, b2 - b0));
+        // A maps e_out → img_out and e_along → img_along; both bases are orthonormal integer
+        // vectors, so A⁻¹ takes d = (i − a0, j − b0) to its components along the images.
+        let d = (i - a0, j - b0);
+        let s_out = d.0 * img_out.0 + d.1 * img_out.1;
+        let s_along = d.0 * img_along.0 + d.1 * img_along.1;
+        return Some((p0.0 + s_out * e_out.0 + s_along * e_along.0, p0.1 + s_out * e_out.1 + s_along * e_along.1));
+    }
+    None
+}
+
 /// Where one cell of a region lives: its folded face, sample indices there, and its quad.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct CellAt {
@@ -43,7 +79,65 @@ pub struct CellAt {
     pub j: u32,
 }
 
+/// The most cells a region may have along each side (the GPU's buffers for 4096² cells are
+/// 537 MB each; the CPU reference takes seconds per step there).
+pub const MAX_SIDE: usize = 4096;
+
 impl Region {
+    /// The region covering a box `[lat_min, lon_min, lat_max, lon_max]` (degrees) rounded out to
+    /// whole quads of `level`, in the index space of the face under the box's centre; quads on
+    /// adjacent faces are placed there by inverting the store's fold (exact, integer), so a box
+    /// across a face edge or a cube corner is one contiguous grid. Errors name the problem.
+    pub fn from_box(ellipsoid: &Ellipsoid, bounds: [f64; 4], level: u8) -> Result<Region, String> {
+        let [lat0, lon0, lat1, lon1] = bounds;
+        if !bounds.iter().all(|v| v.is_finite()) || !(-90.0..=90.0).contains(&lat0) || !(-90.0..=90.0).contains(&lat1) {
+            return Err(format!("{bounds:?} is not LAT_MIN,LON_MIN,LAT_MAX,LON_MAX in degrees"));
+        }
+        if lat0 >= lat1 || lon0 >= lon1 || lon1 - lon0 > 360.0 {
+            return Err(format!("{bounds:?}: the minimum must be below the maximum (latitude {lat0} … {lat1}, longitude {lon0} … {lon1})"));
+        }
+        if level > crate::ecm::MAX_LEVEL {
+            return Err(format!("level {level} is past the finest, {}", crate::ecm::MAX_LEVEL));
+        }
+        let projection = crate::ecm::CubeProjection::Qsc;
+        let m = crate::store::grid::intervals_per_face_edge(level);
+        let index = |lat: f64, lon: f64| {
+            let p = projection.face_point_from_geodetic(ellipsoid, lat.to_radians(), lon.to_radians());
+            let i = (((p.x + 1.0) / 2.0 * m as f64).floor() as i64).clamp(0, m - 1);
+            let j = (((p.y + 1.0) / 2.0 * m as f64).floor() as i64).clamp(0, m - 1);
+            (p.face, i, j)
+        };
+        let (face, ..) = index(0.5 * (lat0 + lat1), 0.5 * (lon0 + lon1));
+        // Points along the box's edges and inside it, a quarter quad apart at most (and at
+        // least 65 a side).
+        let quad_deg = (spacing_m(ellipsoid, level) * f64::from(TILE) / ellipsoid.a_m()).to_degrees();
+        let along = |span: f64| ((span / (0.25 * quad_deg)).ceil() as usize).clamp(64, 4 * MAX_SIDE);
+        let (na, nb) = (along(lat1 - lat0), along((lon1 - lon0) * lat0.abs().max(lat1.abs()).to_radians().cos().max(0.01)));
+        let (mut lo, mut hi) = ((i64::MAX, i64::MAX), (i64::MIN, i64::MIN));
+        for a in 0..=na {
+            for b in 0..=nb {
+                let lat = lat0 + (lat1 - lat0) * a as f64 / na as f64;
+                let lon = lon0 + (lon1 - lon0) * b as f64 / nb as f64;
+                let (f, i, j) = index(lat, lon);
+                let (i, j) = if f == face { (i, j) } else { unfold(face, f, level, i, j).ok_or_else(|| {
+                    format!("{bounds:?} reaches the face opposite the one under its centre: too large for one region")
+                })? };
+                lo = (lo.0.min(i), lo.1.min(j));
+                hi = (hi.0.max(i), hi.1.max(j));
+            }
+        }
+        let tile = i64::from(TILE);
+        let (qx0, qy0) = (lo.0.div_euclid(tile), lo.1.div_euclid(tile));
+        let (qx1, qy1) = (hi.0.div_euclid(tile), hi.1.div_euclid(tile));
+        let (width, height) = (((qx1 - qx0 + 1) * tile) as usize, ((qy1 - qy0 + 1) * tile) as usize);
+        if width > MAX_SIDE || height > MAX_SIDE {
+            return Err(format!(
+                "{bounds:?} at level {level} is {width} × {height} cells; a region has at most {MAX_SIDE} a side (choose a smaller box or a coarser level)"
+            ));
+        }
+        Ok(Region { face, level, i0: qx0 * tile, j0: qy0 * tile, width, height })
+    }
+
     /// The region of a quad and `ring` quads around it (in the quad's face's index space).
     pub fn around(quad: QuadId, ring: u32) -> Region {
         let tile = i64::from(TILE);

@@ -21,8 +21,9 @@
 //! **exactly**, by construction: the budgets (rain in, evaporation and border or sink outflow
 //! out) explain every unit. The float parts (fluxes, velocities, capacities) are f64, computed in
 //! the same order whatever the thread count: the same inputs give the same result bit for bit.
-//! Rain, evaporation, dissolving and deposition are rounded to whole units without bias by a
-//! seeded dither ([`super::dither`]); water sent through pipes is floored (the remainder stays).
+//! Rain, evaporation, dissolving, deposition and the water sent through each pipe are rounded to
+//! whole units without bias by a seeded dither ([`super::dither`]): thin sheets of water still
+//! flow, and small rates still act.
 //! A cell holds at most [`MAX_UNITS`] of each (1 342 m of depth on the smallest cell): beyond it
 //! water and soil spill out of the run and are counted as outflow, so that the GPU's i32 sums
 //! cannot overflow.
@@ -239,8 +240,10 @@ impl Run {
         let h = self.height_m(i);
         let d = self.depth_m(i);
         let open = self.params.border == Border::Open;
-        // The neighbour's terrain and water surface (a sink or an open border: a dry cell at this
-        // cell's terrain height); None where no pipe runs (a closed border).
+        // The neighbour's terrain and water surface (a sink: a dry cell at this cell's terrain
+        // height; an open border: a dry cell continuing the slope from the opposite neighbour,
+        // never above this cell, so that water runs off a slope as it would beyond the region);
+        // None where no pipe runs (a closed border).
         let other = |k: usize| -> Option<(f64, f64)> {
             match grid.neighbour(i, k) {
                 Some(n) if !grid.is_sink(n) => {
@@ -248,7 +251,11 @@ impl Run {
                     Some((hn, hn + self.depth_m(n)))
                 }
                 Some(_) => Some((h, h)),
-                None if open => Some((h, h)),
+                None if open => {
+                    let opposite = grid.neighbour(i, k ^ 1).filter(|n| !grid.is_sink(*n)).map_or(h, |n| self.height_m(n));
+                    let beyond = h.min(2.0 * h - opposite);
+                    Some((beyond, beyond))
+                }
                 None => None,
             }
         };
@@ -277,7 +284,8 @@ impl Run {
         let water = self.state.water[i];
         let mut sent = 0;
         for k in 0..8 {
-            out.water[k] = ((flux[k] * dt / self.unit_m3).floor() as i64).clamp(0, water - sent);
+            let units = self.round(flux[k] * dt / self.unit_m3, i, dither::PIPE + k as u32);
+            out.water[k] = units.clamp(0, water - sent);
             sent += out.water[k];
         }
         if water > 0 {

@@ -139,7 +139,7 @@ impl ComposeBatch {
             LayerKind::Dataset => 0,
             LayerKind::Procedural => 1,
             LayerKind::Constant => 2,
-            LayerKind::Edit => 3,
+            LayerKind::Edit | LayerKind::Erosion => 3,
             LayerKind::Difference => unreachable!("a difference layer is never planned"),
         };
         let blend = match planned.blend {
@@ -210,7 +210,7 @@ impl ComposeBatch {
         }
         extra[3] = orientation;
         let [lo, hi] = spec.valid_range_m.map_or([-FAR, FAR], |[a, b]| [a as f32, b as f32]);
-        let source = if matches!(spec.kind, LayerKind::Dataset | LayerKind::Edit) { slots.0 } else { NO_SLOT };
+        let source = if matches!(spec.kind, LayerKind::Dataset | LayerKind::Edit | LayerKind::Erosion) { slots.0 } else { NO_SLOT };
         self.layers.push(JobLayer {
             head: [kind, blend, source, partial],
             mask,

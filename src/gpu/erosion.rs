@@ -19,6 +19,8 @@ use bytemuck::{Pod, Zeroable};
 use super::compute::{compute_pipeline, shader_module, storage_buffer, storage_layout};
 use super::context::GpuError;
 use super::terrain::bind_buffers;
+use crate::erosion::layer::Stepper;
+use crate::erosion::operation::Device;
 use crate::erosion::params::Border;
 use crate::erosion::sim::{Budget, Run};
 
@@ -430,5 +432,33 @@ fn budget_of(control: &Control) -> Budget {
         evaporated: from_u32_pair(control.totals[1]),
         water_out: from_u32_pair(control.totals[2]),
         soil_out: from_u32_pair(control.totals[3]),
+    }
+}
+
+/// The GPU as an erosion layer's [`Stepper`]: uploads the run, takes its steps, downloads it.
+pub struct GpuStepper<'a> {
+    /// The device.
+    pub device: &'a wgpu::Device,
+    /// Its queue.
+    pub queue: &'a wgpu::Queue,
+    /// The kernels.
+    pub kernel: Arc<ErosionKernel>,
+}
+
+impl Stepper for GpuStepper<'_> {
+    fn device(&self) -> Device {
+        Device::Gpu
+    }
+
+    fn run(&self, run: Run, steps: u64) -> Result<Run, String> {
+        let mut gpu = GpuRun::new(self.device, self.queue, self.kernel.clone(), &run).map_err(|e| e.to_string())?;
+        let mut left = steps;
+        while left > 0 {
+            let now = left.min(u64::from(LOG_STEPS)) as u32;
+            gpu.step(now).map_err(|e| e.to_string())?;
+            left -= u64::from(now);
+        }
+        gpu.download().map_err(|e| e.to_string())?;
+        Ok(gpu.host)
     }
 }

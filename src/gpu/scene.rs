@@ -131,7 +131,7 @@ impl Scene {
             edit_cache_dir: Some(project.base_dir.join("stores")),
         };
         for (index, d) in project.layers.iter().enumerate() {
-            if d.kind == LayerKind::Edit {
+            if d.kind.holds_deltas() {
                 report.edits.push(scene.attach_edit(index)?);
                 continue;
             }
@@ -222,23 +222,30 @@ impl Scene {
     /// which.
     pub fn attach_edit(&mut self, index: usize) -> Result<String, String> {
         let t = std::time::Instant::now();
-        let name = self.stack.layers[index].spec.name.clone();
-        let strokes = self.stack.layers[index].spec.applied_strokes().len();
+        let spec = &self.stack.layers[index].spec;
+        let name = spec.name.clone();
+        let erosion = spec.kind == LayerKind::Erosion;
+        let (kind, what) = if erosion { ("erosion", "runs") } else { ("edit", "strokes") };
+        let count = if erosion { spec.applied_runs().len() } else { spec.applied_strokes().len() };
         let path = self.edit_cache_path(index);
         if let Some(raster) = path.as_deref().and_then(|p| crate::edit::cache::read(p, self.ellipsoid)) {
             self.set_edit(index, raster);
             return Ok(format!(
-                "edit layer '{name}': {strokes} strokes read from {} ({:.2} s)",
+                "{kind} layer '{name}': {count} {what} read from {} ({:.2} s)",
                 path.as_deref().map(|p| p.display().to_string()).unwrap_or_default(),
                 t.elapsed().as_secs_f64()
             ));
         }
         let below = self.below(index)?;
         let layer = &self.stack.layers[index];
-        let raster = EditRaster::build(self.ellipsoid, layer.spec.applied_strokes(), &|q| below.heights_cpu(q))
-            .map_err(|e| format!("layer '{}': {e}", layer.spec.name))?;
-        let mut line =
-            format!("edit layer '{name}': rebuilt from {strokes} strokes in {:.2} s", t.elapsed().as_secs_f64());
+        let raster = if erosion {
+            crate::erosion::layer::build(self.ellipsoid, layer.spec.applied_runs(), &|q| below.heights_cpu(q))
+                .map_err(|e| format!("layer '{}': {e}", layer.spec.name))?
+        } else {
+            EditRaster::build(self.ellipsoid, layer.spec.applied_strokes(), &|q| below.heights_cpu(q))
+                .map_err(|e| format!("layer '{}': {e}", layer.spec.name))?
+        };
+        let mut line = format!("{kind} layer '{name}': rebuilt from {count} {what} in {:.2} s", t.elapsed().as_secs_f64());
         if let Some(p) = &path {
             match crate::edit::cache::write(p, &raster) {
                 Ok(()) => line += &format!(", saved to {}", p.display()),
@@ -268,12 +275,16 @@ impl Scene {
         let dir = self.edit_cache_dir.as_ref()?;
         let layer = &self.stack.layers[index];
         let strokes = layer.spec.applied_strokes();
+        let runs = layer.spec.applied_runs();
         let mut digest = crate::edit::cache::Digest::default()
-            .with(b"terrafuse edit raster 1")
+            .with(if runs.is_empty() { &b"terrafuse edit raster 1"[..] } else { &b"terrafuse erosion raster 1"[..] })
             .with(&self.ellipsoid.a_m().to_le_bytes())
             .with(&self.ellipsoid.b_m().to_le_bytes())
             .with(to_json(&strokes).as_bytes());
-        if strokes.iter().any(|s| s.tool.reads_terrain()) {
+        if !runs.is_empty() {
+            digest = digest.with(to_json(&runs).as_bytes()).with(&crate::erosion::MODEL_VERSION.to_le_bytes());
+        }
+        if !runs.is_empty() || strokes.iter().any(|s| s.tool.reads_terrain()) {
             // What they read: the layers below, and the stores their datasets come from.
             for (k, below) in self.stack.layers[..index].iter().enumerate() {
                 digest = digest.with(to_json(&below.spec).as_bytes());
@@ -300,6 +311,7 @@ impl Scene {
             // Hidden, they are never planned; their strokes are not needed.
             spec.visible = false;
             spec.strokes.clear();
+            spec.runs.clear();
             spec.applied = None;
             below.stack.set(k, spec).map_err(|e| e.to_string())?;
         }

@@ -240,6 +240,10 @@ fn layer_settings_ui(ui: &mut egui::Ui, spec: &mut LayerSpec) {
             let applied = spec.applied_strokes().len();
             ui.label(format!("{applied} strokes applied of {}", spec.strokes.len()));
         }
+        LayerKind::Erosion => {
+            let applied = spec.applied_runs().len();
+            ui.label(format!("{applied} erosion runs applied of {}", spec.runs.len()));
+        }
         LayerKind::Dataset => {
             ui.add(
                 egui::DragValue::new(&mut spec.feather_edge_m)

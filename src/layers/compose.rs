@@ -128,7 +128,7 @@ pub fn layer_sample(
     let spec = &layer.spec;
     let base = match spec.kind {
         // An edit layer's tile holds its deltas (0 where no stroke reached).
-        LayerKind::Dataset | LayerKind::Edit => data.raw,
+        LayerKind::Dataset | LayerKind::Edit | LayerKind::Erosion => data.raw,
         LayerKind::Constant => spec.height_m.unwrap_or(0.0),
         LayerKind::Procedural => {
             let n = spec.noise.as_ref().expect("a checked procedural layer has noise");

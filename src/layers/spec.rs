@@ -36,6 +36,8 @@ pub enum LayerKind {
     Difference,
     /// Height deltas brushed by recorded strokes (`crate::edit`), blended with `add`.
     Edit,
+    /// The change of height made by recorded erosion runs (`crate::erosion`), blended with `add`.
+    Erosion,
 }
 
 impl LayerKind {
@@ -47,7 +49,14 @@ impl LayerKind {
             LayerKind::Constant => "constant",
             LayerKind::Difference => "difference",
             LayerKind::Edit => "edit",
+            LayerKind::Erosion => "erosion",
         }
+    }
+
+    /// Whether the layer's heights are deltas kept in a raster made from its recorded operations
+    /// (edit and erosion layers).
+    pub fn holds_deltas(self) -> bool {
+        matches!(self, LayerKind::Edit | LayerKind::Erosion)
     }
 }
 
@@ -319,10 +328,13 @@ pub struct LayerSpec {
     /// Edit: the strokes, in order.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub strokes: Vec<crate::edit::Stroke>,
-    /// Edit: the undo position: `strokes[..applied]` are in effect (absent: all of them); the
-    /// rest can be redone until a new stroke replaces them.
+    /// Edit and erosion: the undo position: `strokes[..applied]` (or `runs[..applied]`) are in
+    /// effect (absent: all of them); the rest can be redone until a new one replaces them.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub applied: Option<usize>,
+    /// Erosion: the runs, in order.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub runs: Vec<crate::erosion::operation::Operation>,
 }
 
 fn yes() -> bool {
@@ -381,6 +393,21 @@ impl LayerSpec {
         LayerSpec { blend: BlendMode::Add, ..LayerSpec::bare(name, LayerKind::Edit) }
     }
 
+    /// An empty erosion layer (blend `add`).
+    pub fn erosion(name: &str) -> LayerSpec {
+        LayerSpec { blend: BlendMode::Add, ..LayerSpec::bare(name, LayerKind::Erosion) }
+    }
+
+    /// An erosion layer's runs in effect (those before its undo position).
+    pub fn applied_runs(&self) -> &[crate::erosion::operation::Operation] {
+        &self.runs[..self.applied.unwrap_or(self.runs.len()).min(self.runs.len())]
+    }
+
+    /// How many of an edit or erosion layer's operations there are.
+    pub fn operations(&self) -> usize {
+        self.strokes.len() + self.runs.len()
+    }
+
     /// An edit layer's strokes in effect (those before its undo position).
     pub fn applied_strokes(&self) -> &[crate::edit::Stroke] {
         &self.strokes[..self.applied.unwrap_or(self.strokes.len()).min(self.strokes.len())]
@@ -415,6 +442,7 @@ impl LayerSpec {
             style: None,
             strokes: Vec::new(),
             applied: None,
+            runs: Vec::new(),
         }
     }
 
@@ -511,8 +539,34 @@ impl LayerSpec {
         if !edit && !self.strokes.is_empty() {
             return wrong_kind("strokes");
         }
-        if !edit && self.applied.is_some() {
+        let erosion = self.kind == LayerKind::Erosion;
+        if !erosion && !self.runs.is_empty() {
+            return wrong_kind("runs");
+        }
+        if !self.kind.holds_deltas() && self.applied.is_some() {
             return wrong_kind("applied");
+        }
+        if erosion {
+            if self.blend != BlendMode::Add {
+                return bad(
+                    "blend",
+                    format!("{}: an erosion layer holds changes of height and blends with add", self.blend.name()),
+                );
+            }
+            if let Some(k) = self.applied
+                && k > self.runs.len()
+            {
+                return bad("applied", format!("{k} is past the {} runs", self.runs.len()));
+            }
+            for (k, run) in self.runs.iter().enumerate() {
+                run.check().map_err(|(f, p)| LayerError::field(&self.name, &format!("runs[{k}].{f}"), p))?;
+                if run.level != self.runs[0].level {
+                    return bad(
+                        &format!("runs[{k}].level"),
+                        format!("{} differs from runs[0]'s {} (one erosion layer erodes at one level)", run.level, self.runs[0].level),
+                    );
+                }
+            }
         }
         if edit {
             if self.blend != BlendMode::Add {
@@ -559,7 +613,7 @@ impl LayerSpec {
                 }
                 None => bad("noise", "a procedural layer needs its noise settings".into()),
             },
-            LayerKind::Dataset | LayerKind::Edit => Ok(()),
+            LayerKind::Dataset | LayerKind::Edit | LayerKind::Erosion => Ok(()),
             LayerKind::Difference => {
                 let Some(of) = &self.of else {
                     return bad("of", "a difference layer needs its operands [A, B]".into());

@@ -48,7 +48,7 @@ impl Layer {
     pub fn value_range_from_raw_m(&self, dataset_raw_m: (f64, f64)) -> (f64, f64) {
         let raw = match self.spec.kind {
             // An edit layer's raw range is its deltas' (recorded like a dataset's).
-            LayerKind::Dataset | LayerKind::Edit => dataset_raw_m,
+            LayerKind::Dataset | LayerKind::Edit | LayerKind::Erosion => dataset_raw_m,
             LayerKind::Constant => {
                 let h = self.spec.height_m.unwrap_or(0.0);
                 (h, h)
@@ -375,7 +375,7 @@ impl Stack {
     ) -> Option<MaskPlan> {
         let layer = &self.layers[index];
         // Datasets without a tile there, and edit layers no stroke reached there, add nothing.
-        if matches!(layer.spec.kind, LayerKind::Dataset | LayerKind::Edit) && !covers(index) {
+        if matches!(layer.spec.kind, LayerKind::Dataset | LayerKind::Edit | LayerKind::Erosion) && !covers(index) {
             return None;
         }
         match (&layer.extent, ball) {

@@ -53,7 +53,7 @@ impl Renderer {
                 "a dataset layer is added to the project file and opened with it".into(),
             ));
         }
-        let edit = spec.kind == crate::layers::LayerKind::Edit;
+        let edit = spec.kind.holds_deltas();
         let name = spec.name.clone();
         self.scene.stack.insert(index, spec)?;
         if edit && let Err(e) = self.scene.attach_edit(index) {

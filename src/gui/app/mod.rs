@@ -12,7 +12,6 @@ use super::viewport::{Viewport, frame_line};
 use crate::geodesy;
 use crate::gpu::scene::resolve_ramp;
 use crate::gpu::{Camera, FrameStats, Renderer};
-use crate::layers::LayerKind;
 use crate::project::{CameraSpec, Project, Visuals};
 
 mod brush;
@@ -260,10 +259,10 @@ impl App {
                 // replaying its strokes (a cache: a failure is reported, the project is saved).
                 let scene = self.renderer.scene();
                 for (index, layer) in scene.stack.layers.iter().enumerate() {
-                    if layer.spec.kind == LayerKind::Edit
+                    if layer.spec.kind.holds_deltas()
                         && let Err(e) = scene.save_edit_cache(index)
                     {
-                        self.message += &format!("; edit layer '{}' not cached: {e}", layer.spec.name);
+                        self.message += &format!("; {} layer '{}' not cached: {e}", layer.spec.kind.name(), layer.spec.name);
                     }
                 }
             }

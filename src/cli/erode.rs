@@ -1,0 +1,259 @@
+//! `terrafuse erode`: runs erosion headless on a region of a project (the box rounded out to
+//! whole quads of the level), appends the run to an erosion layer (made on top when missing) or
+//! moves its undo position, caches the layer's change of height beside the project and saves the
+//! project atomically. A run that cannot be made leaves the file as it was.
+
+use std::fmt::Write as _;
+use std::path::PathBuf;
+use std::sync::Arc;
+
+use crate::erosion::layer::{CpuStepper, Outcome, Stepper};
+use crate::erosion::operation::Operation;
+use crate::erosion::params::{Params, gravity_of_body};
+use crate::gpu::GpuContext;
+use crate::gpu::erosion::{ErosionKernel, GpuStepper};
+use crate::gpu::scene::Scene;
+use crate::layers::{LayerKind, LayerSpec};
+use crate::project::Project;
+
+/// Where `terrafuse erode` runs.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum ErodeOn {
+    /// The GPU when the adapter is a real one, else the CPU reference.
+    #[default]
+    Auto,
+    /// The CPU reference (bit for bit reproducible).
+    Cpu,
+    /// The GPU (lavapipe too, when that is the only adapter).
+    Gpu,
+}
+
+/// What `terrafuse erode` was asked.
+#[derive(Clone, Debug, Default)]
+pub struct ErodeRequest {
+    /// The project file.
+    pub project: PathBuf,
+    /// The erosion layer.
+    pub layer: String,
+    /// `LAT_MIN,LON_MIN,LAT_MAX,LON_MAX`, degrees.
+    pub region: Option<String>,
+    /// The level of the cells.
+    pub level: Option<u8>,
+    /// Steps.
+    pub steps: Option<u64>,
+    /// The preset (default `rain`).
+    pub preset: Option<String>,
+    /// Parameter overrides, `FIELD=VALUE`.
+    pub set: Vec<String>,
+    /// The dither's seed.
+    pub seed: Option<u64>,
+    /// Where it runs.
+    pub on: ErodeOn,
+    /// Print JSON.
+    pub json: bool,
+    /// Undo this many runs.
+    pub undo: Option<usize>,
+    /// Redo this many runs.
+    pub redo: Option<usize>,
+}
+
+fn parse_region(text: &str) -> Result<[f64; 4], String> {
+    let v: Vec<f64> = text
+        .split(',')
+        .map(|x| x.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| format!("--region '{text}': not LAT_MIN,LON_MIN,LAT_MAX,LON_MAX in degrees"))?;
+    <[f64; 4]>::try_from(v.as_slice())
+        .map_err(|_| format!("--region '{text}': not LAT_MIN,LON_MIN,LAT_MAX,LON_MAX in degrees (four numbers)"))
+}
+
+/// The preset `name` on the project's body with `set` overrides applied (`FIELD=VALUE`).
+pub fn params_of(preset: &str, body: &str, set: &[String]) -> Result<Params, String> {
+    let params = Params::preset(preset, gravity_of_body(body))
+        .ok_or_else(|| format!("--preset {preset}: not one of {}", Params::PRESETS.join(", ")))?;
+    let mut value = serde_json::to_value(&params).map_err(|e| e.to_string())?;
+    for item in set {
+        let (field, text) = item.split_once('=').ok_or_else(|| format!("--set '{item}': not FIELD=VALUE"))?;
+        let object = value.as_object_mut().ok_or("parameters are not an object")?;
+        if !object.contains_key(field) {
+            let fields: Vec<&String> = object.keys().collect();
+            return Err(format!("--set {field}: no such parameter (one of {fields:?})"));
+        }
+        let v = text
+            .parse::<f64>()
+            .ok()
+            .and_then(serde_json::Number::from_f64)
+            .map_or_else(|| serde_json::Value::String(text.to_string()), serde_json::Value::Number);
+        object.insert(field.to_string(), v);
+    }
+    let params: Params = serde_json::from_value(value).map_err(|e| format!("--set: {e}"))?;
+    params.check().map_err(|e| format!("--set {}: {} is outside {}", e.field, e.value, e.range))?;
+    Ok(params)
+}
+
+/// Runs the command; returns the report (text or JSON).
+pub fn erode_command(request: &ErodeRequest) -> Result<String, String> {
+    let path = &request.project;
+    let mut project = Project::load(path).map_err(|e| e.to_string())?;
+    let mut out = String::new();
+    let index = match project.layers.iter().position(|l| l.name == request.layer) {
+        Some(i) if project.layers[i].kind == LayerKind::Erosion => i,
+        Some(i) => {
+            return Err(format!(
+                "--layer {}: a {} layer, not an erosion layer",
+                request.layer,
+                project.layers[i].kind.name()
+            ));
+        }
+        None => {
+            project.layers.push(LayerSpec::erosion(&request.layer));
+            let _ = writeln!(out, "made erosion layer '{}' on top of the stack", request.layer);
+            project.layers.len() - 1
+        }
+    };
+    let applied = project.layers[index].applied_runs().len();
+    let total = project.layers[index].runs.len();
+    let asked_run = request.region.is_some() || request.level.is_some() || request.steps.is_some();
+    match (request.undo, request.redo, asked_run) {
+        (Some(n), None, false) => {
+            let to = applied.checked_sub(n).ok_or_else(|| format!("--undo {n}: only {applied} runs are applied"))?;
+            project.layers[index].applied = Some(to);
+            let _ = writeln!(out, "layer '{}': undone to {to} of {total} runs", request.layer);
+            return finish(&project, path, index, out);
+        }
+        (None, Some(n), false) => {
+            let to = applied + n;
+            if to > total {
+                return Err(format!("--redo {n}: only {} runs can be redone", total - applied));
+            }
+            project.layers[index].applied = (to < total).then_some(to);
+            let _ = writeln!(out, "layer '{}': redone to {to} of {total} runs", request.layer);
+            return finish(&project, path, index, out);
+        }
+        (None, None, true) => {}
+        _ => return Err("give either --region, --level and --steps for a run, or --undo N, or --redo N".into()),
+    }
+    let region = parse_region(request.region.as_deref().ok_or("--region: a run needs its box")?)?;
+    let level = request.level.ok_or("--level: a run needs the level of its cells")?;
+    let steps = request.steps.ok_or("--steps: a run needs its number of steps")?;
+    let preset = request.preset.clone().unwrap_or_else(|| "rain".into());
+    let params = params_of(&preset, &project.body, &request.set)?;
+    // The layer as it stands (its runs in effect), opened and built or read from its cache.
+    project.layers[index].runs.truncate(applied);
+    project.layers[index].applied = None;
+    let (mut scene, report) = Scene::open(&project).map_err(|e| format!("layer '{}': {e}", request.layer))?;
+    for line in report.imported.iter().chain(&report.edits) {
+        let _ = writeln!(out, "{line}");
+    }
+    let gpu = match request.on {
+        ErodeOn::Cpu => None,
+        ErodeOn::Gpu => Some(GpuContext::headless().map_err(|e| format!("--gpu: {e}"))?),
+        ErodeOn::Auto => GpuContext::headless().ok().filter(|c| c.info.device_type != wgpu::DeviceType::Cpu),
+    };
+    let kernel = match &gpu {
+        Some(c) => Some(Arc::new(ErosionKernel::new(&c.device).map_err(|e| e.to_string())?)),
+        None => None,
+    };
+    let stepper: Box<dyn Stepper> = match (&gpu, &kernel) {
+        (Some(c), Some(k)) => Box::new(GpuStepper { device: &c.device, queue: &c.queue, kernel: k.clone() }),
+        _ => Box::new(CpuStepper),
+    };
+    let op = Operation {
+        region,
+        level,
+        steps,
+        seed: request.seed.unwrap_or(0),
+        preset: Some(preset),
+        params,
+        brush: None,
+        device: stepper.device(),
+    };
+    let uid = scene.stack.layers[index].uid;
+    let mut raster = scene.edits.get(&uid).map(|r| (**r).clone()).ok_or("the erosion layer was not built")?;
+    let below = scene.below(index)?;
+    let outcome = crate::erosion::layer::apply(&mut raster, applied, &op, &|q| below.heights_cpu(q), stepper.as_ref())
+        .map_err(|e| {
+            let flag = match e.field.as_str() {
+                "region" => "--region".to_string(),
+                "level" => "--level".to_string(),
+                "steps" => "--steps".to_string(),
+                f if f.starts_with("params.") => format!("--set {}", &f[7..]),
+                f => f.to_string(),
+            };
+            format!("{flag}: {}", e.problem)
+        })?;
+    project.layers[index].runs.push(op);
+    let mut spec = scene.stack.layers[index].spec.clone();
+    spec.runs = project.layers[index].runs.clone();
+    scene.stack.set(index, spec).map_err(|e| e.to_string())?;
+    scene.set_edit(index, raster);
+    let cached = scene.save_edit_cache(index)?;
+    project.save(path).map_err(|e| e.to_string())?;
+    let device = if gpu.is_some() { gpu.as_ref().map(GpuContext::describe).unwrap_or_default() } else { "CPU reference".into() };
+    if request.json {
+        return Ok(json_of(&outcome, &device, cached.as_deref(), path));
+    }
+    let r = &outcome.region;
+    let _ = writeln!(
+        out,
+        "layer '{}': run {} on {} × {} cells at level {} ({} quads) on the {device}",
+        request.layer,
+        applied,
+        r.width,
+        r.height,
+        r.level,
+        outcome.quads.len()
+    );
+    let _ = writeln!(
+        out,
+        "{} steps, {:.3} s simulated, in {:.2} s; change of height {:.3} … {:.3} m",
+        outcome.steps, outcome.simulated_s, outcome.seconds, outcome.range_m.0, outcome.range_m.1
+    );
+    let _ = writeln!(
+        out,
+        "budgets: rain {:.3} m³, water out {:.3} m³, soil out {:.3} m³; unexplained: water {:.1e}, soil {:.1e} of the total",
+        outcome.rain_m3, outcome.water_out_m3, outcome.soil_out_m3, outcome.water_unexplained_rel, outcome.soil_unexplained_rel
+    );
+    if let Some(c) = cached {
+        let _ = writeln!(out, "cached {}", c.display());
+    }
+    let _ = writeln!(out, "saved {}", path.display());
+    Ok(out)
+}
+
+fn json_of(o: &Outcome, device: &str, cached: Option<&std::path::Path>, path: &std::path::Path) -> String {
+    let r = &o.region;
+    let value = serde_json::json!({
+        "steps": o.steps,
+        "simulated_s": o.simulated_s,
+        "water_unexplained_rel": o.water_unexplained_rel,
+        "soil_unexplained_rel": o.soil_unexplained_rel,
+        "water_out_m3": o.water_out_m3,
+        "soil_out_m3": o.soil_out_m3,
+        "seconds": o.seconds,
+        "rain_m3": o.rain_m3,
+        "cells": [r.width, r.height],
+        "level": r.level,
+        "quads": o.quads.len(),
+        "delta_min_m": o.range_m.0,
+        "delta_max_m": o.range_m.1,
+        "device": device,
+        "cache": cached.map(|c| c.display().to_string()),
+        "project": path.display().to_string(),
+    });
+    let mut text = serde_json::to_string_pretty(&value).unwrap_or_default();
+    text.push('\n');
+    text
+}
+
+/// After an undo or redo: the layer rebuilt or read from its cache, the project saved.
+fn finish(project: &Project, path: &std::path::Path, index: usize, mut out: String) -> Result<String, String> {
+    let (scene, report) = Scene::open(project).map_err(|e| e.to_string())?;
+    for line in report.imported.iter().chain(&report.edits) {
+        let _ = writeln!(out, "{line}");
+    }
+    scene.save_edit_cache(index)?;
+    project.save(path).map_err(|e| e.to_string())?;
+    let _ = writeln!(out, "saved {}", path.display());
+    Ok(out)
+}

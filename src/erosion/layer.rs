@@ -1,0 +1,274 @@
+//! The erosion layer: its operations applied in order to a raster of height changes (the same
+//! sparse 257² tiles as an edit layer's, [`EditRaster`], at the operations' level). Each run
+//! reads the terrain below the layer plus the changes of the runs before it over its region,
+//! erodes it (on the CPU reference or the GPU, through a [`Stepper`]) and adds the change of
+//! height to the region's tiles. A sample shared by two quads (their common edge, across a face
+//! edge too) gets the one value of the cell that holds it, so the tiles meet without a crack.
+
+use std::collections::{BTreeSet, HashMap};
+use std::time::Instant;
+
+use glam::DVec3;
+
+use super::operation::{BrushPath, Operation};
+use super::region::Region;
+use super::sim::Run;
+use crate::ecm::{Face, QuadId};
+use crate::edit::EditRaster;
+use crate::edit::terrain::{Below, KeptBelow};
+use crate::geodesy::{Ellipsoid, Geodetic, ecef_from_geodetic};
+use crate::layers::extent::{segment_distance_m, smoothstep};
+use crate::layers::stack::sample_point;
+use crate::store::grid::{GRID, TILE, fold_sample, intervals_per_face_edge};
+
+const N: usize = GRID as usize;
+
+/// What takes a run's steps: the CPU reference or the GPU.
+pub trait Stepper {
+    /// `cpu` or `gpu`.
+    fn device(&self) -> super::operation::Device;
+    /// The run after `steps` more steps.
+    fn run(&self, run: Run, steps: u64) -> Result<Run, String>;
+}
+
+/// The CPU reference.
+pub struct CpuStepper;
+
+impl Stepper for CpuStepper {
+    fn device(&self) -> super::operation::Device {
+        super::operation::Device::Cpu
+    }
+
+    fn run(&self, mut run: Run, steps: u64) -> Result<Run, String> {
+        for _ in 0..steps {
+            run.step();
+        }
+        Ok(run)
+    }
+}
+
+/// An operation that cannot be run: its index, the field and the problem.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("runs[{index}]: {field}: {problem}")]
+pub struct OperationError {
+    /// The operation's index in the layer.
+    pub index: usize,
+    /// The field.
+    pub field: String,
+    /// What is wrong.
+    pub problem: String,
+}
+
+/// What a run did.
+#[derive(Clone, Debug)]
+pub struct Outcome {
+    /// The region it ran on.
+    pub region: Region,
+    /// Steps taken.
+    pub steps: u64,
+    /// Simulated time, seconds.
+    pub simulated_s: f64,
+    /// Water the budget does not explain, over the water that entered.
+    pub water_unexplained_rel: f64,
+    /// Soil the budget does not explain, over the soil moved.
+    pub soil_unexplained_rel: f64,
+    /// Water that left through open borders and sinks, m³.
+    pub water_out_m3: f64,
+    /// Soil that left with it, m³.
+    pub soil_out_m3: f64,
+    /// Rain that fell, m³.
+    pub rain_m3: f64,
+    /// Wall-clock time of the run (not counting reading the terrain), seconds.
+    pub seconds: f64,
+    /// The smallest and largest change of height, metres.
+    pub range_m: (f64, f64),
+    /// The quads whose tiles changed.
+    pub quads: BTreeSet<QuadId>,
+}
+
+/// The raster of `ops` in order (each checked first), by the CPU reference.
+pub fn build(ellipsoid: Ellipsoid, ops: &[Operation], below: &Below) -> Result<EditRaster, OperationError> {
+    let level = ops.first().map_or(0, |o| o.level);
+    let mut raster = EditRaster::new(ellipsoid, level);
+    let kept = KeptBelow::new(below);
+    for (index, op) in ops.iter().enumerate() {
+        apply(&mut raster, index, op, &|q| kept.get(q), &CpuStepper)?;
+    }
+    Ok(raster)
+}
+
+/// Runs `op` (the layer's operation `index`) and adds its change of height to `raster`, keeping
+/// the tiles it replaced for undo.
+pub fn apply(
+    raster: &mut EditRaster,
+    index: usize,
+    op: &Operation,
+    below: &Below,
+    stepper: &dyn Stepper,
+) -> Result<Outcome, OperationError> {
+    let err = |field: &str, problem: String| OperationError { index, field: field.into(), problem };
+    op.check().map_err(|(f, p)| err(&f, p))?;
+    if raster.level != op.level && !raster.tiles.is_empty() {
+        return Err(err(
+            "level",
+            format!("{} differs from the layer's {} (one erosion layer erodes at one level)", op.level, raster.level),
+        ));
+    }
+    if raster.level != op.level {
+        let mut fresh = EditRaster::new(raster.ellipsoid, op.level);
+        fresh.succeed(raster);
+        *raster = fresh;
+    }
+    let e = raster.ellipsoid;
+    let region = Region::from_box(&e, op.region, op.level).map_err(|p| err("region", p))?;
+    // The terrain as the run finds it: below the layer, plus the runs before.
+    let heights = |q: QuadId| -> Result<Vec<f32>, String> {
+        let mut h = below(q)?;
+        if let Some(d) = raster.tile(q) {
+            for (h, d) in h.iter_mut().zip(d) {
+                *h += d;
+            }
+        }
+        Ok(h)
+    };
+    let mut grid = region.grid(&e, &heights).map_err(|p| err("terrain below", p))?;
+    if let Some(brush) = &op.brush {
+        let mask = brush_mask(&e, &region, brush);
+        grid.rain_mask = Some(mask.clone());
+        grid.erosion_mask = Some(mask);
+    }
+    let run = Run::new(grid, op.params.clone()).map_err(|p| err(&format!("params.{}", p.field), p.to_string()))?;
+    let run = run.with_seed(op.seed);
+    let t = Instant::now();
+    let run = stepper.run(run, op.steps).map_err(|p| err("device", p))?;
+    let seconds = t.elapsed().as_secs_f64();
+    let delta = run.delta_m();
+    let tiles = tiles_of(&e, &region, &delta, raster);
+    let mut range = (0f64, 0f64);
+    for d in delta.iter().filter(|d| d.is_finite()) {
+        range = (range.0.min(*d), range.1.max(*d));
+    }
+    let quads: BTreeSet<QuadId> = tiles.iter().map(|(q, _)| *q).collect();
+    raster.apply_tiles(index, tiles);
+    let unit = run.unit_m3();
+    let (water_left, soil_left) = run.unexplained();
+    let b = run.budget;
+    let moved: i64 = run.state.soil.iter().map(|s| s.abs()).sum::<i64>() + run.state.sediment.iter().sum::<i64>() + b.soil_out;
+    Ok(Outcome {
+        region,
+        steps: run.steps,
+        simulated_s: run.simulated_s,
+        water_unexplained_rel: water_left.abs() as f64 / b.rain_in.max(1) as f64,
+        soil_unexplained_rel: soil_left.abs() as f64 / moved.max(1) as f64,
+        water_out_m3: b.water_out as f64 * unit,
+        soil_out_m3: b.soil_out as f64 * unit,
+        rain_m3: b.rain_in as f64 * unit,
+        seconds,
+        range_m: range,
+        quads,
+    })
+}
+
+/// The brush's mask per cell: 1 within half the radius of the path, smoothly 0 at the radius.
+fn brush_mask(e: &Ellipsoid, region: &Region, brush: &BrushPath) -> Vec<f64> {
+    let points: Vec<DVec3> = brush
+        .points
+        .iter()
+        .map(|p| ecef_from_geodetic(e, Geodetic { lat_rad: p[0].to_radians(), lon_rad: p[1].to_radians(), height_m: 0.0 }))
+        .collect();
+    let r = brush.radius_m;
+    let mut mask = vec![0.0; region.width * region.height];
+    for y in 0..region.height {
+        for x in 0..region.width {
+            let Some(c) = region.cell(x, y) else { continue };
+            let p = sample_point(e, c.quad, GRID, c.i, c.j).0;
+            let d = if points.len() == 1 {
+                (p - points[0]).length()
+            } else {
+                points.windows(2).map(|w| segment_distance_m(p, w[0], w[1])).fold(f64::INFINITY, f64::min)
+            };
+            mask[y * region.width + x] = 1.0 - smoothstep((d - 0.5 * r) / (0.5 * r));
+        }
+    }
+    mask
+}
+
+/// The tiles of the region's quads with the run's change added: each of a tile's 257² samples
+/// takes the change of the cell that holds it (a sample on a face edge, held by the adjacent
+/// face's cell, is found by its position).
+fn tiles_of(e: &Ellipsoid, region: &Region, delta: &[f64], raster: &EditRaster) -> Vec<(QuadId, Vec<f32>)> {
+    let level = region.level;
+    let m = intervals_per_face_edge(level);
+    let mut by_sample: HashMap<(Face, i64, i64), usize> = HashMap::new();
+    let mut on_edges: HashMap<[i64; 3], usize> = HashMap::new();
+    let key = |p: DVec3| [(p.x * 100.0).round() as i64, (p.y * 100.0).round() as i64, (p.z * 100.0).round() as i64];
+    for y in 0..region.height {
+        for x in 0..region.width {
+            let Some((f, i, j)) = fold_sample(region.face, level, region.i0 + x as i64, region.j0 + y as i64) else {
+                continue;
+            };
+            let k = y * region.width + x;
+            by_sample.insert((f, i, j), k);
+            if i == 0 || j == 0 || i == m || j == m {
+                let c = region.cell(x, y).expect("folded above");
+                on_edges.insert(key(sample_point(e, c.quad, GRID, c.i, c.j).0), k);
+            }
+        }
+    }
+    let find_on_edge = |p: DVec3| -> Option<usize> {
+        let k = key(p);
+        for dx in -1..=1 {
+            for dy in -1..=1 {
+                for dz in -1..=1 {
+                    if let Some(c) = on_edges.get(&[k[0] + dx, k[1] + dy, k[2] + dz]) {
+                        return Some(*c);
+                    }
+                }
+            }
+        }
+        None
+    };
+    let tile = i64::from(TILE);
+    region
+        .quads()
+        .into_iter()
+        .map(|q| {
+            let mut t = raster.tile(q).map_or_else(|| vec![0.0f32; N * N], <[f32]>::to_vec);
+            for j in 0..N {
+                for i in 0..N {
+                    let (gi, gj) = (i64::from(q.x) * tile + i as i64, i64::from(q.y) * tile + j as i64);
+                    let cell = by_sample.get(&(q.face, gi, gj)).copied().or_else(|| {
+                        let edge = gi == 0 || gj == 0 || gi == m || gj == m;
+                        edge.then(|| find_on_edge(sample_point(e, q, GRID, i as u32, j as u32).0)).flatten()
+                    });
+                    if let Some(c) = cell
+                        && delta[c].is_finite()
+                    {
+                        t[j * N + i] = (f64::from(t[j * N + i]) + delta[c]) as f32;
+                    }
+                }
+            }
+            (q, t)
+        })
+        .collect()
+}
+
+/// Moves an erosion layer's raster from `top` applied operations to `keep`: restored from the
+/// before-images while the history has them, else rebuilt from `ops[..keep]` by the CPU
+/// reference.
+pub fn undo_to(
+    raster: &mut EditRaster,
+    ops: &[Operation],
+    top: usize,
+    keep: usize,
+    below: &Below,
+) -> Result<(), OperationError> {
+    if keep <= top && raster.restore_to(top, keep) == keep {
+        return Ok(());
+    }
+    let mut rebuilt = build(raster.ellipsoid, &ops[..keep], below)?;
+    rebuilt.clear_history();
+    rebuilt.succeed(raster);
+    *raster = rebuilt;
+    Ok(())
+}
