@@ -400,13 +400,23 @@ fn edit_rasters_are_cached_beside_the_project_and_rebuilt_when_stale_or_unreadab
     let (again, line) = open(&p);
     assert!(line.contains("rebuilt"), "{line}");
     assert_eq!(again, built);
-    // Another undo position: another digest; the older cache is replaced.
+    // Another undo position: another digest, another cache; the previous one is kept (a redo
+    // reads it) among the layer's most recent few.
     let index = p.layers.iter().position(|l| l.kind == LayerKind::Edit).unwrap();
     p.layers[index].applied = Some(7);
     let (undone, line) = open(&p);
     assert!(line.contains("rebuilt from 7 strokes"), "{line}");
     assert_ne!(undone, built);
-    assert_eq!(caches().len(), 1, "{:?}", caches());
+    assert_eq!(caches().len(), 2, "{:?}", caches());
+    p.layers[index].applied = None;
+    let (redone, line) = open(&p);
+    assert!(line.contains("8 strokes read from"), "{line}");
+    assert_eq!(redone, built);
+    for k in (3..7).rev() {
+        p.layers[index].applied = Some(k);
+        open(&p);
+    }
+    assert_eq!(caches().len(), terrafuse::edit::cache::KEPT, "only the most recent are kept: {:?}", caches());
     // A layer below changed: the strokes that read the terrain read another one.
     p.layers[index].applied = None;
     p.layers[0].offset_m = 100.0;

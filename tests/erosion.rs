@@ -85,7 +85,12 @@ fn the_gpu_conserves_exactly_under_stress_and_repeats_itself_bit_for_bit() {
     }
     base[17 * w + 9] = f64::NAN;
     let grid = Grid::flat_patch(w, h, 30.0, base);
-    let params = Params { rain_m_s: 1e-2, evaporation_per_s: 0.0, border: Border::Open, ..Params::preset("rain", EARTH_G).unwrap() };
+    let params = Params {
+        rain_m_s: 1e-2,
+        evaporation_per_s: 0.0,
+        border: Border::Open,
+        ..Params::preset("rain", EARTH_G).unwrap()
+    };
     let start = Run::new(grid, params).unwrap().with_seed(9);
     let mut finals = Vec::new();
     for _ in 0..2 {
@@ -133,4 +138,111 @@ fn over_long_runs_the_gpu_and_the_cpu_agree_in_budgets_and_terrain_statistics() 
     assert!(near(c.3, q.3, 0.05), "water out: CPU {} GPU {}", c.3, q.3);
     assert!(near(c.4, q.4, 0.01), "simulated time: CPU {} GPU {}", c.4, q.4);
     assert_eq!(g.unexplained(), (0, 0));
+}
+
+fn erode(args: &[&str]) -> std::process::Output {
+    common::terrafuse(&[&["erode"], args].concat(), "")
+}
+
+#[test]
+fn the_erzurum_session_replays_bit_for_bit_and_reopens_from_its_cache() {
+    use terrafuse::gpu::Scene;
+    use terrafuse::layers::LayerKind;
+    use terrafuse::project::Project;
+    let dir = common::repo_path("tests/out/erosion-sample");
+    let _ = std::fs::remove_dir_all(&dir);
+    // Opening the sample built its erosion layer from its two runs and cached it.
+    let path = common::sample_project("erzurum-erosion", &dir);
+    let project = Project::load(&path).unwrap();
+    let index = project.layers.iter().position(|l| l.kind == LayerKind::Erosion).expect("the sample's erosion layer");
+    assert_eq!(project.layers[index].runs.len(), 2);
+    let (cached, report) = Scene::open(&project).unwrap();
+    assert!(report.edits.iter().any(|l| l.contains("2 runs read from")), "{:?}", report.edits);
+    let raster = |s: &Scene| s.edits[&s.stack.layers[index].uid].clone();
+    let from_cache = raster(&cached);
+    // Rebuilt from the runs without the cache: the same tiles, bit for bit (the CPU reference).
+    let mut fresh = Scene::open(&project).unwrap().0;
+    fresh.edit_cache_dir = None;
+    fresh.attach_edit(index).unwrap();
+    let rebuilt = raster(&fresh);
+    assert!(*rebuilt == *from_cache, "a rebuild differs from the cache");
+    // Four quads of level 10 changed, by metres on the steep slopes; the layer is composed into the
+    // terrain: the sum over the stack differs from the dataset alone there.
+    assert_eq!(rebuilt.level, 10);
+    assert_eq!(rebuilt.tiles.len(), 4);
+    let (lo, hi) = rebuilt.range_m();
+    assert!(lo < -1.0 && hi > 1.0, "{lo} … {hi} m");
+    let q = *rebuilt.tiles.keys().next().unwrap();
+    let with = cached.heights_cpu(q).unwrap();
+    let without = cached.below(index).unwrap().heights_cpu(q).unwrap();
+    let tile = rebuilt.tile(q).unwrap();
+    for k in (0..with.len()).step_by(97) {
+        assert!(
+            (with[k] - (without[k] + tile[k])).abs() < 1e-3,
+            "sample {k}: {} vs {} + {}",
+            with[k],
+            without[k],
+            tile[k]
+        );
+    }
+}
+
+#[test]
+fn terrafuse_erode_runs_reports_json_undoes_redoes_and_refuses_bad_input_untouched() {
+    let dir = common::repo_path("tests/out/erosion-cli");
+    let _ = std::fs::remove_dir_all(&dir);
+    let path = common::sample_project("erzurum", &dir);
+    let p = path.to_str().unwrap();
+    let region = "39.60,40.50,39.62,40.53";
+    let out = erode(&[
+        p, "--layer", "wash", "--region", region, "--level", "9", "--steps", "30", "--seed", "4", "--cpu", "--json",
+    ]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    for field in [
+        "steps",
+        "simulated_s",
+        "water_unexplained_rel",
+        "soil_unexplained_rel",
+        "water_out_m3",
+        "soil_out_m3",
+        "seconds",
+    ] {
+        assert!(v.get(field).is_some_and(|x| x.is_number()), "JSON field {field}: {v}");
+    }
+    assert_eq!(v["steps"], 30);
+    assert_eq!(v["water_unexplained_rel"], 0.0);
+    assert_eq!(v["soil_unexplained_rel"], 0.0);
+    assert!(v["simulated_s"].as_f64().unwrap() > 0.0 && v["rain_m3"].as_f64().unwrap() > 0.0, "{v}");
+    // The box rounded out to whole quads of level 9 (256 cells each).
+    let cells = v["cells"].as_array().unwrap();
+    assert!(cells.iter().all(|c| c.as_u64().unwrap() % 256 == 0), "{v}");
+    let project = terrafuse::project::Project::load(&path).unwrap();
+    let layer = project.layers.iter().find(|l| l.name == "wash").unwrap();
+    assert_eq!(layer.runs.len(), 1);
+    assert_eq!(layer.runs[0].steps, 30);
+    // Undo, then redo: the layer comes back from its cache.
+    let undo = erode(&[p, "--layer", "wash", "--undo", "1"]);
+    assert!(undo.status.success(), "{}", String::from_utf8_lossy(&undo.stderr));
+    let redo = erode(&[p, "--layer", "wash", "--redo", "1"]);
+    let text = String::from_utf8_lossy(&redo.stdout);
+    assert!(redo.status.success() && text.contains("1 runs read from"), "{text}");
+    // Bad input: a clear error naming the flag, and the file untouched.
+    let before = std::fs::read(&path).unwrap();
+    for (args, expect) in [
+        (vec!["--region", "39.7,40.5,39.6,40.6", "--level", "9", "--steps", "5"], "--region"),
+        (vec!["--region", "30,30,50,60", "--level", "9", "--steps", "5"], "at most 4096"),
+        (vec!["--region", region, "--level", "9", "--steps", "0"], "--steps"),
+        (vec!["--region", region, "--level", "9", "--steps", "5", "--set", "rain_m_s=5"], "rain_m_s"),
+        (vec!["--region", region, "--level", "9", "--steps", "5", "--set", "colour=1"], "--set colour"),
+        (vec!["--region", region, "--level", "9", "--steps", "5", "--preset", "lava"], "--preset lava"),
+        (vec!["--region", region, "--level", "10", "--steps", "5"], "--level"),
+    ] {
+        let out = erode(&[&[p, "--layer", "wash", "--cpu"][..], &args].concat());
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success() && err.contains(expect), "{args:?}: {err}");
+        assert_eq!(std::fs::read(&path).unwrap(), before, "{args:?} changed the project");
+    }
+    let wrong = erode(&[p, "--layer", "srtm", "--region", region, "--level", "9", "--steps", "5"]);
+    assert!(String::from_utf8_lossy(&wrong.stderr).contains("not an erosion layer"));
 }

@@ -189,7 +189,8 @@ pub fn erode_command(request: &ErodeRequest) -> Result<String, String> {
     scene.set_edit(index, raster);
     let cached = scene.save_edit_cache(index)?;
     project.save(path).map_err(|e| e.to_string())?;
-    let device = if gpu.is_some() { gpu.as_ref().map(GpuContext::describe).unwrap_or_default() } else { "CPU reference".into() };
+    let device =
+        if gpu.is_some() { gpu.as_ref().map(GpuContext::describe).unwrap_or_default() } else { "CPU reference".into() };
     if request.json {
         return Ok(json_of(&outcome, &device, cached.as_deref(), path));
     }
@@ -206,13 +207,24 @@ pub fn erode_command(request: &ErodeRequest) -> Result<String, String> {
     );
     let _ = writeln!(
         out,
-        "{} steps, {:.3} s simulated, in {:.2} s; change of height {:.3} … {:.3} m",
-        outcome.steps, outcome.simulated_s, outcome.seconds, outcome.range_m.0, outcome.range_m.1
+        "{} steps, {:.3} s simulated, in {:.2} s; steps {:.4} … {:.4} s (asked {} s, the rest by the CFL bound); change of height {:.3} … {:.3} m",
+        outcome.steps,
+        outcome.simulated_s,
+        outcome.seconds,
+        outcome.dt_range_s.0,
+        outcome.dt_range_s.1,
+        outcome.dt_asked_s,
+        outcome.range_m.0,
+        outcome.range_m.1
     );
     let _ = writeln!(
         out,
         "budgets: rain {:.3} m³, water out {:.3} m³, soil out {:.3} m³; unexplained: water {:.1e}, soil {:.1e} of the total",
-        outcome.rain_m3, outcome.water_out_m3, outcome.soil_out_m3, outcome.water_unexplained_rel, outcome.soil_unexplained_rel
+        outcome.rain_m3,
+        outcome.water_out_m3,
+        outcome.soil_out_m3,
+        outcome.water_unexplained_rel,
+        outcome.soil_unexplained_rel
     );
     if let Some(c) = cached {
         let _ = writeln!(out, "cached {}", c.display());
@@ -231,6 +243,9 @@ fn json_of(o: &Outcome, device: &str, cached: Option<&std::path::Path>, path: &s
         "water_out_m3": o.water_out_m3,
         "soil_out_m3": o.soil_out_m3,
         "seconds": o.seconds,
+        "dt_min_s": o.dt_range_s.0,
+        "dt_max_s": o.dt_range_s.1,
+        "dt_asked_s": o.dt_asked_s,
         "rain_m3": o.rain_m3,
         "cells": [r.width, r.height],
         "level": r.level,

@@ -25,8 +25,8 @@ pub use bench_compose::{ComposeBenchRow, ComposeBenchSettings, bench_compose};
 pub use bench_erosion::bench_erosion;
 pub use bench_render::{RenderBenchRow, RenderBenchSettings, bench_render, render_bench_csv, write_render_bench};
 pub use brush::{BrushRequest, brush_command};
-pub use erode::{ErodeOn, ErodeRequest, erode_command, params_of};
 pub use compare::{CompareRequest, CoregRequest, compare_command, coregister_command, table as compare_table};
+pub use erode::{ErodeOn, ErodeRequest, erode_command, params_of};
 pub use export::{ComposeOn, ComposedExport, ComposedReport, export_composed};
 pub use geo::{BatchReport, GeoOperation, run_batch};
 pub use geometry::{

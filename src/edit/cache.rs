@@ -64,6 +64,9 @@ fn file_safe(name: &str) -> String {
     name.chars().map(|c| if c.is_ascii_alphanumeric() || c == '-' || c == '_' { c } else { '_' }).collect()
 }
 
+/// Caches kept per layer: the current one and the most recent others (undo and redo positions).
+pub const KEPT: usize = 4;
+
 /// The raster saved at `path`, if it is there and readable.
 pub fn read(path: &Path, ellipsoid: Ellipsoid) -> Option<EditRaster> {
     let bytes = std::fs::read(path).ok()?;
@@ -112,9 +115,11 @@ pub fn write(path: &Path, raster: &EditRaster) -> Result<(), CacheError> {
         std::fs::create_dir_all(dir).map_err(|e| err(format!("cannot create the folder: {e}")))?;
     }
     crate::files::write_atomic(path, &bytes).map_err(|e| err(e.to_string()))?;
-    // The layer's older caches: `edits-<layer>-<16 hex digits>.tiles` other than this one.
+    // The layer's older caches: `edits-<layer>-<16 hex digits>.tiles` other than this one; the
+    // most recent are kept (undo and redo within them read a cache), the rest removed.
     let name = path.file_name().and_then(|n| n.to_str()).unwrap_or_default();
     let prefix = &name[..name.len().saturating_sub(16 + ".tiles".len())];
+    let mut older: Vec<(std::time::SystemTime, PathBuf)> = Vec::new();
     if let Some(entries) = path.parent().and_then(|d| std::fs::read_dir(d).ok()) {
         for entry in entries.flatten() {
             let other = entry.file_name().to_string_lossy().to_string();
@@ -124,9 +129,14 @@ pub fn write(path: &Path, raster: &EditRaster) -> Result<(), CacheError> {
                 && other.ends_with(".tiles")
                 && other[prefix.len()..other.len() - 6].chars().all(|c| c.is_ascii_hexdigit());
             if stale {
-                let _ = std::fs::remove_file(entry.path());
+                let modified = entry.metadata().and_then(|m| m.modified()).unwrap_or(std::time::UNIX_EPOCH);
+                older.push((modified, entry.path()));
             }
         }
+    }
+    older.sort_by(|a, b| b.0.cmp(&a.0).then_with(|| a.1.cmp(&b.1)));
+    for (_, stale) in older.iter().skip(KEPT - 1) {
+        let _ = std::fs::remove_file(stale);
     }
     Ok(())
 }

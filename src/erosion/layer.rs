@@ -68,6 +68,10 @@ pub struct Outcome {
     pub steps: u64,
     /// Simulated time, seconds.
     pub simulated_s: f64,
+    /// The smallest and largest step taken (the CFL bound's work), seconds.
+    pub dt_range_s: (f64, f64),
+    /// The step asked for, seconds.
+    pub dt_asked_s: f64,
     /// Water the budget does not explain, over the water that entered.
     pub water_unexplained_rel: f64,
     /// Soil the budget does not explain, over the soil moved.
@@ -153,11 +157,14 @@ pub fn apply(
     let unit = run.unit_m3();
     let (water_left, soil_left) = run.unexplained();
     let b = run.budget;
-    let moved: i64 = run.state.soil.iter().map(|s| s.abs()).sum::<i64>() + run.state.sediment.iter().sum::<i64>() + b.soil_out;
+    let moved: i64 =
+        run.state.soil.iter().map(|s| s.abs()).sum::<i64>() + run.state.sediment.iter().sum::<i64>() + b.soil_out;
     Ok(Outcome {
         region,
         steps: run.steps,
         simulated_s: run.simulated_s,
+        dt_range_s: run.dt_range_s,
+        dt_asked_s: run.params.dt_s,
         water_unexplained_rel: water_left.abs() as f64 / b.rain_in.max(1) as f64,
         soil_unexplained_rel: soil_left.abs() as f64 / moved.max(1) as f64,
         water_out_m3: b.water_out as f64 * unit,
@@ -174,7 +181,9 @@ fn brush_mask(e: &Ellipsoid, region: &Region, brush: &BrushPath) -> Vec<f64> {
     let points: Vec<DVec3> = brush
         .points
         .iter()
-        .map(|p| ecef_from_geodetic(e, Geodetic { lat_rad: p[0].to_radians(), lon_rad: p[1].to_radians(), height_m: 0.0 }))
+        .map(|p| {
+            ecef_from_geodetic(e, Geodetic { lat_rad: p[0].to_radians(), lon_rad: p[1].to_radians(), height_m: 0.0 })
+        })
         .collect();
     let r = brush.radius_m;
     let mut mask = vec![0.0; region.width * region.height];

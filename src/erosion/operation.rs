@@ -74,7 +74,9 @@ impl Operation {
         if self.level > 24 {
             return bad("level", format!("{} is finer than 24 (sub-millimetre cells on the Earth)", self.level));
         }
-        self.params.check().map_err(|e| (format!("params.{}", e.field), format!("{} is outside {}", e.value, e.range)))?;
+        self.params
+            .check()
+            .map_err(|e| (format!("params.{}", e.field), format!("{} is outside {}", e.value, e.range)))?;
         if let Some(b) = &self.brush {
             if !(b.radius_m.is_finite() && b.radius_m > 0.0) {
                 return bad("brush.radius_m", format!("{} must be a positive distance in metres", b.radius_m));

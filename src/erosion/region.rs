@@ -47,9 +47,11 @@ fn unfold(face: Face, other: Face, level: u8, i: i64, j: i64) -> Option<(i64, i6
         [(c, -1), (c, -2), (c + 1, -1)],
     ];
     for [p0, p1, p2] in edges {
-        let (Some((f0, a0, b0)), Some((_, a1, b1)), Some((_, a2, b2))) =
-            (fold_sample(face, level, p0.0, p0.1), fold_sample(face, level, p1.0, p1.1), fold_sample(face, level, p2.0, p2.1))
-        else {
+        let (Some((f0, a0, b0)), Some((_, a1, b1)), Some((_, a2, b2))) = (
+            fold_sample(face, level, p0.0, p0.1),
+            fold_sample(face, level, p1.0, p1.1),
+            fold_sample(face, level, p2.0, p2.1),
+        ) else {
             continue;
         };
         if f0 != other {
@@ -94,7 +96,9 @@ impl Region {
             return Err(format!("{bounds:?} is not LAT_MIN,LON_MIN,LAT_MAX,LON_MAX in degrees"));
         }
         if lat0 >= lat1 || lon0 >= lon1 || lon1 - lon0 > 360.0 {
-            return Err(format!("{bounds:?}: the minimum must be below the maximum (latitude {lat0} … {lat1}, longitude {lon0} … {lon1})"));
+            return Err(format!(
+                "{bounds:?}: the minimum must be below the maximum (latitude {lat0} … {lat1}, longitude {lon0} … {lon1})"
+            ));
         }
         if level > crate::ecm::MAX_LEVEL {
             return Err(format!("level {level} is past the finest, {}", crate::ecm::MAX_LEVEL));
@@ -112,16 +116,22 @@ impl Region {
         // least 65 a side).
         let quad_deg = (spacing_m(ellipsoid, level) * f64::from(TILE) / ellipsoid.a_m()).to_degrees();
         let along = |span: f64| ((span / (0.25 * quad_deg)).ceil() as usize).clamp(64, 4 * MAX_SIDE);
-        let (na, nb) = (along(lat1 - lat0), along((lon1 - lon0) * lat0.abs().max(lat1.abs()).to_radians().cos().max(0.01)));
+        let (na, nb) =
+            (along(lat1 - lat0), along((lon1 - lon0) * lat0.abs().max(lat1.abs()).to_radians().cos().max(0.01)));
         let (mut lo, mut hi) = ((i64::MAX, i64::MAX), (i64::MIN, i64::MIN));
         for a in 0..=na {
             for b in 0..=nb {
                 let lat = lat0 + (lat1 - lat0) * a as f64 / na as f64;
                 let lon = lon0 + (lon1 - lon0) * b as f64 / nb as f64;
                 let (f, i, j) = index(lat, lon);
-                let (i, j) = if f == face { (i, j) } else { unfold(face, f, level, i, j).ok_or_else(|| {
+                let (i, j) =
+                    if f == face {
+                        (i, j)
+                    } else {
+                        unfold(face, f, level, i, j).ok_or_else(|| {
                     format!("{bounds:?} reaches the face opposite the one under its centre: too large for one region")
-                })? };
+                })?
+                    };
                 lo = (lo.0.min(i), lo.1.min(j));
                 hi = (hi.0.max(i), hi.1.max(j));
             }

@@ -101,6 +101,8 @@ pub struct Run {
     pub simulated_s: f64,
     /// The dither's seed (see [`super::dither`]).
     pub seed: u32,
+    /// The smallest and largest step taken, seconds ((∞, 0) before the first).
+    pub dt_range_s: (f64, f64),
     unit_m3: f64,
 }
 
@@ -132,6 +134,7 @@ impl Run {
             steps: 0,
             simulated_s: 0.0,
             seed: 0,
+            dt_range_s: (f64::INFINITY, 0.0),
             unit_m3,
         })
     }
@@ -225,6 +228,7 @@ impl Run {
         report.max_depth_m = (0..self.grid.len()).map(|i| self.depth_m(i)).fold(0.0, f64::max);
         self.steps += 1;
         self.simulated_s += dt;
+        self.dt_range_s = (self.dt_range_s.0.min(dt), self.dt_range_s.1.max(dt));
         report
     }
 
@@ -252,7 +256,8 @@ impl Run {
                 }
                 Some(_) => Some((h, h)),
                 None if open => {
-                    let opposite = grid.neighbour(i, k ^ 1).filter(|n| !grid.is_sink(*n)).map_or(h, |n| self.height_m(n));
+                    let opposite =
+                        grid.neighbour(i, k ^ 1).filter(|n| !grid.is_sink(*n)).map_or(h, |n| self.height_m(n));
                     let beyond = h.min(2.0 * h - opposite);
                     Some((beyond, beyond))
                 }
@@ -398,14 +403,16 @@ impl Run {
             sediment += taken;
         } else {
             let rate = (self.params.deposit_per_s * dt).min(1.0);
-            let laid =
-                self.round((carried_m - capacity_m) * rate * area / self.unit_m3, i, dither::DEPOSIT).clamp(0, sediment);
+            let laid = self
+                .round((carried_m - capacity_m) * rate * area / self.unit_m3, i, dither::DEPOSIT)
+                .clamp(0, sediment);
             sediment -= laid;
             soil += laid;
         }
         // Evaporation; water gone, its sediment settles.
-        let evaporated =
-            self.round(water as f64 * (self.params.evaporation_per_s * dt).min(1.0), i, dither::EVAPORATE).clamp(0, water);
+        let evaporated = self
+            .round(water as f64 * (self.params.evaporation_per_s * dt).min(1.0), i, dither::EVAPORATE)
+            .clamp(0, water);
         water -= evaporated;
         budget.evaporated += evaporated;
         if water == 0 && sediment > 0 {
@@ -414,8 +421,10 @@ impl Run {
         }
         // Rain (for the next step's outflows), within the units a cell may hold.
         let mask = grid.rain_mask.as_ref().map_or(1.0, |m| m[i].clamp(0.0, 1.0));
-        let rain =
-            self.round(self.params.rain_m_s * dt * mask * area / self.unit_m3, i, dither::RAIN).min(MAX_UNITS - water).max(0);
+        let rain = self
+            .round(self.params.rain_m_s * dt * mask * area / self.unit_m3, i, dither::RAIN)
+            .min(MAX_UNITS - water)
+            .max(0);
         water += rain;
         budget.rain_in += rain;
         // Beyond what a cell may hold: water and soil spill out of the run (counted), sediment

@@ -316,3 +316,30 @@ fn regions_on_the_moon_and_the_earth_from_level_8_to_22_stay_finite_and_balanced
         }
     }
 }
+
+#[test]
+fn a_box_across_a_face_edge_becomes_one_region_whose_cells_fold_back_onto_the_box() {
+    // A box on the equator across 45°E (the front and right faces' edge), level 8: the region is
+    // in the index space of the face under its centre, runs past that face's edge, and every point of the box lies in a
+    // cell of it; inverted boxes and boxes too large for a region are refused.
+    use super::region::Region;
+    use crate::ecm::{CubeProjection, Face, QuadId};
+    use crate::geodesy::Ellipsoid;
+    let e = Ellipsoid::WGS84;
+    let bounds = [-0.2, 44.7, 0.2, 45.4];
+    let region = Region::from_box(&e, bounds, 8).unwrap();
+    // The box's centre (0°, 45.05°E) is on the right face: the region runs past its west edge.
+    assert_eq!(region.face, Face::Right);
+    assert_eq!((region.width % 256, region.height % 256), (0, 0));
+    assert!(region.i0 < 0 && region.i0 + region.width as i64 > 0, "{region:?} does not cross the edge");
+    let quads = region.quads();
+    assert!(quads.iter().any(|q| q.face == Face::Right) && quads.iter().any(|q| q.face == Face::Front));
+    for (lat, lon) in [(-0.19, 44.71), (0.19, 45.39), (0.0, 45.0), (-0.1, 45.3), (0.15, 44.9)] {
+        let p = CubeProjection::Qsc.face_point_from_geodetic(&e, f64::to_radians(lat), f64::to_radians(lon));
+        let q = QuadId::containing(p, 8).unwrap();
+        assert!(quads.contains(&q), "({lat}, {lon}) in {q} is outside the region's quads");
+    }
+    assert!(Region::from_box(&e, [0.2, 44.7, -0.2, 45.4], 8).unwrap_err().contains("minimum"));
+    assert!(Region::from_box(&e, [0.0, 0.0, 10.0, 10.0], 10).unwrap_err().contains("at most 4096"));
+    assert!(Region::from_box(&e, [-10.0, -170.0, 10.0, 170.0], 2).unwrap_err().contains("opposite"));
+}

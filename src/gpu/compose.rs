@@ -210,7 +210,11 @@ impl ComposeBatch {
         }
         extra[3] = orientation;
         let [lo, hi] = spec.valid_range_m.map_or([-FAR, FAR], |[a, b]| [a as f32, b as f32]);
-        let source = if matches!(spec.kind, LayerKind::Dataset | LayerKind::Edit | LayerKind::Erosion) { slots.0 } else { NO_SLOT };
+        let source = if matches!(spec.kind, LayerKind::Dataset | LayerKind::Edit | LayerKind::Erosion) {
+            slots.0
+        } else {
+            NO_SLOT
+        };
         self.layers.push(JobLayer {
             head: [kind, blend, source, partial],
             mask,

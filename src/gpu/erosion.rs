@@ -228,7 +228,12 @@ impl GpuRun {
             step: run.steps as u32,
             batch_step: 0,
             _pad: 0,
-            totals: [to_u32_pair(b.rain_in), to_u32_pair(b.evaporated), to_u32_pair(b.water_out), to_u32_pair(b.soil_out)],
+            totals: [
+                to_u32_pair(b.rain_in),
+                to_u32_pair(b.evaporated),
+                to_u32_pair(b.water_out),
+                to_u32_pair(b.soil_out),
+            ],
             bound: 0.0,
             max_speed: 0.0,
             max_depth: 0.0,
@@ -243,8 +248,9 @@ impl GpuRun {
         let masks_buffer = make("erosion masks", bytemuck::cast_slice(&masks), none);
         let state_buffer = make("erosion state", bytemuck::cast_slice(&state), copy);
         let flux_buffer = make("erosion flux", bytemuck::cast_slice(&flux), copy);
-        let sent: Vec<wgpu::Buffer> =
-            ["erosion sent water", "erosion sent sediment", "erosion sent soil"].map(|l| make(l, &zeros(n * 32), none)).into();
+        let sent: Vec<wgpu::Buffer> = ["erosion sent water", "erosion sent sediment", "erosion sent soil"]
+            .map(|l| make(l, &zeros(n * 32), none))
+            .into();
         let partials = make("erosion partials", &zeros(groups as usize * 48), none);
         let control_buffer = make("erosion control", bytemuck::bytes_of(&control), copy);
         let dt_log = make("erosion dt log", &zeros(LOG_STEPS as usize * 4), copy);
@@ -304,8 +310,10 @@ impl GpuRun {
             let now = left.min(STEPS_PER_SUBMIT).min(LOG_STEPS - self.pending);
             let mut encoder = self.device.create_command_encoder(&Default::default());
             {
-                let mut pass = encoder
-                    .begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("erosion"), timestamp_writes: None });
+                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some("erosion"),
+                    timestamp_writes: None,
+                });
                 pass.set_bind_group(0, &self.bind, &[]);
                 let gx = self.groups.min(GROUPS_X);
                 let gy = self.groups.div_ceil(GROUPS_X);
@@ -374,7 +382,12 @@ impl GpuRun {
         {
             let log = mapped(3)?;
             let log: &[f32] = bytemuck::cast_slice(&log);
-            self.host.simulated_s += log[..self.pending as usize].iter().map(|&dt| f64::from(dt)).sum::<f64>();
+            let log = &log[..self.pending as usize];
+            self.host.simulated_s += log.iter().map(|&dt| f64::from(dt)).sum::<f64>();
+            for &dt in log {
+                let r = &mut self.host.dt_range_s;
+                *r = (r.0.min(f64::from(dt)), r.1.max(f64::from(dt)));
+            }
         }
         self.host.steps += u64::from(self.pending);
         self.host.budget = budget_of(&control);

@@ -245,7 +245,8 @@ impl Scene {
             EditRaster::build(self.ellipsoid, layer.spec.applied_strokes(), &|q| below.heights_cpu(q))
                 .map_err(|e| format!("layer '{}': {e}", layer.spec.name))?
         };
-        let mut line = format!("{kind} layer '{name}': rebuilt from {count} {what} in {:.2} s", t.elapsed().as_secs_f64());
+        let mut line =
+            format!("{kind} layer '{name}': rebuilt from {count} {what} in {:.2} s", t.elapsed().as_secs_f64());
         if let Some(p) = &path {
             match crate::edit::cache::write(p, &raster) {
                 Ok(()) => line += &format!(", saved to {}", p.display()),

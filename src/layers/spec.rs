@@ -563,7 +563,10 @@ impl LayerSpec {
                 if run.level != self.runs[0].level {
                     return bad(
                         &format!("runs[{k}].level"),
-                        format!("{} differs from runs[0]'s {} (one erosion layer erodes at one level)", run.level, self.runs[0].level),
+                        format!(
+                            "{} differs from runs[0]'s {} (one erosion layer erodes at one level)",
+                            run.level, self.runs[0].level
+                        ),
                     );
                 }
             }

@@ -70,10 +70,11 @@ pub fn sample_project(name: &str, dir: &std::path::Path) -> PathBuf {
         }
     }
     // Keep the tests light: the global Moon grid only, no procedural detail, small GPU pools.
-    // Difference and edit layers stay (the sample sessions).
+    // Difference, edit and erosion layers stay (the sample sessions).
     use terrafuse::layers::LayerKind;
     p.layers.retain(|d| {
-        d.name != "lola_north" && matches!(d.kind, LayerKind::Dataset | LayerKind::Difference | LayerKind::Edit)
+        d.name != "lola_north"
+            && matches!(d.kind, LayerKind::Dataset | LayerKind::Difference | LayerKind::Edit | LayerKind::Erosion)
     });
     p.detail.gpu_cache_mib = 256;
     std::fs::create_dir_all(dir).unwrap();

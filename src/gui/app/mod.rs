@@ -262,7 +262,8 @@ impl App {
                     if layer.spec.kind.holds_deltas()
                         && let Err(e) = scene.save_edit_cache(index)
                     {
-                        self.message += &format!("; {} layer '{}' not cached: {e}", layer.spec.kind.name(), layer.spec.name);
+                        self.message +=
+                            &format!("; {} layer '{}' not cached: {e}", layer.spec.kind.name(), layer.spec.name);
                     }
                 }
             }
