@@ -426,6 +426,15 @@ enum Bench {
         /// Steps timed per grid.
         #[arg(long, default_value_t = 20)]
         steps: u64,
+        /// The largest grid the CPU reference runs (larger: the GPU only).
+        #[arg(long = "cpu-max", default_value_t = 1024)]
+        cpu_max: usize,
+        /// Also time the GPU kernels.
+        #[arg(long)]
+        gpu: bool,
+        /// The device's memory bandwidth, GB/s, for the share of it a step reaches.
+        #[arg(long = "bandwidth-gbs")]
+        bandwidth_gbs: Option<f64>,
     },
     /// A stroke's latency in the workstation: pointer release to the updated image read back
     /// (rasterise, recompose, draw), per tool, on the Moon sample session.
@@ -890,8 +899,9 @@ fn run(args: Args) -> Result<ExitCode> {
                 report.valid
             );
         }
-        Command::Bench { bench: Bench::Erosion { sizes, steps } } => {
-            print!("{}", cli::bench_erosion(&sizes, steps).map_err(anyhow::Error::msg)?);
+        Command::Bench { bench: Bench::Erosion { sizes, steps, cpu_max, gpu, bandwidth_gbs } } => {
+            let settings = cli::ErosionBenchSettings { sizes, steps, cpu_max, gpu, bandwidth_gbs };
+            print!("{}", cli::bench_erosion(&settings).map_err(anyhow::Error::msg)?);
         }
         Command::Bench { bench: Bench::BrushLatency { project, rounds, width, height } } => {
             print!("{}", cli::bench_brush_latency(&project, rounds, width, height).map_err(anyhow::Error::msg)?);

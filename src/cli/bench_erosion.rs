@@ -1,5 +1,5 @@
 //! `terrafuse bench erosion`: cell-steps per second of the erosion step on square grids (the CPU
-//! reference; the GPU joins when its kernels exist), the bytes each step moves, and the error
+//! reference and the GPU kernels), the bytes each step moves, and the error
 //! against the step size (the same simulated time with Δt, Δt/2 and Δt/4: the largest difference
 //! of the final terrain from the Δt/4 run) beside the time each took.
 
@@ -20,33 +20,92 @@ fn terrain(n: usize, cell_m: f64) -> Vec<f64> {
         .collect()
 }
 
-/// Runs the benchmark on grids of `sizes` cells a side, `steps` steps each; returns the report.
-pub fn bench_erosion(sizes: &[usize], steps: u64) -> Result<String, String> {
+/// What `terrafuse bench erosion` runs.
+#[derive(Clone, Debug)]
+pub struct ErosionBenchSettings {
+    /// Grid sizes, cells a side.
+    pub sizes: Vec<usize>,
+    /// Steps timed per grid.
+    pub steps: u64,
+    /// The largest grid the CPU reference runs (larger ones: the GPU only).
+    pub cpu_max: usize,
+    /// Also time the GPU kernels.
+    pub gpu: bool,
+    /// The device's memory bandwidth, GB/s (for the share of it a step reaches), if known.
+    pub bandwidth_gbs: Option<f64>,
+}
+
+fn wet_run(n: usize) -> Result<Run, String> {
+    let grid = Grid::flat_patch(n, n, 10.0, terrain(n, 10.0));
+    let params = Params { border: Border::Open, ..Params::preset("rain", EARTH_G).ok_or("no preset")? };
+    Run::new(grid, params).map_err(|e| e.to_string())
+}
+
+/// Runs the benchmark; returns the report.
+pub fn bench_erosion(settings: &ErosionBenchSettings) -> Result<String, String> {
     let mut out = String::new();
     let threads = rayon::current_num_threads();
+    let steps = settings.steps;
+    let gpu = if settings.gpu { Some(crate::gpu::GpuContext::headless().map_err(|e| e.to_string())?) } else { None };
     let _ = writeln!(
         out,
-        "terrafuse bench erosion: the CPU reference ({threads} threads), preset rain on 10 m cells, open borders, {steps} steps per grid"
+        "terrafuse bench erosion: preset rain on 10 m cells, open borders, {steps} steps per grid after 20 to wet it; CPU reference ({threads} threads){}",
+        gpu.as_ref().map(|g| format!(", GPU {}", g.describe())).unwrap_or_default()
     );
-    let _ = writeln!(out, "grid      cell-steps/s   ns per cell-step   bytes per cell-step (state read + written)");
-    // Per cell and step the two passes read and write: water, sediment, soil (i64), 8 fluxes (f64),
-    // speed (f64), and the 8 × 3 transfers (i64) written by the first pass and read by the second.
-    let bytes = (3 * 8 + 8 * 8 + 8) * 2 + 24 * 8 * 2;
-    for &n in sizes {
-        let grid = Grid::flat_patch(n, n, 10.0, terrain(n, 10.0));
-        let params = Params { border: Border::Open, ..Params::preset("rain", EARTH_G).ok_or("no preset")? };
-        let mut run = Run::new(grid, params).map_err(|e| e.to_string())?;
-        // Wet it first: the timed steps move water.
-        for _ in 0..20 {
-            run.step();
+    // CPU: per cell and step the two passes read and write water, sediment, soil (i64), 8 fluxes
+    // (f64), speed (f64), and the 8 × 3 transfers (i64) written by the first pass and read by
+    // the second. GPU: `BYTES_PER_CELL_STEP` (i32 and f32, neighbours' reads from cache).
+    let cpu_bytes = (3 * 8 + 8 * 8 + 8) * 2 + 24 * 8 * 2;
+    let gpu_bytes = crate::gpu::erosion::BYTES_PER_CELL_STEP;
+    let _ = writeln!(
+        out,
+        "grid      device   cell-steps/s   ns per cell-step   bytes per cell-step   GB/s moved   share of the bandwidth"
+    );
+    let kernel = match &gpu {
+        Some(g) => {
+            Some(std::sync::Arc::new(crate::gpu::erosion::ErosionKernel::new(&g.device).map_err(|e| e.to_string())?))
         }
-        let t = Instant::now();
-        for _ in 0..steps {
-            run.step();
-        }
-        let s = t.elapsed().as_secs_f64();
+        None => None,
+    };
+    for &n in &settings.sizes {
         let cell_steps = (n * n) as f64 * steps as f64;
-        let _ = writeln!(out, "{n:>5}²   {:>12.3e}   {:>16.1}   {bytes}", cell_steps / s, s * 1e9 / cell_steps);
+        let row = |out: &mut String, device: &str, s: f64, bytes: u64| {
+            let rate = cell_steps / s;
+            let gbs = rate * bytes as f64 / 1e9;
+            let share = settings.bandwidth_gbs.map_or("—".to_string(), |b| format!("{:.1} %", 100.0 * gbs / b));
+            let _ = writeln!(
+                out,
+                "{n:>5}²   {device:<6}   {rate:>12.3e}   {:>16.2}   {bytes:>19}   {gbs:>10.1}   {share}",
+                s * 1e9 / cell_steps
+            );
+        };
+        if n <= settings.cpu_max {
+            let mut run = wet_run(n)?;
+            for _ in 0..20 {
+                run.step();
+            }
+            let t = Instant::now();
+            for _ in 0..steps {
+                run.step();
+            }
+            row(&mut out, "cpu", t.elapsed().as_secs_f64(), cpu_bytes);
+        }
+        if let (Some(g), Some(k)) = (&gpu, &kernel) {
+            let run = wet_run(n)?;
+            let mut gr = match crate::gpu::erosion::GpuRun::new(&g.device, &g.queue, k.clone(), &run) {
+                Ok(r) => r,
+                Err(e) => {
+                    let _ = writeln!(out, "{n:>5}²   gpu      not run: {e}");
+                    continue;
+                }
+            };
+            gr.step(20).map_err(|e| e.to_string())?;
+            gr.wait().map_err(|e| e.to_string())?;
+            let t = Instant::now();
+            gr.step(steps as u32).map_err(|e| e.to_string())?;
+            gr.wait().map_err(|e| e.to_string())?;
+            row(&mut out, "gpu", t.elapsed().as_secs_f64(), gpu_bytes);
+        }
     }
     // The error against the step size: 60 s simulated on 128² with Δt = 0.2, 0.1 and 0.05 s.
     let n = 128;

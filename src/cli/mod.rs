@@ -22,7 +22,7 @@ pub use bench_brush::{bench_brush, scripted_strokes};
 pub use bench_brush_latency::bench_brush_latency;
 pub use bench_compare::{CompareBenchSettings, bench_compare};
 pub use bench_compose::{ComposeBenchRow, ComposeBenchSettings, bench_compose};
-pub use bench_erosion::bench_erosion;
+pub use bench_erosion::{ErosionBenchSettings, bench_erosion};
 pub use bench_render::{RenderBenchRow, RenderBenchSettings, bench_render, render_bench_csv, write_render_bench};
 pub use brush::{BrushRequest, brush_command};
 pub use compare::{CompareRequest, CoregRequest, compare_command, coregister_command, table as compare_table};

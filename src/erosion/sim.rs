@@ -320,7 +320,7 @@ impl Run {
             // The terrain's change stays within the units a cell may hold, and what it sends
             // within one cell's worth (so that what a cell receives fits the GPU's i32).
             let sum: i64 = out.soil.iter().sum();
-            let room = (self.state.soil[i] + MAX_UNITS).min(MAX_UNITS).max(0);
+            let room = (self.state.soil[i] + MAX_UNITS).clamp(0, MAX_UNITS);
             if sum > room {
                 let mut sent = 0;
                 for s in &mut out.soil {

@@ -153,7 +153,7 @@ impl GpuRun {
         let n = grid.len();
         let limits = device.limits();
         let largest = (n as u64) * 32;
-        if largest > u64::from(limits.max_storage_buffer_binding_size) || largest > limits.max_buffer_size {
+        if largest > limits.max_storage_buffer_binding_size || largest > limits.max_buffer_size {
             return Err(GpuError::Stack(format!(
                 "an erosion grid of {} × {} cells needs storage buffers of {largest} bytes; this device binds at most {} \
                  (choose a smaller region or a coarser level)",
@@ -331,6 +331,14 @@ impl GpuRun {
             left -= now;
         }
         Ok(())
+    }
+
+    /// Waits until the GPU has taken the steps submitted (reads nothing back: for timing).
+    pub fn wait(&self) -> Result<(), GpuError> {
+        self.device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map(|_| ())
+            .map_err(|e| GpuError::Readback(format!("the GPU did not finish: {e}")))
     }
 
     /// Waits for the steps submitted and reads the state, the budget and the steps taken back
