@@ -92,18 +92,10 @@ pub fn brush_command(request: &BrushRequest) -> Result<String, String> {
     let spec = &mut project.layers[index];
     let applied = spec.applied_strokes().len();
     match (request.undo, request.redo, &request.tool) {
-        (Some(n), None, None) => {
-            let to = applied.checked_sub(n).ok_or_else(|| format!("--undo {n}: only {applied} strokes are applied"))?;
-            spec.applied = Some(to);
-            let _ = writeln!(out, "layer '{}': undone to {to} of {} strokes", spec.name, spec.strokes.len());
-        }
-        (None, Some(n), None) => {
-            let to = applied + n;
-            if to > spec.strokes.len() {
-                return Err(format!("--redo {n}: only {} strokes can be redone", spec.strokes.len() - applied));
-            }
-            spec.applied = (to < spec.strokes.len()).then_some(to);
-            let _ = writeln!(out, "layer '{}': redone to {to} of {} strokes", spec.name, spec.strokes.len());
+        (Some(_), None, None) | (None, Some(_), None) => {
+            let to = spec.move_applied(request.undo, request.redo)?;
+            let done = if request.undo.is_some() { "undone" } else { "redone" };
+            let _ = writeln!(out, "layer '{}': {done} to {to} of {} strokes", spec.name, spec.strokes.len());
         }
         (None, None, Some(tool)) => {
             let stroke = stroke_of(request, tool, ellipsoid.a_m(), &ellipsoid)?;

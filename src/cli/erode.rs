@@ -115,19 +115,10 @@ pub fn erode_command(request: &ErodeRequest) -> Result<String, String> {
     let total = project.layers[index].runs.len();
     let asked_run = request.region.is_some() || request.level.is_some() || request.steps.is_some();
     match (request.undo, request.redo, asked_run) {
-        (Some(n), None, false) => {
-            let to = applied.checked_sub(n).ok_or_else(|| format!("--undo {n}: only {applied} runs are applied"))?;
-            project.layers[index].applied = Some(to);
-            let _ = writeln!(out, "layer '{}': undone to {to} of {total} runs", request.layer);
-            return finish(&project, path, index, out);
-        }
-        (None, Some(n), false) => {
-            let to = applied + n;
-            if to > total {
-                return Err(format!("--redo {n}: only {} runs can be redone", total - applied));
-            }
-            project.layers[index].applied = (to < total).then_some(to);
-            let _ = writeln!(out, "layer '{}': redone to {to} of {total} runs", request.layer);
+        (Some(_), None, false) | (None, Some(_), false) => {
+            let to = project.layers[index].move_applied(request.undo, request.redo)?;
+            let done = if request.undo.is_some() { "undone" } else { "redone" };
+            let _ = writeln!(out, "layer '{}': {done} to {to} of {total} runs", request.layer);
             return finish(&project, path, index, out);
         }
         (None, None, true) => {}

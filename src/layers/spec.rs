@@ -408,6 +408,25 @@ impl LayerSpec {
         self.strokes.len() + self.runs.len()
     }
 
+    /// Moves an edit or erosion layer's undo position back by `undo` or forward by `redo` of its
+    /// operations (strokes or runs); returns how many are in effect after it. The errors name the
+    /// command-line flag.
+    pub fn move_applied(&mut self, undo: Option<usize>, redo: Option<usize>) -> Result<usize, String> {
+        let total = self.operations();
+        let what = if self.kind == LayerKind::Erosion { "runs" } else { "strokes" };
+        let applied = self.applied.unwrap_or(total).min(total);
+        let to = match (undo, redo) {
+            (Some(n), None) => {
+                applied.checked_sub(n).ok_or_else(|| format!("--undo {n}: only {applied} {what} are applied"))?
+            }
+            (None, Some(n)) if applied + n <= total => applied + n,
+            (None, Some(n)) => return Err(format!("--redo {n}: only {} {what} can be redone", total - applied)),
+            _ => return Err("give either --undo N or --redo N".into()),
+        };
+        self.applied = (to < total).then_some(to);
+        Ok(to)
+    }
+
     /// An edit layer's strokes in effect (those before its undo position).
     pub fn applied_strokes(&self) -> &[crate::edit::Stroke] {
         &self.strokes[..self.applied.unwrap_or(self.strokes.len()).min(self.strokes.len())]
