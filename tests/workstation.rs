@@ -544,3 +544,59 @@ fn a_left_drag_with_the_brush_on_paints_a_stroke_and_ctrl_z_undoes_it() {
     assert_eq!(strokes(&h), (n + 1, n + 1), "{}", h.state().message());
     settle(&mut h);
 }
+
+#[test]
+fn the_erosion_section_starts_steps_runs_keeps_undoes_and_brushes_a_run() {
+    let dir = repo_path("tests/out/workstation-erosion");
+    let project = sample_project("erzurum-erosion", &dir);
+    let mut h = harness_of_size(&project, "eroded", egui::vec2(900.0, 2600.0));
+    settle(&mut h);
+    let runs = |h: &Harness<'static, App>| {
+        let l = h.state().project().layers.iter().find(|l| l.name == "erosion").unwrap();
+        (l.runs.len(), l.applied_runs().len())
+    };
+    assert_eq!(runs(&h), (2, 2));
+    h.state_mut().set_erosion(6, 2000.0);
+    h.get_by_label("start").click_accesskit();
+    h.run_steps(2);
+    assert_eq!(h.state().erosion_progress(), Some((0, 6)), "{}", h.state().message());
+    // One step, then the rest at two a frame.
+    h.get_by_label("step").click_accesskit();
+    h.run_steps(2);
+    assert_eq!(h.state().erosion_progress(), Some((1, 6)), "{}", h.state().message());
+    h.get_by_label("run").click_accesskit();
+    h.run_steps(6);
+    assert_eq!(h.state().erosion_progress(), Some((6, 6)), "{}", h.state().message());
+    assert!(h.query_by_label("pause").is_none(), "paused when the steps are done");
+    h.get_by_label("keep").click_accesskit();
+    h.run_steps(2);
+    assert_eq!(h.state().erosion_progress(), None);
+    assert_eq!(runs(&h), (3, 3), "{}", h.state().message());
+    assert!(h.state().message().starts_with("erosion run 2 kept: 6 steps"), "{}", h.state().message());
+    assert!(h.state().unsaved());
+    let kept = h.state().project().layers.iter().find(|l| l.name == "erosion").unwrap().runs[2].clone();
+    assert_eq!((kept.steps, kept.level, kept.seed), (6, 10, 1));
+    settle(&mut h);
+    h.render().unwrap().save(dir.join("eroded.png")).unwrap(); // for people, not compared
+    // Undo and redo among the runs.
+    h.get_by_label("undo run").click_accesskit();
+    h.run_steps(2);
+    assert_eq!(runs(&h), (3, 2), "{}", h.state().message());
+    h.get_by_label("redo run").click_accesskit();
+    h.run_steps(2);
+    assert_eq!(runs(&h), (3, 3), "{}", h.state().message());
+    // The erosion brush: a left drag records a run localised along it.
+    h.get_by_label("brush (left drag erodes)").click_accesskit();
+    h.run_steps(2);
+    let camera = h.state().camera();
+    let r = h.state().viewport_rect_px().unwrap();
+    let (x, y) = (r.center().x, r.center().y);
+    drag(&mut h, egui::pos2(x - 60.0, y), egui::pos2(x + 60.0, y));
+    h.run_steps(2);
+    assert_eq!(h.state().camera(), camera, "the erosion brush does not move the camera");
+    assert_eq!(runs(&h), (4, 4), "{}", h.state().message());
+    let brushed = h.state().project().layers.iter().find(|l| l.name == "erosion").unwrap().runs[3].clone();
+    let path = brushed.brush.expect("a brush run keeps its path");
+    assert!(path.points.len() >= 2 && path.radius_m > 0.0, "{path:?}");
+    settle(&mut h);
+}

@@ -110,6 +110,21 @@ pub fn apply(
     below: &Below,
     stepper: &dyn Stepper,
 ) -> Result<Outcome, OperationError> {
+    let (region, run) = prepare(raster, index, op, below)?;
+    let t = Instant::now();
+    let run = stepper.run(run, op.steps).map_err(|p| OperationError { index, field: "device".into(), problem: p })?;
+    Ok(finish(raster, index, region, &run, t.elapsed().as_secs_f64()))
+}
+
+/// The run of `op` before its first step: its region, and the grid of the terrain below the
+/// layer plus the runs before it (`raster`), with the brush's masks. `raster` moves to the
+/// operation's level when it has no tiles yet.
+pub fn prepare(
+    raster: &mut EditRaster,
+    index: usize,
+    op: &Operation,
+    below: &Below,
+) -> Result<(Region, Run), OperationError> {
     let err = |field: &str, problem: String| OperationError { index, field: field.into(), problem };
     op.check().map_err(|(f, p)| err(&f, p))?;
     if raster.level != op.level && !raster.tiles.is_empty() {
@@ -142,14 +157,21 @@ pub fn apply(
         grid.erosion_mask = Some(mask);
     }
     let run = Run::new(grid, op.params.clone()).map_err(|p| err(&format!("params.{}", p.field), p.to_string()))?;
-    let run = run.with_seed(op.seed);
-    let t = Instant::now();
-    let run = stepper.run(run, op.steps).map_err(|p| err("device", p))?;
-    let seconds = t.elapsed().as_secs_f64();
-    let delta = run.delta_m();
-    let tiles = tiles_of(&e, &region, &delta, raster);
+    Ok((region, run.with_seed(op.seed)))
+}
+
+/// The tiles of `raster` over `region` with the change of height `run` has made so far added
+/// (what the layer would hold if the run stopped now).
+pub fn tiles_with(raster: &EditRaster, region: &Region, run: &Run) -> Vec<(QuadId, Vec<f32>)> {
+    tiles_of(&raster.ellipsoid, region, &run.delta_m(), raster)
+}
+
+/// Adds a finished run's change of height to `raster` as operation `index` (its before-images
+/// kept for undo); `seconds` is the time its steps took.
+pub fn finish(raster: &mut EditRaster, index: usize, region: Region, run: &Run, seconds: f64) -> Outcome {
+    let tiles = tiles_with(raster, &region, run);
     let mut range = (0f64, 0f64);
-    for d in delta.iter().filter(|d| d.is_finite()) {
+    for d in run.delta_m().iter().filter(|d| d.is_finite()) {
         range = (range.0.min(*d), range.1.max(*d));
     }
     let quads: BTreeSet<QuadId> = tiles.iter().map(|(q, _)| *q).collect();
@@ -159,7 +181,7 @@ pub fn apply(
     let b = run.budget;
     let moved: i64 =
         run.state.soil.iter().map(|s| s.abs()).sum::<i64>() + run.state.sediment.iter().sum::<i64>() + b.soil_out;
-    Ok(Outcome {
+    Outcome {
         region,
         steps: run.steps,
         simulated_s: run.simulated_s,
@@ -173,7 +195,7 @@ pub fn apply(
         seconds,
         range_m: range,
         quads,
-    })
+    }
 }
 
 /// The brush's mask per cell: 1 within half the radius of the path, smoothly 0 at the radius.

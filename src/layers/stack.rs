@@ -291,6 +291,14 @@ impl Stack {
         spec.applied = applied;
     }
 
+    /// An erosion layer's runs and undo position, without bumping its revision (like
+    /// [`Stack::set_strokes`]: the raster's per-quad stamps say what changed).
+    pub fn set_runs(&mut self, index: usize, runs: Vec<crate::erosion::operation::Operation>, applied: Option<usize>) {
+        let spec = &mut self.layers[index].spec;
+        spec.runs = runs;
+        spec.applied = applied;
+    }
+
     /// Removes a layer (not one a difference layer reads).
     pub fn remove(&mut self, index: usize) -> Result<Layer, LayerError> {
         let name = &self.layers[index].spec.name;

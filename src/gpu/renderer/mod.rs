@@ -8,6 +8,7 @@
 use std::collections::HashMap;
 use std::time::{Duration, Instant};
 
+mod erosion;
 mod stack;
 
 use super::camera::Camera;
@@ -130,6 +131,8 @@ pub struct Renderer {
     /// The GPU stroke rasteriser, on hardware adapters (on a software one the CPU reference is
     /// faster: BENCHMARKS.md); used for the strokes shown while dragging.
     stroke_kernel: Option<super::brush::StrokeKernel>,
+    /// The erosion kernels, on hardware adapters (software ones run the CPU reference).
+    erosion_kernel: Option<std::sync::Arc<super::erosion::ErosionKernel>>,
 }
 
 impl Renderer {
@@ -195,8 +198,12 @@ impl Renderer {
         let stroke_kernel = (ctx.info.device_type != wgpu::DeviceType::Cpu)
             .then(|| super::brush::StrokeKernel::new(&device))
             .transpose()?;
+        let erosion_kernel = (ctx.info.device_type != wgpu::DeviceType::Cpu)
+            .then(|| super::erosion::ErosionKernel::new(&device).map(std::sync::Arc::new))
+            .transpose()?;
         Ok(Renderer {
             stroke_kernel,
+            erosion_kernel,
             device,
             queue: ctx.queue.clone(),
             timestamps: ctx.timestamps,

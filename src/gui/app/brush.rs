@@ -215,7 +215,7 @@ impl App {
 
     /// The terrain point (ECEF) under a window position: the probe's when it is for that pixel,
     /// else the mean sphere's.
-    fn surface_at(&self, pos: egui::Pos2, rect: egui::Rect) -> Option<DVec3> {
+    pub(super) fn surface_at(&self, pos: egui::Pos2, rect: egui::Rect) -> Option<DVec3> {
         let vp = self.viewport.as_ref()?;
         let (w, h) = vp.size();
         let px = (

@@ -15,6 +15,7 @@ use crate::gpu::{Camera, FrameStats, Renderer};
 use crate::project::{CameraSpec, Project, Visuals};
 
 mod brush;
+mod erosion;
 mod profile;
 mod side_panel;
 mod swipe;
@@ -87,6 +88,8 @@ pub struct App {
     difference_range: crate::gui::difference_ui::AutoRange,
     /// The brush.
     brush: brush::BrushTool,
+    /// The *Erosion* section and its run in progress.
+    erosion: erosion::ErosionTool,
 }
 
 impl App {
@@ -135,6 +138,7 @@ impl App {
             compare: Default::default(),
             difference_range: Default::default(),
             brush: Default::default(),
+            erosion: Default::default(),
             swipe: None,
             swipe_request: None,
             profile: Default::default(),
@@ -614,9 +618,11 @@ impl eframe::App for App {
                 self.message = e;
             }
             self.brush_keys(ui);
+            self.erosion_frame(ui.ctx());
             if !self.drag_swipe(ui, &response, rect)
                 && !self.pick_profile(&response, view)
                 && !self.paint(ui, &response, view)
+                && !self.erode_paint(ui, &response, view)
             {
                 self.navigate(ui, &response, view);
             }

@@ -188,6 +188,10 @@ impl App {
             self.brush_ui(ui);
 
             ui.separator();
+            ui.heading("Erosion");
+            self.erosion_ui(ui);
+
+            ui.separator();
             ui.heading("Compare");
             match self.compare.ui(ui, &self.project) {
                 crate::gui::compare_panel::CompareAction::Apply { layer, shift_m, up_m } => {

@@ -1,0 +1,130 @@
+//! Erosion layers in the renderer: a run prepared on the terrain the layer sees, its progress
+//! shown on the layer while it runs (provisional tiles), the finished run recorded, and undo and
+//! redo. The run itself (CPU reference or GPU kernels) belongs to the caller, which steps it a
+//! few steps per frame.
+
+use super::*;
+use crate::edit::EditRaster;
+use crate::erosion::layer::{self, Outcome};
+use crate::erosion::operation::Operation;
+use crate::erosion::region::Region;
+use crate::erosion::sim::Run;
+use crate::gpu::erosion::{ErosionKernel, GpuRun};
+
+impl Renderer {
+    /// Erosion layer `index`'s spec and raster (an error for any other layer).
+    fn erosion_layer(&self, index: usize) -> Result<(LayerSpec, EditRaster), LayerError> {
+        let layer = self
+            .scene
+            .stack
+            .layers
+            .get(index)
+            .ok_or_else(|| LayerError::field("?", "index", format!("{index} is not a layer of the stack")))?;
+        if layer.spec.kind != crate::layers::LayerKind::Erosion {
+            return Err(LayerError::field(
+                &layer.spec.name,
+                "kind",
+                format!("{} is not an erosion layer", layer.spec.kind.name()),
+            ));
+        }
+        let raster = self
+            .scene
+            .edits
+            .get(&layer.uid)
+            .map(|r| (**r).clone())
+            .ok_or_else(|| LayerError::field(&layer.spec.name, "runs", "the erosion layer was not built".into()))?;
+        Ok((layer.spec.clone(), raster))
+    }
+
+    /// A run of `op` on erosion layer `index` before its first step: the region, the run on the
+    /// CPU, and the layer's raster it starts from.
+    pub fn prepare_erosion(&self, index: usize, op: &Operation) -> Result<(Region, Run, EditRaster), LayerError> {
+        let (spec, mut raster) = self.erosion_layer(index)?;
+        let below = self.scene.below(index).map_err(|e| LayerError::field(&spec.name, "runs", e))?;
+        let applied = spec.applied_runs().len();
+        let (region, run) = layer::prepare(&mut raster, applied, op, &|q| below.heights_cpu(q))
+            .map_err(|e| LayerError::field(&spec.name, &e.field, e.problem))?;
+        Ok((region, run, raster))
+    }
+
+    /// `run` on the GPU, when the adapter is a hardware one (else None: the CPU reference runs).
+    pub fn erosion_on_gpu(&self, run: &Run) -> Option<Result<GpuRun, GpuError>> {
+        let kernel: &std::sync::Arc<ErosionKernel> = self.erosion_kernel.as_ref()?;
+        Some(GpuRun::new(&self.device, &self.queue, kernel.clone(), run))
+    }
+
+    /// Shows a run in progress on erosion layer `index`: the layer holds `base` (its raster
+    /// before the run) plus the change `run` has made so far; only the region's quads are
+    /// recomposed.
+    pub fn show_erosion(&mut self, index: usize, base: &EditRaster, region: &Region, run: &Run) {
+        let mut raster = base.clone();
+        raster.apply_tiles(usize::MAX, layer::tiles_with(base, region, run));
+        raster.clear_history();
+        self.scene.set_edit(index, raster);
+        self.cache.plans.clear();
+    }
+
+    /// Puts erosion layer `index` back as it was before a run (`base`), the run discarded.
+    pub fn discard_erosion(&mut self, index: usize, base: EditRaster) {
+        self.scene.set_edit(index, base);
+        self.cache.plans.clear();
+    }
+
+    /// Records a finished run on erosion layer `index`: runs past the undo position are dropped,
+    /// `op` (with the steps taken) is appended, and its change is added to `base`. Returns the
+    /// layer's new spec (for the project) and what the run did.
+    pub fn commit_erosion(
+        &mut self,
+        index: usize,
+        mut op: Operation,
+        mut base: EditRaster,
+        region: Region,
+        run: &Run,
+        seconds: f64,
+    ) -> Result<(LayerSpec, Outcome), LayerError> {
+        let (mut spec, _) = self.erosion_layer(index)?;
+        let applied = spec.applied_runs().len();
+        op.steps = run.steps;
+        op.check().map_err(|(f, p)| LayerError::field(&spec.name, &format!("runs[{applied}].{f}"), p))?;
+        let outcome = layer::finish(&mut base, applied, region, run, seconds);
+        spec.runs.truncate(applied);
+        spec.runs.push(op);
+        spec.applied = None;
+        self.scene.set_edit(index, base);
+        self.scene.stack.set_runs(index, spec.runs.clone(), spec.applied);
+        self.cache.plans.clear();
+        Ok((spec, outcome))
+    }
+
+    /// Moves erosion layer `index`'s undo position to `applied` runs (back: restoring the quads
+    /// from the undo history or rebuilding; forward: the runs redone by the CPU reference).
+    /// Returns the layer's new spec.
+    pub fn set_erosion_applied(&mut self, index: usize, applied: usize) -> Result<LayerSpec, LayerError> {
+        let (mut spec, mut raster) = self.erosion_layer(index)?;
+        let now = spec.applied_runs().len();
+        if applied > spec.runs.len() {
+            return Err(LayerError::field(
+                &spec.name,
+                "applied",
+                format!("{applied} is past the {} runs", spec.runs.len()),
+            ));
+        }
+        let below = self.scene.below(index).map_err(|e| LayerError::field(&spec.name, "runs", e))?;
+        let below = |q| below.heights_cpu(q);
+        let fail = |e: layer::OperationError| {
+            LayerError::field(&spec.name, &format!("runs[{}].{}", e.index, e.field), e.problem)
+        };
+        if applied < now {
+            layer::undo_to(&mut raster, &spec.runs, now, applied, &below).map_err(fail)?;
+        } else {
+            for (k, op) in spec.runs.iter().enumerate().take(applied).skip(now) {
+                layer::apply(&mut raster, k, op, &below, &layer::CpuStepper).map_err(fail)?;
+            }
+        }
+        spec.applied = (applied < spec.runs.len()).then_some(applied);
+        self.scene.set_edit(index, raster);
+        self.scene.stack.set_runs(index, spec.runs.clone(), spec.applied);
+        self.cache.plans.clear();
+        Ok(spec)
+    }
+}

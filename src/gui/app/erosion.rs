@@ -1,0 +1,579 @@
+//! Erosion in the workstation: the *Erosion* section. A region (a box around the terrain at the
+//! view's centre, rounded out to whole quads of a level), a preset, the steps and seed; *start*
+//! prepares the run on the terrain the erosion layer sees, *run* and *pause* take a few steps per
+//! frame (on the GPU on hardware adapters, else the CPU reference) so that the view stays
+//! interactive, *step* takes one; the live time step, CFL bound, speeds and budgets show as it
+//! runs, the terrain change shows on the layer a few times a second, and water depth, sediment or
+//! the change of height show as a map of the region. *keep* records the run (its steps so far) on
+//! the layer as `terrafuse erode` would; *discard* drops it. The erosion brush: a left drag (with
+//! *brush* ticked) records a path, and on release a run of the chosen steps rains and erodes
+//! within the brush's radius of it only. Undo and redo move the layer's position among its runs.
+
+use super::*;
+use crate::edit::EditRaster;
+use crate::erosion::operation::{BrushPath, Device, Operation};
+use crate::erosion::params::{Params, gravity_of_body};
+use crate::erosion::region::Region;
+use crate::erosion::sim::Run;
+use crate::gpu::erosion::GpuRun;
+use crate::layers::{LayerKind, LayerSpec};
+use crate::store::grid::spacing_m;
+
+/// What the region map shows.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Overlay {
+    Water,
+    Sediment,
+    Change,
+}
+
+/// The section's settings and the run in progress.
+pub(crate) struct ErosionTool {
+    layer: String,
+    preset: String,
+    /// Half the region's side, metres.
+    half_m: f64,
+    /// The level of the cells (None: about 512 cells across the region).
+    level: Option<u8>,
+    steps: u64,
+    per_frame: u32,
+    seed: u64,
+    overlay: Overlay,
+    pub(crate) session: Option<Session>,
+    map: Option<egui::TextureHandle>,
+    /// The erosion brush.
+    pub(crate) brush: bool,
+    brush_radius_m: f64,
+    path: Vec<[f64; 2]>,
+    painting: bool,
+    /// The window's context (for the map's texture and the pixel scale).
+    ctx: Option<egui::Context>,
+}
+
+impl Default for ErosionTool {
+    fn default() -> ErosionTool {
+        ErosionTool {
+            layer: "erosion".into(),
+            preset: "rain".into(),
+            half_m: 3000.0,
+            level: None,
+            steps: 200,
+            per_frame: 2,
+            seed: 1,
+            overlay: Overlay::Water,
+            session: None,
+            map: None,
+            brush: false,
+            brush_radius_m: 500.0,
+            path: Vec::new(),
+            painting: false,
+            ctx: None,
+        }
+    }
+}
+
+/// Where the run's steps are taken.
+pub(crate) enum Engine {
+    Cpu(Box<Run>),
+    Gpu(Box<GpuRun>),
+}
+
+/// A run in progress.
+pub(crate) struct Session {
+    index: usize,
+    op: Operation,
+    region: Region,
+    /// The layer's raster before the run.
+    base: EditRaster,
+    engine: Engine,
+    /// The run as last seen (the CPU's own; the GPU's as last downloaded).
+    pub(crate) running: bool,
+    seconds: f64,
+    last_shown: Option<Instant>,
+    live: Option<crate::gpu::erosion::Report>,
+}
+
+impl Session {
+    fn run(&self) -> &Run {
+        match &self.engine {
+            Engine::Cpu(run) => run,
+            Engine::Gpu(gpu) => gpu.host(),
+        }
+    }
+
+    fn steps(&self) -> u64 {
+        match &self.engine {
+            Engine::Cpu(run) => run.steps,
+            Engine::Gpu(gpu) => gpu.steps(),
+        }
+    }
+
+    /// Takes `n` steps (the GPU's without waiting).
+    fn step(&mut self, n: u32) -> Result<(), String> {
+        let t = Instant::now();
+        match &mut self.engine {
+            Engine::Cpu(run) => {
+                for _ in 0..n {
+                    run.step();
+                }
+            }
+            Engine::Gpu(gpu) => {
+                gpu.step(n).map_err(|e| e.to_string())?;
+                gpu.request_report();
+                if let Some(r) = gpu.poll_report() {
+                    self.live = Some(r);
+                }
+            }
+        }
+        self.seconds += t.elapsed().as_secs_f64();
+        Ok(())
+    }
+
+    /// The run brought up to date (the GPU's downloaded).
+    fn sync(&mut self) -> Result<&Run, String> {
+        if let Engine::Gpu(gpu) = &mut self.engine {
+            gpu.download().map_err(|e| e.to_string())?;
+        }
+        Ok(self.run())
+    }
+}
+
+impl App {
+    /// The erosion run in progress: steps taken and asked (tests; people read the panel).
+    pub fn erosion_progress(&self) -> Option<(u64, u64)> {
+        self.erosion.session.as_ref().map(|s| (s.steps(), s.op.steps))
+    }
+
+    /// Sets the erosion section's steps and region half-size (tests; people use the panel).
+    pub fn set_erosion(&mut self, steps: u64, half_m: f64) {
+        self.erosion.steps = steps;
+        self.erosion.half_m = half_m;
+    }
+
+    /// The *Erosion* section.
+    pub(super) fn erosion_ui(&mut self, ui: &mut egui::Ui) {
+        let t = &mut self.erosion;
+        t.ctx = Some(ui.ctx().clone());
+        ui.horizontal(|ui| {
+            let label = ui.label("erosion layer").id;
+            ui.text_edit_singleline(&mut t.layer).labelled_by(label);
+        });
+        egui::ComboBox::from_label("preset").selected_text(t.preset.clone()).show_ui(ui, |ui| {
+            for p in Params::PRESETS {
+                ui.selectable_value(&mut t.preset, p.to_string(), p);
+            }
+        });
+        ui.add(egui::Slider::new(&mut t.half_m, 100.0..=100_000.0).logarithmic(true).text("region half-size m"));
+        ui.horizontal(|ui| {
+            let mut auto = t.level.is_none();
+            ui.checkbox(&mut auto, "auto level").on_hover_text("about 512 cells across the region");
+            match (auto, t.level) {
+                (true, Some(_)) => t.level = None,
+                (false, None) => t.level = Some(10),
+                _ => {}
+            }
+            if let Some(l) = &mut t.level {
+                let label = ui.label("level").id;
+                ui.add(egui::DragValue::new(l).range(0..=22)).labelled_by(label);
+            }
+        });
+        ui.horizontal(|ui| {
+            let label = ui.label("steps").id;
+            ui.add(egui::DragValue::new(&mut t.steps).range(1..=1_000_000)).labelled_by(label);
+            let label = ui.label("seed").id;
+            ui.add(egui::DragValue::new(&mut t.seed)).labelled_by(label);
+        });
+        ui.add(egui::Slider::new(&mut t.per_frame, 1..=64).text("steps per frame"));
+        let busy = self.erosion.session.is_some();
+        ui.horizontal(|ui| {
+            if ui
+                .add_enabled(!busy, egui::Button::new("start"))
+                .on_hover_text("a region around the view's centre")
+                .clicked()
+            {
+                self.start_erosion(None);
+            }
+            let running = self.erosion.session.as_ref().is_some_and(|s| s.running);
+            if ui.add_enabled(busy, egui::Button::new(if running { "pause" } else { "run" })).clicked()
+                && let Some(s) = &mut self.erosion.session
+            {
+                s.running = !s.running;
+            }
+            if ui.add_enabled(busy && !running, egui::Button::new("step")).clicked() {
+                self.erosion_steps(1, true);
+            }
+            if ui.add_enabled(busy, egui::Button::new("keep")).on_hover_text("records the run on the layer").clicked() {
+                self.keep_erosion();
+            }
+            if ui.add_enabled(busy, egui::Button::new("discard")).clicked()
+                && let Some(s) = self.erosion.session.take()
+            {
+                self.renderer.discard_erosion(s.index, s.base);
+                self.dirty = true;
+            }
+        });
+        let t = &mut self.erosion;
+        ui.horizontal(|ui| {
+            ui.checkbox(&mut t.brush, "brush (left drag erodes)")
+                .on_hover_text("a run of the steps above along the drag");
+        });
+        ui.add(egui::Slider::new(&mut t.brush_radius_m, 10.0..=20_000.0).logarithmic(true).text("brush radius m"));
+        if let Some(s) = &self.erosion.session {
+            let run = s.run();
+            let steps = s.steps();
+            let device = if matches!(s.engine, Engine::Gpu(_)) { "GPU" } else { "CPU reference" };
+            ui.label(format!(
+                "{steps} of {} steps on the {device}, {} × {} cells at level {}, {:.1} s",
+                s.op.steps, s.region.width, s.region.height, s.region.level, s.seconds
+            ));
+            let unit = run.unit_m3();
+            let (budget, dt, bound, speed, depth) = match (&s.engine, &s.live) {
+                (Engine::Gpu(_), Some(r)) => (r.budget, r.next_dt_s, r.cfl_bound_s, r.max_speed_m_s, r.max_depth_m),
+                _ => {
+                    let max_speed = run.state.speed_m_s.iter().fold(0f64, |m, v| m.max(*v));
+                    let max_depth = (0..run.grid.len()).map(|i| run.depth_m(i)).fold(0f64, f64::max);
+                    let bound = run.cfl_bound_s();
+                    (run.budget, run.params.dt_s.min(bound), bound, max_speed, max_depth)
+                }
+            };
+            ui.label(format!("Δt {dt:.4} s (CFL bound {bound:.4} s), |v| ≤ {speed:.2} m/s, depth ≤ {depth:.3} m"));
+            ui.label(format!(
+                "rain {:.1} m³, evaporated {:.1} m³, out {:.1} m³ of water, {:.3} m³ of soil",
+                budget.rain_in as f64 * unit,
+                budget.evaporated as f64 * unit,
+                budget.water_out as f64 * unit,
+                budget.soil_out as f64 * unit
+            ));
+            let (w, soil) = run.unexplained();
+            ui.label(format!("unexplained (as last read): water {w} units, soil {soil} units"));
+            ui.horizontal(|ui| {
+                let t = &mut self.erosion;
+                ui.selectable_value(&mut t.overlay, Overlay::Water, "water");
+                ui.selectable_value(&mut t.overlay, Overlay::Sediment, "sediment");
+                ui.selectable_value(&mut t.overlay, Overlay::Change, "change");
+            });
+            if let Some(map) = &self.erosion.map {
+                ui.image((map.id(), egui::vec2(200.0, 200.0)));
+            }
+        }
+        let index =
+            self.project.layers.iter().position(|l| l.name == self.erosion.layer && l.kind == LayerKind::Erosion);
+        ui.horizontal(|ui| {
+            let (applied, total) = index.map_or((0, 0), |i| {
+                let l = &self.project.layers[i];
+                (l.applied_runs().len(), l.runs.len())
+            });
+            let idle = self.erosion.session.is_none();
+            if ui.add_enabled(idle && applied > 0, egui::Button::new("undo run")).clicked() {
+                self.move_erosion_undo(-1);
+            }
+            if ui.add_enabled(idle && applied < total, egui::Button::new("redo run")).clicked() {
+                self.move_erosion_undo(1);
+            }
+            ui.label(format!("{applied} of {total} runs"));
+        });
+    }
+
+    /// Every frame: a running session takes its steps, and its progress shows.
+    pub(super) fn erosion_frame(&mut self, ctx: &egui::Context) {
+        self.erosion.ctx = Some(ctx.clone());
+        let Some(s) = &self.erosion.session else { return };
+        if s.running {
+            let left = s.op.steps.saturating_sub(s.steps());
+            let n = (self.erosion.per_frame as u64).min(left) as u32;
+            self.erosion_steps(n, false);
+            if let Some(s) = &mut self.erosion.session
+                && s.steps() >= s.op.steps
+            {
+                s.running = false;
+                self.message = format!("erosion: {} steps done (keep or discard)", s.steps());
+            }
+            ctx.request_repaint();
+        }
+    }
+
+    /// Takes `n` steps; shows the progress on the layer and the map now (`show`) or when due.
+    fn erosion_steps(&mut self, n: u32, show: bool) {
+        let Some(s) = &mut self.erosion.session else { return };
+        if let Err(e) = s.step(n) {
+            self.message = format!("erosion: {e}");
+            s.running = false;
+            return;
+        }
+        let due = show || !s.running || s.last_shown.is_none_or(|t| t.elapsed() > Duration::from_millis(400));
+        if !due {
+            return;
+        }
+        s.last_shown = Some(Instant::now());
+        let run = match s.sync() {
+            Ok(run) => run.clone(),
+            Err(e) => {
+                self.message = format!("erosion: {e}");
+                return;
+            }
+        };
+        let (index, base, region) = (s.index, s.base.clone(), s.region);
+        self.renderer.show_erosion(index, &base, &region, &run);
+        let image = region_map(&run, self.erosion.overlay);
+        self.set_map(image);
+        self.dirty = true;
+    }
+
+    fn set_map(&mut self, image: egui::ColorImage) {
+        let t = &mut self.erosion;
+        match (&mut t.map, &t.ctx) {
+            (Some(map), _) => map.set(image, egui::TextureOptions::NEAREST),
+            (None, Some(ctx)) => t.map = Some(ctx.load_texture("erosion map", image, egui::TextureOptions::NEAREST)),
+            (None, None) => {}
+        }
+    }
+
+    /// Prepares a run on the erosion layer (made on top when missing): around the view's centre,
+    /// or along a brush path.
+    pub(crate) fn start_erosion(&mut self, brush: Option<BrushPath>) {
+        let e = self.renderer.scene().ellipsoid;
+        let (centre, half) = match &brush {
+            Some(b) => {
+                let (lat0, lat1) = b.points.iter().fold((90f64, -90f64), |m, p| (m.0.min(p[0]), m.1.max(p[0])));
+                let (lon0, lon1) = b.points.iter().fold((180f64, -180f64), |m, p| (m.0.min(p[1]), m.1.max(p[1])));
+                let r = (b.radius_m / e.a_m()).to_degrees();
+                let box_ = [
+                    lat0 - r,
+                    lon0 - r / lat0.to_radians().cos().max(0.05),
+                    lat1 + r,
+                    lon1 + r / lat1.to_radians().cos().max(0.05),
+                ];
+                (None, Some(box_))
+            }
+            None => {
+                let ppp = self.erosion.ctx.as_ref().map_or(1.0, egui::Context::pixels_per_point);
+                let centre = self.viewport_rect_px().and_then(|rect| {
+                    let r = egui::Rect::from_min_max(
+                        (rect.min.to_vec2() / ppp).to_pos2(),
+                        (rect.max.to_vec2() / ppp).to_pos2(),
+                    );
+                    self.surface_at(r.center(), r)
+                });
+                (centre, None)
+            }
+        };
+        let region = match (centre, half) {
+            (_, Some(b)) => b,
+            (Some(p), None) => {
+                let g = geodesy::geodetic_from_ecef(&e, p);
+                let (lat, lon) = (g.lat_rad.to_degrees(), g.lon_rad.to_degrees());
+                let d = (self.erosion.half_m / e.a_m()).to_degrees();
+                [
+                    lat - d,
+                    lon - d / lat.to_radians().cos().max(0.05),
+                    lat + d,
+                    lon + d / lat.to_radians().cos().max(0.05),
+                ]
+            }
+            (None, None) => {
+                self.message = "erosion: no terrain at the view's centre".into();
+                return;
+            }
+        };
+        let t = &self.erosion;
+        let side_m = (region[2] - region[0]).to_radians() * e.a_m();
+        let index = self.project.layers.iter().position(|l| l.name == t.layer);
+        let layer_level = index.and_then(|i| self.project.layers[i].runs.first().map(|r| r.level));
+        let level = layer_level
+            .or(t.level)
+            .unwrap_or_else(|| (0..=22u8).find(|l| spacing_m(&e, *l) * 512.0 <= side_m).unwrap_or(22));
+        let Some(params) = Params::preset(&t.preset, gravity_of_body(&self.project.body)) else { return };
+        let op = Operation {
+            region,
+            level,
+            steps: if brush.is_some() { t.steps.min(2000) } else { t.steps },
+            seed: t.seed,
+            preset: Some(t.preset.clone()),
+            params,
+            brush,
+            device: Device::Cpu,
+        };
+        let name = t.layer.clone();
+        let index = match index {
+            Some(i) if self.project.layers[i].kind == LayerKind::Erosion => i,
+            Some(_) => {
+                self.message = format!("erosion: '{name}' is not an erosion layer");
+                return;
+            }
+            None => {
+                let spec = LayerSpec::erosion(&name);
+                let top = self.project.layers.len();
+                if let Err(e) = self.renderer.insert_layer(top, spec.clone()) {
+                    self.message = e.to_string();
+                    return;
+                }
+                self.project.layers.push(spec);
+                top
+            }
+        };
+        let (region, run, base) = match self.renderer.prepare_erosion(index, &op) {
+            Ok(prepared) => prepared,
+            Err(e) => {
+                self.message = format!("erosion: {e}");
+                return;
+            }
+        };
+        let mut op = op;
+        let engine = match self.renderer.erosion_on_gpu(&run) {
+            Some(Ok(gpu)) => {
+                op.device = Device::Gpu;
+                Engine::Gpu(Box::new(gpu))
+            }
+            Some(Err(e)) => {
+                self.message = format!("erosion on the GPU: {e}; on the CPU instead");
+                Engine::Cpu(Box::new(run))
+            }
+            None => Engine::Cpu(Box::new(run)),
+        };
+        self.message = format!("erosion: {} × {} cells at level {level}", region.width, region.height);
+        self.erosion.session = Some(Session {
+            index,
+            op,
+            region,
+            base,
+            engine,
+            running: false,
+            seconds: 0.0,
+            last_shown: None,
+            live: None,
+        });
+    }
+
+    /// Records the session's run (its steps so far) on the layer.
+    pub(crate) fn keep_erosion(&mut self) {
+        let Some(mut s) = self.erosion.session.take() else { return };
+        let run = match s.sync() {
+            Ok(run) => run.clone(),
+            Err(e) => {
+                self.message = format!("erosion: {e}");
+                return;
+            }
+        };
+        if run.steps == 0 {
+            self.renderer.discard_erosion(s.index, s.base);
+            self.message = "erosion: no step taken, nothing kept".into();
+            return;
+        }
+        match self.renderer.commit_erosion(s.index, s.op, s.base, s.region, &run, s.seconds) {
+            Ok((spec, o)) => {
+                self.message = format!(
+                    "erosion run {} kept: {} steps, {:.1} s simulated, change {:.2} … {:.2} m",
+                    spec.runs.len() - 1,
+                    o.steps,
+                    o.simulated_s,
+                    o.range_m.0,
+                    o.range_m.1
+                );
+                self.project.layers[s.index] = spec;
+                self.unsaved = true;
+            }
+            Err(e) => self.message = e.to_string(),
+        }
+        self.dirty = true;
+    }
+
+    fn move_erosion_undo(&mut self, by: i64) {
+        let Some(index) = self.project.layers.iter().position(|l| l.name == self.erosion.layer) else { return };
+        let applied = self.project.layers[index].applied_runs().len() as i64 + by;
+        let total = self.project.layers[index].runs.len() as i64;
+        if !(0..=total).contains(&applied) {
+            return;
+        }
+        match self.renderer.set_erosion_applied(index, applied as usize) {
+            Ok(spec) => {
+                self.project.layers[index] = spec;
+                self.dirty = true;
+                self.unsaved = true;
+                self.message = format!("{} to {applied} of {total} runs", if by < 0 { "undone" } else { "redone" });
+            }
+            Err(e) => self.message = e.to_string(),
+        }
+    }
+
+    /// The erosion brush's input while it is on: a left drag records a path; its release runs
+    /// erosion along it and keeps the run. True when the input was the brush's.
+    pub(super) fn erode_paint(&mut self, ui: &egui::Ui, response: &egui::Response, rect: egui::Rect) -> bool {
+        if !self.erosion.brush {
+            return false;
+        }
+        let modifiers = ui.input(|i| i.modifiers);
+        let plain = !modifiers.shift && !modifiers.command;
+        if response.drag_started_by(egui::PointerButton::Primary) && plain && self.erosion.session.is_none() {
+            self.erosion.painting = true;
+            self.erosion.path.clear();
+        }
+        if !self.erosion.painting {
+            return false;
+        }
+        let under = response.interact_pointer_pos().or(response.hover_pos()).and_then(|p| self.surface_at(p, rect));
+        if let Some(p) = under {
+            let g = geodesy::geodetic_from_ecef(&self.renderer.scene().ellipsoid, p);
+            let point = [g.lat_rad.to_degrees(), g.lon_rad.to_degrees()];
+            if self.erosion.path.last() != Some(&point) {
+                self.erosion.path.push(point);
+            }
+        }
+        if response.drag_stopped() || !response.dragged() {
+            self.erosion.painting = false;
+            let points = std::mem::take(&mut self.erosion.path);
+            if !points.is_empty() {
+                self.erode_along(points);
+            }
+        }
+        true
+    }
+
+    /// One erosion brush stroke: a run of the section's steps (at most 2000) along `points`,
+    /// taken at once and kept.
+    pub(crate) fn erode_along(&mut self, points: Vec<[f64; 2]>) {
+        self.start_erosion(Some(BrushPath { points, radius_m: self.erosion.brush_radius_m }));
+        let Some(s) = &self.erosion.session else { return };
+        let steps = s.op.steps;
+        let mut left = steps;
+        while left > 0 {
+            let n = left.min(256) as u32;
+            if let Some(s) = &mut self.erosion.session
+                && let Err(e) = s.step(n)
+            {
+                self.message = format!("erosion: {e}");
+                return;
+            }
+            left -= u64::from(n);
+        }
+        self.keep_erosion();
+    }
+}
+
+/// The region's water depth, sediment or change of height as a picture (north up), at most 256
+/// pixels a side: blue for water, brown for sediment, red-blue for the change (lowered red).
+fn region_map(run: &Run, overlay: Overlay) -> egui::ColorImage {
+    let g = &run.grid;
+    let step = g.width.max(g.height).div_ceil(256).max(1);
+    let (w, h) = (g.width.div_ceil(step), g.height.div_ceil(step));
+    let value = |i: usize| match overlay {
+        Overlay::Water => run.depth_m(i),
+        Overlay::Sediment => run.state.sediment[i] as f64 * run.unit_m3() / g.area_m2[i],
+        Overlay::Change => run.state.soil[i] as f64 * run.unit_m3() / g.area_m2[i],
+    };
+    let scale = (0..g.len()).map(|i| value(i).abs()).fold(0f64, f64::max).max(1e-6);
+    let mut pixels = Vec::with_capacity(w * h);
+    for y in (0..h).rev() {
+        for x in 0..w {
+            let i = (y * step).min(g.height - 1) * g.width + (x * step).min(g.width - 1);
+            let v = (value(i) / scale).clamp(-1.0, 1.0);
+            let a = (v.abs().sqrt() * 255.0) as u8;
+            pixels.push(match overlay {
+                Overlay::Water => egui::Color32::from_rgb(255 - a, 255 - a / 2, 255),
+                Overlay::Sediment => egui::Color32::from_rgb(255 - a / 3, 255 - a / 2, 255 - a),
+                Overlay::Change if v < 0.0 => egui::Color32::from_rgb(255, 255 - a, 255 - a),
+                Overlay::Change => egui::Color32::from_rgb(255 - a, 255 - a, 255),
+            });
+        }
+    }
+    egui::ColorImage::new([w, h], pixels)
+}
