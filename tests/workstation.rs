@@ -568,9 +568,17 @@ fn the_erosion_section_starts_steps_runs_keeps_undoes_and_brushes_a_run() {
     h.run_steps(6);
     assert_eq!(h.state().erosion_progress(), Some((6, 6)), "{}", h.state().message());
     assert!(h.query_by_label("pause").is_none(), "paused when the steps are done");
+    // The water is draped over the terrain while the run is on, by layers the project never holds.
+    let live =
+        |h: &Harness<'static, App>| h.state().stack().layers.iter().any(|l| l.spec.name == "erosion-live-overlay");
+    assert!(live(&h), "the water is draped over the terrain");
+    assert!(h.state().project().layers.iter().all(|l| !l.name.starts_with("erosion-live")));
+    settle(&mut h);
+    h.render().unwrap().save(dir.join("running.png")).unwrap(); // for people, not compared
     h.get_by_label("keep").click_accesskit();
     h.run_steps(2);
     assert_eq!(h.state().erosion_progress(), None);
+    assert!(!live(&h), "the drape goes with the run");
     assert_eq!(runs(&h), (3, 3), "{}", h.state().message());
     assert!(h.state().message().starts_with("erosion run 2 kept: 6 steps"), "{}", h.state().message());
     assert!(h.state().unsaved());

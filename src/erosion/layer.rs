@@ -163,7 +163,17 @@ pub fn prepare(
 /// The tiles of `raster` over `region` with the change of height `run` has made so far added
 /// (what the layer would hold if the run stopped now).
 pub fn tiles_with(raster: &EditRaster, region: &Region, run: &Run) -> Vec<(QuadId, Vec<f32>)> {
-    tiles_of(&raster.ellipsoid, region, &run.delta_m(), raster)
+    let base = |q: QuadId| raster.tile(q).map_or_else(|| vec![0.0f32; N * N], <[f32]>::to_vec);
+    let add = |t: f32, d: f64| if d.is_finite() { (f64::from(t) + d) as f32 } else { t };
+    tiles_of(&raster.ellipsoid, region, &run.delta_m(), &base, &add)
+}
+
+/// One value per cell of `region` as a raster at the region's level (NaN cells: no data): what
+/// the workstation drapes over the terrain while a run goes on (water depth, sediment).
+pub fn field_raster(e: Ellipsoid, region: &Region, values: &[f64]) -> EditRaster {
+    let base = |_: QuadId| vec![f32::NAN; N * N];
+    let put = |t: f32, v: f64| if v.is_finite() { v as f32 } else { t };
+    EditRaster::from_tiles(e, region.level, tiles_of(&e, region, values, &base, &put).into_iter().collect())
 }
 
 /// Adds a finished run's change of height to `raster` as operation `index` (its before-images
@@ -224,10 +234,16 @@ fn brush_mask(e: &Ellipsoid, region: &Region, brush: &BrushPath) -> Vec<f64> {
     mask
 }
 
-/// The tiles of the region's quads with the run's change added: each of a tile's 257² samples
-/// takes the change of the cell that holds it (a sample on a face edge, held by the adjacent
-/// face's cell, is found by its position).
-fn tiles_of(e: &Ellipsoid, region: &Region, delta: &[f64], raster: &EditRaster) -> Vec<(QuadId, Vec<f32>)> {
+/// The tiles of the region's quads, each from `base` with every one of its 257² samples
+/// combined with the value of the cell that holds it (a sample on a face edge, held by the
+/// adjacent face's cell, is found by its position).
+fn tiles_of(
+    e: &Ellipsoid,
+    region: &Region,
+    values: &[f64],
+    base: &dyn Fn(QuadId) -> Vec<f32>,
+    combine: &dyn Fn(f32, f64) -> f32,
+) -> Vec<(QuadId, Vec<f32>)> {
     let level = region.level;
     let m = intervals_per_face_edge(level);
     let mut by_sample: HashMap<(Face, i64, i64), usize> = HashMap::new();
@@ -264,7 +280,7 @@ fn tiles_of(e: &Ellipsoid, region: &Region, delta: &[f64], raster: &EditRaster) 
         .quads()
         .into_iter()
         .map(|q| {
-            let mut t = raster.tile(q).map_or_else(|| vec![0.0f32; N * N], <[f32]>::to_vec);
+            let mut t = base(q);
             for j in 0..N {
                 for i in 0..N {
                     let (gi, gj) = (i64::from(q.x) * tile + i as i64, i64::from(q.y) * tile + j as i64);
@@ -272,10 +288,8 @@ fn tiles_of(e: &Ellipsoid, region: &Region, delta: &[f64], raster: &EditRaster) 
                         let edge = gi == 0 || gj == 0 || gi == m || gj == m;
                         edge.then(|| find_on_edge(sample_point(e, q, GRID, i as u32, j as u32).0)).flatten()
                     });
-                    if let Some(c) = cell
-                        && delta[c].is_finite()
-                    {
-                        t[j * N + i] = (f64::from(t[j * N + i]) + delta[c]) as f32;
+                    if let Some(c) = cell {
+                        t[j * N + i] = combine(t[j * N + i], values[c]);
                     }
                 }
             }

@@ -148,6 +148,30 @@ impl Region {
         Ok(Region { face, level, i0: qx0 * tile, j0: qy0 * tile, width, height })
     }
 
+    /// The region's outline as `[lon, lat]` degrees (GeoJSON order), 16 points a side, counter-
+    /// clockwise from the south-west corner, longitudes continuous (they may pass ±180): for an
+    /// extent that covers the region. Points beyond a cube corner are left out.
+    pub fn outline(&self, ellipsoid: &Ellipsoid) -> Vec<[f64; 2]> {
+        let (w, h) = (self.width - 1, self.height - 1);
+        let side = |k: usize, n: usize| k * n / 16;
+        let mut cells: Vec<(usize, usize)> = Vec::new();
+        cells.extend((0..16).map(|k| (side(k, w), 0)));
+        cells.extend((0..16).map(|k| (w, side(k, h))));
+        cells.extend((0..16).map(|k| (w - side(k, w), h)));
+        cells.extend((0..16).map(|k| (0, h - side(k, h))));
+        let mut out: Vec<[f64; 2]> = Vec::new();
+        for (x, y) in cells {
+            let Some(c) = self.cell(x, y) else { continue };
+            let (_, lon, lat) = sample_point(ellipsoid, c.quad, GRID, c.i, c.j);
+            let mut lon = lon.to_degrees();
+            if let Some(prev) = out.last() {
+                lon += 360.0 * ((prev[0] - lon) / 360.0).round();
+            }
+            out.push([lon, lat.to_degrees()]);
+        }
+        out
+    }
+
     /// The region of a quad and `ring` quads around it (in the quad's face's index space).
     pub fn around(quad: QuadId, ring: u32) -> Region {
         let tile = i64::from(TILE);

@@ -1,7 +1,12 @@
 //! Erosion layers in the renderer: a run prepared on the terrain the layer sees, its progress
-//! shown on the layer while it runs (provisional tiles), the finished run recorded, and undo and
-//! redo. The run itself (CPU reference or GPU kernels) belongs to the caller, which steps it a
-//! few steps per frame.
+//! shown on the layer while it runs (provisional tiles), water depth or sediment draped over the
+//! terrain while it runs, the finished run recorded, and undo and redo. The run itself (CPU
+//! reference or GPU kernels) belongs to the caller, which steps it a few steps per frame.
+//!
+//! The drape reuses the difference overlay: three layers the renderer alone holds (never the
+//! project), on top of the stack while a run shows it: a hidden delta layer holding the field
+//! (NaN where there is none), a hidden constant 0, and a difference layer drawing field − 0 with
+//! the diverging colour map over the field's range.
 
 use super::*;
 use crate::edit::EditRaster;
@@ -10,6 +15,12 @@ use crate::erosion::operation::Operation;
 use crate::erosion::region::Region;
 use crate::erosion::sim::Run;
 use crate::gpu::erosion::{ErosionKernel, GpuRun};
+use crate::layers::{DifferenceStyle, Operand};
+
+/// The drape's layers: the field, the zero it is drawn against, the difference drawn.
+const LIVE_FIELD: &str = "erosion-live-field";
+const LIVE_ZERO: &str = "erosion-live-zero";
+const LIVE_DRAWN: &str = "erosion-live-overlay";
 
 impl Renderer {
     /// Erosion layer `index`'s spec and raster (an error for any other layer).
@@ -126,5 +137,58 @@ impl Renderer {
         self.scene.stack.set_runs(index, spec.runs.clone(), spec.applied);
         self.cache.plans.clear();
         Ok(spec)
+    }
+
+    /// Drapes `field` (a raster of one value per cell of `region`, NaN where none) over the
+    /// terrain with the diverging colour map over ±`range_m`, within the region's outline, or
+    /// removes the drape (None). The drape's layers are the renderer's alone: the project never
+    /// holds them.
+    pub fn set_erosion_overlay(&mut self, field: Option<(EditRaster, &Region, f64)>) -> Result<(), LayerError> {
+        let find = |r: &Renderer, name: &str| r.scene.stack.layers.iter().position(|l| l.spec.name == name);
+        let Some((raster, region, range_m)) = field else {
+            // The difference first: it reads the other two.
+            for name in [LIVE_DRAWN, LIVE_ZERO, LIVE_FIELD] {
+                if let Some(i) = find(self, name) {
+                    self.remove_layer(i)?;
+                }
+            }
+            return Ok(());
+        };
+        let style = DifferenceStyle { range_m: Some(range_m.max(1e-6)), isolines_m: 0.0, ..Default::default() };
+        match find(self, LIVE_DRAWN) {
+            None => {
+                let top = self.scene.stack.layers.len();
+                self.insert_layer(top, LayerSpec { visible: false, ..LayerSpec::erosion(LIVE_FIELD) })?;
+                // The zero only within the region: beyond it the field has no data, and coarse
+                // views (whose means treat a missing tile as 0) draw nothing there.
+                let outline = region.outline(&self.scene.ellipsoid);
+                let extent = (outline.len() >= 3).then_some(crate::layers::ExtentSpec::Polygon(outline));
+                let zero = LayerSpec { visible: false, extent, ..LayerSpec::constant(LIVE_ZERO, 0.0) };
+                self.insert_layer(top + 1, zero)?;
+                let drawn = LayerSpec {
+                    style: Some(style),
+                    opacity: 0.8,
+                    ..LayerSpec::difference(
+                        LIVE_DRAWN,
+                        Operand::Layer(LIVE_FIELD.into()),
+                        Operand::Layer(LIVE_ZERO.into()),
+                    )
+                };
+                self.insert_layer(top + 2, drawn)?;
+            }
+            Some(i) => {
+                let spec = &self.scene.stack.layers[i].spec;
+                let old = spec.difference_style().range_m.unwrap_or(0.0);
+                // A new range only when it moved by more than a quarter (each recomposes the region).
+                if (old - range_m).abs() > 0.25 * old {
+                    let spec = LayerSpec { style: Some(style), ..spec.clone() };
+                    self.update_layer(i, spec)?;
+                }
+            }
+        }
+        let i = find(self, LIVE_FIELD).expect("inserted above");
+        self.scene.set_edit(i, raster);
+        self.cache.plans.clear();
+        Ok(())
     }
 }

@@ -39,6 +39,8 @@ pub(crate) struct ErosionTool {
     per_frame: u32,
     seed: u64,
     overlay: Overlay,
+    /// Whether the overlay is also draped over the terrain.
+    drape: bool,
     pub(crate) session: Option<Session>,
     map: Option<egui::TextureHandle>,
     /// The erosion brush.
@@ -61,6 +63,7 @@ impl Default for ErosionTool {
             per_frame: 2,
             seed: 1,
             overlay: Overlay::Water,
+            drape: true,
             session: None,
             map: None,
             brush: false,
@@ -208,6 +211,7 @@ impl App {
             if ui.add_enabled(busy, egui::Button::new("discard")).clicked()
                 && let Some(s) = self.erosion.session.take()
             {
+                let _ = self.renderer.set_erosion_overlay(None);
                 self.renderer.discard_erosion(s.index, s.base);
                 self.dirty = true;
             }
@@ -251,6 +255,7 @@ impl App {
                 ui.selectable_value(&mut t.overlay, Overlay::Water, "water");
                 ui.selectable_value(&mut t.overlay, Overlay::Sediment, "sediment");
                 ui.selectable_value(&mut t.overlay, Overlay::Change, "change");
+                ui.checkbox(&mut t.drape, "on the terrain");
             });
             if let Some(map) = &self.erosion.map {
                 ui.image((map.id(), egui::vec2(200.0, 200.0)));
@@ -316,6 +321,14 @@ impl App {
         self.renderer.show_erosion(index, &base, &region, &run);
         let image = region_map(&run, self.erosion.overlay);
         self.set_map(image);
+        let drape = self.erosion.drape.then(|| {
+            let values = field(&run, self.erosion.overlay);
+            let range = values.iter().filter(|v| v.is_finite()).fold(0f64, |m, v| m.max(v.abs()));
+            (crate::erosion::layer::field_raster(base.ellipsoid, &region, &values), &region, range)
+        });
+        if let Err(e) = self.renderer.set_erosion_overlay(drape) {
+            self.message = format!("erosion overlay: {e}");
+        }
         self.dirty = true;
     }
 
@@ -447,6 +460,9 @@ impl App {
     /// Records the session's run (its steps so far) on the layer.
     pub(crate) fn keep_erosion(&mut self) {
         let Some(mut s) = self.erosion.session.take() else { return };
+        if let Err(e) = self.renderer.set_erosion_overlay(None) {
+            self.message = format!("erosion overlay: {e}");
+        }
         let run = match s.sync() {
             Ok(run) => run.clone(),
             Err(e) => {
@@ -547,6 +563,22 @@ impl App {
         }
         self.keep_erosion();
     }
+}
+
+/// Per cell, what the overlay shows, metres (NaN where there is nothing to show: dry, no
+/// sediment, unchanged).
+fn field(run: &Run, overlay: Overlay) -> Vec<f64> {
+    let g = &run.grid;
+    (0..g.len())
+        .map(|i| {
+            let units = match overlay {
+                Overlay::Water => run.state.water[i],
+                Overlay::Sediment => run.state.sediment[i],
+                Overlay::Change => run.state.soil[i],
+            };
+            if units == 0 { f64::NAN } else { units as f64 * run.unit_m3() / g.area_m2[i] }
+        })
+        .collect()
 }
 
 /// The region's water depth, sediment or change of height as a picture (north up), at most 256
