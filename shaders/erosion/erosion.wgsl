@@ -67,7 +67,8 @@ struct Partial {
 }
 
 const MAX_UNITS: i32 = 134217728;
-const DRY_M: f32 = 1e-4;
+// The depth below which the speed estimate is desingularised (src/erosion/sim.rs).
+const DESINGULARISE_M: f32 = 1e-3;
 const BIG: f32 = 3.0e38;
 const WG: u32 = 256u;
 
@@ -358,10 +359,16 @@ fn update(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index
             var soil = before.z - sent_l + soil_in;
             let area = cell.y;
             let mean_depth = 0.5 * f32(before.x + water) * P.unit_m3 / area;
-            if mean_depth >= DRY_M && dt > 0.0 {
-                let u = 0.5 * flow.x * P.unit_m3 / dt / (cell.w * mean_depth);
-                let v = 0.5 * flow.y * P.unit_m3 / dt / (cell.z * mean_depth);
-                speed = sqrt(u * u + v * v);
+            if dt > 0.0 {
+                // The discharge per unit width, m²/s, and |v| desingularised (Kurganov & Petrova).
+                let qx = 0.5 * flow.x * P.unit_m3 / dt / cell.w;
+                let qy = 0.5 * flow.y * P.unit_m3 / dt / cell.z;
+                let d4 = mean_depth * mean_depth * mean_depth * mean_depth;
+                let e2 = DESINGULARISE_M * DESINGULARISE_M;
+                let denominator = sqrt(d4 + max(d4, e2 * e2));
+                if denominator > 0.0 {
+                    speed = 1.41421356 * mean_depth * sqrt(qx * qx + qy * qy) / denominator;
+                }
             }
             // Capacity (a depth of sediment, at most the water's): speed, slope and depth.
             let sin_a = max(slope[i], P.min_slope);

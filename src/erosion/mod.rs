@@ -13,7 +13,7 @@
 
 /// The version of the model: part of every erosion cache's digest, bumped whenever a change of
 /// the model changes what a run makes (so that no cache of an older model is read as current).
-pub const MODEL_VERSION: u32 = 2;
+pub const MODEL_VERSION: u32 = 3;
 
 pub mod dither;
 pub mod grid;
