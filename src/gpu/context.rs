@@ -21,6 +21,9 @@ pub enum GpuError {
     /// A pass was asked of targets that lack what it writes.
     #[error("{0}")]
     Targets(&'static str),
+    /// A job larger than the device's limits allow (named with the limit).
+    #[error("device limit: {0}")]
+    Limit(String),
     /// A layer stack that the GPU cannot compose (too many layers, segments or octaves).
     #[error("layer stack: {0}")]
     Stack(String),

@@ -154,7 +154,7 @@ impl GpuRun {
         let limits = device.limits();
         let largest = (n as u64) * 32;
         if largest > limits.max_storage_buffer_binding_size || largest > limits.max_buffer_size {
-            return Err(GpuError::Stack(format!(
+            return Err(GpuError::Limit(format!(
                 "an erosion grid of {} × {} cells needs storage buffers of {largest} bytes; this device binds at most {} \
                  (choose a smaller region or a coarser level)",
                 grid.width, grid.height, limits.max_storage_buffer_binding_size
