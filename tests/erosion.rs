@@ -246,3 +246,28 @@ fn terrafuse_erode_runs_reports_json_undoes_redoes_and_refuses_bad_input_untouch
     let wrong = erode(&[p, "--layer", "srtm", "--region", region, "--level", "9", "--steps", "5"]);
     assert!(String::from_utf8_lossy(&wrong.stderr).contains("not an erosion layer"));
 }
+
+#[test]
+fn a_grid_past_the_binding_limit_runs_in_chunks_as_in_one_and_past_four_chunks_is_refused() {
+    // As if the device bound 32 000 bytes: the 3072 cells' arrays of 32 bytes a cell go in four
+    // chunks of 768 cells; the run is the same bit for bit as in one binding. A limit that would
+    // need seven chunks is refused, naming it.
+    let ctx = context();
+    let grid = Grid::flat_patch(64, 48, 10.0, rough(64, 48, 8.0));
+    let params = Params { border: Border::Open, ..Params::preset("rain", EARTH_G).unwrap() };
+    let start = Run::new(grid, params).unwrap().with_seed(3);
+    let kernel = Arc::new(ErosionKernel::new(&ctx.device).unwrap());
+    let mut finals = Vec::new();
+    for limit in [u64::MAX, 32 * 1000] {
+        let mut gpu = GpuRun::with_binding_limit(&ctx.device, &ctx.queue, kernel.clone(), &start, limit).unwrap();
+        gpu.step(60).unwrap();
+        let run = gpu.download().unwrap().clone();
+        assert_eq!(run.unexplained(), (0, 0));
+        finals.push(run);
+    }
+    assert!(finals[0].state.water.iter().any(|w| *w > 0));
+    assert!(finals[0].state == finals[1].state, "the chunked run differs");
+    assert_eq!(finals[0].budget, finals[1].budget);
+    let refused = GpuRun::with_binding_limit(&ctx.device, &ctx.queue, kernel, &start, 32 * 500).err().unwrap();
+    assert!(refused.to_string().contains("binds at most 16000 bytes"), "{refused}");
+}

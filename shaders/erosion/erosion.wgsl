@@ -23,7 +23,8 @@ struct Params {
     seed: u32,
     open_border: u32,
     groups: u32,
-    _pad: u32,
+    // Cells per chunk of the per-cell arrays.
+    chunk: u32,
     unit_m3: f32,
     g: f32,
     friction: f32,
@@ -73,26 +74,165 @@ const BIG: f32 = 3.0e38;
 const WG: u32 = 256u;
 
 @group(0) @binding(0) var<storage, read> P: Params;
-// Per cell: terrain height at the start less the region's offset, area, dx, dy (metres, m²).
-@group(0) @binding(1) var<storage, read> geo: array<vec4<f32>>;
-// Per cell: rain mask, erosion mask, hardness (0: the run's), sink (1) or not (0).
-@group(0) @binding(2) var<storage, read> masks: array<vec4<f32>>;
+// Each per-cell array is bound as four chunks of `P.chunk` cells (so that a grid larger than one
+// binding may hold still runs: the device's binding limit applies to a chunk); a grid within one
+// binding uses the first chunk, the others are stand-ins.
+// Per cell, two: terrain height at the start less the region's offset, area, dx, dy (metres,
+// m²); then rain mask, erosion mask, hardness (0: the run's), sink (1) or not (0).
+@group(0) @binding(1) var<storage, read> cell0: array<vec4<f32>>;
+@group(0) @binding(2) var<storage, read> cell1: array<vec4<f32>>;
+@group(0) @binding(3) var<storage, read> cell2: array<vec4<f32>>;
+@group(0) @binding(4) var<storage, read> cell3: array<vec4<f32>>;
 // Per cell: water, sediment, soil (the terrain's change), units.
-@group(0) @binding(3) var<storage, read_write> state: array<vec4<i32>>;
+@group(0) @binding(5) var<storage, read_write> state0: array<vec4<i32>>;
+@group(0) @binding(6) var<storage, read_write> state1: array<vec4<i32>>;
+@group(0) @binding(7) var<storage, read_write> state2: array<vec4<i32>>;
+@group(0) @binding(8) var<storage, read_write> state3: array<vec4<i32>>;
 // Per cell, two: the flux through pipes 0–3 and 4–7, m³/s.
-@group(0) @binding(4) var<storage, read_write> flux: array<vec4<f32>>;
-// Per cell, two each (pipes 0–3, 4–7): the water, sediment and soil it sends, units (three
-// buffers, so that no binding passes the device's limit before the others must).
-@group(0) @binding(5) var<storage, read_write> sent_water: array<vec4<i32>>;
-@group(0) @binding(6) var<storage, read_write> sent_sediment: array<vec4<i32>>;
-@group(0) @binding(7) var<storage, read_write> sent_soil: array<vec4<i32>>;
-@group(0) @binding(8) var<storage, read_write> partials: array<Partial>;
-@group(0) @binding(9) var<storage, read_write> control: Control;
+@group(0) @binding(9) var<storage, read_write> flux0: array<vec4<f32>>;
+@group(0) @binding(10) var<storage, read_write> flux1: array<vec4<f32>>;
+@group(0) @binding(11) var<storage, read_write> flux2: array<vec4<f32>>;
+@group(0) @binding(12) var<storage, read_write> flux3: array<vec4<f32>>;
+// Per cell, two each (pipes 0–3, 4–7): the water, sediment and soil it sends, units.
+@group(0) @binding(13) var<storage, read_write> sent_water0: array<vec4<i32>>;
+@group(0) @binding(14) var<storage, read_write> sent_water1: array<vec4<i32>>;
+@group(0) @binding(15) var<storage, read_write> sent_water2: array<vec4<i32>>;
+@group(0) @binding(16) var<storage, read_write> sent_water3: array<vec4<i32>>;
+@group(0) @binding(17) var<storage, read_write> sent_sediment0: array<vec4<i32>>;
+@group(0) @binding(18) var<storage, read_write> sent_sediment1: array<vec4<i32>>;
+@group(0) @binding(19) var<storage, read_write> sent_sediment2: array<vec4<i32>>;
+@group(0) @binding(20) var<storage, read_write> sent_sediment3: array<vec4<i32>>;
+@group(0) @binding(21) var<storage, read_write> sent_soil0: array<vec4<i32>>;
+@group(0) @binding(22) var<storage, read_write> sent_soil1: array<vec4<i32>>;
+@group(0) @binding(23) var<storage, read_write> sent_soil2: array<vec4<i32>>;
+@group(0) @binding(24) var<storage, read_write> sent_soil3: array<vec4<i32>>;
+@group(0) @binding(25) var<storage, read_write> partials: array<Partial>;
+@group(0) @binding(26) var<storage, read_write> control: Control;
 // The step taken at each step since the last read-back, seconds.
-@group(0) @binding(10) var<storage, read_write> dt_log: array<f32>;
+@group(0) @binding(27) var<storage, read_write> dt_log: array<f32>;
 // Per cell, sin α of the terrain's slope at the step's start (the outflow pass writes it: the
 // update pass changes the neighbours' terrain as it reads).
-@group(0) @binding(11) var<storage, read_write> slope: array<f32>;
+@group(0) @binding(28) var<storage, read_write> slope: array<f32>;
+
+// The chunked arrays' accessors (cell `i` lives in chunk i / P.chunk).
+fn cell_at(i: u32, k: u32) -> vec4<f32> {
+    let at = 2u * (i % P.chunk) + k;
+    switch i / P.chunk {
+        case 0u: { return cell0[at]; }
+        case 1u: { return cell1[at]; }
+        case 2u: { return cell2[at]; }
+        default: { return cell3[at]; }
+    }
+}
+
+fn geo_of(i: u32) -> vec4<f32> {
+    return cell_at(i, 0u);
+}
+
+fn masks_of(i: u32) -> vec4<f32> {
+    return cell_at(i, 1u);
+}
+
+fn state_of(i: u32) -> vec4<i32> {
+    let at = i % P.chunk;
+    switch i / P.chunk {
+        case 0u: { return state0[at]; }
+        case 1u: { return state1[at]; }
+        case 2u: { return state2[at]; }
+        default: { return state3[at]; }
+    }
+}
+
+fn state_set(i: u32, v: vec4<i32>) {
+    let at = i % P.chunk;
+    switch i / P.chunk {
+        case 0u: { state0[at] = v; }
+        case 1u: { state1[at] = v; }
+        case 2u: { state2[at] = v; }
+        default: { state3[at] = v; }
+    }
+}
+
+fn flux_of(i: u32, half: u32) -> vec4<f32> {
+    let at = 2u * (i % P.chunk) + half;
+    switch i / P.chunk {
+        case 0u: { return flux0[at]; }
+        case 1u: { return flux1[at]; }
+        case 2u: { return flux2[at]; }
+        default: { return flux3[at]; }
+    }
+}
+
+fn flux_set(i: u32, half: u32, v: vec4<f32>) {
+    let at = 2u * (i % P.chunk) + half;
+    switch i / P.chunk {
+        case 0u: { flux0[at] = v; }
+        case 1u: { flux1[at] = v; }
+        case 2u: { flux2[at] = v; }
+        default: { flux3[at] = v; }
+    }
+}
+
+fn sent_water_of(i: u32, half: u32) -> vec4<i32> {
+    let at = 2u * (i % P.chunk) + half;
+    switch i / P.chunk {
+        case 0u: { return sent_water0[at]; }
+        case 1u: { return sent_water1[at]; }
+        case 2u: { return sent_water2[at]; }
+        default: { return sent_water3[at]; }
+    }
+}
+
+fn sent_water_set(i: u32, half: u32, v: vec4<i32>) {
+    let at = 2u * (i % P.chunk) + half;
+    switch i / P.chunk {
+        case 0u: { sent_water0[at] = v; }
+        case 1u: { sent_water1[at] = v; }
+        case 2u: { sent_water2[at] = v; }
+        default: { sent_water3[at] = v; }
+    }
+}
+
+fn sent_sediment_of(i: u32, half: u32) -> vec4<i32> {
+    let at = 2u * (i % P.chunk) + half;
+    switch i / P.chunk {
+        case 0u: { return sent_sediment0[at]; }
+        case 1u: { return sent_sediment1[at]; }
+        case 2u: { return sent_sediment2[at]; }
+        default: { return sent_sediment3[at]; }
+    }
+}
+
+fn sent_sediment_set(i: u32, half: u32, v: vec4<i32>) {
+    let at = 2u * (i % P.chunk) + half;
+    switch i / P.chunk {
+        case 0u: { sent_sediment0[at] = v; }
+        case 1u: { sent_sediment1[at] = v; }
+        case 2u: { sent_sediment2[at] = v; }
+        default: { sent_sediment3[at] = v; }
+    }
+}
+
+fn sent_soil_of(i: u32, half: u32) -> vec4<i32> {
+    let at = 2u * (i % P.chunk) + half;
+    switch i / P.chunk {
+        case 0u: { return sent_soil0[at]; }
+        case 1u: { return sent_soil1[at]; }
+        case 2u: { return sent_soil2[at]; }
+        default: { return sent_soil3[at]; }
+    }
+}
+
+fn sent_soil_set(i: u32, half: u32, v: vec4<i32>) {
+    let at = 2u * (i % P.chunk) + half;
+    switch i / P.chunk {
+        case 0u: { sent_soil0[at] = v; }
+        case 1u: { sent_soil1[at] = v; }
+        case 2u: { sent_soil2[at] = v; }
+        default: { sent_soil3[at] = v; }
+    }
+}
+
 
 // The eight pipes as (dx, dy): east, west, north, south, then the diagonals; k ^ 1 is k's
 // opposite.
@@ -137,20 +277,20 @@ fn neighbour(i: u32, k: u32) -> i32 {
 }
 
 fn is_sink(i: u32) -> bool {
-    return masks[i].w > 0.5;
+    return masks_of(i).w > 0.5;
 }
 
 fn height_m(i: u32) -> f32 {
-    return geo[i].x + f32(state[i].z) * P.unit_m3 / geo[i].y;
+    return geo_of(i).x + f32(state_of(i).z) * P.unit_m3 / geo_of(i).y;
 }
 
 fn depth_m(i: u32) -> f32 {
-    return f32(state[i].x) * P.unit_m3 / geo[i].y;
+    return f32(state_of(i).x) * P.unit_m3 / geo_of(i).y;
 }
 
 fn pipe_length_m(i: u32, k: u32) -> f32 {
-    let lx = select(geo[i].z, 0.0, PIPES[k].x == 0);
-    let ly = select(geo[i].w, 0.0, PIPES[k].y == 0);
+    let lx = select(geo_of(i).z, 0.0, PIPES[k].x == 0);
+    let ly = select(geo_of(i).w, 0.0, PIPES[k].y == 0);
     return sqrt(lx * lx + ly * ly);
 }
 
@@ -159,7 +299,7 @@ fn weight(k: u32) -> f32 {
 }
 
 fn hardness(i: u32) -> f32 {
-    let h = masks[i].z;
+    let h = masks_of(i).z;
     return select(P.hardness, max(h, 1.0), h > 0.0);
 }
 
@@ -173,8 +313,8 @@ fn sin_slope(i: u32) -> f32 {
             at[k] = height_m(u32(nb));
         }
     }
-    let gx = (at[0] - at[1]) / (2.0 * geo[i].z);
-    let gy = (at[2] - at[3]) / (2.0 * geo[i].w);
+    let gx = (at[0] - at[1]) / (2.0 * geo_of(i).z);
+    let gy = (at[2] - at[3]) / (2.0 * geo_of(i).w);
     let t = sqrt(gx * gx + gy * gy);
     return t / sqrt(1.0 + t * t);
 }
@@ -193,8 +333,8 @@ fn outflow(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_inde
         let dt = control.dt;
         let h = height_m(i);
         let d = depth_m(i);
-        let old0 = flux[2u * i];
-        let old1 = flux[2u * i + 1u];
+        let old0 = flux_of(i, 0u);
+        let old1 = flux_of(i, 1u);
         let keep = 1.0 - min(P.friction * dt, 1.0);
         var total_m3 = 0.0;
         for (var k = 0u; k < 8u; k++) {
@@ -220,9 +360,9 @@ fn outflow(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_inde
             let len = pipe_length_m(i, k);
             var across = 0.5 * len;
             if PIPES[k].x == 0 {
-                across = geo[i].z;
+                across = geo_of(i).z;
             } else if PIPES[k].y == 0 {
-                across = geo[i].w;
+                across = geo_of(i).w;
             }
             let section = weight(k) * across * d;
             var old = old0[k];
@@ -232,7 +372,7 @@ fn outflow(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_inde
             f[k] = max(0.0, old * keep + dt * P.g * section * (h + d - surface) / len);
             total_m3 += f[k] * dt;
         }
-        let water = state[i].x;
+        let water = state_of(i).x;
         let held_m3 = f32(water) * P.unit_m3;
         if total_m3 > held_m3 {
             let scale = select(0.0, held_m3 / total_m3, total_m3 > 0.0);
@@ -246,7 +386,7 @@ fn outflow(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_inde
             sent_w += w[k];
         }
         if water > 0 {
-            let sediment = state[i].y;
+            let sediment = state_of(i).y;
             var sent_s = 0;
             for (var k = 0u; k < 8u; k++) {
                 let share = units_floor(f32(sediment) * f32(w[k]) / f32(water));
@@ -265,12 +405,12 @@ fn outflow(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_inde
                 }
                 let excess = h - height_m(u32(nb)) - pipe_length_m(i, k) * P.tan_talus;
                 if excess > 0.0 {
-                    let volume_m3 = rate * weight(k) / P.weight_sum * 0.5 * excess * geo[i].y;
+                    let volume_m3 = rate * weight(k) / P.weight_sum * 0.5 * excess * geo_of(i).y;
                     l[k] = units_floor(min(volume_m3 / P.unit_m3, f32(MAX_UNITS)));
                     sum += l[k];
                 }
             }
-            let room = max(min(state[i].z + MAX_UNITS, MAX_UNITS), 0);
+            let room = max(min(state_of(i).z + MAX_UNITS, MAX_UNITS), 0);
             if sum > room {
                 var sent_l = 0;
                 for (var k = 0u; k < 8u; k++) {
@@ -281,26 +421,26 @@ fn outflow(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_inde
         }
     }
     slope[i] = sin_slope(i);
-    flux[2u * i] = vec4<f32>(f[0], f[1], f[2], f[3]);
-    flux[2u * i + 1u] = vec4<f32>(f[4], f[5], f[6], f[7]);
-    sent_water[2u * i] = vec4<i32>(w[0], w[1], w[2], w[3]);
-    sent_water[2u * i + 1u] = vec4<i32>(w[4], w[5], w[6], w[7]);
-    sent_sediment[2u * i] = vec4<i32>(s[0], s[1], s[2], s[3]);
-    sent_sediment[2u * i + 1u] = vec4<i32>(s[4], s[5], s[6], s[7]);
-    sent_soil[2u * i] = vec4<i32>(l[0], l[1], l[2], l[3]);
-    sent_soil[2u * i + 1u] = vec4<i32>(l[4], l[5], l[6], l[7]);
+    flux_set(i, 0u, vec4<f32>(f[0], f[1], f[2], f[3]));
+    flux_set(i, 1u, vec4<f32>(f[4], f[5], f[6], f[7]));
+    sent_water_set(i, 0u, vec4<i32>(w[0], w[1], w[2], w[3]));
+    sent_water_set(i, 1u, vec4<i32>(w[4], w[5], w[6], w[7]));
+    sent_sediment_set(i, 0u, vec4<i32>(s[0], s[1], s[2], s[3]));
+    sent_sediment_set(i, 1u, vec4<i32>(s[4], s[5], s[6], s[7]));
+    sent_soil_set(i, 0u, vec4<i32>(l[0], l[1], l[2], l[3]));
+    sent_soil_set(i, 1u, vec4<i32>(l[4], l[5], l[6], l[7]));
 }
 
 // What cell i sent through pipe k: water (0), sediment (1) or soil (2).
 fn sent_by(i: u32, what: u32, k: u32) -> i32 {
-    let at = 2u * i + k / 4u;
+    let half = k / 4u;
     if what == 0u {
-        return sent_water[at][k % 4u];
+        return sent_water_of(i, half)[k % 4u];
     }
     if what == 1u {
-        return sent_sediment[at][k % 4u];
+        return sent_sediment_of(i, half)[k % 4u];
     }
-    return sent_soil[at][k % 4u];
+    return sent_soil_of(i, half)[k % 4u];
 }
 
 var<workgroup> wg_sums: array<array<u32, 8>, 256>;
@@ -339,12 +479,12 @@ fn update(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index
                 flow += f32(sent_by(i, 0u, k) - w_back) * vec2<f32>(PIPES[k]);
             }
         }
-        let cell = geo[i];
+        let cell = geo_of(i);
         if is_sink(i) {
             // Everything that flows in leaves the run here.
             budget.z += water_in;
             budget.w += sediment_in + soil_in;
-            state[i] = vec4<i32>(0, 0, 0, 0);
+            state_set(i, vec4<i32>(0, 0, 0, 0));
         } else {
             // Through an open border: what went out through pipes with no cell beyond.
             for (var k = 0u; k < 8u; k++) {
@@ -353,7 +493,7 @@ fn update(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index
                     budget.w += sent_by(i, 1u, k);
                 }
             }
-            let before = state[i];
+            let before = state_of(i);
             var water = before.x - sent_w + water_in;
             var sediment = before.y - sent_s + sediment_in;
             var soil = before.z - sent_l + soil_in;
@@ -374,7 +514,7 @@ fn update(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index
             let sin_a = max(slope[i], P.min_slope);
             let capacity_m = min(P.capacity * sin_a * speed * min(mean_depth, P.capacity_depth_m), mean_depth);
             let carried_m = f32(sediment) * P.unit_m3 / area;
-            let erodes = clamp(masks[i].y, 0.0, 1.0);
+            let erodes = clamp(masks_of(i).y, 0.0, 1.0);
             if capacity_m > carried_m {
                 let rate = min(P.dissolve * dt, 1.0) * erodes / hardness(i);
                 let taken = max(min(round_units((capacity_m - carried_m) * rate * area / P.unit_m3, i, 1u), soil + MAX_UNITS), 0);
@@ -395,7 +535,7 @@ fn update(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index
                 sediment = 0;
             }
             // Rain, within the units a cell may hold.
-            let mask = clamp(masks[i].x, 0.0, 1.0);
+            let mask = clamp(masks_of(i).x, 0.0, 1.0);
             let rain = max(min(round_units(P.rain_m_s * dt * mask * area / P.unit_m3, i, 4u), MAX_UNITS - water), 0);
             water += rain;
             budget.x += rain;
@@ -412,7 +552,7 @@ fn update(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index
                 budget.w += soil - MAX_UNITS;
                 soil = MAX_UNITS;
             }
-            state[i] = vec4<i32>(water, sediment, soil, 0);
+            state_set(i, vec4<i32>(water, sediment, soil, 0));
             depth_after = f32(water) * P.unit_m3 / area;
         }
         // The next step's CFL bound here (with the rain it will add).

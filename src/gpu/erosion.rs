@@ -38,6 +38,8 @@ const GROUPS_X: u32 = 32_768;
 const LOG_STEPS: u32 = 1 << 16;
 /// Steps per submission.
 const STEPS_PER_SUBMIT: u32 = 64;
+/// The chunks each per-cell array may be bound as (the shader's bindings).
+pub const CHUNKS: usize = 4;
 
 /// The bytes a step moves per cell at least: the outflow pass reads the state, terrain, masks
 /// and fluxes and writes the fluxes, the slope and the 24 transfers; the update pass reads the
@@ -97,7 +99,10 @@ impl ErosionKernel {
     /// Compiles the kernels.
     pub fn new(device: &wgpu::Device) -> Result<ErosionKernel, GpuError> {
         let module = shader_module(device, "erosion/erosion.wgsl")?;
-        let read_only = [true, true, true, false, false, false, false, false, false, false, false, false];
+        // Parameters, four chunks of the cells' records (read), then the state, fluxes and three
+        // transfer arrays in four chunks each, partials, control, the step log and the slopes.
+        let mut read_only = vec![true; 1 + CHUNKS];
+        read_only.extend([false; 5 * CHUNKS + 4]);
         let layout = storage_layout(device, "erosion", &read_only);
         Ok(ErosionKernel {
             outflow: compute_pipeline(device, "erosion outflow", &layout, &module, "outflow"),
@@ -115,6 +120,8 @@ pub struct GpuRun {
     kernel: Arc<ErosionKernel>,
     /// The run as last downloaded (its grid and parameters; its state and budget as of then).
     host: Run,
+    /// Cells per chunk of the per-cell arrays.
+    chunk: usize,
     buffers: Buffers,
     bind: wgpu::BindGroup,
     groups: u32,
@@ -124,8 +131,10 @@ pub struct GpuRun {
 }
 
 struct Buffers {
-    state: wgpu::Buffer,
-    flux: wgpu::Buffer,
+    /// The state's chunks.
+    state: Vec<wgpu::Buffer>,
+    /// The fluxes' chunks.
+    flux: Vec<wgpu::Buffer>,
     control: wgpu::Buffer,
     dt_log: wgpu::Buffer,
     _keep: Vec<wgpu::Buffer>,
@@ -141,25 +150,43 @@ fn from_u32_pair(v: [u32; 2]) -> i64 {
 }
 
 impl GpuRun {
-    /// Uploads `run` (its grid, parameters, state and budget) to the device. Refuses a grid whose
-    /// buffers pass the device's limits, naming the limit.
+    /// Uploads `run` (its grid, parameters, state and budget) to the device. A grid whose
+    /// per-cell arrays pass the device's binding limit is bound as up to [`CHUNKS`] chunks each;
+    /// past that it is refused, naming the limit.
     pub fn new(
         device: &wgpu::Device,
         queue: &wgpu::Queue,
         kernel: Arc<ErosionKernel>,
         run: &Run,
     ) -> Result<GpuRun, GpuError> {
+        let limits = device.limits();
+        let binding = limits.max_storage_buffer_binding_size.min(limits.max_buffer_size);
+        GpuRun::with_binding_limit(device, queue, kernel, run, binding)
+    }
+
+    /// [`GpuRun::new`] as if the device bound at most `binding` bytes (tests chunk small grids).
+    pub fn with_binding_limit(
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        kernel: Arc<ErosionKernel>,
+        run: &Run,
+        binding: u64,
+    ) -> Result<GpuRun, GpuError> {
         let grid = &run.grid;
         let n = grid.len();
-        let limits = device.limits();
-        let largest = (n as u64) * 32;
-        if largest > limits.max_storage_buffer_binding_size || largest > limits.max_buffer_size {
+        // The widest per-cell arrays hold 32 bytes a cell.
+        let per_binding = (binding / 32).max(1) as usize;
+        let chunks = n.div_ceil(per_binding).max(1);
+        if chunks > CHUNKS {
             return Err(GpuError::Limit(format!(
-                "an erosion grid of {} × {} cells needs storage buffers of {largest} bytes; this device binds at most {} \
-                 (choose a smaller region or a coarser level)",
-                grid.width, grid.height, limits.max_storage_buffer_binding_size
+                "an erosion grid of {} × {} cells needs {} bytes per array; this device binds at most {binding} bytes, \
+                 {CHUNKS} chunks of it are bound at most (choose a smaller region or a coarser level)",
+                grid.width,
+                grid.height,
+                n as u64 * 32
             )));
         }
+        let chunk = n.div_ceil(chunks).max(1);
         let groups = (n as u32).div_ceil(WG).max(1);
         let p = &run.params;
         // Heights relative to the region's mean, so that f32 keeps their differences.
@@ -200,7 +227,7 @@ impl GpuRun {
                 run.seed,
                 u32::from(p.border == Border::Open),
                 groups,
-                0,
+                chunk as u32,
             ],
             floats: [
                 run.unit_m3() as f32,
@@ -243,45 +270,44 @@ impl GpuRun {
         let none = wgpu::BufferUsages::empty();
         let make = |label: &str, bytes: &[u8], extra| storage_buffer(device, label, bytes, extra);
         let zeros = |count: usize| vec![0u8; count];
+        // Per cell: the terrain record then the masks record.
+        let cells: Vec<[f32; 4]> = geo.iter().zip(&masks).flat_map(|(g, m)| [*g, *m]).collect();
+        // Four chunks of an array of `per` bytes a cell (empty ones: stand-ins).
+        let chunked = |label: &str, bytes: &[u8], per: usize, extra| -> Vec<wgpu::Buffer> {
+            (0..CHUNKS)
+                .map(|c| {
+                    let (a, b) = ((c * chunk).min(n) * per, ((c + 1) * chunk).min(n) * per);
+                    make(&format!("{label} {c}"), &bytes[a..b], extra)
+                })
+                .collect()
+        };
         let params_buffer = make("erosion params", bytemuck::bytes_of(&params), none);
-        let geo_buffer = make("erosion geo", bytemuck::cast_slice(&geo), none);
-        let masks_buffer = make("erosion masks", bytemuck::cast_slice(&masks), none);
-        let state_buffer = make("erosion state", bytemuck::cast_slice(&state), copy);
-        let flux_buffer = make("erosion flux", bytemuck::cast_slice(&flux), copy);
+        let cell_buffers = chunked("erosion cells", bytemuck::cast_slice(&cells), 32, none);
+        let state_buffers = chunked("erosion state", bytemuck::cast_slice(&state), 16, copy);
+        let flux_buffers = chunked("erosion flux", bytemuck::cast_slice(&flux), 32, copy);
+        let empty = zeros(n * 32);
         let sent: Vec<wgpu::Buffer> = ["erosion sent water", "erosion sent sediment", "erosion sent soil"]
-            .map(|l| make(l, &zeros(n * 32), none))
-            .into();
+            .iter()
+            .flat_map(|l| chunked(l, &empty, 32, none))
+            .collect();
         let partials = make("erosion partials", &zeros(groups as usize * 48), none);
         let control_buffer = make("erosion control", bytemuck::bytes_of(&control), copy);
         let dt_log = make("erosion dt log", &zeros(LOG_STEPS as usize * 4), copy);
         let slope = make("erosion slope", &zeros(n * 4), none);
-        let bind = bind_buffers(
-            device,
-            &kernel.layout,
-            "erosion",
-            &[
-                &params_buffer,
-                &geo_buffer,
-                &masks_buffer,
-                &state_buffer,
-                &flux_buffer,
-                &sent[0],
-                &sent[1],
-                &sent[2],
-                &partials,
-                &control_buffer,
-                &dt_log,
-                &slope,
-            ],
-        );
-        let mut keep = vec![params_buffer, geo_buffer, masks_buffer, partials, slope];
+        let mut bound: Vec<&wgpu::Buffer> = vec![&params_buffer];
+        bound.extend(cell_buffers.iter().chain(&state_buffers).chain(&flux_buffers).chain(&sent));
+        bound.extend([&partials, &control_buffer, &dt_log, &slope]);
+        let bind = bind_buffers(device, &kernel.layout, "erosion", &bound);
+        let mut keep = vec![params_buffer, partials, slope];
+        keep.extend(cell_buffers);
         keep.extend(sent);
         Ok(GpuRun {
             device: device.clone(),
             queue: queue.clone(),
             kernel,
             host: run.clone(),
-            buffers: Buffers { state: state_buffer, flux: flux_buffer, control: control_buffer, dt_log, _keep: keep },
+            chunk,
+            buffers: Buffers { state: state_buffers, flux: flux_buffers, control: control_buffer, dt_log, _keep: keep },
             bind,
             groups,
             pending: 0,
@@ -347,7 +373,6 @@ impl GpuRun {
         let n = self.host.grid.len();
         let logged = self.pending as u64 * 4;
         let sizes = [(n * 16) as u64, (n * 32) as u64, std::mem::size_of::<Control>() as u64, logged.max(4)];
-        let sources = [&self.buffers.state, &self.buffers.flux, &self.buffers.control, &self.buffers.dt_log];
         let reads: Vec<wgpu::Buffer> = sizes
             .iter()
             .map(|&size| {
@@ -360,9 +385,17 @@ impl GpuRun {
             })
             .collect();
         let mut encoder = self.device.create_command_encoder(&Default::default());
-        for ((source, read), size) in sources.iter().zip(&reads).zip(sizes) {
-            encoder.copy_buffer_to_buffer(source, 0, read, 0, size);
+        // The state's and the fluxes' chunks, each at its cells' place.
+        for c in 0..CHUNKS {
+            let (a, b) = ((c * self.chunk).min(n), ((c + 1) * self.chunk).min(n));
+            if b > a {
+                let (cells, at) = ((b - a) as u64, a as u64);
+                encoder.copy_buffer_to_buffer(&self.buffers.state[c], 0, &reads[0], at * 16, cells * 16);
+                encoder.copy_buffer_to_buffer(&self.buffers.flux[c], 0, &reads[1], at * 32, cells * 32);
+            }
         }
+        encoder.copy_buffer_to_buffer(&self.buffers.control, 0, &reads[2], 0, sizes[2]);
+        encoder.copy_buffer_to_buffer(&self.buffers.dt_log, 0, &reads[3], 0, sizes[3]);
         self.queue.submit([encoder.finish()]);
         for read in &reads {
             read.slice(..).map_async(wgpu::MapMode::Read, |_| {});
