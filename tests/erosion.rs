@@ -249,16 +249,16 @@ fn terrafuse_erode_runs_reports_json_undoes_redoes_and_refuses_bad_input_untouch
 
 #[test]
 fn a_grid_past_the_binding_limit_runs_in_chunks_as_in_one_and_past_four_chunks_is_refused() {
-    // As if the device bound 32 000 bytes: the 3072 cells' arrays of 32 bytes a cell go in four
-    // chunks of 768 cells; the run is the same bit for bit as in one binding. A limit that would
-    // need seven chunks is refused, naming it.
+    // As if the device bound 40 000 bytes: the 3072 cells' arrays of 32 bytes a cell go in three
+    // chunks of 1024 cells (a power of two within the limit); the run is the same bit for bit as
+    // in one binding. A limit that would need twelve chunks is refused, naming it.
     let ctx = context();
     let grid = Grid::flat_patch(64, 48, 10.0, rough(64, 48, 8.0));
     let params = Params { border: Border::Open, ..Params::preset("rain", EARTH_G).unwrap() };
     let start = Run::new(grid, params).unwrap().with_seed(3);
     let kernel = Arc::new(ErosionKernel::new(&ctx.device).unwrap());
     let mut finals = Vec::new();
-    for limit in [u64::MAX, 32 * 1000] {
+    for limit in [u64::MAX, 40_000] {
         let mut gpu = GpuRun::with_binding_limit(&ctx.device, &ctx.queue, kernel.clone(), &start, limit).unwrap();
         gpu.step(60).unwrap();
         let run = gpu.download().unwrap().clone();

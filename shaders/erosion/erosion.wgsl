@@ -23,8 +23,9 @@ struct Params {
     seed: u32,
     open_border: u32,
     groups: u32,
-    // Cells per chunk of the per-cell arrays.
-    chunk: u32,
+    // Cells per chunk of the per-cell arrays: 2^chunk_shift (a shift and a mask per access,
+    // not a division).
+    chunk_shift: u32,
     unit_m3: f32,
     g: f32,
     friction: f32,
@@ -72,9 +73,12 @@ const MAX_UNITS: i32 = 134217728;
 const DESINGULARISE_M: f32 = 1e-3;
 const BIG: f32 = 3.0e38;
 const WG: u32 = 256u;
+// Whether the per-cell arrays are bound in chunks (a pipeline constant: the pipelines for grids
+// within one binding index the first chunk directly, without the chunk's switch).
+override chunked: bool = false;
 
 @group(0) @binding(0) var<storage, read> P: Params;
-// Each per-cell array is bound as four chunks of `P.chunk` cells (so that a grid larger than one
+// Each per-cell array is bound as four chunks of 2^P.chunk_shift cells (so that a grid larger than one
 // binding may hold still runs: the device's binding limit applies to a chunk); a grid within one
 // binding uses the first chunk, the others are stand-ins.
 // Per cell, two: terrain height at the start less the region's offset, area, dx, dy (metres,
@@ -114,10 +118,13 @@ const WG: u32 = 256u;
 // update pass changes the neighbours' terrain as it reads).
 @group(0) @binding(28) var<storage, read_write> slope: array<f32>;
 
-// The chunked arrays' accessors (cell `i` lives in chunk i / P.chunk).
+// The chunked arrays' accessors (cell `i` lives in chunk i >> P.chunk_shift).
 fn cell_at(i: u32, k: u32) -> vec4<f32> {
-    let at = 2u * (i % P.chunk) + k;
-    switch i / P.chunk {
+    if !chunked {
+        return cell0[2u * i + k];
+    }
+    let at = 2u * (i & ((1u << P.chunk_shift) - 1u)) + k;
+    switch i >> P.chunk_shift {
         case 0u: { return cell0[at]; }
         case 1u: { return cell1[at]; }
         case 2u: { return cell2[at]; }
@@ -134,8 +141,11 @@ fn masks_of(i: u32) -> vec4<f32> {
 }
 
 fn state_of(i: u32) -> vec4<i32> {
-    let at = i % P.chunk;
-    switch i / P.chunk {
+    if !chunked {
+        return state0[i];
+    }
+    let at = i & ((1u << P.chunk_shift) - 1u);
+    switch i >> P.chunk_shift {
         case 0u: { return state0[at]; }
         case 1u: { return state1[at]; }
         case 2u: { return state2[at]; }
@@ -144,8 +154,12 @@ fn state_of(i: u32) -> vec4<i32> {
 }
 
 fn state_set(i: u32, v: vec4<i32>) {
-    let at = i % P.chunk;
-    switch i / P.chunk {
+    if !chunked {
+        state0[i] = v;
+        return;
+    }
+    let at = i & ((1u << P.chunk_shift) - 1u);
+    switch i >> P.chunk_shift {
         case 0u: { state0[at] = v; }
         case 1u: { state1[at] = v; }
         case 2u: { state2[at] = v; }
@@ -154,8 +168,11 @@ fn state_set(i: u32, v: vec4<i32>) {
 }
 
 fn flux_of(i: u32, half: u32) -> vec4<f32> {
-    let at = 2u * (i % P.chunk) + half;
-    switch i / P.chunk {
+    if !chunked {
+        return flux0[2u * i + half];
+    }
+    let at = 2u * (i & ((1u << P.chunk_shift) - 1u)) + half;
+    switch i >> P.chunk_shift {
         case 0u: { return flux0[at]; }
         case 1u: { return flux1[at]; }
         case 2u: { return flux2[at]; }
@@ -164,8 +181,12 @@ fn flux_of(i: u32, half: u32) -> vec4<f32> {
 }
 
 fn flux_set(i: u32, half: u32, v: vec4<f32>) {
-    let at = 2u * (i % P.chunk) + half;
-    switch i / P.chunk {
+    if !chunked {
+        flux0[2u * i + half] = v;
+        return;
+    }
+    let at = 2u * (i & ((1u << P.chunk_shift) - 1u)) + half;
+    switch i >> P.chunk_shift {
         case 0u: { flux0[at] = v; }
         case 1u: { flux1[at] = v; }
         case 2u: { flux2[at] = v; }
@@ -174,8 +195,11 @@ fn flux_set(i: u32, half: u32, v: vec4<f32>) {
 }
 
 fn sent_water_of(i: u32, half: u32) -> vec4<i32> {
-    let at = 2u * (i % P.chunk) + half;
-    switch i / P.chunk {
+    if !chunked {
+        return sent_water0[2u * i + half];
+    }
+    let at = 2u * (i & ((1u << P.chunk_shift) - 1u)) + half;
+    switch i >> P.chunk_shift {
         case 0u: { return sent_water0[at]; }
         case 1u: { return sent_water1[at]; }
         case 2u: { return sent_water2[at]; }
@@ -184,8 +208,12 @@ fn sent_water_of(i: u32, half: u32) -> vec4<i32> {
 }
 
 fn sent_water_set(i: u32, half: u32, v: vec4<i32>) {
-    let at = 2u * (i % P.chunk) + half;
-    switch i / P.chunk {
+    if !chunked {
+        sent_water0[2u * i + half] = v;
+        return;
+    }
+    let at = 2u * (i & ((1u << P.chunk_shift) - 1u)) + half;
+    switch i >> P.chunk_shift {
         case 0u: { sent_water0[at] = v; }
         case 1u: { sent_water1[at] = v; }
         case 2u: { sent_water2[at] = v; }
@@ -194,8 +222,11 @@ fn sent_water_set(i: u32, half: u32, v: vec4<i32>) {
 }
 
 fn sent_sediment_of(i: u32, half: u32) -> vec4<i32> {
-    let at = 2u * (i % P.chunk) + half;
-    switch i / P.chunk {
+    if !chunked {
+        return sent_sediment0[2u * i + half];
+    }
+    let at = 2u * (i & ((1u << P.chunk_shift) - 1u)) + half;
+    switch i >> P.chunk_shift {
         case 0u: { return sent_sediment0[at]; }
         case 1u: { return sent_sediment1[at]; }
         case 2u: { return sent_sediment2[at]; }
@@ -204,8 +235,12 @@ fn sent_sediment_of(i: u32, half: u32) -> vec4<i32> {
 }
 
 fn sent_sediment_set(i: u32, half: u32, v: vec4<i32>) {
-    let at = 2u * (i % P.chunk) + half;
-    switch i / P.chunk {
+    if !chunked {
+        sent_sediment0[2u * i + half] = v;
+        return;
+    }
+    let at = 2u * (i & ((1u << P.chunk_shift) - 1u)) + half;
+    switch i >> P.chunk_shift {
         case 0u: { sent_sediment0[at] = v; }
         case 1u: { sent_sediment1[at] = v; }
         case 2u: { sent_sediment2[at] = v; }
@@ -214,8 +249,11 @@ fn sent_sediment_set(i: u32, half: u32, v: vec4<i32>) {
 }
 
 fn sent_soil_of(i: u32, half: u32) -> vec4<i32> {
-    let at = 2u * (i % P.chunk) + half;
-    switch i / P.chunk {
+    if !chunked {
+        return sent_soil0[2u * i + half];
+    }
+    let at = 2u * (i & ((1u << P.chunk_shift) - 1u)) + half;
+    switch i >> P.chunk_shift {
         case 0u: { return sent_soil0[at]; }
         case 1u: { return sent_soil1[at]; }
         case 2u: { return sent_soil2[at]; }
@@ -224,8 +262,12 @@ fn sent_soil_of(i: u32, half: u32) -> vec4<i32> {
 }
 
 fn sent_soil_set(i: u32, half: u32, v: vec4<i32>) {
-    let at = 2u * (i % P.chunk) + half;
-    switch i / P.chunk {
+    if !chunked {
+        sent_soil0[2u * i + half] = v;
+        return;
+    }
+    let at = 2u * (i & ((1u << P.chunk_shift) - 1u)) + half;
+    switch i >> P.chunk_shift {
         case 0u: { sent_soil0[at] = v; }
         case 1u: { sent_soil1[at] = v; }
         case 2u: { sent_soil2[at] = v; }

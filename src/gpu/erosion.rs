@@ -16,7 +16,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 use bytemuck::{Pod, Zeroable};
 
-use super::compute::{compute_pipeline, shader_module, storage_buffer, storage_layout};
+use super::compute::{compute_pipeline_with, shader_module, storage_buffer, storage_layout};
 use super::context::GpuError;
 use super::terrain::bind_buffers;
 use crate::erosion::layer::Stepper;
@@ -87,9 +87,15 @@ pub struct Report {
     pub max_depth_m: f64,
 }
 
-/// The compiled kernels.
+/// The compiled kernels: the passes for grids within one binding, and for grids in chunks.
 pub struct ErosionKernel {
     layout: wgpu::BindGroupLayout,
+    whole: Passes,
+    chunked: Passes,
+}
+
+/// The three passes' pipelines.
+struct Passes {
     outflow: wgpu::ComputePipeline,
     update: wgpu::ComputePipeline,
     reduce: wgpu::ComputePipeline,
@@ -104,12 +110,15 @@ impl ErosionKernel {
         let mut read_only = vec![true; 1 + CHUNKS];
         read_only.extend([false; 5 * CHUNKS + 4]);
         let layout = storage_layout(device, "erosion", &read_only);
-        Ok(ErosionKernel {
-            outflow: compute_pipeline(device, "erosion outflow", &layout, &module, "outflow"),
-            update: compute_pipeline(device, "erosion update", &layout, &module, "update"),
-            reduce: compute_pipeline(device, "erosion reduce", &layout, &module, "reduce"),
-            layout,
-        })
+        let passes = |chunked: f64| {
+            let c = [("chunked", chunked)];
+            Passes {
+                outflow: compute_pipeline_with(device, "erosion outflow", &layout, &module, "outflow", &c),
+                update: compute_pipeline_with(device, "erosion update", &layout, &module, "update", &c),
+                reduce: compute_pipeline_with(device, "erosion reduce", &layout, &module, "reduce", &c),
+            }
+        };
+        Ok(ErosionKernel { whole: passes(0.0), chunked: passes(1.0), layout })
     }
 }
 
@@ -122,6 +131,8 @@ pub struct GpuRun {
     host: Run,
     /// Cells per chunk of the per-cell arrays.
     chunk: usize,
+    /// Whether the grid is bound in more than one chunk.
+    chunked: bool,
     buffers: Buffers,
     bind: wgpu::BindGroup,
     groups: u32,
@@ -174,9 +185,12 @@ impl GpuRun {
     ) -> Result<GpuRun, GpuError> {
         let grid = &run.grid;
         let n = grid.len();
-        // The widest per-cell arrays hold 32 bytes a cell.
-        let per_binding = (binding / 32).max(1) as usize;
-        let chunks = n.div_ceil(per_binding).max(1);
+        // The widest per-cell arrays hold 32 bytes a cell; a chunk is a power of two of cells
+        // (the shader finds a cell's chunk with a shift), at most 2³¹.
+        let per_binding = (binding / 32).clamp(1, 1 << 31);
+        let shift = 63 - per_binding.leading_zeros();
+        let chunk = 1usize << shift;
+        let chunks = n.div_ceil(chunk).max(1);
         if chunks > CHUNKS {
             return Err(GpuError::Limit(format!(
                 "an erosion grid of {} × {} cells needs {} bytes per array; this device binds at most {binding} bytes, \
@@ -186,7 +200,7 @@ impl GpuRun {
                 n as u64 * 32
             )));
         }
-        let chunk = n.div_ceil(chunks).max(1);
+
         let groups = (n as u32).div_ceil(WG).max(1);
         let p = &run.params;
         // Heights relative to the region's mean, so that f32 keeps their differences.
@@ -227,7 +241,7 @@ impl GpuRun {
                 run.seed,
                 u32::from(p.border == Border::Open),
                 groups,
-                chunk as u32,
+                shift,
             ],
             floats: [
                 run.unit_m3() as f32,
@@ -307,6 +321,7 @@ impl GpuRun {
             kernel,
             host: run.clone(),
             chunk,
+            chunked: chunks > 1,
             buffers: Buffers { state: state_buffers, flux: flux_buffers, control: control_buffer, dt_log, _keep: keep },
             bind,
             groups,
@@ -343,12 +358,13 @@ impl GpuRun {
                 pass.set_bind_group(0, &self.bind, &[]);
                 let gx = self.groups.min(GROUPS_X);
                 let gy = self.groups.div_ceil(GROUPS_X);
+                let passes = if self.chunked { &self.kernel.chunked } else { &self.kernel.whole };
                 for _ in 0..now {
-                    pass.set_pipeline(&self.kernel.outflow);
+                    pass.set_pipeline(&passes.outflow);
                     pass.dispatch_workgroups(gx, gy, 1);
-                    pass.set_pipeline(&self.kernel.update);
+                    pass.set_pipeline(&passes.update);
                     pass.dispatch_workgroups(gx, gy, 1);
-                    pass.set_pipeline(&self.kernel.reduce);
+                    pass.set_pipeline(&passes.reduce);
                     pass.dispatch_workgroups(1, 1, 1);
                 }
             }
