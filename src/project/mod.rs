@@ -16,11 +16,21 @@
 //! Versions: 1 had `datasets` (first listed wins per sample); 2 has `layers`, bottom to top
 //! (a version-1 file's datasets become `over` dataset layers, the first listed on top).
 
+mod camera;
+mod migrate;
+mod settings;
+
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
+pub use self::camera::CameraSpec;
+pub use self::migrate::DatasetSpec;
+use self::migrate::migrate_v1;
+pub use self::settings::{
+    ColourMapSpec, ComparisonSpec, DetailSpec, IsolineSpec, LightingSpec, ProfileLine, SwipeSpec, Visuals,
+};
 use crate::geodesy::Ellipsoid;
 pub use crate::layers::SourceSpec;
 use crate::layers::{LayerKind, LayerSpec};
@@ -44,289 +54,6 @@ impl ProjectError {
     fn new(path: &Path, problem: impl Into<String>) -> ProjectError {
         ProjectError { path: path.to_path_buf(), problem: problem.into() }
     }
-}
-
-/// A camera in geodetic terms, all f64: where it is and where it looks.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct CameraSpec {
-    /// Geodetic latitude, degrees.
-    pub lat: f64,
-    /// Longitude, degrees east.
-    pub lon: f64,
-    /// Height above the ellipsoid, metres.
-    pub alt: f64,
-    /// Heading, degrees clockwise from north.
-    #[serde(default)]
-    pub heading: f64,
-    /// Pitch, degrees: −90 looks straight down, 0 at the horizon.
-    #[serde(default = "default_pitch")]
-    pub pitch: f64,
-    /// Vertical field of view, degrees.
-    #[serde(default = "default_fov")]
-    pub fov: f64,
-}
-
-fn default_pitch() -> f64 {
-    -90.0
-}
-
-fn default_fov() -> f64 {
-    45.0
-}
-
-impl CameraSpec {
-    /// Parses `lat,lon,alt,heading,pitch[,fov]` (degrees and metres).
-    pub fn parse(text: &str) -> Result<CameraSpec, String> {
-        let values: Vec<f64> = text
-            .split(',')
-            .map(|v| v.trim().parse::<f64>().map_err(|_| format!("'{}' is not a number", v.trim())))
-            .collect::<Result<_, _>>()?;
-        if !(5..=6).contains(&values.len()) {
-            return Err(format!("a camera is lat,lon,alt,heading,pitch[,fov]; got {} values", values.len()));
-        }
-        let camera = CameraSpec {
-            lat: values[0],
-            lon: values[1],
-            alt: values[2],
-            heading: values[3],
-            pitch: values[4],
-            fov: values.get(5).copied().unwrap_or_else(default_fov),
-        };
-        camera.check()?;
-        Ok(camera)
-    }
-
-    /// Checks the ranges: latitude within ±90°, pitch within [−90°, 90°], field of view in
-    /// (0°, 170°), everything finite.
-    pub fn check(&self) -> Result<(), String> {
-        let all = [self.lat, self.lon, self.alt, self.heading, self.pitch, self.fov];
-        if all.iter().any(|v| !v.is_finite()) {
-            return Err("camera values must be finite numbers".into());
-        }
-        if self.lat.abs() > 90.0 {
-            return Err(format!("camera latitude {} is outside [-90, 90]", self.lat));
-        }
-        if self.pitch.abs() > 90.0 {
-            return Err(format!("camera pitch {} is outside [-90, 90] (-90 looks straight down)", self.pitch));
-        }
-        if !(self.fov > 0.0 && self.fov < 170.0) {
-            return Err(format!("camera field of view {} must lie between 0 and 170 degrees", self.fov));
-        }
-        Ok(())
-    }
-}
-
-/// One dataset of a version-1 project (read for migration only).
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct DatasetSpec {
-    /// The name the project uses for it.
-    pub name: String,
-    /// The tile store (GeoPackage), relative to the project file.
-    pub store: PathBuf,
-    /// The dataset's name in the store (default: `name`).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub dataset: Option<String>,
-    /// Sources to import from when the store lacks the dataset.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub source: Option<SourceSpec>,
-}
-
-impl DatasetSpec {
-    /// The version-2 layer: an `over` dataset layer with the same fields.
-    pub fn into_layer(self) -> LayerSpec {
-        LayerSpec { dataset: self.dataset, source: self.source, ..LayerSpec::dataset(&self.name, self.store) }
-    }
-}
-
-/// The colour map: a preset or a user's ramp file, over a height range.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct ColourMapSpec {
-    /// A preset name (`terrafuse render --list-colour-maps` lists them), used unless `file` is set.
-    #[serde(default = "default_preset")]
-    pub preset: String,
-    /// A gdaldem colour-relief file or a GMT `.cpt` (relative to the project file); its values are
-    /// heights in metres.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub file: Option<PathBuf>,
-    /// Heights the preset spans, metres; default: the datasets' height range.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub range_m: Option<[f64; 2]>,
-    /// Colour where there is no data, sRGB bytes with alpha.
-    #[serde(default = "default_nodata_colour")]
-    pub nodata_colour: [u8; 4],
-}
-
-fn default_preset() -> String {
-    "hypsometric".into()
-}
-
-fn default_nodata_colour() -> [u8; 4] {
-    [96, 96, 104, 255]
-}
-
-impl Default for ColourMapSpec {
-    fn default() -> ColourMapSpec {
-        ColourMapSpec { preset: default_preset(), file: None, range_m: None, nodata_colour: default_nodata_colour() }
-    }
-}
-
-/// Isolines (contour lines) computed per pixel from the elevation.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct IsolineSpec {
-    /// Whether they are drawn.
-    pub enabled: bool,
-    /// Height between lines, metres.
-    pub interval_m: f64,
-    /// Heights of lines are offset + k·interval, metres.
-    pub offset_m: f64,
-    /// Every k-th line is a major line (0: none).
-    pub major_every: u32,
-    /// Width of a minor line, pixels.
-    pub width_px: f32,
-    /// Width of a major line, pixels.
-    pub major_width_px: f32,
-    /// Lines thinner than this are drawn this wide with proportionally less opacity, so that they
-    /// neither alias nor vanish; pixels.
-    pub min_width_px: f32,
-    /// Line colour, sRGB bytes with alpha.
-    pub colour: [u8; 4],
-}
-
-impl Default for IsolineSpec {
-    fn default() -> IsolineSpec {
-        IsolineSpec {
-            enabled: false,
-            interval_m: 100.0,
-            offset_m: 0.0,
-            major_every: 5,
-            width_px: 1.0,
-            major_width_px: 2.0,
-            min_width_px: 1.0,
-            colour: [20, 20, 20, 220],
-        }
-    }
-}
-
-/// Per-pixel lighting from the elevation gradient and the ellipsoid normal (a hillshade: the
-/// sun's direction is given in each point's local east-north-up frame, as gdaldem does).
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct LightingSpec {
-    /// Whether the terrain is shaded.
-    pub enabled: bool,
-    /// Sun azimuth, degrees clockwise from north.
-    pub sun_azimuth_deg: f64,
-    /// Sun elevation above the horizon, degrees.
-    pub sun_elevation_deg: f64,
-    /// How much the shading darkens: 0 none, 1 full hillshade.
-    pub strength: f64,
-}
-
-impl Default for LightingSpec {
-    fn default() -> LightingSpec {
-        LightingSpec { enabled: true, sun_azimuth_deg: 315.0, sun_elevation_deg: 45.0, strength: 0.7 }
-    }
-}
-
-/// Everything about how the terrain looks.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct Visuals {
-    /// Colour gradient.
-    pub colour_map: ColourMapSpec,
-    /// Isolines.
-    pub isolines: IsolineSpec,
-    /// Lighting.
-    pub lighting: LightingSpec,
-    /// Vertical exaggeration (1: true heights).
-    pub exaggeration: f64,
-    /// Sky colour behind the planet, sRGB bytes.
-    pub background: [u8; 4],
-}
-
-impl Default for Visuals {
-    fn default() -> Visuals {
-        Visuals {
-            colour_map: ColourMapSpec::default(),
-            isolines: IsolineSpec::default(),
-            lighting: LightingSpec::default(),
-            exaggeration: 1.0,
-            background: [0, 0, 0, 255],
-        }
-    }
-}
-
-/// Level-of-detail settings.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct DetailSpec {
-    /// Split a quad while a sample covers more than this many pixels (the paper's t).
-    pub lod_threshold_px: f64,
-    /// Most quads drawn in one frame.
-    pub max_quads: usize,
-    /// CPU cache budget, MiB.
-    pub cpu_cache_mib: u64,
-    /// GPU cache budget, MiB.
-    pub gpu_cache_mib: u64,
-}
-
-impl Default for DetailSpec {
-    fn default() -> DetailSpec {
-        DetailSpec { lod_threshold_px: 1.5, max_quads: 128, cpu_cache_mib: 1024, gpu_cache_mib: 768 }
-    }
-}
-
-/// Saved comparison settings: swipes (`terrafuse render --swipe NAME`) and profile lines
-/// (`terrafuse profile --line NAME`), by name.
-#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct ComparisonSpec {
-    /// Swipes by name.
-    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
-    pub swipes: BTreeMap<String, SwipeSpec>,
-    /// Profile lines by name.
-    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
-    pub profiles: BTreeMap<String, ProfileLine>,
-}
-
-impl ComparisonSpec {
-    fn is_empty(&self) -> bool {
-        self.swipes.is_empty() && self.profiles.is_empty()
-    }
-}
-
-/// A swipe: layer `a` left of a vertical line, layer `b` right of it.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct SwipeSpec {
-    /// The layer left of the line.
-    pub a: String,
-    /// The layer right of the line.
-    pub b: String,
-    /// Where the line is, 0–1 of the width.
-    #[serde(default = "half")]
-    pub position: f64,
-    /// The view to show it from (default: the project's default view).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub view: Option<String>,
-}
-
-fn half() -> f64 {
-    0.5
-}
-
-/// A profile line: from and to, `[lat, lon]` in degrees.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct ProfileLine {
-    /// Start, `[lat, lon]` degrees.
-    pub from: [f64; 2],
-    /// End, `[lat, lon]` degrees.
-    pub to: [f64; 2],
 }
 
 /// The project: what `terrafuse render` and the workstation open.
@@ -552,22 +279,6 @@ impl Project {
         crate::files::write_atomic(path, text.as_bytes())
             .map_err(|e| ProjectError::new(path, format!("cannot write: {e}")))
     }
-}
-
-/// Version 1 → 2: `datasets` (first listed wins) become `over` dataset layers, bottom to top.
-fn migrate_v1(value: &mut serde_json::Value) -> Result<(), String> {
-    let object = value.as_object_mut().ok_or("a project is a JSON object")?;
-    if object.contains_key("layers") {
-        return Err("a version-1 project has \"datasets\", not \"layers\" (layers are version 2)".into());
-    }
-    let datasets: Vec<DatasetSpec> = match object.remove("datasets") {
-        Some(d) => serde_json::from_value(d).map_err(|e| format!("datasets: {e}"))?,
-        None => Vec::new(),
-    };
-    let layers: Vec<LayerSpec> = datasets.into_iter().rev().map(DatasetSpec::into_layer).collect();
-    object.insert("layers".into(), serde_json::to_value(layers).map_err(|e| e.to_string())?);
-    object.insert("version".into(), VERSION.into());
-    Ok(())
 }
 
 #[cfg(test)]

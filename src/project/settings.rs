@@ -1,0 +1,196 @@
+//! How a project looks: colour map, isolines, lighting, level of detail, saved comparisons.
+
+use std::collections::BTreeMap;
+use std::path::PathBuf;
+
+use serde::{Deserialize, Serialize};
+
+/// The colour map: a preset or a user's ramp file, over a height range.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ColourMapSpec {
+    /// A preset name (`terrafuse render --list-colour-maps` lists them), used unless `file` is set.
+    #[serde(default = "default_preset")]
+    pub preset: String,
+    /// A gdaldem colour-relief file or a GMT `.cpt` (relative to the project file); its values are
+    /// heights in metres.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub file: Option<PathBuf>,
+    /// Heights the preset spans, metres; default: the datasets' height range.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub range_m: Option<[f64; 2]>,
+    /// Colour where there is no data, sRGB bytes with alpha.
+    #[serde(default = "default_nodata_colour")]
+    pub nodata_colour: [u8; 4],
+}
+
+fn default_preset() -> String {
+    "hypsometric".into()
+}
+
+fn default_nodata_colour() -> [u8; 4] {
+    [96, 96, 104, 255]
+}
+
+impl Default for ColourMapSpec {
+    fn default() -> ColourMapSpec {
+        ColourMapSpec { preset: default_preset(), file: None, range_m: None, nodata_colour: default_nodata_colour() }
+    }
+}
+
+/// Isolines (contour lines) computed per pixel from the elevation.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct IsolineSpec {
+    /// Whether they are drawn.
+    pub enabled: bool,
+    /// Height between lines, metres.
+    pub interval_m: f64,
+    /// Heights of lines are offset + k·interval, metres.
+    pub offset_m: f64,
+    /// Every k-th line is a major line (0: none).
+    pub major_every: u32,
+    /// Width of a minor line, pixels.
+    pub width_px: f32,
+    /// Width of a major line, pixels.
+    pub major_width_px: f32,
+    /// Lines thinner than this are drawn this wide with proportionally less opacity, so that they
+    /// neither alias nor vanish; pixels.
+    pub min_width_px: f32,
+    /// Line colour, sRGB bytes with alpha.
+    pub colour: [u8; 4],
+}
+
+impl Default for IsolineSpec {
+    fn default() -> IsolineSpec {
+        IsolineSpec {
+            enabled: false,
+            interval_m: 100.0,
+            offset_m: 0.0,
+            major_every: 5,
+            width_px: 1.0,
+            major_width_px: 2.0,
+            min_width_px: 1.0,
+            colour: [20, 20, 20, 220],
+        }
+    }
+}
+
+/// Per-pixel lighting from the elevation gradient and the ellipsoid normal (a hillshade: the
+/// sun's direction is given in each point's local east-north-up frame, as gdaldem does).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct LightingSpec {
+    /// Whether the terrain is shaded.
+    pub enabled: bool,
+    /// Sun azimuth, degrees clockwise from north.
+    pub sun_azimuth_deg: f64,
+    /// Sun elevation above the horizon, degrees.
+    pub sun_elevation_deg: f64,
+    /// How much the shading darkens: 0 none, 1 full hillshade.
+    pub strength: f64,
+}
+
+impl Default for LightingSpec {
+    fn default() -> LightingSpec {
+        LightingSpec { enabled: true, sun_azimuth_deg: 315.0, sun_elevation_deg: 45.0, strength: 0.7 }
+    }
+}
+
+/// Everything about how the terrain looks.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Visuals {
+    /// Colour gradient.
+    pub colour_map: ColourMapSpec,
+    /// Isolines.
+    pub isolines: IsolineSpec,
+    /// Lighting.
+    pub lighting: LightingSpec,
+    /// Vertical exaggeration (1: true heights).
+    pub exaggeration: f64,
+    /// Sky colour behind the planet, sRGB bytes.
+    pub background: [u8; 4],
+}
+
+impl Default for Visuals {
+    fn default() -> Visuals {
+        Visuals {
+            colour_map: ColourMapSpec::default(),
+            isolines: IsolineSpec::default(),
+            lighting: LightingSpec::default(),
+            exaggeration: 1.0,
+            background: [0, 0, 0, 255],
+        }
+    }
+}
+
+/// Level-of-detail settings.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct DetailSpec {
+    /// Split a quad while a sample covers more than this many pixels (the paper's t).
+    pub lod_threshold_px: f64,
+    /// Most quads drawn in one frame.
+    pub max_quads: usize,
+    /// CPU cache budget, MiB.
+    pub cpu_cache_mib: u64,
+    /// GPU cache budget, MiB.
+    pub gpu_cache_mib: u64,
+}
+
+impl Default for DetailSpec {
+    fn default() -> DetailSpec {
+        DetailSpec { lod_threshold_px: 1.5, max_quads: 128, cpu_cache_mib: 1024, gpu_cache_mib: 768 }
+    }
+}
+
+/// Saved comparison settings: swipes (`terrafuse render --swipe NAME`) and profile lines
+/// (`terrafuse profile --line NAME`), by name.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ComparisonSpec {
+    /// Swipes by name.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub swipes: BTreeMap<String, SwipeSpec>,
+    /// Profile lines by name.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub profiles: BTreeMap<String, ProfileLine>,
+}
+
+impl ComparisonSpec {
+    /// Whether nothing is saved.
+    pub fn is_empty(&self) -> bool {
+        self.swipes.is_empty() && self.profiles.is_empty()
+    }
+}
+
+/// A swipe: layer `a` left of a vertical line, layer `b` right of it.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SwipeSpec {
+    /// The layer left of the line.
+    pub a: String,
+    /// The layer right of the line.
+    pub b: String,
+    /// Where the line is, 0–1 of the width.
+    #[serde(default = "half")]
+    pub position: f64,
+    /// The view to show it from (default: the project's default view).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub view: Option<String>,
+}
+
+fn half() -> f64 {
+    0.5
+}
+
+/// A profile line: from and to, `[lat, lon]` in degrees.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ProfileLine {
+    /// Start, `[lat, lon]` degrees.
+    pub from: [f64; 2],
+    /// End, `[lat, lon]` degrees.
+    pub to: [f64; 2],
+}
