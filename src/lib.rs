@@ -17,4 +17,5 @@ pub mod gpu;
 pub mod gui;
 pub mod layers;
 pub mod project;
+pub mod replay;
 pub mod store;

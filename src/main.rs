@@ -282,11 +282,61 @@ enum Command {
         #[arg(long, default_value_t = 300.0)]
         timeout: f64,
     },
+    /// Rebuild every edit and erosion layer of a project from its operations and print a digest
+    /// per layer; --check compares the project's recorded checks (exit status 1 on a mismatch,
+    /// naming the check and the first differing tile), --record writes them.
+    Replay {
+        /// The project file (JSON).
+        project: PathBuf,
+        /// Compare with the digests recorded in the project's "checks"; exit 1 on a mismatch.
+        #[arg(long)]
+        check: bool,
+        /// Write the digests of the project's checks into it (from the CPU reference).
+        #[arg(long, conflicts_with_all = ["check", "gpu"])]
+        record: bool,
+        /// Rebuild on the GPU (lavapipe too); with --check, each layer is compared with the CPU
+        /// reference within its stated tolerance.
+        #[arg(long, conflicts_with = "cpu")]
+        gpu: bool,
+        /// Rebuild with the CPU reference, bit for bit (the default).
+        #[arg(long)]
+        cpu: bool,
+        /// Print JSON (project, engine, layers[name, kind, operations, tiles, digest, seconds],
+        /// checks[name, digest, expected, ok, first_differing_tile], seconds, passed).
+        #[arg(long)]
+        json: bool,
+    },
+    /// Project files: check one, bring one to the current version, print the schema.
+    Project {
+        #[command(subcommand)]
+        command: ProjectCommand,
+    },
     /// Benchmarks that report speed beside error.
     Bench {
         #[command(subcommand)]
         bench: Bench,
     },
+}
+
+#[derive(Subcommand)]
+enum ProjectCommand {
+    /// Load and check a project (every field, its stores and sources there, a recovery file)
+    /// and summarise it.
+    Check {
+        /// The project file (JSON).
+        project: PathBuf,
+    },
+    /// Rewrite a project in the current version (atomically); --out writes a copy elsewhere
+    /// with its relative paths rewritten to reach the same files.
+    Upgrade {
+        /// The project file (JSON).
+        project: PathBuf,
+        /// Write here instead of over the project.
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
+    /// Print the JSON Schema of project files (docs/project.schema.json).
+    Schema,
 }
 
 /// Where a frame looks from, and its level of detail.
@@ -790,6 +840,24 @@ fn run(args: Args) -> Result<ExitCode> {
             };
             print!("{}", cli::brush_command(&request).map_err(anyhow::Error::msg)?);
         }
+        Command::Replay { project, check, record, gpu, cpu: _, json } => {
+            let request = cli::ReplayRequest { project, check, record, gpu, json };
+            let outcome = cli::replay_command(&request).map_err(anyhow::Error::msg)?;
+            print!("{}", outcome.report);
+            if !outcome.passed {
+                eprintln!("terrafuse: replay: a check failed (see above)");
+                return Ok(ExitCode::FAILURE);
+            }
+        }
+        Command::Project { command } => match command {
+            ProjectCommand::Check { project } => {
+                print!("{}", cli::project_check(&project).map_err(anyhow::Error::msg)?)
+            }
+            ProjectCommand::Upgrade { project, out } => {
+                print!("{}", cli::project_upgrade(&project, out.as_deref()).map_err(anyhow::Error::msg)?)
+            }
+            ProjectCommand::Schema => print!("{}", terrafuse::project::Project::schema()),
+        },
         Command::Erode { project, layer, region, level, steps, preset, set, seed, gpu, cpu, json, undo, redo } => {
             let on = match (gpu, cpu) {
                 (true, _) => cli::ErodeOn::Gpu,

@@ -407,9 +407,10 @@ fn datasets_fill_each_other_and_show_below_their_finest_level() {
     use terrafuse::store::Store;
     // Both Moon grids: the polar one (levels 0–3) on top of the global one (levels 0–1).
     let mut p = Project::load(&repo_path("projects/moon-lola.json")).unwrap();
+    let stores = common::store_dir(&out_dir(), "moon-fusion", &serde_json::to_string(&p.layers).unwrap());
     for d in &mut p.layers {
         if d.store.is_some() {
-            d.store = Some(out_dir().join("moon-fusion.gpkg"));
+            d.store = Some(stores.join("moon-fusion.gpkg"));
         }
         if let Some(s) = &mut d.source {
             s.files = s.files.iter().map(|f| repo_path("projects").join(f)).collect();

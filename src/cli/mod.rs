@@ -14,7 +14,9 @@ mod export;
 mod geo;
 mod geometry;
 mod profile;
+mod project;
 mod render;
+mod replay;
 mod report;
 mod store;
 
@@ -34,7 +36,9 @@ pub use geometry::{
     write_accuracy_outputs,
 };
 pub use profile::{ProfileRequest, profile_command};
+pub use project::{project_check, project_upgrade};
 pub use render::{RenderRequest, frame_report, open_renderer, render, request_camera, write_png};
+pub use replay::{ReplayOutcome, ReplayRequest, replay_command};
 pub use report::{overview, tissot_report};
 pub use store::{
     WarpComparison, bench_import, default_work_dir, import_summary, parse_bytes, sample_lines, store_info,

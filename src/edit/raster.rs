@@ -121,6 +121,16 @@ impl EditRaster {
     /// The raster of `strokes`, at the finest of their levels (each checked first); `below` gives
     /// the terrain under the layer to the strokes that read it (see [`super::terrain`]).
     pub fn build(ellipsoid: Ellipsoid, strokes: &[Stroke], below: &Below) -> Result<EditRaster, StrokeError> {
+        EditRaster::build_with(ellipsoid, strokes, below, &CpuRasteriser)
+    }
+
+    /// [`EditRaster::build`] with another rasteriser (the GPU's).
+    pub fn build_with(
+        ellipsoid: Ellipsoid,
+        strokes: &[Stroke],
+        below: &Below,
+        rasteriser: &dyn Rasteriser,
+    ) -> Result<EditRaster, StrokeError> {
         // Every stroke checked before any is rasterised (a bad level must not set the raster's).
         for (index, stroke) in strokes.iter().enumerate() {
             stroke.check(ellipsoid.a_m()).map_err(|(f, p)| StrokeError { index, field: f.into(), problem: p })?;
@@ -129,7 +139,7 @@ impl EditRaster {
         let mut raster = EditRaster::new(ellipsoid, level);
         let kept = KeptBelow::new(below);
         for (index, stroke) in strokes.iter().enumerate() {
-            raster.apply(index, stroke, &|q| kept.get(q))?;
+            raster.apply_with(index, stroke, &|q| kept.get(q), rasteriser)?;
         }
         Ok(raster)
     }

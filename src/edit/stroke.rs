@@ -27,7 +27,7 @@
 use serde::{Deserialize, Serialize};
 
 /// What a stroke does.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum Tool {
     /// Adds height.
@@ -76,7 +76,7 @@ impl Tool {
 }
 
 /// The brush's profile from its centre (t = 0) to its rim (t = 1); 0 beyond.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum Falloff {
     /// f(t) = 1 − t²(3 − 2t) (smoothstep, flat at both ends).
@@ -120,7 +120,7 @@ impl Falloff {
 }
 
 /// One stroke.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct Stroke {
     /// What it does.

@@ -92,11 +92,21 @@ pub struct Outcome {
 
 /// The raster of `ops` in order (each checked first), by the CPU reference.
 pub fn build(ellipsoid: Ellipsoid, ops: &[Operation], below: &Below) -> Result<EditRaster, OperationError> {
+    build_with(ellipsoid, ops, below, &CpuStepper)
+}
+
+/// [`build`] with another stepper (the GPU's).
+pub fn build_with(
+    ellipsoid: Ellipsoid,
+    ops: &[Operation],
+    below: &Below,
+    stepper: &dyn Stepper,
+) -> Result<EditRaster, OperationError> {
     let level = ops.first().map_or(0, |o| o.level);
     let mut raster = EditRaster::new(ellipsoid, level);
     let kept = KeptBelow::new(below);
     for (index, op) in ops.iter().enumerate() {
-        apply(&mut raster, index, op, &|q| kept.get(q), &CpuStepper)?;
+        apply(&mut raster, index, op, &|q| kept.get(q), stepper)?;
     }
     Ok(raster)
 }

@@ -12,7 +12,7 @@ use serde::{Deserialize, Serialize};
 use super::params::Params;
 
 /// One erosion run.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct Operation {
     /// The box asked for, degrees: `[lat_min, lon_min, lat_max, lon_max]`; the run covers it
@@ -41,7 +41,7 @@ pub struct Operation {
 }
 
 /// Where a run was made.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum Device {
     /// The CPU reference.
@@ -52,7 +52,7 @@ pub enum Device {
 }
 
 /// The erosion brush's path.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct BrushPath {
     /// Points, `[lat, lon]` degrees.

@@ -19,7 +19,7 @@ pub fn gravity_of_body(body: &str) -> f64 {
 }
 
 /// What an erosion run does per second of simulated time.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct Params {
     /// Rain, m/s of water depth (0 … 10⁻²; 10⁻⁵ m/s is 36 mm/h, a downpour).
@@ -61,7 +61,7 @@ pub struct Params {
 }
 
 /// What a region's border does.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum Border {
     /// Walls: nothing leaves.

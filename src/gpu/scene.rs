@@ -50,6 +50,15 @@ pub struct Scene {
     pub edit_cache_dir: Option<std::path::PathBuf>,
 }
 
+/// Where [`Scene::open_with`] takes the edit and erosion layers' rasters from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Edits {
+    /// Their caches where current, else rebuilt from their operations on the CPU (and cached).
+    Cached,
+    /// Empty, for a replay to rebuild ([`crate::replay`]).
+    Empty,
+}
+
 /// What opening a scene did besides opening (imports), for the command line to report.
 #[derive(Clone, Debug, Default)]
 pub struct OpenReport {
@@ -109,8 +118,14 @@ impl Scene {
         plan.datasets(&self.stack).filter_map(|i| self.dataset_of_layer(i)).map(|d| self.datasets[d].finest_level).max()
     }
 
-    /// Opens a project's layers, importing datasets whose store lacks them and that list sources.
+    /// Opens a project's layers, importing datasets whose store lacks them and that list sources;
+    /// edit and erosion layers are read from their caches or rebuilt.
     pub fn open(project: &Project) -> Result<(Scene, OpenReport), String> {
+        Scene::open_with(project, Edits::Cached)
+    }
+
+    /// [`Scene::open`], with the edit and erosion layers' rasters as `edits` says.
+    pub fn open_with(project: &Project, edits: Edits) -> Result<(Scene, OpenReport), String> {
         let ellipsoid = project.ellipsoid()?;
         let mut report = OpenReport::default();
         let stack = Stack::new(ellipsoid, &project.layers).map_err(|e| e.to_string())?;
@@ -132,7 +147,10 @@ impl Scene {
         };
         for (index, d) in project.layers.iter().enumerate() {
             if d.kind.holds_deltas() {
-                report.edits.push(scene.attach_edit(index)?);
+                match edits {
+                    Edits::Cached => report.edits.push(scene.attach_edit(index)?),
+                    Edits::Empty => scene.set_edit(index, EditRaster::new(ellipsoid, 0)),
+                }
                 continue;
             }
             if d.kind != LayerKind::Dataset || d.store.is_none() {
@@ -398,12 +416,21 @@ pub fn import_needed(project: &Project, d: &LayerSpec) -> Result<Option<ImportOp
     };
     let store_path = project.resolve(store);
     let name = d.store_dataset();
-    let has = store_path.exists()
-        && Store::open_read_only(&store_path)
-            .map_err(|e| e.to_string())?
-            .dataset(name)
-            .map_err(|e| e.to_string())?
-            .is_some_and(|r| r.completed.is_some());
+    let has = if store_path.exists() {
+        let store = Store::open_read_only(&store_path).map_err(|e| format!("layer '{}': store: {e}", d.name))?;
+        let body = project.ellipsoid()?;
+        if (store.body().a_m(), store.body().b_m()) != (body.a_m(), body.b_m()) {
+            return Err(format!(
+                "layer '{}': store: {} holds tiles on {}, but the project's body is {body}",
+                d.name,
+                store_path.display(),
+                store.body()
+            ));
+        }
+        store.dataset(name).map_err(|e| e.to_string())?.is_some_and(|r| r.completed.is_some())
+    } else {
+        false
+    };
     if has {
         return Ok(None);
     }
@@ -441,7 +468,18 @@ pub fn import_needed(project: &Project, d: &LayerSpec) -> Result<Option<ImportOp
 pub fn open_dataset(project: &Project, d: &LayerSpec) -> Result<DatasetInfo, String> {
     let store =
         d.store.as_ref().ok_or_else(|| format!("layer '{}': store: a dataset layer needs its store", d.name))?;
-    DatasetInfo::open(&project.resolve(store), d.store_dataset()).map_err(|e| format!("dataset '{}': {e}", d.name))
+    let path = project.resolve(store);
+    let info = DatasetInfo::open(&path, d.store_dataset()).map_err(|e| format!("dataset '{}': {e}", d.name))?;
+    let body = project.ellipsoid()?;
+    if (info.body.a_m(), info.body.b_m()) != (body.a_m(), body.b_m()) {
+        return Err(format!(
+            "layer '{}': store: {} holds tiles on {}, but the project's body is {body}",
+            d.name,
+            path.display(),
+            info.body
+        ));
+    }
+    Ok(info)
 }
 
 /// The heights the visible layers can give, metres: the hull of the active layers' value ranges,

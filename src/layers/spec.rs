@@ -22,7 +22,7 @@ use serde::{Deserialize, Serialize};
 use super::LayerError;
 
 /// What a layer is.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum LayerKind {
     /// A dataset of a tile store.
@@ -61,7 +61,7 @@ impl LayerKind {
 }
 
 /// How a layer folds into the running height h (v its value, α its coverage).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum BlendMode {
     /// h = v where h has no data, else h + α(v − h).
@@ -96,7 +96,7 @@ impl BlendMode {
 
 /// Where a layer applies: a longitude/latitude box or polygon, degrees. Edges are straight in
 /// longitude and latitude (a box's edges follow parallels and meridians).
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(rename_all = "snake_case", deny_unknown_fields)]
 pub enum ExtentSpec {
     /// `[west, south, east, north]`, degrees (GDAL's xmin, ymin, xmax, ymax order); east < west
@@ -108,7 +108,7 @@ pub enum ExtentSpec {
 }
 
 /// Which fractal.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum NoiseType {
     /// Fractional Brownian motion: Σ gainᵏ·n(P·lacunarityᵏ/λ), values in ±amplitude·Σ gainᵏ.
@@ -120,7 +120,7 @@ pub enum NoiseType {
 }
 
 /// Where procedural detail goes.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum DetailWhere {
     /// Every octave everywhere.
@@ -133,7 +133,7 @@ pub enum DetailWhere {
 }
 
 /// Procedural noise, a function of the position on the ellipsoid (not of the quad).
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct NoiseSpec {
     /// `fbm` or `ridged`.
@@ -179,7 +179,7 @@ fn default_gain() -> f64 {
 ///
 /// In files a layer is its name and a group a list of names: `"srtm"`, `["srtm", "detail"]`. On
 /// the command line a group is its names joined by `+` (`srtm+detail`).
-#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(untagged)]
 pub enum Operand {
     /// One layer alone.
@@ -223,7 +223,7 @@ impl std::fmt::Display for Operand {
 /// diverging colour map (red below zero, blue above, white at zero, as xDEM plots dh); without a
 /// `range_m` it is the `percentile` of |dh| over the operands' overlap (computed by the tools
 /// that open the project: [`crate::compare::difference_range`]).
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct DifferenceStyle {
     /// Half the colour map's span, metres (absent: from `percentile`).
@@ -248,7 +248,7 @@ impl Default for DifferenceStyle {
 }
 
 /// Where a dataset's store comes from when it is not there yet: the source files to import.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct SourceSpec {
     /// DEM files (relative to the project file).
@@ -262,7 +262,7 @@ pub struct SourceSpec {
 }
 
 /// One layer of the stack.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct LayerSpec {
     /// Unique within the project.
@@ -348,6 +348,13 @@ fn one() -> f64 {
 fn is_zero_pair(v: &[f64; 2]) -> bool {
     *v == [0.0, 0.0]
 }
+
+/// Most strokes an edit layer holds: ten times the longest session measured (10⁵ strokes load
+/// in about a second; see BENCHMARKS.md).
+pub const MAX_STROKES: usize = 1_000_000;
+
+/// Most runs an erosion layer holds.
+pub const MAX_RUNS: usize = 10_000;
 
 /// The largest horizontal shift of a layer, metres (co-registration shifts are a few pixels).
 pub const MAX_SHIFT_M: f64 = 10_000.0;
@@ -557,6 +564,15 @@ impl LayerSpec {
         let edit = self.kind == LayerKind::Edit;
         if !edit && !self.strokes.is_empty() {
             return wrong_kind("strokes");
+        }
+        if self.strokes.len() > MAX_STROKES {
+            return bad(
+                "strokes",
+                format!("{} strokes; an edit layer holds at most {MAX_STROKES}", self.strokes.len()),
+            );
+        }
+        if self.runs.len() > MAX_RUNS {
+            return bad("runs", format!("{} runs; an erosion layer holds at most {MAX_RUNS}", self.runs.len()));
         }
         let erosion = self.kind == LayerKind::Erosion;
         if !erosion && !self.runs.is_empty() {

@@ -3,7 +3,7 @@
 use serde::{Deserialize, Serialize};
 
 /// A camera in geodetic terms, all f64: where it is and where it looks.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct CameraSpec {
     /// Geodetic latitude, degrees.

@@ -1,14 +1,17 @@
-//! Older project files, brought to the current version one step at a time.
+//! Older project files, brought to the current version one step at a time: [`STEPS`] holds
+//! one function per version, each taking a file of that version to the next, and each is tested
+//! on a file of its version kept in `tests/fixtures/` (`moon-lola-v1.json`, `erzurum-erosion-v2.json`).
+//! A file of a newer version than this build's is refused, never read in part.
 
 use std::path::PathBuf;
 
 use serde::{Deserialize, Serialize};
 
-use super::VERSION;
+use super::{FORMAT, VERSION};
 use crate::layers::{LayerSpec, SourceSpec};
 
 /// One dataset of a version-1 project (read for migration only).
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct DatasetSpec {
     /// The name the project uses for it.
@@ -29,11 +32,66 @@ impl DatasetSpec {
         LayerSpec { dataset: self.dataset, source: self.source, ..LayerSpec::dataset(&self.name, self.store) }
     }
 }
-/// Version 1 → 2: `datasets` (first listed wins) become `over` dataset layers, bottom to top.
-pub(super) fn migrate_v1(value: &mut serde_json::Value) -> Result<(), String> {
+/// The steps: `STEPS[k]` takes a file of version k + 1 to version k + 2.
+pub const STEPS: [Step; 2] = [v1_to_v2, v2_to_v3];
+
+/// One migration step: a file's top-level object, changed in place.
+pub type Step = fn(&mut serde_json::Map<String, serde_json::Value>) -> Result<(), String>;
+
+/// The format and version fields, read without building the rest.
+#[derive(Deserialize)]
+struct Header {
+    #[serde(default)]
+    format: Option<serde_json::Value>,
+    #[serde(default)]
+    version: Option<serde_json::Value>,
+}
+
+/// Checks the format and returns the file's version (1 to [`VERSION`]).
+pub fn header(text: &str) -> Result<u32, String> {
+    if !text.trim_start().starts_with('{') {
+        let what = if text.trim().is_empty() { "the file is empty" } else { "it does not start with '{'" };
+        return Err(format!("not valid JSON for a project: a project file is a JSON object and {what}"));
+    }
+    let header: Header = serde_json::from_str(text).map_err(|e| {
+        // Where in the project the text stops being JSON: the field, from the typed parse.
+        let mut de = serde_json::Deserializer::from_str(text);
+        match serde_path_to_error::deserialize::<_, super::Project>(&mut de) {
+            Err(located) if located.path().to_string() != "." => format!("not valid JSON: {}: {e}", located.path()),
+            _ => format!("not valid JSON: {e}"),
+        }
+    })?;
+    match header.format.as_ref().map(|f| f.as_str()) {
+        Some(Some(FORMAT)) => {}
+        Some(Some(other)) => return Err(format!("format: '{other}' is not '{FORMAT}'")),
+        Some(None) => return Err(format!("format: must be the string \"{FORMAT}\"")),
+        None => return Err(format!("format: no \"format\": \"{FORMAT}\" field: not a Terrafuse project")),
+    }
+    let version = header.version.ok_or("version: no \"version\" field")?;
+    let version = version.as_u64().ok_or_else(|| format!("version: {version} is not a whole number"))?;
+    if version > u64::from(VERSION) || version == 0 {
+        return Err(format!(
+            "version: {version} is not supported: this build reads versions 1 to {VERSION}; a newer Terrafuse wrote it?"
+        ));
+    }
+    Ok(version as u32)
+}
+
+/// An older file brought to [`VERSION`], one step at a time.
+pub fn to_current(text: &str, version: u32) -> Result<serde_json::Value, String> {
+    let mut value: serde_json::Value = serde_json::from_str(text).map_err(|e| format!("not valid JSON: {e}"))?;
     let object = value.as_object_mut().ok_or("a project is a JSON object")?;
+    for (k, step) in STEPS.iter().enumerate().skip(version as usize - 1) {
+        step(object).map_err(|e| format!("migrating version {} to {}: {e}", k + 1, k + 2))?;
+        object.insert("version".into(), (k as u32 + 2).into());
+    }
+    Ok(value)
+}
+
+/// Version 1 → 2: `datasets` (first listed wins) become `over` dataset layers, bottom to top.
+fn v1_to_v2(object: &mut serde_json::Map<String, serde_json::Value>) -> Result<(), String> {
     if object.contains_key("layers") {
-        return Err("a version-1 project has \"datasets\", not \"layers\" (layers are version 2)".into());
+        return Err("layers: a version-1 project has \"datasets\", not \"layers\" (layers are version 2)".into());
     }
     let datasets: Vec<DatasetSpec> = match object.remove("datasets") {
         Some(d) => serde_json::from_value(d).map_err(|e| format!("datasets: {e}"))?,
@@ -41,6 +99,14 @@ pub(super) fn migrate_v1(value: &mut serde_json::Value) -> Result<(), String> {
     };
     let layers: Vec<LayerSpec> = datasets.into_iter().rev().map(DatasetSpec::into_layer).collect();
     object.insert("layers".into(), serde_json::to_value(layers).map_err(|e| e.to_string())?);
-    object.insert("version".into(), VERSION.into());
+    Ok(())
+}
+
+/// Version 2 → 3: `checks` (expected digests) are new and optional; nothing else changed, so
+/// the step only refuses a version-2 file that already has them.
+fn v2_to_v3(object: &mut serde_json::Map<String, serde_json::Value>) -> Result<(), String> {
+    if object.contains_key("checks") {
+        return Err("checks: a version-2 project has no checks (they are version 3)".into());
+    }
     Ok(())
 }

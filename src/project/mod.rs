@@ -13,11 +13,20 @@
 //! version is checked on load: a file of a newer version is refused by name, older ones are
 //! migrated on load ([`Project::parse`]) and saved in the current version.
 //!
-//! Versions: 1 had `datasets` (first listed wins per sample); 2 has `layers`, bottom to top
-//! (a version-1 file's datasets become `over` dataset layers, the first listed on top).
+//! Versions (each older one migrates one step at a time, see [`migrate`]): 1 had `datasets`
+//! (first listed wins per sample); 2 has `layers`, bottom to top (a version-1 file's datasets
+//! become `over` dataset layers, the first listed on top); 3 adds `checks`, the expected digests
+//! a replay verifies ([`checks`]).
+//!
+//! Loading is bounded: a file over [`MAX_FILE_BYTES`] is refused before it is read, the current
+//! version is parsed straight into the typed project (no intermediate JSON tree), every error
+//! names the field by its path (`layers[2].strokes[10].radius_m`), and every list an operation
+//! log can grow has a limit ([`crate::layers::spec::MAX_STROKES`], `MAX_RUNS`).
 
 mod camera;
-mod migrate;
+pub mod checks;
+pub mod migrate;
+pub mod recovery;
 mod settings;
 
 use std::collections::BTreeMap;
@@ -26,8 +35,8 @@ use std::path::{Path, PathBuf};
 use serde::{Deserialize, Serialize};
 
 pub use self::camera::CameraSpec;
+pub use self::checks::CheckSpec;
 pub use self::migrate::DatasetSpec;
-use self::migrate::migrate_v1;
 pub use self::settings::{
     ColourMapSpec, ComparisonSpec, DetailSpec, IsolineSpec, LightingSpec, ProfileLine, SwipeSpec, Visuals,
 };
@@ -38,7 +47,49 @@ use crate::layers::{LayerKind, LayerSpec};
 /// The `format` value of every project file.
 pub const FORMAT: &str = "terrafuse-project";
 /// The version this build writes (and the newest it reads).
-pub const VERSION: u32 = 2;
+pub const VERSION: u32 = 3;
+/// The largest project file read, bytes: ten times a log of 10⁵ strokes.
+pub const MAX_FILE_BYTES: u64 = 512 << 20;
+/// Most quads a frame may draw (`detail.max_quads`).
+pub const MAX_QUADS: usize = 1 << 16;
+/// The largest cache budget, MiB (`detail.cpu_cache_mib`, `gpu_cache_mib`).
+pub const MAX_CACHE_MIB: u64 = 1 << 20;
+/// The body's semi-major axis, metres: from 1 km (a small asteroid) to 10⁸ m (past Jupiter's).
+pub const BODY_RADIUS_M: [f64; 2] = [1e3, 1e8];
+
+/// A serde error with the path of the field it is about.
+fn field_error(e: serde_path_to_error::Error<serde_json::Error>) -> String {
+    let path = e.path().to_string();
+    if path == "." { e.into_inner().to_string() } else { format!("{path}: {}", e.into_inner()) }
+}
+
+/// `path` made absolute against the working folder, `.` and `..` folded away where possible.
+fn absolute(path: &Path) -> PathBuf {
+    let path = std::path::absolute(path).unwrap_or_else(|_| path.to_path_buf());
+    let mut out = PathBuf::new();
+    for part in path.components() {
+        match part {
+            std::path::Component::ParentDir if out.parent().is_some() => {
+                out.pop();
+            }
+            std::path::Component::CurDir => {}
+            other => out.push(other),
+        }
+    }
+    out
+}
+
+/// The relative path from folder `dir` to `target` (both absolute).
+fn relative_to(target: &Path, dir: &Path) -> PathBuf {
+    let (t, d): (Vec<_>, Vec<_>) = (target.components().collect(), dir.components().collect());
+    let common = t.iter().zip(&d).take_while(|(a, b)| a == b).count();
+    if common == 0 {
+        return target.to_path_buf();
+    }
+    let mut out: PathBuf = d[common..].iter().map(|_| "..").collect();
+    out.extend(&t[common..]);
+    out
+}
 
 /// A project file that could not be used, naming the file and the problem.
 #[derive(Debug, thiserror::Error)]
@@ -57,7 +108,7 @@ impl ProjectError {
 }
 
 /// The project: what `terrafuse render` and the workstation open.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct Project {
     /// Always [`FORMAT`].
@@ -84,6 +135,9 @@ pub struct Project {
     /// Saved swipes and profile lines.
     #[serde(default, skip_serializing_if = "ComparisonSpec::is_empty")]
     pub comparison: ComparisonSpec,
+    /// Expected digests a replay checks, by name (see [`checks`]).
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub checks: BTreeMap<String, CheckSpec>,
     /// The folder relative paths resolve against (not saved).
     #[serde(skip)]
     pub base_dir: PathBuf,
@@ -102,12 +156,20 @@ impl Project {
             views: BTreeMap::new(),
             default_view: None,
             comparison: ComparisonSpec::default(),
+            checks: BTreeMap::new(),
             base_dir: PathBuf::from("."),
         }
     }
 
-    /// Reads and checks a project file.
+    /// Reads and checks a project file (bounded: see the module's documentation).
     pub fn load(path: &Path) -> Result<Project, ProjectError> {
+        let size = std::fs::metadata(path).map_err(|e| ProjectError::new(path, format!("cannot read: {e}")))?.len();
+        if size > MAX_FILE_BYTES {
+            return Err(ProjectError::new(
+                path,
+                format!("{size} bytes: a project file is at most {MAX_FILE_BYTES} bytes (is it a project?)"),
+            ));
+        }
         let text = std::fs::read_to_string(path).map_err(|e| ProjectError::new(path, format!("cannot read: {e}")))?;
         let mut project = Project::parse(&text).map_err(|problem| ProjectError::new(path, problem))?;
         project.base_dir = path.parent().map_or_else(|| PathBuf::from("."), Path::to_path_buf);
@@ -117,41 +179,32 @@ impl Project {
         Ok(project)
     }
 
-    /// Parses and checks a project from JSON text (paths stay relative).
+    /// Parses and checks a project from JSON text (paths stay relative); an older version is
+    /// migrated to [`VERSION`]. Errors name the field by its path.
     pub fn parse(text: &str) -> Result<Project, String> {
-        let value: serde_json::Value = serde_json::from_str(text).map_err(|e| format!("not valid JSON: {e}"))?;
-        match value.get("format").and_then(|f| f.as_str()) {
-            Some(FORMAT) => {}
-            Some(other) => return Err(format!("format is '{other}', not '{FORMAT}'")),
-            None => return Err(format!("no \"format\": \"{FORMAT}\" field: not a Terrafuse project")),
-        }
-        let version = value.get("version").and_then(|v| v.as_u64()).ok_or("no numeric \"version\" field")?;
-        if version > u64::from(VERSION) || version == 0 {
-            return Err(format!(
-                "version {version} is not supported: this build reads versions 1 to {VERSION}; a newer Terrafuse wrote it?"
-            ));
-        }
-        let mut value = value;
-        if version == 1 {
-            migrate_v1(&mut value)?;
-        }
-        // serde_json's errors from a value have no position: name the layer a bad one is in.
-        if let Some(layers) = value.get("layers").and_then(|l| l.as_array()) {
-            for (k, layer) in layers.iter().enumerate() {
-                if let Err(e) = serde_json::from_value::<crate::layers::LayerSpec>(layer.clone()) {
-                    let name = layer.get("name").and_then(|n| n.as_str()).unwrap_or("?");
-                    return Err(format!("layers[{k}]: layer '{name}': {e}"));
-                }
-            }
-        }
-        let project: Project = serde_json::from_value(value).map_err(|e| format!("{e}"))?;
+        let version = migrate::header(text)?;
+        let project: Project = if version == VERSION {
+            let mut de = serde_json::Deserializer::from_str(text);
+            let project = serde_path_to_error::deserialize(&mut de).map_err(field_error)?;
+            de.end().map_err(|e| format!("after the project: {e}"))?;
+            project
+        } else {
+            let value = migrate::to_current(text, version)?;
+            serde_path_to_error::deserialize(value).map_err(field_error)?
+        };
         project.check()?;
         Ok(project)
     }
 
     /// The checks serde cannot express.
     pub fn check(&self) -> Result<(), String> {
-        self.ellipsoid()?;
+        let a = self.ellipsoid()?.a_m();
+        if !(BODY_RADIUS_M[0]..=BODY_RADIUS_M[1]).contains(&a) {
+            return Err(format!(
+                "body: a semi-major axis of {a:?} m is outside {:?} … {:?} m (a body this tool can draw)",
+                BODY_RADIUS_M[0], BODY_RADIUS_M[1]
+            ));
+        }
         for (name, view) in &self.views {
             view.check().map_err(|e| format!("view '{name}': {e}"))?;
         }
@@ -201,6 +254,15 @@ impl Project {
                 }
             }
         }
+        let kinds = |name: &str| self.layers.iter().find(|l| l.name == name).map(|l| l.kind.holds_deltas());
+        for (name, check) in &self.checks {
+            let target = check.target(&kinds).map_err(|e| format!("checks.{name}.{e}"))?;
+            if let checks::CheckTarget::View { view, .. } = target
+                && !self.views.contains_key(view)
+            {
+                return Err(format!("checks.{name}.view: '{view}' is not one of the views"));
+            }
+        }
         let v = &self.visuals;
         if !(v.exaggeration.is_finite() && v.exaggeration > 0.0) {
             return Err(format!("visuals.exaggeration {} must be a positive number", v.exaggeration));
@@ -224,8 +286,13 @@ impl Project {
         if !(d.lod_threshold_px.is_finite() && d.lod_threshold_px > 0.0) {
             return Err(format!("detail.lod_threshold_px {} must be positive", d.lod_threshold_px));
         }
-        if d.max_quads < 6 {
-            return Err(format!("detail.max_quads {} must be at least 6 (the cube's faces)", d.max_quads));
+        if !(6..=MAX_QUADS).contains(&d.max_quads) {
+            return Err(format!("detail.max_quads {} must lie within 6 (the cube's faces) … {MAX_QUADS}", d.max_quads));
+        }
+        for (field, mib) in [("cpu_cache_mib", d.cpu_cache_mib), ("gpu_cache_mib", d.gpu_cache_mib)] {
+            if mib > MAX_CACHE_MIB {
+                return Err(format!("detail.{field} {mib} must be at most {MAX_CACHE_MIB} (1 TiB)"));
+            }
         }
         Ok(())
     }
@@ -268,6 +335,37 @@ impl Project {
             let known: Vec<&str> = self.views.keys().map(String::as_str).collect();
             format!("no view '{name}'; the project has: {}", known.join(", "))
         })
+    }
+
+    /// The JSON Schema of the project file, generated from these types (committed as
+    /// `docs/project.schema.json` and checked by a test to match).
+    pub fn schema() -> String {
+        let mut text = serde_json::to_string_pretty(&schemars::schema_for!(Project)).unwrap_or_default();
+        text.push('\n');
+        text
+    }
+
+    /// Moves the project's folder to `dir` (save as): every relative path is rewritten to point
+    /// at the same file from there (absolute where no relative path reaches it).
+    pub fn rebase(&mut self, dir: &Path) {
+        let old = self.base_dir.clone();
+        let moved = |p: &mut PathBuf| {
+            if p.is_relative() {
+                *p = relative_to(&absolute(&old.join(&*p)), &absolute(dir));
+            }
+        };
+        for layer in &mut self.layers {
+            if let Some(store) = &mut layer.store {
+                moved(store);
+            }
+            if let Some(source) = &mut layer.source {
+                source.files.iter_mut().for_each(moved);
+            }
+        }
+        if let Some(file) = &mut self.visuals.colour_map.file {
+            moved(file);
+        }
+        self.base_dir = dir.to_path_buf();
     }
 
     /// Writes the project atomically (paths as they are, relative ones stay relative).
@@ -317,8 +415,8 @@ mod tests {
     fn bad_projects_are_refused_with_the_reason() {
         let cases = [
             ("{", "not valid JSON"),
-            (r#"{"format": "x", "version": 1, "body": "moon"}"#, "format is 'x'"),
-            (r#"{"format": "terrafuse-project", "version": 9, "body": "moon"}"#, "version 9 is not supported"),
+            (r#"{"format": "x", "version": 1, "body": "moon"}"#, "format: 'x' is not"),
+            (r#"{"format": "terrafuse-project", "version": 9, "body": "moon"}"#, "version: 9 is not supported"),
             (r#"{"format": "terrafuse-project", "version": 1, "body": "pluto"}"#, "body"),
             (r#"{"format": "terrafuse-project", "version": 1, "body": "moon", "colour": 1}"#, "unknown field"),
             (
@@ -353,10 +451,101 @@ mod tests {
         assert_eq!(p.layers[0].store_dataset(), "lola");
         assert_eq!(p.layers[1].source.as_ref().unwrap().files, [PathBuf::from("n.tif")]);
         let text = serde_json::to_string(&p).unwrap();
-        assert!(text.contains("\"version\":2") && text.contains("\"layers\"") && !text.contains("\"datasets\""));
+        assert!(text.contains("\"version\":3") && text.contains("\"layers\"") && !text.contains("\"datasets\""));
         // A version-2 file with datasets is refused (the field is gone), naming it.
         let e = Project::parse(r#"{"format": "terrafuse-project", "version": 2, "body": "moon", "datasets": []}"#);
         assert!(e.unwrap_err().contains("unknown field `datasets`"));
+    }
+
+    #[test]
+    fn every_kept_older_version_migrates_step_by_step_to_the_current_one() {
+        // One kept file per older version, each read by the chain of steps from its version.
+        let fixtures = [(1, "moon-lola-v1.json"), (2, "erzurum-erosion-v2.json")];
+        assert_eq!(fixtures.len(), migrate::STEPS.len(), "a kept file for every step");
+        for (version, file) in fixtures {
+            let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures").join(file);
+            let text = std::fs::read_to_string(&path).unwrap();
+            assert_eq!(migrate::header(&text).unwrap(), version, "{file}");
+            let p = Project::load(&path).unwrap_or_else(|e| panic!("{e}"));
+            assert_eq!(p.version, VERSION);
+            assert!(!p.layers.is_empty() && !p.views.is_empty(), "{file}: layers and views kept");
+            // Saved again, it reads back as the same project in the current version.
+            let again = Project::parse(&serde_json::to_string(&p).unwrap()).unwrap();
+            assert_eq!(again.layers, p.layers);
+        }
+        let v2 = r#"{"format": "terrafuse-project", "version": 2, "body": "moon", "checks": {}}"#;
+        let e = Project::parse(v2).unwrap_err();
+        assert!(e.contains("migrating version 2 to 3: checks: a version-2 project has no checks"), "{e}");
+    }
+
+    #[test]
+    fn the_committed_schema_is_the_one_the_types_generate() {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/project.schema.json");
+        let committed = std::fs::read_to_string(&path).unwrap_or_default();
+        assert!(
+            committed == Project::schema(),
+            "{} is out of date: run `cargo run -- project schema > docs/project.schema.json`",
+            path.display()
+        );
+        // Every field of the top level is described (the docs page explains them with units).
+        let schema: serde_json::Value = serde_json::from_str(&committed).unwrap();
+        for (field, spec) in schema["properties"].as_object().unwrap() {
+            assert!(spec.get("description").is_some(), "{field} has no description");
+        }
+    }
+
+    #[test]
+    fn errors_name_the_field_by_its_path() {
+        let cases = [
+            (
+                r#"{"format": "terrafuse-project", "version": 3, "body": "moon",
+                    "layers": [{"name": "e", "kind": "edit", "strokes": [{"tool": "raise", "radius_m": "wide"}]}]}"#,
+                "layers[0].strokes[0].radius_m: invalid type: string \"wide\", expected f64",
+            ),
+            (
+                r#"{"format": "terrafuse-project", "version": 3, "body": "moon", "visuals": {"lighting": {"sun": 1}}}"#,
+                "visuals.lighting.sun: unknown field `sun`, expected one of",
+            ),
+            (
+                r#"{"format": "terrafuse-project", "version": 3, "body": "r=1e10"}"#,
+                "body: a semi-major axis of 10000000000.0 m",
+            ),
+            (
+                r#"{"format": "terrafuse-project", "version": 3, "body": "moon", "detail": {"max_quads": 1e99}}"#,
+                "detail.max_quads",
+            ),
+            (
+                r#"{"format": "terrafuse-project", "version": "3", "body": "moon"}"#,
+                "version: \"3\" is not a whole number",
+            ),
+            (r#"{"format": "terrafuse-project", "version": 3, "body": "moon"} {}"#, "trailing characters"),
+            (
+                r#"{"format": "terrafuse-project", "version": 3, "body": "moon", "checks": {"c": {"level": 4, "view": "v"}}}"#,
+                "checks.c.view: 'v' is not one of the views",
+            ),
+        ];
+        for (text, expected) in cases {
+            let e = Project::parse(text).unwrap_err();
+            assert!(e.contains(expected), "{text}: {e}");
+        }
+    }
+
+    #[test]
+    fn save_as_elsewhere_rewrites_relative_paths_to_the_same_files() {
+        let mut p = Project::new("moon");
+        p.base_dir = PathBuf::from("/data/projects");
+        p.layers.push(LayerSpec {
+            source: Some(SourceSpec { files: vec!["data/a.tif".into(), "/abs/b.tif".into()], ..Default::default() }),
+            ..LayerSpec::dataset("a", "stores/a.gpkg")
+        });
+        p.rebase(Path::new("/data/other/sub"));
+        assert_eq!(p.layers[0].store.as_deref(), Some(Path::new("../../projects/stores/a.gpkg")));
+        let files = &p.layers[0].source.as_ref().unwrap().files;
+        assert_eq!(files, &[PathBuf::from("../../projects/data/a.tif"), PathBuf::from("/abs/b.tif")]);
+        assert_eq!(
+            p.resolve(p.layers[0].store.as_ref().unwrap()),
+            Path::new("/data/other/sub/../../projects/stores/a.gpkg")
+        );
     }
 
     #[test]

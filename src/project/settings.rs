@@ -6,7 +6,7 @@ use std::path::PathBuf;
 use serde::{Deserialize, Serialize};
 
 /// The colour map: a preset or a user's ramp file, over a height range.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct ColourMapSpec {
     /// A preset name (`terrafuse render --list-colour-maps` lists them), used unless `file` is set.
@@ -39,7 +39,7 @@ impl Default for ColourMapSpec {
 }
 
 /// Isolines (contour lines) computed per pixel from the elevation.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields, default)]
 pub struct IsolineSpec {
     /// Whether they are drawn.
@@ -78,7 +78,7 @@ impl Default for IsolineSpec {
 
 /// Per-pixel lighting from the elevation gradient and the ellipsoid normal (a hillshade: the
 /// sun's direction is given in each point's local east-north-up frame, as gdaldem does).
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields, default)]
 pub struct LightingSpec {
     /// Whether the terrain is shaded.
@@ -98,7 +98,7 @@ impl Default for LightingSpec {
 }
 
 /// Everything about how the terrain looks.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields, default)]
 pub struct Visuals {
     /// Colour gradient.
@@ -126,7 +126,7 @@ impl Default for Visuals {
 }
 
 /// Level-of-detail settings.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields, default)]
 pub struct DetailSpec {
     /// Split a quad while a sample covers more than this many pixels (the paper's t).
@@ -147,7 +147,7 @@ impl Default for DetailSpec {
 
 /// Saved comparison settings: swipes (`terrafuse render --swipe NAME`) and profile lines
 /// (`terrafuse profile --line NAME`), by name.
-#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct ComparisonSpec {
     /// Swipes by name.
@@ -166,7 +166,7 @@ impl ComparisonSpec {
 }
 
 /// A swipe: layer `a` left of a vertical line, layer `b` right of it.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct SwipeSpec {
     /// The layer left of the line.
@@ -186,7 +186,7 @@ fn half() -> f64 {
 }
 
 /// A profile line: from and to, `[lat, lon]` in degrees.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct ProfileLine {
     /// Start, `[lat, lon]` degrees.

@@ -52,18 +52,57 @@ pub fn parse_rows(text: &str) -> Vec<Vec<f64>> {
 /// The system Python with Debian's mpmath (python3-mpmath), not a user's virtual environment.
 pub const PYTHON: &str = "/usr/bin/python3";
 
-/// The sample project `projects/NAME.json` rewritten into `dir`: its store there, source paths
-/// absolute, only the global Moon grid, small GPU pools; its datasets are imported here (once
-/// per folder and test run).
+/// The code an import's result depends on: a store made by other code is stale.
+const IMPORT_CODE: [&str; 12] = [
+    include_str!("../../src/store/import.rs"),
+    include_str!("../../src/store/resample.rs"),
+    include_str!("../../src/store/source.rs"),
+    include_str!("../../src/store/gpkg.rs"),
+    include_str!("../../src/store/grid.rs"),
+    include_str!("../../src/store/tile.rs"),
+    include_str!("../../src/store/read.rs"),
+    include_str!("../../src/ecm/projection.rs"),
+    include_str!("../../src/ecm/quad.rs"),
+    include_str!("../../src/geodesy/mod.rs"),
+    include_str!("../../src/geodesy/ellipsoid.rs"),
+    include_str!("../../Cargo.lock"),
+];
+
+/// The folder under `dir` for the stores of `key` made from `settings` (the layers' specs as
+/// JSON) by this build's import code: `stores-<key>-<digest>`, the digest over both. The key's
+/// folders of other digests (made by older code or other settings) are removed, so that no test
+/// reads a store an older build left behind.
+pub fn store_dir(dir: &std::path::Path, key: &str, settings: &str) -> PathBuf {
+    let mut d = terrafuse::edit::cache::Digest::default();
+    for code in IMPORT_CODE {
+        d = d.with(code.as_bytes());
+    }
+    let prefix = format!("stores-{key}-");
+    let name = format!("{prefix}{:016x}", d.with(settings.as_bytes()).value());
+    if let Ok(entries) = std::fs::read_dir(dir) {
+        for e in entries.flatten() {
+            let file = e.file_name().to_string_lossy().into_owned();
+            if file.starts_with(&prefix) && file != name {
+                let _ = std::fs::remove_dir_all(e.path());
+            }
+        }
+    }
+    dir.join(name)
+}
+
+/// The sample project `projects/NAME.json` rewritten into `dir`: its store in a folder of
+/// [`store_dir`] there, source paths absolute, only the global Moon grid, small GPU pools; its
+/// datasets are imported here (once per folder, import code and settings).
 pub fn sample_project(name: &str, dir: &std::path::Path) -> PathBuf {
     use terrafuse::gpu::Scene;
     use terrafuse::project::Project;
     static LOCK: std::sync::OnceLock<std::sync::Mutex<()>> = std::sync::OnceLock::new();
     let _guard = LOCK.get_or_init(Default::default).lock().unwrap_or_else(|p| p.into_inner());
     let mut p = Project::load(&repo_path(&format!("projects/{name}.json"))).unwrap();
+    let stores = store_dir(dir, name, &serde_json::to_string(&p.layers).unwrap());
     for d in &mut p.layers {
         if d.store.is_some() {
-            d.store = Some(dir.join(format!("{name}.gpkg")));
+            d.store = Some(stores.join(format!("{name}.gpkg")));
         }
         if let Some(s) = &mut d.source {
             s.files = s.files.iter().map(|f| repo_path("projects").join(f)).collect();

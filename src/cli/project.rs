@@ -1,0 +1,108 @@
+//! `terrafuse project check|upgrade`: a project file checked the way opening it would, without
+//! opening a window or importing anything; and rewritten in the current version.
+
+use std::fmt::Write as _;
+use std::path::Path;
+
+use crate::layers::LayerKind;
+use crate::project::{Project, recovery};
+
+/// `terrafuse project check`: every field, the files it names (a store there, or the sources to
+/// import it from; a store on the project's body), and a recovery file left by the workstation.
+pub fn project_check(path: &Path) -> Result<String, String> {
+    let project = Project::load(path).map_err(|e| e.to_string())?;
+    let text = std::fs::read_to_string(path).map_err(|e| format!("{}: cannot read: {e}", path.display()))?;
+    let version = crate::project::migrate::header(&text).unwrap_or(crate::project::VERSION);
+    let mut out = String::new();
+    let _ = writeln!(out, "{}: a Terrafuse project, version {version}, body {}", path.display(), project.body);
+    if version < crate::project::VERSION {
+        let _ = writeln!(
+            out,
+            "  an older version: it is read as version {} (terrafuse project upgrade rewrites it)",
+            crate::project::VERSION
+        );
+    }
+    for (k, layer) in project.layers.iter().enumerate() {
+        let field = |f: &str| format!("{}: layers[{k}].{f}", path.display());
+        let mut line = format!("  layer '{}' ({}", layer.name, layer.kind.name());
+        if !layer.visible {
+            line += ", hidden";
+        }
+        line += ")";
+        match layer.kind {
+            LayerKind::Dataset => {
+                let store = project.resolve(layer.store.as_ref().ok_or_else(|| field("store: missing"))?);
+                if store.exists() {
+                    match crate::gpu::scene::open_dataset(&project, layer) {
+                        Ok(_) => {}
+                        // An incomplete dataset is imported again from its sources.
+                        Err(e) if layer.source.is_some() && !e.contains("holds tiles on") => {}
+                        Err(e) => return Err(format!("{}: {e}", field("store"))),
+                    }
+                    let _ = write!(line, ": store {}", store.display());
+                } else {
+                    let source = layer.source.as_ref().ok_or_else(|| {
+                        format!("{}: {} does not exist and the layer lists no source", field("store"), store.display())
+                    })?;
+                    for (j, f) in source.files.iter().enumerate() {
+                        let file = project.resolve(f);
+                        if !file.is_file() {
+                            return Err(format!(
+                                "{}: {} does not exist",
+                                field(&format!("source.files[{j}]")),
+                                file.display()
+                            ));
+                        }
+                    }
+                    let _ = write!(
+                        line,
+                        ": imported into {} on first open from {} files",
+                        store.display(),
+                        source.files.len()
+                    );
+                }
+            }
+            LayerKind::Edit => {
+                let _ = write!(line, ": {} of {} strokes applied", layer.applied_strokes().len(), layer.strokes.len());
+            }
+            LayerKind::Erosion => {
+                let _ = write!(line, ": {} of {} runs applied", layer.applied_runs().len(), layer.runs.len());
+            }
+            _ => {}
+        }
+        out += &line;
+        out.push('\n');
+    }
+    if let Some(file) = &project.visuals.colour_map.file {
+        let f = project.resolve(file);
+        if !f.is_file() {
+            return Err(format!("{}: visuals.colour_map.file: {} does not exist", path.display(), f.display()));
+        }
+    }
+    let _ = writeln!(
+        out,
+        "  {} views, {} checks ({} recorded)",
+        project.views.len(),
+        project.checks.len(),
+        project.checks.values().filter(|c| c.digest.is_some()).count()
+    );
+    if let Some(r) = recovery::find(path) {
+        let _ = writeln!(out, "  {}", r.notice());
+    }
+    Ok(out)
+}
+
+/// `terrafuse project upgrade`: the project rewritten in the current version, over itself or at
+/// `out` (relative paths rewritten to reach the same files from there).
+pub fn project_upgrade(path: &Path, out: Option<&Path>) -> Result<String, String> {
+    let text = std::fs::read_to_string(path).map_err(|e| format!("{}: cannot read: {e}", path.display()))?;
+    let from = crate::project::migrate::header(&text).map_err(|e| format!("{}: {e}", path.display()))?;
+    let mut project = Project::load(path).map_err(|e| e.to_string())?;
+    let target = out.unwrap_or(path);
+    if let Some(out) = out {
+        let dir = out.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
+        project.rebase(dir);
+    }
+    project.save(target).map_err(|e| e.to_string())?;
+    Ok(format!("{}: version {from} → {}, written to {}\n", path.display(), crate::project::VERSION, target.display()))
+}

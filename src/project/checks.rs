@@ -1,0 +1,175 @@
+//! Expected digests: what a replay of the project must rebuild, bit for bit, so that a saved
+//! project checks itself (`terrafuse replay --check`).
+//!
+//! A check names what is hashed and where:
+//! - `{"layer": "sculpt"}` on an edit or erosion layer: the layer's own tiles of height change,
+//!   every tile it holds, at its level;
+//! - `{"layer": "srtm", "level": 9, "region": [w, s, e, n]}`: that layer composed alone over the
+//!   region's quads at `level`;
+//! - `{"level": 9, "view": "close"}` (no layer): the visible stack as drawn, over the 3 × 3 quads
+//!   at `level` around the point the view looks at.
+//!
+//! The digest is FNV-1a (64 bits) over the tiles in quad order, each tile's id and its 257² f32
+//! heights (every NaN counted as one pattern); `tiles` keeps each tile's own digest so that a
+//! mismatch names the first tile that differs. `terrafuse replay --record` fills both in.
+
+use std::collections::BTreeMap;
+
+use serde::{Deserialize, Serialize};
+
+/// Most tiles one check may hash (each is 257² samples composed on the CPU).
+pub const MAX_CHECK_TILES: usize = 256;
+
+/// One expected digest.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct CheckSpec {
+    /// The layer hashed: an edit or erosion layer's own tiles (without `level`), or any layer
+    /// composed alone at `level`; absent: the visible stack, as drawn.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub layer: Option<String>,
+    /// The quadtree level of the composed tiles (0–24); absent only for an edit or erosion
+    /// layer's own tiles.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub level: Option<u8>,
+    /// Where: `[west, south, east, north]`, degrees (east < west crosses ±180°).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub region: Option<[f64; 4]>,
+    /// Or a named view: the 3 × 3 quads at `level` around the point its centre looks at.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub view: Option<String>,
+    /// The digest over every tile, 16 hex digits (absent: not recorded yet).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub digest: Option<String>,
+    /// Each tile's digest by quad (`face/level/x/y`), 16 hex digits.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub tiles: BTreeMap<String, String>,
+}
+
+/// What a check hashes, once its fields are checked.
+#[derive(Clone, Debug, PartialEq)]
+pub enum CheckTarget<'a> {
+    /// An edit or erosion layer's own tiles.
+    LayerTiles(&'a str),
+    /// A layer composed alone (`Some`) or the visible stack (`None`) over a region's quads.
+    Region {
+        /// The layer composed alone (None: the visible stack).
+        layer: Option<&'a str>,
+        /// The level.
+        level: u8,
+        /// `[west, south, east, north]`, degrees.
+        region: [f64; 4],
+    },
+    /// The same around a view's target.
+    View {
+        /// The layer composed alone (None: the visible stack).
+        layer: Option<&'a str>,
+        /// The level.
+        level: u8,
+        /// The view's name.
+        view: &'a str,
+    },
+}
+
+impl CheckSpec {
+    /// What the check hashes; the error names the field. `holds_deltas(name)` says whether a
+    /// layer is an edit or erosion layer (None: no such layer).
+    pub fn target(&self, holds_deltas: &dyn Fn(&str) -> Option<bool>) -> Result<CheckTarget<'_>, String> {
+        let layer = self.layer.as_deref();
+        if let Some(name) = layer
+            && holds_deltas(name).is_none()
+        {
+            return Err(format!("layer: '{name}' is not a layer of the project"));
+        }
+        if let Some(d) = &self.digest {
+            check_hex("digest", d)?;
+        }
+        if self.tiles.len() > MAX_CHECK_TILES {
+            return Err(format!("tiles: {} tiles; a check hashes at most {MAX_CHECK_TILES}", self.tiles.len()));
+        }
+        for (quad, d) in &self.tiles {
+            check_hex(&format!("tiles.{quad}"), d)?;
+        }
+        match (self.level, self.region, self.view.as_deref()) {
+            (None, None, None) => match layer {
+                Some(name) if holds_deltas(name) == Some(true) => Ok(CheckTarget::LayerTiles(name)),
+                Some(name) => Err(format!(
+                    "level: layer '{name}' holds no tiles of its own (not an edit or erosion layer): give a level and a region or view"
+                )),
+                None => Err("level: a check of the stack needs a level and a region or a view".into()),
+            },
+            (None, _, _) => Err("level: a region or a view is composed at a level: give one".into()),
+            (Some(level), region, view) => {
+                if level > crate::edit::stroke::MAX_LEVEL {
+                    return Err(format!("level: {level} must be at most {}", crate::edit::stroke::MAX_LEVEL));
+                }
+                match (region, view) {
+                    (Some(region), None) => {
+                        check_region(region)?;
+                        Ok(CheckTarget::Region { layer, level, region })
+                    }
+                    (None, Some(view)) => Ok(CheckTarget::View { layer, level, view }),
+                    (Some(_), Some(_)) => Err("region: give a region or a view, not both".into()),
+                    (None, None) => Err("region: a check at a level needs a region or a view".into()),
+                }
+            }
+        }
+    }
+}
+
+fn check_hex(field: &str, text: &str) -> Result<(), String> {
+    if text.len() == 16 && text.bytes().all(|b| b.is_ascii_hexdigit()) {
+        Ok(())
+    } else {
+        Err(format!("{field}: '{text}' is not a digest of 16 hex digits"))
+    }
+}
+
+/// A `[west, south, east, north]` box in degrees: finite, latitudes increasing within ±90°,
+/// longitudes within ±180°.
+pub fn check_region([w, s, e, n]: [f64; 4]) -> Result<(), String> {
+    if !([w, s, e, n].iter().all(|v| v.is_finite()) && w.abs() <= 180.0 && e.abs() <= 180.0) {
+        return Err(format!("region: [{w}, {s}, {e}, {n}] must be finite degrees, longitudes within ±180"));
+    }
+    if !(s.abs() <= 90.0 && n.abs() <= 90.0 && s < n) {
+        return Err(format!("region: south {s} and north {n} must be latitudes within ±90 with south < north"));
+    }
+    if w == e {
+        return Err(format!("region: west and east are both {w}: the region has no width"));
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn kinds(name: &str) -> Option<bool> {
+        match name {
+            "sculpt" => Some(true),
+            "srtm" => Some(false),
+            _ => None,
+        }
+    }
+
+    #[test]
+    fn each_form_names_its_target_and_bad_ones_the_field() {
+        let layer = CheckSpec { layer: Some("sculpt".into()), ..Default::default() };
+        assert_eq!(layer.target(&kinds).unwrap(), CheckTarget::LayerTiles("sculpt"));
+        let region = CheckSpec { level: Some(9), region: Some([40.0, 39.0, 41.0, 40.0]), ..Default::default() };
+        assert!(matches!(region.target(&kinds).unwrap(), CheckTarget::Region { layer: None, level: 9, .. }));
+        let cases = [
+            (CheckSpec { layer: Some("x".into()), ..Default::default() }, "layer: 'x' is not a layer"),
+            (CheckSpec { layer: Some("srtm".into()), ..Default::default() }, "holds no tiles of its own"),
+            (CheckSpec::default(), "needs a level"),
+            (CheckSpec { level: Some(30), view: Some("v".into()), ..Default::default() }, "level: 30"),
+            (CheckSpec { level: Some(3), ..Default::default() }, "needs a region or a view"),
+            (CheckSpec { level: Some(3), region: Some([0.0, 5.0, 1.0, 4.0]), ..Default::default() }, "south 5"),
+            (CheckSpec { digest: Some("12".into()), ..layer.clone() }, "digest: '12'"),
+        ];
+        for (check, expected) in cases {
+            let e = check.target(&kinds).unwrap_err();
+            assert!(e.contains(expected), "{check:?}: {e}");
+        }
+    }
+}
