@@ -11,10 +11,54 @@ use terrafuse::ecm::CubeProjection;
 use terrafuse::geodesy::Ellipsoid;
 
 #[derive(Parser)]
-#[command(name = "terrafuse", version, about = "Planetary terrain workstation on the Ellipsoidal Cube Map")]
+#[command(
+    name = "terrafuse",
+    version,
+    about = "Planetary terrain workstation on the Ellipsoidal Cube Map",
+    after_help = "Without a command, opens the workstation on the last project (or the bundled Moon sample)."
+)]
 struct Args {
     #[command(subcommand)]
-    command: Command,
+    command: Option<Command>,
+}
+
+/// The project the workstation opens without arguments when no recent one exists.
+const BUNDLED_SAMPLE: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/projects/moon-lola.json");
+
+/// The workstation's configuration folder: `$XDG_CONFIG_HOME/terrafuse`, else
+/// `$HOME/.config/terrafuse`.
+fn config_dir() -> Option<PathBuf> {
+    let base = std::env::var_os("XDG_CONFIG_HOME")
+        .map(PathBuf::from)
+        .filter(|p| p.is_absolute())
+        .or_else(|| std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".config")))?;
+    Some(base.join("terrafuse"))
+}
+
+/// Says on stderr that a project has a recovery file with unsaved changes.
+fn note_recovery(project: &std::path::Path) {
+    if let Some(r) = terrafuse::project::recovery::find(project) {
+        eprintln!("terrafuse: note: {}", r.notice());
+    }
+}
+
+/// Opens the workstation (`terrafuse view`, or `terrafuse` alone).
+fn workstation(opts: &terrafuse::gui::ViewOptions) -> Result<()> {
+    if std::env::var_os("DISPLAY").is_none() {
+        anyhow::bail!(
+            "the workstation needs an X11 display and DISPLAY is not set (on Wayland desktops XWayland \
+             provides one; without a display use `xvfb-run terrafuse view … --screenshot OUT.png`, or \
+             `terrafuse render` for images)"
+        );
+    }
+    note_recovery(&opts.project);
+    let opened = terrafuse::gui::open(opts).map_err(anyhow::Error::msg)?;
+    for line in opened.imported() {
+        eprintln!("{line}");
+    }
+    let report = terrafuse::gui::run(opts, opened).map_err(anyhow::Error::msg)?;
+    print!("{report}");
+    Ok(())
 }
 
 #[derive(Subcommand)]
@@ -740,7 +784,26 @@ fn main() -> ExitCode {
 }
 
 fn run(args: Args) -> Result<ExitCode> {
-    match args.command {
+    let Some(command) = args.command else {
+        let config = config_dir();
+        let recent = terrafuse::gui::recent::Recent::load(config.as_deref());
+        let project = recent.last().map_or_else(|| PathBuf::from(BUNDLED_SAMPLE), std::path::Path::to_path_buf);
+        eprintln!("terrafuse: opening {}", project.display());
+        let opts = terrafuse::gui::ViewOptions {
+            project,
+            view: None,
+            camera: None,
+            lod_threshold: None,
+            width: 1280,
+            height: 800,
+            screenshot: None,
+            timeout: std::time::Duration::from_secs(300),
+            config_dir: config,
+        };
+        workstation(&opts)?;
+        return Ok(ExitCode::SUCCESS);
+    };
+    match command {
         Command::Overview { landmarks } => {
             let text = std::fs::read_to_string(&landmarks)
                 .with_context(|| format!("cannot read landmark file {}", landmarks.display()))?;
@@ -785,6 +848,7 @@ fn run(args: Args) -> Result<ExitCode> {
             print!("{table}");
         }
         Command::Render { project, out, width, height, look, swipe } => {
+            note_recovery(&project);
             let report = cli::render(&cli::RenderRequest {
                 project: &project,
                 out: &out,
@@ -841,6 +905,7 @@ fn run(args: Args) -> Result<ExitCode> {
             print!("{}", cli::brush_command(&request).map_err(anyhow::Error::msg)?);
         }
         Command::Replay { project, check, record, gpu, cpu: _, json } => {
+            note_recovery(&project);
             let request = cli::ReplayRequest { project, check, record, gpu, json };
             let outcome = cli::replay_command(&request).map_err(anyhow::Error::msg)?;
             print!("{}", outcome.report);
@@ -905,13 +970,6 @@ fn run(args: Args) -> Result<ExitCode> {
             if !(timeout.is_finite() && timeout > 0.0) {
                 anyhow::bail!("--timeout {timeout} must be a positive number of seconds");
             }
-            if std::env::var_os("DISPLAY").is_none() {
-                anyhow::bail!(
-                    "terrafuse view needs an X11 display and DISPLAY is not set (on Wayland desktops XWayland \
-                     provides one; without a display use `xvfb-run terrafuse view … --screenshot OUT.png`, or \
-                     `terrafuse render` for images)"
-                );
-            }
             let opts = terrafuse::gui::ViewOptions {
                 project,
                 view: look.view,
@@ -921,13 +979,9 @@ fn run(args: Args) -> Result<ExitCode> {
                 height,
                 screenshot,
                 timeout: std::time::Duration::from_secs_f64(timeout),
+                config_dir: config_dir(),
             };
-            let opened = terrafuse::gui::open(&opts).map_err(anyhow::Error::msg)?;
-            for line in opened.imported() {
-                eprintln!("{line}");
-            }
-            let report = terrafuse::gui::run(&opts, opened).map_err(anyhow::Error::msg)?;
-            print!("{report}");
+            workstation(&opts)?;
         }
         Command::Import { import } => {
             let opts = import_options(&import)?;

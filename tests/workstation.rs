@@ -31,6 +31,7 @@ fn harness_of_size(project: &std::path::Path, view: &str, size: egui::Vec2) -> H
         height: size.y as u32,
         screenshot: None,
         timeout: Duration::from_secs(60),
+        config_dir: None,
     })
     .unwrap();
     Harness::builder()
@@ -190,7 +191,7 @@ fn the_workstation_draws_probes_navigates_and_saves() {
     h.step();
     let saved = Project::load(&project).unwrap();
     assert!(!saved.layers[0].visible);
-    assert_eq!(saved.version, 2);
+    assert_eq!(saved.version, terrafuse::project::VERSION);
     h.get_by_label("visible").click_accesskit();
     h.step();
     assert!(h.state().stack().layers[0].spec.visible);
@@ -607,4 +608,92 @@ fn the_erosion_section_starts_steps_runs_keeps_undoes_and_brushes_a_run() {
     let path = brushed.brush.expect("a brush run keeps its path");
     assert!(path.points.len() >= 2 && path.radius_m > 0.0, "{path:?}");
     settle(&mut h);
+}
+
+/// Steps until the project being opened has been taken over.
+fn wait_for_open(h: &mut Harness<'static, App>) {
+    for _ in 0..6000 {
+        h.step();
+        if !h.state().opening() {
+            h.run_steps(2);
+            return;
+        }
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    panic!("opening the project did not finish");
+}
+
+#[test]
+fn the_file_bar_saves_as_opens_autosaves_and_offers_the_recovery_after_a_crash() {
+    use terrafuse::project::recovery;
+    let dir = repo_path("tests/out/workstation-file");
+    let _ = std::fs::remove_dir_all(&dir);
+    let project = sample_project("erzurum", &dir);
+    let mut h = harness(&project, "30km");
+    settle(&mut h);
+    let title = h.state().title();
+    assert!(title.starts_with("erzurum.json — ") && title.ends_with(" — Terrafuse"), "{title}");
+
+    // A change: the title says so at once and the recovery file holds it (autosaved).
+    h.get_by_label("visible").click_accesskit();
+    h.run_steps(2);
+    assert!(h.state().title().starts_with("*erzurum.json"), "{}", h.state().title());
+    let kept = recovery::find(&project).expect("autosaved to the recovery file");
+    assert!(!kept.load().unwrap().layers[0].visible, "the recovery file has the change");
+    assert!(Project::load(&project).unwrap().layers[0].visible, "the project file does not, yet");
+
+    // Save as, into another folder: the copy reaches the same store, the window edits it, the
+    // original keeps no recovery file, and the copy heads the recent list.
+    let copies = dir.join("copies");
+    std::fs::create_dir_all(&copies).unwrap();
+    let copy = copies.join("copy.json");
+    h.get_by_label("save as…").click_accesskit();
+    h.run_steps(2);
+    type_into(&mut h, "Save the project as", copy.to_str().unwrap());
+    h.get_by_label("ok").click_accesskit();
+    h.run_steps(2);
+    assert_eq!(h.state().project_path(), copy.as_path(), "{}", h.state().message());
+    assert!(!h.state().unsaved() && h.state().title().starts_with("copy.json"));
+    let (a, b) = (Project::load(&project).unwrap(), Project::load(&copy).unwrap());
+    let store = |p: &Project| std::path::absolute(p.resolve(p.layers[0].store.as_ref().unwrap())).unwrap();
+    assert_eq!(store(&a), store(&b), "the copy reads the same store");
+    assert!(!b.layers[0].visible);
+    assert!(recovery::find(&project).is_none() && recovery::find(&copy).is_none());
+    assert_eq!(std::path::absolute(&copy).unwrap(), h.state().recent()[0]);
+
+    // Opening a file that is not a project names it and keeps the window on the copy.
+    h.get_by_label("open…").click_accesskit();
+    h.run_steps(2);
+    let bad = dir.join("not-a-project.json");
+    std::fs::write(&bad, "{\"format\": \"x\"}").unwrap();
+    type_into(&mut h, "Open the project file", bad.to_str().unwrap());
+    h.get_by_label("ok").click_accesskit();
+    h.run_steps(2);
+    assert!(h.state().message().contains("not-a-project.json: format: 'x'"), "{}", h.state().message());
+    assert_eq!(h.state().project_path(), copy.as_path());
+
+    // Open the original again (from the recent list's hook), change it and "crash" (drop the
+    // window without saving): the next window offers the recovery file, and restoring it brings
+    // the change back as unsaved.
+    h.state_mut().open_project(&project, None);
+    wait_for_open(&mut h);
+    assert_eq!(h.state().project_path(), project.as_path(), "{}", h.state().message());
+    assert!(h.state().stack().layers[0].spec.visible && !h.state().unsaved());
+    settle(&mut h);
+    h.get_by_label("visible").click_accesskit();
+    h.run_steps(2);
+    assert!(recovery::find(&project).is_some());
+    drop(h);
+    let mut h = harness(&project, "30km");
+    h.run_steps(2);
+    assert!(h.state().recovery_offered().is_some(), "the recovery is offered");
+    h.get_by_label("restore them").click_accesskit();
+    h.run_steps(2);
+    wait_for_open(&mut h);
+    assert!(h.state().unsaved() && !h.state().stack().layers[0].spec.visible, "{}", h.state().message());
+    assert!(h.state().title().starts_with("*erzurum.json"));
+    h.get_by_label("save project *").click_accesskit();
+    h.step();
+    assert!(!Project::load(&project).unwrap().layers[0].visible, "{}", h.state().message());
+    assert!(recovery::find(&project).is_none(), "saving removes the recovery file");
 }

@@ -7,6 +7,7 @@ pub mod compare_panel;
 pub mod difference_ui;
 pub mod layers_panel;
 pub mod navigate;
+pub mod recent;
 pub mod viewport;
 
 use std::path::{Path, PathBuf};
@@ -35,6 +36,8 @@ pub struct ViewOptions {
     pub screenshot: Option<PathBuf>,
     /// How long a screenshot run may wait for the view to settle.
     pub timeout: Duration,
+    /// The workstation's configuration folder (the recent projects); None keeps nothing.
+    pub config_dir: Option<PathBuf>,
 }
 
 /// The device eframe asks for: the adapter's own limits (large storage buffers for the GPU
@@ -58,6 +61,8 @@ pub struct Opened {
     screenshot: Option<app::ScreenshotJob>,
     outcome: app::Outcome,
     imported: Vec<String>,
+    recent: recent::Recent,
+    recovery: Option<crate::project::recovery::Recovery>,
 }
 
 impl Opened {
@@ -73,7 +78,11 @@ pub fn open(opts: &ViewOptions) -> Result<Opened, String> {
         return Err(format!("window size {}x{} must lie within 200x150 … 16384x16384", opts.width, opts.height));
     }
     let project = Project::load(&opts.project).map_err(|e| e.to_string())?;
-    let camera = project.camera(opts.view.as_deref(), opts.camera.as_deref())?;
+    let camera = if opts.view.is_none() && opts.camera.is_none() {
+        app::file::opening_camera(&project)
+    } else {
+        project.camera(opts.view.as_deref(), opts.camera.as_deref())?
+    };
     if let Some(t) = opts.lod_threshold
         && !(t.is_finite() && t > 0.0)
     {
@@ -86,7 +95,19 @@ pub fn open(opts: &ViewOptions) -> Result<Opened, String> {
     if let Some(t) = opts.lod_threshold {
         scene.detail.lod_threshold_px = t;
     }
+    let mut recent = recent::Recent::load(opts.config_dir.as_deref());
+    // A screenshot run is scripted: it neither lists the project nor offers a recovery.
+    let recovery = match &opts.screenshot {
+        Some(_) => None,
+        None => {
+            // The list is a convenience: a folder that cannot be written loses nothing else.
+            let _ = recent.add(&opts.project);
+            crate::project::recovery::find(&opts.project)
+        }
+    };
     Ok(Opened {
+        recent,
+        recovery,
         project,
         project_path: opts.project.clone(),
         scene,
@@ -108,12 +129,7 @@ pub fn wgpu_setup() -> egui_wgpu::WgpuSetup {
 /// The workstation on the device eframe created (the renderer shares it).
 pub fn build_app(cc: &eframe::CreationContext<'_>, opened: Opened) -> Result<app::App, String> {
     let rs = cc.wgpu_render_state.as_ref().ok_or("eframe started without its wgpu renderer")?;
-    let ctx = GpuContext {
-        device: rs.device.clone(),
-        queue: rs.queue.clone(),
-        info: rs.adapter.get_info(),
-        timestamps: rs.device.features().contains(wgpu::Features::TIMESTAMP_QUERY),
-    };
+    let ctx = context_of(rs);
     let device = format!("device: {}", ctx.describe());
     let renderer = Renderer::new(&ctx, opened.scene, IMAGE_FORMAT).map_err(|e| e.to_string())?;
     Ok(app::App::new(
@@ -124,7 +140,18 @@ pub fn build_app(cc: &eframe::CreationContext<'_>, opened: Opened) -> Result<app
         opened.screenshot,
         opened.outcome,
         device,
-    ))
+    )
+    .with_file(opened.recent, opened.recovery))
+}
+
+/// The renderer's view of eframe's device.
+pub fn context_of(rs: &egui_wgpu::RenderState) -> GpuContext {
+    GpuContext {
+        device: rs.device.clone(),
+        queue: rs.queue.clone(),
+        info: rs.adapter.get_info(),
+        timestamps: rs.device.features().contains(wgpu::Features::TIMESTAMP_QUERY),
+    }
 }
 
 /// Opens the workstation on a project; returns the screenshot run's report (empty when the

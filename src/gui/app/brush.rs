@@ -150,7 +150,7 @@ impl App {
             Ok(spec) => {
                 self.project.layers[index] = spec;
                 self.dirty = true;
-                self.unsaved = true;
+                self.mark_unsaved();
                 self.message = format!("{} to {applied} of {total} strokes", if by < 0 { "undone" } else { "redone" });
             }
             Err(e) => self.message = e.to_string(),
@@ -292,7 +292,7 @@ impl App {
                 );
                 self.project.layers[index] = spec;
                 self.dirty = true;
-                self.unsaved = true;
+                self.mark_unsaved();
             }
             Err(e) => self.message = e.to_string(),
         }

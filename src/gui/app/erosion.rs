@@ -486,7 +486,7 @@ impl App {
                     o.range_m.1
                 );
                 self.project.layers[s.index] = spec;
-                self.unsaved = true;
+                self.mark_unsaved();
             }
             Err(e) => self.message = e.to_string(),
         }
@@ -504,7 +504,7 @@ impl App {
             Ok(spec) => {
                 self.project.layers[index] = spec;
                 self.dirty = true;
-                self.unsaved = true;
+                self.mark_unsaved();
                 self.message = format!("{} to {applied} of {total} runs", if by < 0 { "undone" } else { "redone" });
             }
             Err(e) => self.message = e.to_string(),

@@ -16,6 +16,7 @@ use crate::project::{CameraSpec, Project, Visuals};
 
 mod brush;
 mod erosion;
+pub mod file;
 mod profile;
 mod side_panel;
 mod swipe;
@@ -90,6 +91,8 @@ pub struct App {
     brush: brush::BrushTool,
     /// The *Erosion* section and its run in progress.
     erosion: erosion::ErosionTool,
+    /// New, open, save as, recent projects, autosave.
+    file: file::FileState,
 }
 
 impl App {
@@ -142,7 +145,19 @@ impl App {
             swipe: None,
             swipe_request: None,
             profile: Default::default(),
+            file: Default::default(),
         }
+    }
+
+    /// Gives the window the recent projects and a recovery file to offer (when it opens).
+    pub fn with_file(
+        mut self,
+        recent: crate::gui::recent::Recent,
+        recovery: Option<crate::project::recovery::Recovery>,
+    ) -> App {
+        self.file.recent = recent;
+        self.file.recovery = recovery;
+        self
     }
 
     /// The current camera.
@@ -243,7 +258,7 @@ impl App {
             Ok(ramp) => {
                 self.renderer.set_visuals(self.visuals.clone(), ramp);
                 self.dirty = true;
-                self.unsaved = true;
+                self.mark_unsaved();
             }
             Err(e) => {
                 self.message = format!("colour map: {e}");
@@ -252,12 +267,19 @@ impl App {
         }
     }
 
-    fn save_project(&mut self) {
+    /// Puts the window's settings into the project (what saving writes).
+    fn sync_project(&mut self) {
         self.project.visuals = self.visuals.clone();
         self.project.detail.lod_threshold_px = self.threshold_px;
+    }
+
+    fn save_project(&mut self) {
+        self.sync_project();
         match self.project.save(&self.project_path) {
             Ok(()) => {
                 self.unsaved = false;
+                self.file.autosaved = self.file.changes;
+                crate::project::recovery::remove(&self.project_path);
                 self.message = format!("saved {}", self.project_path.display());
                 // The edit layers' rasters beside it, so that the session reopens without
                 // replaying its strokes (a cache: a failure is reported, the project is saved).
@@ -575,6 +597,10 @@ impl App {
                     return;
                 }
             }
+            if !save {
+                // The user chose to drop the changes: the recovery file goes with them.
+                crate::project::recovery::remove(&self.project_path);
+            }
             self.closing = true;
             ctx.send_viewport_cmd(egui::ViewportCommand::Close);
         }
@@ -597,6 +623,8 @@ fn write_screenshot(path: &std::path::Path, image: &egui::ColorImage) -> Result<
 
 impl eframe::App for App {
     fn ui(&mut self, ui: &mut egui::Ui, frame: &mut eframe::Frame) {
+        self.finish_open(frame);
+        egui::Panel::top("file").show(ui, |ui| self.file_bar(ui));
         egui::Panel::bottom("status").show(ui, |ui| self.status_bar(ui));
         egui::Panel::left("settings").default_size(290.0).resizable(true).show(ui, |ui| self.side_panel(ui));
         egui::CentralPanel::no_frame().show(ui, |ui| {
@@ -638,6 +666,12 @@ impl eframe::App for App {
             ui.ctx().request_repaint_after(Duration::from_millis(30));
         }
         self.screenshot(ui);
+        self.autosave();
+        self.update_title(ui.ctx());
+        self.file_dialogs(ui.ctx());
+        if self.file.opening.is_some() {
+            ui.ctx().request_repaint_after(Duration::from_millis(50));
+        }
         self.close_guard(ui.ctx());
     }
 }

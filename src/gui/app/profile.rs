@@ -115,7 +115,7 @@ impl App {
                     (1..).find(|k| !self.project.comparison.profiles.contains_key(&format!("line {k}"))).unwrap_or(1);
                 let name = format!("line {n}");
                 self.project.comparison.profiles.insert(name.clone(), line);
-                self.unsaved = true;
+                self.mark_unsaved();
                 self.message = format!("profile saved as '{name}' (save the project to keep it)");
             }
             if let Some(Ok(p)) = &self.profile.result

@@ -64,7 +64,7 @@ impl App {
             if t != self.threshold_px {
                 self.renderer.set_threshold(self.threshold_px);
                 self.dirty = true;
-                self.unsaved = true;
+                self.mark_unsaved();
             }
             let s = self.render_scale;
             ui.add(egui::Slider::new(&mut self.render_scale, 0.25..=1.0).text("render scale"))
@@ -156,7 +156,7 @@ impl App {
             let change = crate::gui::layers_panel::layers_ui(ui, &mut self.renderer, &mut self.project);
             if change.changed {
                 self.dirty = true;
-                self.unsaved = true;
+                self.mark_unsaved();
                 if self.swipe.take().is_some() {
                     // The second stack would no longer match the first.
                     self.message = "swipe stopped: the layer stack changed".into();
@@ -171,7 +171,7 @@ impl App {
                         crate::gui::layers_panel::insert_dataset(&mut self.renderer, &mut self.project, spec, info);
                     if change.changed {
                         self.dirty = true;
-                        self.unsaved = true;
+                        self.mark_unsaved();
                         self.message =
                             format!("added dataset layer '{}'", self.project.layers.last().map_or("", |l| &l.name));
                     }
@@ -203,7 +203,7 @@ impl App {
                     crate::gui::layers_panel::insert(&mut self.renderer, &mut self.project, spec, &mut change);
                     if change.changed {
                         self.dirty = true;
-                        self.unsaved = true;
+                        self.mark_unsaved();
                         self.message = format!("drawing {a} - {b} over the terrain (layer on top of the stack)");
                     }
                     if let Some(e) = change.error {
@@ -240,12 +240,6 @@ impl App {
             }
 
             ui.separator();
-            let label = if self.unsaved { "save project *" } else { "save project" };
-            if ui.button(label).on_hover_text("writes the visual settings and t into the project file").clicked() {
-                self.save_project();
-            }
-
-            ui.separator();
             ui.heading("Project");
             ui.label(self.project_path.display().to_string());
             ui.label(format!("body: {}", self.project.body));
@@ -277,7 +271,7 @@ impl App {
             Ok(()) => {
                 self.project.layers[index] = spec;
                 self.dirty = true;
-                self.unsaved = true;
+                self.mark_unsaved();
                 self.message =
                     format!("moved '{layer}' east {:+.2} m, north {:+.2} m, up {:+.2} m", shift_m[0], shift_m[1], up_m);
             }
