@@ -379,8 +379,13 @@ enum ProjectCommand {
         #[arg(long)]
         out: Option<PathBuf>,
     },
-    /// Print the JSON Schema of project files (docs/project.schema.json).
-    Schema,
+    /// Print the JSON Schema of project files (docs/project.schema.json), or with --markdown
+    /// the field reference of docs/project-format.md.
+    Schema {
+        /// The reference as Markdown tables instead.
+        #[arg(long)]
+        markdown: bool,
+    },
 }
 
 /// Where a frame looks from, and its level of detail.
@@ -498,6 +503,25 @@ impl RasterArgs {
 
 #[derive(Subcommand)]
 enum Bench {
+    /// Replay of a long session (N strokes and an erosion run of S steps) on the CPU and, with
+    /// --gpu, the GPU; saving and loading its project file and a log of 10⁵ strokes.
+    Replay {
+        /// Strokes of the edit layer.
+        #[arg(long, default_value_t = 10_000)]
+        strokes: usize,
+        /// Steps of the erosion run (128² cells).
+        #[arg(long, default_value_t = 10_000)]
+        steps: u64,
+        /// Strokes of the log that is saved and loaded.
+        #[arg(long, default_value_t = 100_000)]
+        log_strokes: usize,
+        /// Replay on the GPU too (lavapipe without a hardware GPU).
+        #[arg(long)]
+        gpu: bool,
+        /// The folder the files and the table (replay-bench.md) go to.
+        #[arg(long, default_value = "out/bench-replay")]
+        out: PathBuf,
+    },
     /// Brushing: rebuilding an edit layer from N scripted strokes on the CPU, one more stroke,
     /// and its undo.
     Brush {
@@ -921,7 +945,8 @@ fn run(args: Args) -> Result<ExitCode> {
             ProjectCommand::Upgrade { project, out } => {
                 print!("{}", cli::project_upgrade(&project, out.as_deref()).map_err(anyhow::Error::msg)?)
             }
-            ProjectCommand::Schema => print!("{}", terrafuse::project::Project::schema()),
+            ProjectCommand::Schema { markdown: false } => print!("{}", terrafuse::project::Project::schema()),
+            ProjectCommand::Schema { markdown: true } => print!("{}", terrafuse::project::reference::markdown()),
         },
         Command::Erode { project, layer, region, level, steps, preset, set, seed, gpu, cpu, json, undo, redo } => {
             let on = match (gpu, cpu) {
@@ -1020,6 +1045,10 @@ fn run(args: Args) -> Result<ExitCode> {
                 report.level,
                 report.valid
             );
+        }
+        Command::Bench { bench: Bench::Replay { strokes, steps, log_strokes, gpu, out } } => {
+            let settings = cli::ReplayBenchSettings { strokes, steps, log_strokes, gpu, out };
+            print!("{}", cli::bench_replay(&settings).map_err(anyhow::Error::msg)?);
         }
         Command::Bench { bench: Bench::Erosion { sizes, steps, cpu_max, gpu, bandwidth_gbs } } => {
             let settings = cli::ErosionBenchSettings { sizes, steps, cpu_max, gpu, bandwidth_gbs };

@@ -1,0 +1,183 @@
+//! `terrafuse bench replay`: the cost of replaying a long session and of saving and loading its
+//! project file. A synthetic Moon project (procedural terrain, no store to import) with an edit
+//! layer of N scripted strokes (every tool, [`super::scripted_strokes`]) and an erosion layer of
+//! one run of S steps on 128² cells is saved, loaded and replayed on the CPU (and on the GPU
+//! with `--gpu`, compared with the CPU); then a log of 10⁵ strokes is saved and loaded, with
+//! the file's size and the process's peak memory.
+
+use std::fmt::Write as _;
+use std::path::PathBuf;
+use std::time::Instant;
+
+use crate::erosion::operation::Operation;
+use crate::erosion::params::{Params, gravity_of_body};
+use crate::gpu::GpuContext;
+use crate::layers::{LayerSpec, NoiseSpec};
+use crate::project::Project;
+use crate::replay::{self, Engine};
+
+/// What `terrafuse bench replay` measures.
+#[derive(Clone, Debug)]
+pub struct ReplayBenchSettings {
+    /// Strokes of the edit layer.
+    pub strokes: usize,
+    /// Steps of the erosion run.
+    pub steps: u64,
+    /// Strokes of the log saved and loaded (10⁵ by default).
+    pub log_strokes: usize,
+    /// Replay on the GPU too.
+    pub gpu: bool,
+    /// The folder the project files and the table go to.
+    pub out: PathBuf,
+}
+
+/// `n` strokes of a modelling session at level 12 (2.6 m samples on the Moon): every tool in
+/// turn, radii of 150–400 m, paths of one to four points a few hundred metres long, scattered
+/// over 0.4° × 0.4° around 0.5°N 45.2°E; deterministic.
+pub fn session_strokes(n: usize) -> Vec<crate::edit::Stroke> {
+    use crate::edit::{Falloff, Stroke, Tool};
+    let mut state = 2_024u32;
+    let mut next = || {
+        state = crate::erosion::dither::pcg(state);
+        f64::from(state) / f64::from(u32::MAX)
+    };
+    (0..n)
+        .map(|k| {
+            let tool = Tool::ALL[k % Tool::ALL.len()];
+            let (lat, lon) = (0.3 + 0.4 * next(), 45.0 + 0.4 * next());
+            let points = 1 + (next() * 3.0) as usize + usize::from(tool == Tool::Ramp);
+            let path = (0..points).map(|p| [lat + 0.003 * p as f64 * next(), lon + 0.004 * p as f64]).collect();
+            let strength = if tool.strength_in_metres() { 2.0 + 8.0 * next() } else { 0.3 + 0.5 * next() };
+            Stroke {
+                tool,
+                radius_m: 150.0 + 250.0 * next(),
+                strength,
+                falloff: Falloff::ALL[k % Falloff::ALL.len()],
+                spacing: 0.25,
+                level: 12,
+                path,
+                seed: k as u32,
+                height_m: None,
+            }
+        })
+        .collect()
+}
+
+/// The synthetic session: Moon, fBm terrain, `strokes` strokes ([`session_strokes`]) and one
+/// run of `steps` steps (the `rain` preset) on 128² cells of level 12 near 0.5°N 45.2°E.
+pub fn synthetic_session(strokes: usize, steps: u64) -> Result<Project, String> {
+    let mut p = Project::new("moon");
+    let noise = NoiseSpec {
+        noise_type: Default::default(),
+        seed: 7,
+        amplitude_m: 800.0,
+        wavelength_m: 20_000.0,
+        octaves: 4,
+        lacunarity: 2.0,
+        gain: 0.5,
+        placement: Default::default(),
+    };
+    let mut base = LayerSpec::procedural("terrain", noise);
+    base.blend = crate::layers::BlendMode::Over;
+    p.layers.push(base);
+    let mut edit = LayerSpec::edit("sculpt");
+    edit.strokes = session_strokes(strokes);
+    p.layers.push(edit);
+    let e = p.ellipsoid()?;
+    // 128 cells of level 12 on the Moon (2.6 m) are 0.0110°: a box of that size at the centre.
+    let side = 128.0 * crate::store::grid::spacing_m(&e, 12) / e.a_m();
+    let (lat, lon) = (0.5, 45.2);
+    let half = 0.5 * side.to_degrees();
+    let params = Params::preset("rain", gravity_of_body(&p.body)).ok_or("no rain preset")?;
+    let run = Operation {
+        region: [lat - half, lon - half, lat + half, lon + half],
+        level: 12,
+        steps,
+        seed: 1,
+        preset: Some("rain".into()),
+        params,
+        brush: None,
+        device: Default::default(),
+    };
+    let mut erosion = LayerSpec::erosion("erosion");
+    erosion.runs.push(run);
+    p.layers.push(erosion);
+    p.check()?;
+    Ok(p)
+}
+
+/// Runs the benchmark; returns the table (also written to `out/replay-bench.md`).
+pub fn bench_replay(s: &ReplayBenchSettings) -> Result<String, String> {
+    std::fs::create_dir_all(&s.out).map_err(|e| format!("{}: {e}", s.out.display()))?;
+    let mut out = String::new();
+    let p = synthetic_session(s.strokes, s.steps)?;
+    let path = s.out.join("replay-bench.json");
+    let t = Instant::now();
+    p.save(&path).map_err(|e| e.to_string())?;
+    let save_s = t.elapsed().as_secs_f64();
+    let t = Instant::now();
+    let loaded = Project::load(&path).map_err(|e| e.to_string())?;
+    let load_s = t.elapsed().as_secs_f64();
+    let bytes = std::fs::metadata(&path).map_or(0, |m| m.len());
+    let _ = writeln!(
+        out,
+        "session: {} strokes (level 12, every tool, radii 150–400 m) and one erosion run of {} steps on 128² cells (level 12, rain), Moon, fBm terrain",
+        s.strokes, s.steps
+    );
+    let _ = writeln!(out, "project file {:.1} MB: saved in {save_s:.3} s, loaded in {load_s:.3} s\n", bytes as f64 / 1e6);
+    let _ = writeln!(out, "| engine | layer | operations | tiles | seconds | GPU − CPU (m) |");
+    let _ = writeln!(out, "|---|---|---:|---:|---:|---:|");
+    let cpu = replay::replay(&loaded, Engine::Cpu).map_err(|e| e.to_string())?;
+    for l in &cpu.layers {
+        let _ = writeln!(out, "| cpu | {} | {} | {} | {:.2} | |", l.name, l.operations, l.digests.tiles.len(), l.seconds);
+    }
+    if s.gpu {
+        let ctx = GpuContext::headless().map_err(|e| format!("--gpu: {e}"))?;
+        let gpu = replay::replay(&loaded, Engine::Gpu(&ctx)).map_err(|e| e.to_string())?;
+        for l in &gpu.layers {
+            let uid = gpu.scene.stack.layers[l.index].uid;
+            let difference = match (gpu.scene.edits.get(&uid), cpu.scene.edits.get(&uid)) {
+                (Some(a), Some(b)) => format!("{:.2e}", replay::largest_difference_m(a, b)),
+                _ => "-".into(),
+            };
+            let _ = writeln!(
+                out,
+                "| gpu ({}) | {} | {} | {} | {:.2} | {difference} |",
+                ctx.info.name,
+                l.name,
+                l.operations,
+                l.digests.tiles.len(),
+                l.seconds
+            );
+        }
+    }
+    // The long log: save and load only.
+    let mut log = Project::new("moon");
+    let mut edit = LayerSpec::edit("sculpt");
+    edit.strokes = super::scripted_strokes(s.log_strokes, 9);
+    log.layers.push(edit);
+    let log_path = s.out.join("log-bench.json");
+    let t = Instant::now();
+    log.save(&log_path).map_err(|e| e.to_string())?;
+    let save_s = t.elapsed().as_secs_f64();
+    let before = crate::store::import::peak_rss_bytes();
+    let t = Instant::now();
+    let again = Project::load(&log_path).map_err(|e| e.to_string())?;
+    let load_s = t.elapsed().as_secs_f64();
+    let peak = crate::store::import::peak_rss_bytes();
+    if again.layers != log.layers {
+        return Err("the log did not load back the same".into());
+    }
+    let bytes = std::fs::metadata(&log_path).map_or(0, |m| m.len());
+    let _ = writeln!(
+        out,
+        "\nlog of {} strokes: {:.1} MB, saved (checked, serialised, written, fsynced) in {save_s:.3} s, loaded and checked in {load_s:.3} s; peak memory of the process {:.0} MB (before loading {:.0} MB)",
+        s.log_strokes,
+        bytes as f64 / 1e6,
+        peak as f64 / 1e6,
+        before as f64 / 1e6
+    );
+    let table = s.out.join("replay-bench.md");
+    crate::files::write_atomic(&table, out.as_bytes()).map_err(|e| format!("{}: {e}", table.display()))?;
+    Ok(out)
+}
