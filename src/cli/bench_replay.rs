@@ -124,12 +124,14 @@ pub fn bench_replay(s: &ReplayBenchSettings) -> Result<String, String> {
         "session: {} strokes (level 12, every tool, radii 150–400 m) and one erosion run of {} steps on 128² cells (level 12, rain), Moon, fBm terrain",
         s.strokes, s.steps
     );
-    let _ = writeln!(out, "project file {:.1} MB: saved in {save_s:.3} s, loaded in {load_s:.3} s\n", bytes as f64 / 1e6);
+    let _ =
+        writeln!(out, "project file {:.1} MB: saved in {save_s:.3} s, loaded in {load_s:.3} s\n", bytes as f64 / 1e6);
     let _ = writeln!(out, "| engine | layer | operations | tiles | seconds | GPU − CPU (m) |");
     let _ = writeln!(out, "|---|---|---:|---:|---:|---:|");
     let cpu = replay::replay(&loaded, Engine::Cpu).map_err(|e| e.to_string())?;
     for l in &cpu.layers {
-        let _ = writeln!(out, "| cpu | {} | {} | {} | {:.2} | |", l.name, l.operations, l.digests.tiles.len(), l.seconds);
+        let _ =
+            writeln!(out, "| cpu | {} | {} | {} | {:.2} | |", l.name, l.operations, l.digests.tiles.len(), l.seconds);
     }
     if s.gpu {
         let ctx = GpuContext::headless().map_err(|e| format!("--gpu: {e}"))?;

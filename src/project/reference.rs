@@ -80,8 +80,7 @@ fn type_of(spec: &Value) -> String {
     }
     for key in ["anyOf", "oneOf"] {
         if let Some(variants) = spec.get(key).and_then(Value::as_array) {
-            let parts: Vec<String> =
-                variants.iter().map(type_of).filter(|t| t != "null").collect();
+            let parts: Vec<String> = variants.iter().map(type_of).filter(|t| t != "null").collect();
             return parts.join(" or ");
         }
     }
