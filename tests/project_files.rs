@@ -397,3 +397,65 @@ proptest! {
         loads_or_refuses(&text)?;
     }
 }
+
+#[test]
+fn replay_check_passes_as_recorded_and_names_the_layer_and_first_differing_tile() {
+    let dir = scratch("replay");
+    let path = dir.join("session.json");
+    let mut p = Project::new("moon");
+    p.layers.push(LayerSpec::constant("datum", -1000.0));
+    let mut edit = project_of_strokes(3).layers.remove(0);
+    for (k, s) in edit.strokes.iter_mut().enumerate() {
+        s.path = vec![[0.05 * k as f64, 20.0], [0.05 * k as f64 + 0.02, 20.03]];
+    }
+    p.layers.push(edit);
+    p.checks
+        .insert("sculpt".into(), terrafuse::project::CheckSpec { layer: Some("sculpt".into()), ..Default::default() });
+    p.save(&path).unwrap();
+    let replay = |args: &[&str]| terrafuse(&[&["replay", path.to_str().unwrap()][..], args].concat(), "");
+    // Not recorded yet: --check fails and says how to record.
+    let out = replay(&["--check"]);
+    assert_eq!(out.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&out.stdout).contains("no digest recorded"));
+    let out = replay(&["--record"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let recorded = Project::load(&path).unwrap().checks["sculpt"].clone();
+    assert!(recorded.digest.is_some() && recorded.tiles.len() >= 2, "{recorded:?}");
+    let out = replay(&["--check"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stdout));
+    // Twice the same, bit for bit.
+    let digest = |o: &std::process::Output| -> String {
+        let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+        j["layers"][0]["digest"].as_str().unwrap().to_string()
+    };
+    assert_eq!(digest(&replay(&["--json"])), digest(&replay(&["--json"])));
+
+    // One tile's recorded digest changed: that tile is named.
+    let mut tampered = Project::load(&path).unwrap();
+    let (quad, _) = tampered.checks["sculpt"].tiles.iter().nth(1).map(|(q, d)| (q.clone(), d.clone())).unwrap();
+    tampered.checks.get_mut("sculpt").unwrap().tiles.insert(quad.clone(), "0000000000000000".into());
+    tampered.checks.get_mut("sculpt").unwrap().digest = Some("0000000000000001".into());
+    tampered.save(&path).unwrap();
+    let out = replay(&["--check"]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert_eq!(out.status.code(), Some(1), "{text}");
+    assert!(
+        text.contains("check 'sculpt' (layer 'sculpt')")
+            && text.contains(&format!("first differing tile {quad} (1 differ)")),
+        "{text}"
+    );
+
+    // A stroke changed after recording: the replay differs from the record, named.
+    let mut changed = p.clone();
+    changed.checks.insert("sculpt".into(), recorded);
+    changed.layers[1].strokes[2].strength += 1.0;
+    changed.save(&path).unwrap();
+    let out = replay(&["--check", "--json"]);
+    assert_eq!(out.status.code(), Some(1));
+    let j: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(j["passed"], false);
+    assert_eq!(j["checks"][0]["ok"], false);
+    assert!(j["checks"][0]["first_differing_tile"].is_string(), "{j:#}");
+    // --record and --gpu do not go together (the record is the CPU reference's).
+    assert!(!replay(&["--record", "--gpu"]).status.success());
+}

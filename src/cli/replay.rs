@@ -75,7 +75,9 @@ pub fn replay_command(request: &ReplayRequest) -> Result<ReplayOutcome, String> 
     for (name, check) in project.checks.clone() {
         let got = replay::evaluate(&reference.scene, &project, &name, &check)
             .map_err(|e| format!("{}: {e}", path.display()))?;
-        let mut row = serde_json::json!({ "name": name, "digest": digest::hex(got.total), "tiles": got.tiles.len() });
+        let mut row = serde_json::json!({
+            "name": name, "layer": check.layer, "digest": digest::hex(got.total), "tiles": got.tiles.len(),
+        });
         if request.check {
             let result = digest::compare(&check, &got);
             passed &= result.is_ok();
@@ -177,7 +179,13 @@ fn text_report(
     }
     for c in checks {
         let name = c["name"].as_str().unwrap_or("");
-        let _ = write!(out, "check '{name}': digest {} over {} tiles", c["digest"].as_str().unwrap_or(""), c["tiles"]);
+        let of = c["layer"].as_str().map_or_else(|| "the visible stack".to_string(), |l| format!("layer '{l}'"));
+        let _ = write!(
+            out,
+            "check '{name}' ({of}): digest {} over {} tiles",
+            c["digest"].as_str().unwrap_or(""),
+            c["tiles"]
+        );
         if request.check {
             match c["problem"].as_str() {
                 None => out.push_str(", as recorded"),
