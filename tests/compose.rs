@@ -420,20 +420,24 @@ fn a_feathered_max_layer_beside_a_dataset_agrees_on_where_there_is_data() {
 }
 
 #[test]
-fn the_version_1_moon_project_loads_as_over_layers_first_listed_on_top_and_saves_as_version_2() {
+fn the_version_1_moon_project_loads_as_over_layers_first_listed_on_top_and_saves_in_the_current_version() {
     let v1 = common::repo_path("tests/fixtures/moon-lola-v1.json");
     assert!(std::fs::read_to_string(&v1).unwrap().contains("\"datasets\""));
     let p = Project::load(&v1).unwrap();
-    assert_eq!(p.version, 2);
+    assert_eq!(p.version, terrafuse::project::VERSION);
     let names: Vec<&str> = p.layers.iter().map(|l| l.name.as_str()).collect();
     assert_eq!(names, ["lola_global", "lola_north"], "the first listed (north) wins, so it is on top");
     assert!(p.layers.iter().all(|l| l.blend == BlendMode::Over && l.extent.is_none()));
     let out = common::repo_path("tests/out/compose");
     std::fs::create_dir_all(&out).unwrap();
-    let saved = out.join("moon-v2.json");
+    let saved = out.join("moon-migrated.json");
     p.save(&saved).unwrap();
     let text = std::fs::read_to_string(&saved).unwrap();
-    assert!(text.contains("\"version\": 2") && text.contains("\"layers\"") && !text.contains("\"datasets\""));
+    assert!(
+        text.contains(&format!("\"version\": {}", terrafuse::project::VERSION))
+            && text.contains("\"layers\"")
+            && !text.contains("\"datasets\"")
+    );
     assert_eq!(Project::load(&saved).unwrap().layers, p.layers);
 }
 

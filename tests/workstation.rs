@@ -184,7 +184,8 @@ fn the_workstation_draws_probes_navigates_and_saves() {
     // settled while the layer is hidden: without data, quads refine to level 6 for the shape of
     // the ellipsoid, which takes lavapipe minutes to draw.)
     h.get_by_label("visible").click_accesskit();
-    h.step();
+    // Two frames: the file bar above the panel shows the change from the next one.
+    h.run_steps(2);
     assert!(h.state().unsaved());
     assert!(!h.state().stack().layers[0].spec.visible);
     h.get_by_label("save project *").click_accesskit();

@@ -177,7 +177,7 @@ pub fn bench_compare(settings: &CompareBenchSettings) -> Result<String, String> 
     let side = settings.size as f64 / 1200.0;
     let (lat_c, lon_c) = (40.0 - side / 2.0, 40.0 + side / 2.0);
     let synthetic = format!(
-        r#"{{"format": "terrafuse-project", "version": 2, "body": "wgs84", "layers": [
+        r#"{{"format": "terrafuse-project", "version": 3, "body": "wgs84", "layers": [
             {{"name": "ref", "kind": "dataset", "store": "synthetic_ref.gpkg", "source": {{"files": ["{}"]}}}},
             {{"name": "moved", "kind": "dataset", "store": "synthetic_moved.gpkg", "source": {{"files": ["{}"]}}}}]}}"#,
         ref_tif.display(),

@@ -1,7 +1,7 @@
 //! The project file: a versioned JSON scene (body, layer stack, visual settings, named views).
 //!
 //! ```json
-//! { "format": "terrafuse-project", "version": 2, "body": "moon",
+//! { "format": "terrafuse-project", "version": 3, "body": "moon",
 //!   "layers": [ { "name": "lola", "kind": "dataset", "store": "stores/moon.gpkg",
 //!                 "source": { "files": ["data/moon.tif"] } } ],
 //!   "visuals": { "colour_map": { "preset": "hypsometric" }, "isolines": { "interval_m": 500 } },
