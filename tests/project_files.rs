@@ -105,6 +105,9 @@ fn bad_project_files_are_refused_naming_the_file_the_field_and_the_problem() {
     let dir = scratch("bad");
     let sample = std::fs::read_to_string(repo_path("projects/moon-brushing.json")).unwrap();
     let erosion = std::fs::read_to_string(repo_path("tests/fuzz/corpus/erosion.json")).unwrap();
+    let edit_of = |stroke: &str| {
+        with_layers("moon", &format!(r#"{{"name": "e", "kind": "edit", "blend": "add", "strokes": [{stroke}]}}"#))
+    };
     let stroke = r#"{"tool": "raise", "radius_m": 2000, "strength": 5, "level": 8, "path": [[0, 0]]}"#;
     let cases: Vec<(&str, String, &str)> = vec![
         ("truncated", sample[..sample.len() / 2].to_string(), "not valid JSON: layers[1].strokes["),
@@ -119,17 +122,7 @@ fn bad_project_files_are_refused_naming_the_file_the_field_and_the_problem() {
         ("nan", sample.replace("\"radius_m\": 20000.0", "\"radius_m\": NaN"), "layers[1].strokes[0].radius_m"),
         ("infinite", sample.replace("\"radius_m\": 20000.0", "\"radius_m\": 1e999"), "number out of range"),
         ("radius-of-1e10", with_layers("r=1e10", ""), "body: a semi-major axis of 10000000000.0 m is outside"),
-        (
-            "negative-radius",
-            with_layers(
-                "moon",
-                &format!(
-                    r#"{{"name": "e", "kind": "edit", "blend": "add", "strokes": [{}]}}"#,
-                    stroke.replace("2000", "-5")
-                ),
-            ),
-            "layers[0]: layer 'e': strokes[0].radius_m",
-        ),
+        ("negative-radius", edit_of(&stroke.replace("2000", "-5")), "layers[0]: layer 'e': strokes[0].radius_m"),
         (
             "a-billion-applied",
             with_layers(
@@ -152,13 +145,7 @@ fn bad_project_files_are_refused_naming_the_file_the_field_and_the_problem() {
         ),
         (
             "absurd-level",
-            with_layers(
-                "moon",
-                &format!(
-                    r#"{{"name": "e", "kind": "edit", "blend": "add", "strokes": [{}]}}"#,
-                    stroke.replace("\"level\": 8", "\"level\": 200")
-                ),
-            ),
+            edit_of(&stroke.replace("\"level\": 8", "\"level\": 200")),
             "strokes[0].level: 200 must be at most",
         ),
         (
