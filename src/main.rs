@@ -1048,7 +1048,11 @@ fn run(args: Args) -> Result<ExitCode> {
         }
         Command::Bench { bench: Bench::Replay { strokes, steps, log_strokes, gpu, out } } => {
             let settings = cli::ReplayBenchSettings { strokes, steps, log_strokes, gpu, out };
-            print!("{}", cli::bench_replay(&settings).map_err(anyhow::Error::msg)?);
+            let mut show = |part: &str| {
+                print!("{part}");
+                let _ = std::io::Write::flush(&mut std::io::stdout());
+            };
+            cli::bench_replay(&settings, &mut show).map_err(anyhow::Error::msg)?;
         }
         Command::Bench { bench: Bench::Erosion { sizes, steps, cpu_max, gpu, bandwidth_gbs } } => {
             let settings = cli::ErosionBenchSettings { sizes, steps, cpu_max, gpu, bandwidth_gbs };

@@ -106,8 +106,9 @@ pub fn synthetic_session(strokes: usize, steps: u64) -> Result<Project, String> 
     Ok(p)
 }
 
-/// Runs the benchmark; returns the table (also written to `out/replay-bench.md`).
-pub fn bench_replay(s: &ReplayBenchSettings) -> Result<String, String> {
+/// Runs the benchmark; returns the table (also written to `out/replay-bench.md`), handing each
+/// part to `progress` as it is measured (a long run shows where it is).
+pub fn bench_replay(s: &ReplayBenchSettings, progress: &mut dyn FnMut(&str)) -> Result<String, String> {
     std::fs::create_dir_all(&s.out).map_err(|e| format!("{}: {e}", s.out.display()))?;
     let mut out = String::new();
     let p = synthetic_session(s.strokes, s.steps)?;
@@ -128,10 +129,12 @@ pub fn bench_replay(s: &ReplayBenchSettings) -> Result<String, String> {
         writeln!(out, "project file {:.1} MB: saved in {save_s:.3} s, loaded in {load_s:.3} s\n", bytes as f64 / 1e6);
     let _ = writeln!(out, "| engine | layer | operations | tiles | seconds | GPU − CPU (m) |");
     let _ = writeln!(out, "|---|---|---:|---:|---:|---:|");
+    progress(&out);
     let cpu = replay::replay(&loaded, Engine::Cpu).map_err(|e| e.to_string())?;
     for l in &cpu.layers {
-        let _ =
-            writeln!(out, "| cpu | {} | {} | {} | {:.2} | |", l.name, l.operations, l.digests.tiles.len(), l.seconds);
+        let row = format!("| cpu | {} | {} | {} | {:.2} | |\n", l.name, l.operations, l.digests.tiles.len(), l.seconds);
+        progress(&row);
+        out += &row;
     }
     if s.gpu {
         let ctx = GpuContext::headless().map_err(|e| format!("--gpu: {e}"))?;
@@ -142,15 +145,16 @@ pub fn bench_replay(s: &ReplayBenchSettings) -> Result<String, String> {
                 (Some(a), Some(b)) => format!("{:.2e}", replay::largest_difference_m(a, b)),
                 _ => "-".into(),
             };
-            let _ = writeln!(
-                out,
-                "| gpu ({}) | {} | {} | {} | {:.2} | {difference} |",
+            let row = format!(
+                "| gpu ({}) | {} | {} | {} | {:.2} | {difference} |\n",
                 ctx.info.name,
                 l.name,
                 l.operations,
                 l.digests.tiles.len(),
                 l.seconds
             );
+            progress(&row);
+            out += &row;
         }
     }
     // The long log: save and load only.
@@ -179,6 +183,7 @@ pub fn bench_replay(s: &ReplayBenchSettings) -> Result<String, String> {
         peak as f64 / 1e6,
         before as f64 / 1e6
     );
+    progress(&out[out.rfind("\nlog of").unwrap_or(0)..]);
     let table = s.out.join("replay-bench.md");
     crate::files::write_atomic(&table, out.as_bytes()).map_err(|e| format!("{}: {e}", table.display()))?;
     Ok(out)
