@@ -100,7 +100,7 @@ pub fn project_upgrade(path: &Path, out: Option<&Path>) -> Result<String, String
     let mut project = Project::load(path).map_err(|e| e.to_string())?;
     let target = out.unwrap_or(path);
     if let Some(out) = out {
-        let dir = out.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
+        let dir = crate::files::folder_of(out);
         project.rebase(dir);
     }
     project.save(target).map_err(|e| e.to_string())?;

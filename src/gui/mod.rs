@@ -196,7 +196,7 @@ pub fn run(opts: &ViewOptions, opened: Opened) -> Result<String, String> {
 
 /// Fails early, naming the file, when a screenshot could not be written.
 fn check_writable(path: &Path) -> Result<(), String> {
-    let dir = path.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    let dir = crate::files::folder_of(path);
     if !dir.is_dir() {
         return Err(format!("{}: the folder {} does not exist", path.display(), dir.display()));
     }

@@ -12,7 +12,7 @@ use super::{Project, ProjectError};
 /// The recovery file of the project at `path`.
 pub fn path_of(project: &Path) -> PathBuf {
     let name = project.file_name().map_or_else(|| "project".into(), |n| n.to_string_lossy().into_owned());
-    let dir = project.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    let dir = crate::files::folder_of(project);
     dir.join(format!(".{name}.recovery"))
 }
 

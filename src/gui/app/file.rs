@@ -72,7 +72,7 @@ impl App {
     /// The window's title: the project's file name and folder, `*` first while unsaved.
     pub fn title(&self) -> String {
         let name = self.project_path.file_name().map_or_else(|| "project".into(), |n| n.to_string_lossy().into_owned());
-        let dir = self.project_path.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
+        let dir = crate::files::folder_of(&self.project_path);
         format!("{}{name} — {} — Terrafuse", if self.unsaved { "*" } else { "" }, dir.display())
     }
 
@@ -104,7 +104,7 @@ impl App {
         self.file.dialog = None;
         self.file.opening = Some(std::thread::spawn(move || {
             let mut project = Project::load(restored.as_deref().unwrap_or(&path)).map_err(|e| e.to_string())?;
-            project.base_dir = path.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new(".")).into();
+            project.base_dir = crate::files::folder_of(&path).into();
             let (scene, report) = Scene::open(&project).map_err(|e| format!("{}: {e}", path.display()))?;
             let camera = opening_camera(&project);
             Ok(Opening { project, path, scene, camera, restored, imported: report.imported })
@@ -173,7 +173,7 @@ impl App {
     /// Saves the project under `path`: relative paths rewritten to reach the same files from its
     /// folder; the window then edits the new file.
     pub fn save_as(&mut self, path: &Path) {
-        let dir = path.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
+        let dir = crate::files::folder_of(path);
         let (old_path, old_project) = (self.project_path.clone(), self.project.clone());
         self.project.rebase(dir);
         self.project_path = path.to_path_buf();
