@@ -55,6 +55,8 @@ pub const MAX_FILE_BYTES: u64 = 512 << 20;
 pub const MAX_QUADS: usize = 1 << 16;
 /// The largest cache budget, MiB (`detail.cpu_cache_mib`, `gpu_cache_mib`).
 pub const MAX_CACHE_MIB: u64 = 1 << 20;
+/// The widest isoline, pixels (`visuals.isolines.*width_px`).
+pub const MAX_LINE_WIDTH_PX: f32 = 64.0;
 /// The body's semi-major axis, metres: from 1 km (a small asteroid) to 10⁸ m (past Jupiter's).
 pub const BODY_RADIUS_M: [f64; 2] = [1e3, 1e8];
 
@@ -272,8 +274,14 @@ impl Project {
         if !(iso.interval_m.is_finite() && iso.interval_m > 0.0) {
             return Err(format!("visuals.isolines.interval_m {} must be positive", iso.interval_m));
         }
-        if !(iso.width_px >= 0.0 && iso.major_width_px >= 0.0 && iso.min_width_px >= 0.0) {
-            return Err("visuals.isolines widths must not be negative".into());
+        for (field, px) in
+            [("width_px", iso.width_px), ("major_width_px", iso.major_width_px), ("min_width_px", iso.min_width_px)]
+        {
+            // An f32 read from a JSON number beyond 3.4·10³⁸ is infinite: refused here, or the
+            // project would save as `null` and never load again.
+            if !(0.0..=MAX_LINE_WIDTH_PX).contains(&px) {
+                return Err(format!("visuals.isolines.{field} {px} must lie within 0 … {MAX_LINE_WIDTH_PX} pixels"));
+            }
         }
         if let Some([lo, hi]) = v.colour_map.range_m
             && !(lo.is_finite() && hi.is_finite() && lo < hi)
