@@ -53,8 +53,9 @@ pub fn parse_rows(text: &str) -> Vec<Vec<f64>> {
 pub const PYTHON: &str = "/usr/bin/python3";
 
 /// The code an import's result depends on: a store made by other code is stale.
-const IMPORT_CODE: [&str; 12] = [
-    include_str!("../../src/store/import.rs"),
+const IMPORT_CODE: [&str; 13] = [
+    include_str!("../../src/store/import/mod.rs"),
+    include_str!("../../src/store/import/levels.rs"),
     include_str!("../../src/store/resample.rs"),
     include_str!("../../src/store/source.rs"),
     include_str!("../../src/store/gpkg.rs"),

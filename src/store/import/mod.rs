@@ -13,13 +13,12 @@
 use std::collections::HashSet;
 use std::path::{Path, PathBuf};
 use std::str::FromStr;
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::mpsc::sync_channel;
 use std::time::Instant;
 
 use gdal::spatial_ref::{CoordTransform, SpatialRef};
-use indicatif::{ProgressBar, ProgressStyle};
-use rayon::prelude::*;
+
+mod levels;
+pub(super) use levels::LevelWriter;
 
 use super::StoreError;
 use super::gpkg::{DatasetRecord, DatasetSettings, SourceProvenance, Store, check_dataset_name, face_proj, utc_now};
@@ -27,7 +26,6 @@ use super::grid::{self, GRID, spacing_m};
 use super::read::GridReader;
 use super::resample::{average_quad, footprint, resample_quad};
 use super::source::{SourceInfo, SourceReader};
-use super::tile::QuadGrid;
 use super::watch::ImportWatch;
 use crate::ecm::{Face, QuadId};
 use crate::geodesy::Ellipsoid;
@@ -227,12 +225,69 @@ fn geoid_transform(grid: &str) -> Result<CoordTransform, String> {
     Ok(t)
 }
 
+/// What an import decided before touching a store: the sources checked, the dataset's name,
+/// level and settings, and how to resample.
+pub(in crate::store) struct Prepared {
+    pub(in crate::store) infos: Vec<SourceInfo>,
+    pub(in crate::store) name: String,
+    pub(in crate::store) level: u8,
+    pub(in crate::store) plan: Plan,
+    pub(in crate::store) settings: DatasetSettings,
+    pub(in crate::store) provenance: Vec<SourceProvenance>,
+    pub(in crate::store) vertical_text: String,
+    pub(in crate::store) threads: usize,
+    pub(in crate::store) budget: u64,
+}
+
 /// Runs an import. See the module documentation for the steps.
 pub fn import(opts: &ImportOptions) -> Result<ImportReport, StoreError> {
+    let prepared = prepare(opts)?;
+    if let Some(report) = already_complete(&opts.store, &opts.body, &prepared)? {
+        return Ok(report);
+    }
+    let mut store = open_dataset(&opts.store, &opts.body, &prepared)?;
+    let body = *store.body();
+    let mut report = ImportReport {
+        dataset: prepared.name.clone(),
+        finest_level: prepared.level,
+        vertical_datum: prepared.vertical_text.clone(),
+        ..Default::default()
+    };
+    let pool = worker_pool(&opts.store, prepared.threads)?;
+    let mut levels = LevelWriter {
+        store: &mut store,
+        dataset: &prepared.name,
+        pool: &pool,
+        queue: (2 * prepared.threads + 4).min((prepared.budget / 4 / (600 << 10)).max(4) as usize),
+        progress: opts.progress,
+        watch: opts.watch.as_deref(),
+    };
+
+    // 3. The finest level from the sources.
+    let start = Instant::now();
+    let candidates = candidates(&prepared, &body)?;
+    let (written, finished, computed) = finest_level(&mut levels, &prepared, &body, candidates)?;
+    report.levels.push((prepared.level, written, finished));
+    report.finest_samples = computed as u64 * u64::from(GRID * GRID);
+    report.seconds_finest = start.elapsed().as_secs_f64();
+
+    // 4. The pyramid.
+    let start = Instant::now();
+    if !opts.finest_only {
+        report.levels.extend(pyramid(&mut levels, &opts.store, prepared.level)?);
+        levels.store.mark_complete(&prepared.name)?;
+    }
+    report.seconds_pyramid = start.elapsed().as_secs_f64();
+    report.peak_rss_bytes = peak_rss_bytes();
+    Ok(report)
+}
+
+/// Step 1: checks every source and decides the dataset's name, level and settings, without
+/// touching the store.
+pub(in crate::store) fn prepare(opts: &ImportOptions) -> Result<Prepared, StoreError> {
     if opts.sources.is_empty() {
         return Err(StoreError::new(&opts.store, "no source rasters given"));
     }
-    // 1. Check every source before touching the store.
     let infos: Vec<SourceInfo> =
         opts.sources.iter().map(|p| SourceInfo::open(p, &opts.body)).collect::<Result<_, _>>()?;
     for info in &infos {
@@ -274,48 +329,58 @@ pub fn import(opts: &ImportOptions) -> Result<ImportReport, StoreError> {
         geoid_grid,
     };
     let provenance: Vec<SourceProvenance> = infos.iter().map(provenance).collect::<Result<_, _>>()?;
+    Ok(Prepared { infos, name, level, plan, settings, provenance, vertical_text, threads, budget })
+}
 
-    // 2. Open or create the store; register or resume the dataset.
-    // An existing store is checked read-only first, so that a refusal leaves it byte for byte.
-    if opts.store.exists() {
-        let existing = Store::open_read_only(&opts.store)?;
-        let body = existing.body();
-        if body.a_m() != opts.body.a_m() || body.b_m() != opts.body.b_m() {
-            return Err(StoreError::new(
-                &opts.store,
-                format!("is a store of body {body}, not {}: use another store for this body", opts.body),
-            ));
-        }
-        if let Some(d) = existing.dataset(&name)?
-            && d.completed.is_some()
-            && d.settings == settings
-            && same_files(&d.sources, &provenance)
-        {
-            {
-                return Ok(ImportReport {
-                    dataset: name,
-                    finest_level: level,
-                    vertical_datum: vertical_text,
-                    already_complete: true,
-                    peak_rss_bytes: peak_rss_bytes(),
-                    ..Default::default()
-                });
-            }
-        }
+/// The report of an import that has nothing to do: the store holds the dataset, complete, from
+/// the same sources and settings. An existing store is read read-only here, so that a refusal
+/// leaves it byte for byte.
+pub(in crate::store) fn already_complete(
+    path: &Path,
+    body: &Ellipsoid,
+    p: &Prepared,
+) -> Result<Option<ImportReport>, StoreError> {
+    if !path.exists() {
+        return Ok(None);
     }
-    let mut store =
-        if opts.store.exists() { Store::open(&opts.store)? } else { Store::create(&opts.store, &opts.body)? };
-    let body = *store.body();
-    let mut report = ImportReport {
-        dataset: name.clone(),
-        finest_level: level,
-        vertical_datum: vertical_text,
-        ..Default::default()
-    };
-    match store.dataset(&name)? {
-        Some(existing) if existing.settings != settings || !same_files(&existing.sources, &provenance) => {
+    let existing = Store::open_read_only(path)?;
+    check_body(path, existing.body(), body)?;
+    Ok(match existing.dataset(&p.name)? {
+        Some(d) if d.completed.is_some() && d.settings == p.settings && same_files(&d.sources, &p.provenance) => {
+            Some(ImportReport {
+                dataset: p.name.clone(),
+                finest_level: p.level,
+                vertical_datum: p.vertical_text.clone(),
+                already_complete: true,
+                peak_rss_bytes: peak_rss_bytes(),
+                ..Default::default()
+            })
+        }
+        _ => None,
+    })
+}
+
+/// Refuses a store of another body.
+pub(in crate::store) fn check_body(path: &Path, found: &Ellipsoid, wanted: &Ellipsoid) -> Result<(), StoreError> {
+    if found.a_m() != wanted.a_m() || found.b_m() != wanted.b_m() {
+        return Err(StoreError::new(
+            path,
+            format!("is a store of body {found}, not {wanted}: use another store for this body"),
+        ));
+    }
+    Ok(())
+}
+
+/// Step 2: opens or creates the store and registers the dataset, or resumes it when the store has it
+/// from the same sources and settings.
+pub(in crate::store) fn open_dataset(path: &Path, body: &Ellipsoid, p: &Prepared) -> Result<Store, StoreError> {
+    let mut store = if path.exists() { Store::open(path)? } else { Store::create(path, body)? };
+    check_body(path, store.body(), body)?;
+    let name = &p.name;
+    match store.dataset(name)? {
+        Some(existing) if existing.settings != p.settings || !same_files(&existing.sources, &p.provenance) => {
             return Err(StoreError::new(
-                &opts.store,
+                path,
                 format!(
                     "already has a dataset '{name}' made from other sources or settings; choose another --name (settings there: {})",
                     serde_json::to_string(&existing.settings).unwrap_or_default()
@@ -327,79 +392,86 @@ pub fn import(opts: &ImportOptions) -> Result<ImportReport, StoreError> {
             let wkt: Vec<String> = Face::ALL
                 .iter()
                 .map(|&f| {
-                    SpatialRef::from_proj4(&face_proj(&body, f))
+                    SpatialRef::from_proj4(&face_proj(body, f))
                         .and_then(|s| s.to_wkt())
-                        .map_err(|e| StoreError::new(&opts.store, format!("PROJ has no QSC CRS: {e}")))
+                        .map_err(|e| StoreError::new(path, format!("PROJ has no QSC CRS: {e}")))
                 })
                 .collect::<Result<_, _>>()?;
             let wkt: [String; 6] = wkt.try_into().expect("six faces");
             let record = DatasetRecord {
                 name: name.clone(),
-                settings,
-                sources: provenance,
+                settings: p.settings.clone(),
+                sources: p.provenance.clone(),
                 created: utc_now(),
                 completed: None,
             };
             store.add_dataset(&record, &wkt)?;
         }
     }
+    Ok(store)
+}
 
-    let pool = rayon::ThreadPoolBuilder::new()
+/// The worker threads of an import.
+pub(in crate::store) fn worker_pool(path: &Path, threads: usize) -> Result<rayon::ThreadPool, StoreError> {
+    rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
         .build()
-        .map_err(|e| StoreError::new(&opts.store, format!("cannot start worker threads: {e}")))?;
-    let queue = (2 * threads + 4).min((budget / 4 / (600 << 10)).max(4) as usize);
+        .map_err(|e| StoreError::new(path, format!("cannot start worker threads: {e}")))
+}
 
-    // 3. The finest level from the sources.
-    let start = Instant::now();
+/// Step 3a: the quads of the finest level the sources may cover (each source's footprint).
+pub(in crate::store) fn candidates(p: &Prepared, body: &Ellipsoid) -> Result<HashSet<QuadId>, StoreError> {
     let mut candidates = HashSet::new();
-    for info in &infos {
-        candidates.extend(footprint(&SourceReader::new(info, &body)?, &body, level)?);
+    for info in &p.infos {
+        candidates.extend(footprint(&SourceReader::new(info, body)?, body, p.level)?);
     }
-    let mut levels = LevelWriter {
-        store: &mut store,
-        dataset: &name,
-        pool: &pool,
-        queue,
-        progress: opts.progress,
-        watch: opts.watch.as_deref(),
-    };
-    let (written, finished, computed) = levels.run(
-        level,
+    Ok(candidates)
+}
+
+/// Step 3b: resamples the given quads of the finest level that no earlier run finished. Returns
+/// the tiles with data written, the quads an earlier run had finished and those computed now.
+pub(in crate::store) fn finest_level(
+    levels: &mut LevelWriter,
+    p: &Prepared,
+    body: &Ellipsoid,
+    candidates: HashSet<QuadId>,
+) -> Result<(u64, u64, usize), StoreError> {
+    levels.run(
+        p.level,
         candidates,
         || {
-            let readers = infos.iter().map(|i| SourceReader::new(i, &body)).collect::<Result<Vec<_>, _>>()?;
-            let geoid = match &plan.geoid_grid {
-                Some(g) => Some(geoid_transform(g).map_err(|m| StoreError::new(&infos[0].path, m))?),
+            let readers = p.infos.iter().map(|i| SourceReader::new(i, body)).collect::<Result<Vec<_>, _>>()?;
+            let geoid = match &p.plan.geoid_grid {
+                Some(g) => Some(geoid_transform(g).map_err(|m| StoreError::new(&p.infos[0].path, m))?),
                 None => None,
             };
             Ok(Worker { readers, geoid })
         },
-        |w: &mut Worker, q| resample_quad(w, &body, &plan, q),
-    )?;
-    report.levels.push((level, written, finished));
-    report.finest_samples = computed as u64 * u64::from(GRID * GRID);
-    report.seconds_finest = start.elapsed().as_secs_f64();
+        |w: &mut Worker, q| resample_quad(w, body, &p.plan, q),
+    )
+}
 
-    // 4. The pyramid.
-    let start = Instant::now();
-    if !opts.finest_only {
-        for parent_level in (0..level).rev() {
-            let children = levels.store.data_quads(&name, parent_level + 1)?;
-            let parents: HashSet<QuadId> = children.iter().filter_map(|q| q.parent()).collect();
-            let (written, finished, _) = levels.run(
-                parent_level,
-                parents,
-                || GridReader::new(Store::open_read_only(&opts.store)?, &name),
-                |r: &mut GridReader, q| average_quad(r, q),
-            )?;
-            report.levels.push((parent_level, written, finished));
-        }
-        levels.store.mark_complete(&name)?;
+/// Step 4: the coarser levels down to 0, each from the level below in the store. Returns per level
+/// the tiles written and those an earlier run had finished.
+pub(in crate::store) fn pyramid(
+    levels: &mut LevelWriter,
+    path: &Path,
+    finest: u8,
+) -> Result<Vec<(u8, u64, u64)>, StoreError> {
+    let name = levels.dataset;
+    let mut out = Vec::new();
+    for parent_level in (0..finest).rev() {
+        let children = levels.store.data_quads(name, parent_level + 1)?;
+        let parents: HashSet<QuadId> = children.iter().filter_map(|q| q.parent()).collect();
+        let (written, finished, _) = levels.run(
+            parent_level,
+            parents,
+            || GridReader::new(Store::open_read_only(path)?, name),
+            |r: &mut GridReader, q| average_quad(r, q),
+        )?;
+        out.push((parent_level, written, finished));
     }
-    report.seconds_pyramid = start.elapsed().as_secs_f64();
-    report.peak_rss_bytes = peak_rss_bytes();
-    Ok(report)
+    Ok(out)
 }
 
 fn default_name(path: &Path) -> String {
@@ -473,135 +545,3 @@ fn same_files(a: &[SourceProvenance], b: &[SourceProvenance]) -> bool {
             .all(|(x, y)| x.path == y.path && x.file_bytes == y.file_bytes && x.modified_unix_s == y.modified_unix_s)
 }
 
-/// Runs the levels of one import: computes quads in parallel and writes them from this thread.
-struct LevelWriter<'a> {
-    store: &'a mut Store,
-    dataset: &'a str,
-    pool: &'a rayon::ThreadPool,
-    /// Quads in flight between the workers and the writer.
-    queue: usize,
-    progress: bool,
-    watch: Option<&'a ImportWatch>,
-}
-
-impl LevelWriter<'_> {
-    /// Computes the candidates of a level that no earlier run finished, committing every 32 quads
-    /// or every second. Returns the tiles with data written, the quads an earlier run had
-    /// finished, and the quads computed now.
-    fn run<W, I, F>(
-        &mut self,
-        level: u8,
-        candidates: HashSet<QuadId>,
-        init: I,
-        compute: F,
-    ) -> Result<(u64, u64, usize), StoreError>
-    where
-        I: Fn() -> Result<W, StoreError> + Sync,
-        F: Fn(&mut W, QuadId) -> Result<Option<QuadGrid>, StoreError> + Sync,
-    {
-        let finished = self.store.finished_quads(self.dataset, level)?;
-        let mut todo: Vec<QuadId> = candidates.into_iter().filter(|q| !finished.contains(q)).collect();
-        todo.sort();
-        let written = self.write(&todo, &format!("level {level}"), init, compute)?;
-        Ok((written, finished.len() as u64, todo.len()))
-    }
-
-    fn write<W, I, F>(&mut self, todo: &[QuadId], label: &str, init: I, compute: F) -> Result<u64, StoreError>
-    where
-        I: Fn() -> Result<W, StoreError> + Sync,
-        F: Fn(&mut W, QuadId) -> Result<Option<QuadGrid>, StoreError> + Sync,
-    {
-        let (store, dataset, pool, queue, progress, watch) =
-            (&mut *self.store, self.dataset, self.pool, self.queue, self.progress, self.watch);
-        if todo.is_empty() {
-            return Ok(0);
-        }
-        if let Some(w) = watch {
-            w.start_phase(label, todo.len() as u64);
-        }
-        let bar = if progress { ProgressBar::new(todo.len() as u64) } else { ProgressBar::hidden() };
-        bar.set_style(
-            ProgressStyle::with_template(
-                "{prefix:>9} [{bar:32}] {pos}/{len} tiles  {per_sec}  {elapsed} elapsed, ~{eta} left",
-            )
-            .expect("a valid template")
-            .progress_chars("=> "),
-        );
-        bar.set_prefix(label.to_owned());
-        let stop = AtomicBool::new(false);
-        let (tx, rx) = sync_channel::<Result<(QuadId, Option<QuadGrid>), StoreError>>(queue);
-        let mut written = 0u64;
-        let mut failure = None;
-        std::thread::scope(|s| {
-            let stop = &stop;
-            let init = &init;
-            let compute = &compute;
-            s.spawn(move || {
-                pool.install(|| {
-                    todo.par_iter().for_each_init(
-                        || init().map_err(|e| e.to_string()),
-                        |worker, &q| {
-                            if stop.load(Ordering::Relaxed) {
-                                return;
-                            }
-                            let result = match worker {
-                                Ok(w) => compute(w, q).map(|g| (q, g)),
-                                Err(m) => Err(StoreError::new(Path::new(dataset), m.clone())),
-                            };
-                            if tx.send(result).is_err() {
-                                stop.store(true, Ordering::Relaxed);
-                            }
-                        },
-                    );
-                });
-                drop(tx);
-            });
-            let mut batch = Vec::new();
-            let mut last = Instant::now();
-            let flush = |store: &mut Store, batch: &mut Vec<(QuadId, Option<QuadGrid>)>| -> Result<(), StoreError> {
-                store.write_quads(dataset, batch)?;
-                batch.clear();
-                Ok(())
-            };
-            for msg in rx.iter() {
-                match msg {
-                    Ok((q, g)) => {
-                        written += u64::from(g.is_some());
-                        batch.push((q, g));
-                        bar.inc(1);
-                        if let Some(w) = watch {
-                            w.advance();
-                            if w.is_cancelled() {
-                                // What is committed stays; this batch is dropped like a crash's.
-                                failure = Some(StoreError::new(store.path(), "cancelled"));
-                                break;
-                            }
-                        }
-                        if batch.len() >= 32 || last.elapsed().as_secs_f64() > 1.0 {
-                            if let Err(e) = flush(store, &mut batch) {
-                                failure = Some(e);
-                                break;
-                            }
-                            last = Instant::now();
-                        }
-                    }
-                    Err(e) => {
-                        failure = Some(e);
-                        break;
-                    }
-                }
-            }
-            if failure.is_some() {
-                stop.store(true, Ordering::Relaxed);
-                drop(rx);
-            } else if let Err(e) = flush(store, &mut batch) {
-                failure = Some(e);
-            }
-        });
-        bar.finish_and_clear();
-        match failure {
-            Some(e) => Err(e),
-            None => Ok(written),
-        }
-    }
-}
