@@ -18,4 +18,5 @@ pub mod gui;
 pub mod layers;
 pub mod project;
 pub mod replay;
+pub mod slurm;
 pub mod store;

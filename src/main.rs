@@ -93,10 +93,15 @@ enum Command {
         #[command(flatten)]
         import: ImportArgs,
     },
-    /// Read a tile store: info, sample, export.
+    /// Read a tile store: info, sample, export; merge a sharded import's parts.
     Store {
         #[command(subcommand)]
         command: StoreCommand,
+    },
+    /// Run a sharded import on a Slurm cluster.
+    Slurm {
+        #[command(subcommand)]
+        command: SlurmCommand,
     },
     /// Render one frame of a project to a PNG and report what it drew and what it cost.
     Render {
@@ -405,14 +410,32 @@ struct LookArgs {
 #[derive(clap::Args, Clone)]
 struct ImportArgs {
     /// Source rasters (GeoTIFF, COG, VRT, …); where they overlap the first with data wins.
-    #[arg(required = true)]
+    #[arg(required_unless_present = "manifest", conflicts_with = "manifest")]
     sources: Vec<PathBuf>,
-    /// The store (a GeoPackage; created if missing).
-    #[arg(long)]
-    store: PathBuf,
+    /// The store (a GeoPackage; created if missing); with --shard, the shard's partial store.
+    #[arg(long, required_unless_present = "plan")]
+    store: Option<PathBuf>,
     /// Body: wgs84, moon, mars, a=A,b=B, a=A,rf=F or r=R (metres).
-    #[arg(long)]
-    body: String,
+    #[arg(long, required_unless_present = "manifest")]
+    body: Option<String>,
+    /// Plan a sharded import instead: write this manifest (the finest level's quads cut into
+    /// --shards runs along a Hilbert curve per face) and import nothing.
+    #[arg(long, requires = "shards", conflicts_with_all = ["store", "manifest"])]
+    plan: Option<PathBuf>,
+    /// Shards of the plan.
+    #[arg(long, requires = "plan")]
+    shards: Option<usize>,
+    /// Import one shard of this manifest (with --shard and --store).
+    #[arg(long, requires = "shard")]
+    manifest: Option<PathBuf>,
+    /// The shard: 0 … N−1, or `env` for the array index of Slurm (SLURM_ARRAY_TASK_ID),
+    /// Kubernetes (JOB_COMPLETION_INDEX) or AWS Batch (AWS_BATCH_JOB_ARRAY_INDEX).
+    #[arg(long, requires = "manifest")]
+    shard: Option<String>,
+    /// With --shard: build the partial store in this folder (node-local disk) and copy it to
+    /// --store when complete.
+    #[arg(long, requires = "shard")]
+    work_dir: Option<PathBuf>,
     /// Dataset name (default: the first source's file name).
     #[arg(long)]
     name: Option<String>,
@@ -437,8 +460,77 @@ struct ImportArgs {
     quiet: bool,
 }
 
+/// The shard a task runs: a number, or `env` for the scheduler's array index.
+fn shard_index(text: &str) -> Result<usize> {
+    if text == "env" {
+        const VARS: [&str; 3] = ["SLURM_ARRAY_TASK_ID", "JOB_COMPLETION_INDEX", "AWS_BATCH_JOB_ARRAY_INDEX"];
+        let (var, value) = VARS
+            .iter()
+            .find_map(|v| std::env::var(v).ok().map(|x| (*v, x)))
+            .ok_or_else(|| anyhow::anyhow!("--shard env: none of {} is set", VARS.join(", ")))?;
+        return value.trim().parse().map_err(|_| anyhow::anyhow!("--shard env: {var}={value} is not a shard number"));
+    }
+    text.parse().map_err(|_| anyhow::anyhow!("--shard {text}: give a shard number 0 … N−1, or env"))
+}
+
+#[derive(Subcommand)]
+enum SlurmCommand {
+    /// Submit a plan's missing shards as a job array (one shard per task, built on node-local
+    /// disk, copied to --parts when complete) and a merge job that runs after it
+    /// (--dependency=afterok). After failures, run it again: only missing shards are submitted.
+    Submit(SubmitArgs),
+}
+
+#[derive(clap::Args, Clone)]
+struct SubmitArgs {
+    /// The manifest (`terrafuse import … --plan MANIFEST --shards N`).
+    #[arg(long)]
+    manifest: PathBuf,
+    /// Folder for the partial stores, on storage every node sees (also the scripts and logs, in
+    /// PARTS/slurm).
+    #[arg(long)]
+    parts: PathBuf,
+    /// The merged store.
+    #[arg(long)]
+    store: PathBuf,
+    /// CPUs per task, and the import's threads.
+    #[arg(long, default_value_t = 2)]
+    threads: usize,
+    /// Memory budget per task.
+    #[arg(long, default_value = "2GiB")]
+    memory_budget: String,
+    /// Node-local folder a task builds its shard in (a shell word, expanded on the node).
+    #[arg(long, default_value = "${TMPDIR:-/tmp}")]
+    work_dir: String,
+    /// An extra sbatch argument for both jobs (repeat it): --sbatch-arg=--partition=short.
+    #[arg(long, allow_hyphen_values = true)]
+    sbatch_arg: Vec<String>,
+    /// The terrafuse executable the nodes run (default: this one).
+    #[arg(long)]
+    terrafuse: Option<PathBuf>,
+    /// Print the sbatch commands without submitting.
+    #[arg(long)]
+    dry_run: bool,
+}
+
 #[derive(Subcommand)]
 enum StoreCommand {
+    /// Merge the partial stores of a sharded import into STORE (one transaction per shard; a
+    /// shard merged before is skipped) and, when every shard is in, build the pyramid. Exits 3
+    /// when shards are still missing.
+    Merge {
+        /// The store (created if missing).
+        store: PathBuf,
+        /// Partial stores (`terrafuse import --manifest M --shard I --store PART`).
+        #[arg(required = true)]
+        parts: Vec<PathBuf>,
+        /// Worker threads for the pyramid (default: all cores).
+        #[arg(long)]
+        threads: Option<usize>,
+        /// No progress bar.
+        #[arg(long)]
+        quiet: bool,
+    },
     /// Body, datasets, levels, tile counts, extents and provenance.
     Info {
         /// The store.
@@ -737,8 +829,8 @@ struct BenchImportArgs {
 fn import_options(a: &ImportArgs) -> Result<terrafuse::store::ImportOptions> {
     Ok(terrafuse::store::ImportOptions {
         sources: a.sources.clone(),
-        store: a.store.clone(),
-        body: a.body.parse()?,
+        store: a.store.clone().or_else(|| a.plan.clone()).unwrap_or_default(),
+        body: a.body.as_deref().unwrap_or_default().parse()?,
         name: a.name.clone(),
         level: a.max_level.parse().map_err(anyhow::Error::msg)?,
         resampling: a.resampling.parse().map_err(anyhow::Error::msg)?,
@@ -1008,10 +1100,63 @@ fn run(args: Args) -> Result<ExitCode> {
             };
             workstation(&opts)?;
         }
-        Command::Import { import } => {
-            let opts = import_options(&import)?;
-            let report = terrafuse::store::import(&opts)?;
-            print!("{}", cli::import_summary(&opts.store, &report));
+        Command::Import { import } => match (&import.plan, &import.manifest) {
+            (Some(plan), _) => {
+                let opts = import_options(&import)?;
+                let report = terrafuse::store::shard::plan(&opts, plan, import.shards.unwrap_or(0))?;
+                print!("{}", cli::plan_summary(plan, &report));
+            }
+            (None, Some(manifest)) => {
+                let shard = shard_index(import.shard.as_deref().unwrap_or_default())?;
+                let store = import.store.clone().unwrap_or_default();
+                let opts = terrafuse::store::shard::ShardOptions {
+                    manifest: manifest.clone(),
+                    shard,
+                    store: store.clone(),
+                    work_dir: import.work_dir.clone(),
+                    threads: import.threads,
+                    memory_budget: cli::parse_bytes(&import.memory_budget).map_err(anyhow::Error::msg)?,
+                    progress: !import.quiet,
+                    watch: None,
+                };
+                let report = terrafuse::store::shard::import_shard(&opts)?;
+                print!("{}", cli::shard_summary(&store, shard, &report));
+            }
+            (None, None) => {
+                let opts = import_options(&import)?;
+                let report = terrafuse::store::import(&opts)?;
+                print!("{}", cli::import_summary(&opts.store, &report));
+            }
+        },
+        Command::Store { command: StoreCommand::Merge { store, parts, threads, quiet } } => {
+            let opts = terrafuse::store::merge::MergeOptions {
+                store: store.clone(),
+                parts,
+                threads,
+                progress: !quiet,
+                watch: None,
+            };
+            let report = terrafuse::store::merge::merge(&opts)?;
+            print!("{}", cli::merge_summary(&store, &report));
+            if !report.complete {
+                return Ok(ExitCode::from(3));
+            }
+        }
+        Command::Slurm { command: SlurmCommand::Submit(a) } => {
+            print!(
+                "{}",
+                cli::slurm_submit(&cli::SubmitRequest {
+                    manifest: a.manifest,
+                    parts: a.parts,
+                    store: a.store,
+                    threads: a.threads,
+                    memory_budget: a.memory_budget,
+                    work_dir: a.work_dir,
+                    sbatch_args: a.sbatch_arg,
+                    terrafuse: a.terrafuse,
+                    dry_run: a.dry_run,
+                })?
+            );
         }
         Command::Store { command: StoreCommand::Info { store } } => {
             print!("{}", cli::store_info(&store)?);

@@ -19,6 +19,8 @@ mod project;
 mod render;
 mod replay;
 mod report;
+mod shard;
+mod slurm;
 mod store;
 
 pub use bench_brush::{bench_brush, scripted_strokes};
@@ -42,6 +44,8 @@ pub use project::{project_check, project_upgrade};
 pub use render::{RenderRequest, frame_report, open_renderer, render, request_camera, write_png};
 pub use replay::{ReplayOutcome, ReplayRequest, replay_command};
 pub use report::{overview, tissot_report};
+pub use shard::{array_ranges, merge_summary, plan_summary, shard_summary};
+pub use slurm::{SubmitRequest, slurm_submit};
 pub use store::{
     WarpComparison, bench_import, default_work_dir, import_summary, parse_bytes, sample_lines, store_info,
     warp_comparison,

@@ -298,6 +298,27 @@ impl Store {
         &self.path
     }
 
+    /// A value of the store's header (`terrafuse_store`).
+    pub fn header(&self, key: &str) -> Result<Option<String>, StoreError> {
+        self.conn
+            .query_row("SELECT value FROM terrafuse_store WHERE key = ?1", [key], |r| r.get(0))
+            .optional()
+            .map_err(self.err("cannot read the store header"))
+    }
+
+    /// Sets a value of the store's header.
+    pub fn set_header(&mut self, key: &str, value: &str) -> Result<(), StoreError> {
+        self.conn
+            .execute("INSERT OR REPLACE INTO terrafuse_store VALUES (?1, ?2)", params![key, value])
+            .map(|_| ())
+            .map_err(self.err("cannot write the store header"))
+    }
+
+    /// The SQLite connection, for the merge's attached statements.
+    pub(super) fn connection(&mut self) -> &mut Connection {
+        &mut self.conn
+    }
+
     /// The body every dataset of the store lies on.
     pub fn body(&self) -> &Ellipsoid {
         &self.body

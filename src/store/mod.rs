@@ -7,6 +7,8 @@
 //! - [`gpkg`]: the GeoPackage file, transactions, provenance.
 //! - [`source`]: a GDAL source, checked and read in windows.
 //! - [`import`]: the import pipeline.
+//! - [`shard`]: sharded imports: the plan (manifest) and one shard's partial store.
+//! - [`merge`]: partial stores merged into a store, and its pyramid built once.
 //! - [`resample`]: the import's sampling (footprints, resampling, the pyramid's averages).
 //! - [`read`]: reading back.
 //! - [`watch`]: an import's progress and cancel switch, for another thread.
@@ -16,8 +18,10 @@ pub mod export;
 pub mod gpkg;
 pub mod grid;
 pub mod import;
+pub mod merge;
 pub mod read;
 pub mod resample;
+pub mod shard;
 pub mod source;
 pub mod tile;
 pub mod watch;

@@ -538,10 +538,9 @@ fn provenance(info: &SourceInfo) -> Result<SourceProvenance, StoreError> {
     })
 }
 
-fn same_files(a: &[SourceProvenance], b: &[SourceProvenance]) -> bool {
+pub(in crate::store) fn same_files(a: &[SourceProvenance], b: &[SourceProvenance]) -> bool {
     a.len() == b.len()
         && a.iter()
             .zip(b)
             .all(|(x, y)| x.path == y.path && x.file_bytes == y.file_bytes && x.modified_unix_s == y.modified_unix_s)
 }
-

@@ -1,0 +1,148 @@
+//! `terrafuse slurm submit`: a plan's missing shards as a Slurm job array, and the merge after it.
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use anyhow::{Context, Result, bail};
+
+use super::shard::array_ranges;
+use crate::slurm::{SlurmJob, part_path};
+use crate::store::merge::merged_shards;
+use crate::store::shard::{Manifest, part_is_done};
+
+/// What `terrafuse slurm submit` is given.
+#[derive(Clone, Debug)]
+pub struct SubmitRequest {
+    /// The manifest.
+    pub manifest: PathBuf,
+    /// Folder of the partial stores (shared storage).
+    pub parts: PathBuf,
+    /// The merged store.
+    pub store: PathBuf,
+    /// CPUs per task.
+    pub threads: usize,
+    /// Memory budget per task.
+    pub memory_budget: String,
+    /// Node-local work folder (a shell word, expanded on the node).
+    pub work_dir: String,
+    /// Extra `sbatch` arguments (partition, account, time…), for both jobs.
+    pub sbatch_args: Vec<String>,
+    /// The terrafuse the nodes run (default: this one).
+    pub terrafuse: Option<PathBuf>,
+    /// Print the commands instead of running them.
+    pub dry_run: bool,
+}
+
+fn absolute(path: &Path) -> Result<PathBuf> {
+    std::path::absolute(path).with_context(|| format!("{}: cannot make the path absolute", path.display()))
+}
+
+fn run(cmd: &mut Command) -> Result<String> {
+    let out = cmd.output().with_context(|| {
+        format!("cannot run {:?}: is Slurm installed (sbatch, squeue on the PATH, SLURM_CONF set)?", cmd.get_program())
+    })?;
+    if !out.status.success() {
+        bail!("{:?} failed: {}", cmd.get_program(), String::from_utf8_lossy(&out.stderr).trim());
+    }
+    Ok(String::from_utf8_lossy(&out.stdout).trim().to_owned())
+}
+
+fn show(cmd: &Command) -> String {
+    std::iter::once(cmd.get_program())
+        .chain(cmd.get_args())
+        .map(|a| crate::slurm::shell_quote(&a.to_string_lossy()))
+        .collect::<Vec<_>>()
+        .join(" ")
+}
+
+/// Submits the shards whose parts are missing as one job array, and a merge job that depends on
+/// it; with every part present, only the merge; with the store complete, nothing.
+pub fn slurm_submit(req: &SubmitRequest) -> Result<String> {
+    let m = Manifest::load(&req.manifest)?;
+    let parts = absolute(&req.parts)?;
+    let store = absolute(&req.store)?;
+    let terrafuse = match &req.terrafuse {
+        Some(p) => absolute(p)?,
+        None => std::env::current_exe().context("cannot find this terrafuse executable")?,
+    };
+    let job = SlurmJob {
+        terrafuse,
+        manifest: absolute(&req.manifest)?,
+        parts: parts.clone(),
+        store: store.clone(),
+        shards: m.shards.len(),
+        name: format!("tf-{}", m.short_hash()),
+        threads: req.threads.max(1),
+        memory_budget: req.memory_budget.clone(),
+        work_dir: req.work_dir.clone(),
+    };
+    let mut out = String::new();
+    if let Some((_, true)) = merged_shards(&store, &m.import.dataset, &m.hash)? {
+        let _ = writeln!(out, "{}: dataset {} is complete: nothing to submit", store.display(), m.import.dataset);
+        return Ok(out);
+    }
+    if !req.dry_run {
+        let queued =
+            run(Command::new("squeue").args(["-h", "-o", "%i %j %T", "-n"]).arg(format!("{0},{0}-merge", job.name)))?;
+        if !queued.is_empty() {
+            bail!(
+                "jobs of plan {} are still queued or running:\n{queued}\nwait for them to end (squeue -n {}) or cancel them (scancel -n {}), then submit again",
+                m.short_hash(),
+                job.name,
+                job.name
+            );
+        }
+    }
+    let merged = merged_shards(&store, &m.import.dataset, &m.hash)?.map(|(s, _)| s).unwrap_or_default();
+    let missing: Vec<usize> =
+        (0..m.shards.len()).filter(|&i| !merged.contains(&i) && !part_is_done(&part_path(&parts, i), &m, i)).collect();
+    std::fs::create_dir_all(job.slurm_dir())
+        .with_context(|| format!("{}: cannot make the folder", job.slurm_dir().display()))?;
+    let shard_script = job.slurm_dir().join("shard.sbatch");
+    let merge_script = job.slurm_dir().join("merge.sbatch");
+    for (path, text) in [(&shard_script, job.shard_script()), (&merge_script, job.merge_script())] {
+        crate::files::write_atomic(path, text.as_bytes())
+            .with_context(|| format!("{}: cannot write", path.display()))?;
+    }
+    let _ = writeln!(
+        out,
+        "plan {}: {} shards, {} to run ({}), parts in {}",
+        m.short_hash(),
+        m.shards.len(),
+        missing.len(),
+        if missing.is_empty() { "none".into() } else { array_ranges(&missing) },
+        parts.display()
+    );
+    let mut array = Command::new("sbatch");
+    array
+        .arg("--parsable")
+        .arg(format!("--array={}", array_ranges(&missing)))
+        .args(&req.sbatch_args)
+        .arg(&shard_script);
+    let mut merge = Command::new("sbatch");
+    merge.arg("--parsable").args(&req.sbatch_args);
+    if req.dry_run {
+        if !missing.is_empty() {
+            let _ = writeln!(out, "{}", show(&array));
+            merge.arg("--dependency=afterok:$ARRAY_JOB_ID").arg("--kill-on-invalid-dep=yes");
+        }
+        let _ = writeln!(out, "{}", show(merge.arg(&merge_script)));
+        return Ok(out);
+    }
+    if !missing.is_empty() {
+        let id = run(&mut array)?;
+        let id = id.split(';').next().unwrap_or(&id).to_owned();
+        let _ =
+            writeln!(out, "submitted job array {id} ({}), logs {}/shard-*.log", job.name, job.slurm_dir().display());
+        merge.arg(format!("--dependency=afterok:{id}")).arg("--kill-on-invalid-dep=yes");
+    }
+    let id = run(merge.arg(&merge_script))?;
+    let _ = writeln!(out, "submitted merge job {id} ({}-merge), log {}/merge.log", job.name, job.slurm_dir().display());
+    let _ = writeln!(
+        out,
+        "watch: squeue -n {0},{0}-merge; after a failure run the same command again: only missing shards are submitted",
+        job.name
+    );
+    Ok(out)
+}
