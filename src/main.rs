@@ -445,6 +445,11 @@ struct ImportArgs {
     /// Resampling at the finest level: bilinear, cubic or nearest.
     #[arg(long, default_value = "bilinear")]
     resampling: String,
+    /// Where samples fall in the sources: lattice (exact on a coarse lattice per quad,
+    /// interpolated within 10⁻³ source pixel, measured on every quad, else exact) or exact
+    /// (every sample through PROJ).
+    #[arg(long, default_value = "lattice")]
+    transform: String,
     /// Vertical datum of the source heights: ellipsoidal, egm96, egm2008 or geoid:GRIDFILE
     /// (geoid heights are converted to ellipsoidal ones through PROJ), or unspecified.
     #[arg(long, default_value = "unspecified")]
@@ -834,6 +839,7 @@ fn import_options(a: &ImportArgs) -> Result<terrafuse::store::ImportOptions> {
         name: a.name.clone(),
         level: a.max_level.parse().map_err(anyhow::Error::msg)?,
         resampling: a.resampling.parse().map_err(anyhow::Error::msg)?,
+        transform: a.transform.parse().map_err(anyhow::Error::msg)?,
         vertical: a.vertical_datum.parse().map_err(anyhow::Error::msg)?,
         memory_budget: cli::parse_bytes(&a.memory_budget).map_err(anyhow::Error::msg)?,
         threads: a.threads,
@@ -1245,6 +1251,7 @@ fn run(args: Args) -> Result<ExitCode> {
                 name: Some("bench".into()),
                 level: import.level.parse().map_err(anyhow::Error::msg)?,
                 resampling: terrafuse::store::Resampling::Bilinear,
+                transform: terrafuse::store::lattice::Transform::Lattice,
                 vertical: terrafuse::store::VerticalDatum::Unspecified,
                 memory_budget: 2 << 30,
                 threads: Some(import.threads),

@@ -35,6 +35,7 @@ fn options(sources: &[PathBuf], store: &Path, body: Ellipsoid, name: &str, level
         name: Some(name.into()),
         level,
         resampling: Resampling::Bilinear,
+        transform: terrafuse::store::lattice::Transform::Lattice,
         vertical: VerticalDatum::Unspecified,
         memory_budget: 512 << 20,
         threads: Some(2),
@@ -633,4 +634,83 @@ fn store_info_sample_and_export_from_the_command_line() {
         "",
     );
     assert!(!bad.status.success() && String::from_utf8_lossy(&bad.stderr).contains("EPSG:999999"));
+}
+
+/// The lattice of source positions (the import's default) against the exact chain at random
+/// points of every quad, on every sample DEM at its import level and coarser: within twice the
+/// tolerance its own check enforces at the cell centres; and the whole import within float
+/// rounding of the exact one.
+#[test]
+fn lattice_positions_stay_within_their_bound_and_imports_match_the_exact_transform() {
+    use rand::{Rng, SeedableRng};
+    use terrafuse::ecm::CubeProjection;
+    use terrafuse::store::lattice::{LatticeStats, PixelLattice, TOLERANCE_PX, Transform, exact_positions};
+    use terrafuse::store::source::{SourceInfo, SourceReader};
+    let cases = [
+        ("earth_srtm3_demcompare_N39E040.tif", Ellipsoid::WGS84, [9u8, 11]),
+        ("earth_jacksboro_srtm3_epsg4326.tif", Ellipsoid::WGS84, [8, 10]),
+        ("earth_topobathy_merc2min_epsg3857.tif", Ellipsoid::WGS84, [5, 7]),
+        ("moon_lola_north_stere_1600m.tif", Ellipsoid::MOON, [3, 5]),
+        ("moon_lola_ldem_4ppd_global.tif", Ellipsoid::MOON, [2, 4]),
+        ("earth_srtm3_blurred_shifted_N39E040.tif", Ellipsoid::WGS84, [9, 10]),
+    ];
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(17);
+    let mut table = String::new();
+    for (file, body, levels) in cases {
+        let info = SourceInfo::open(&data(file), &body).unwrap();
+        let reader = SourceReader::new(&info, &body).unwrap();
+        for level in levels {
+            let [w, s, e, n] = info.bounds_deg;
+            let mut quads = std::collections::BTreeSet::new();
+            for a in 0..=40 {
+                for b in 0..=40 {
+                    let (lat, lon) = (s + (n - s) * f64::from(a) / 40.0, w + (e - w) * f64::from(b) / 40.0);
+                    let p = CubeProjection::Qsc.face_point_from_geodetic(&body, lat.to_radians(), lon.to_radians());
+                    quads.insert(QuadId::containing(p, level).unwrap());
+                }
+            }
+            let stats = LatticeStats::default();
+            let mut worst = 0.0f64;
+            for &q in &quads {
+                let span = [0.0, 256.0];
+                let Some(l) = PixelLattice::build(&reader, &body, q, span, span, &stats) else { continue };
+                let (us, vs): (Vec<f64>, Vec<f64>) =
+                    (0..200).map(|_| (rng.random_range(0.0..=256.0), rng.random_range(0.0..=256.0))).unzip();
+                let (xs, ys) = exact_positions(&reader, &body, q, &us, &vs);
+                for k in 0..us.len() {
+                    let (x, y) = l.at(us[k], vs[k]);
+                    worst = worst.max((x - xs[k]).abs()).max((y - ys[k]).abs());
+                }
+            }
+            let ([l16, l8, l4], exact, centre) = stats.summary();
+            table += &format!(
+                "{file} level {level}: {} quads: {l16}/{l8}/{l4} on 16/8/4-sample lattices, {exact} exact; \
+                 largest error at cell centres {centre:.1e} px, at 200 random points per quad {worst:.1e} px\n",
+                quads.len()
+            );
+            assert!(worst <= 2.0 * TOLERANCE_PX, "{file} level {level}: {worst:e} px at a random point");
+        }
+    }
+    // High-level imports are interpolated, not computed exactly.
+    assert!(table.contains("earth_srtm3_demcompare_N39E040.tif level 11") && !table.contains(" 0/0/0 on"), "{table}");
+    println!("{table}");
+
+    // A whole import both ways: the same samples to float rounding.
+    let dir = scratch("lattice");
+    let src = data("earth_srtm3_demcompare_N39E040.tif");
+    let mut stores = Vec::new();
+    for transform in [Transform::Lattice, Transform::Exact] {
+        let path = dir.join(format!("{}.gpkg", transform.name()));
+        let mut o = options(std::slice::from_ref(&src), &path, Ellipsoid::WGS84, "d", LevelChoice::Level(10));
+        o.transform = transform;
+        o.finest_only = true;
+        import(&o).unwrap();
+        stores.push(Store::open_read_only(&path).unwrap());
+    }
+    let (mean, max, n, one) = terrafuse::cli::store_difference(&stores[0], &stores[1], "d", 10).unwrap();
+    println!(
+        "lattice vs exact, SRTM level 10: {n} samples, mean {mean:.1e} m, max {max:.1e} m, {one} with data in one only"
+    );
+    assert!(n > 1_000_000 && one == 0, "{n} samples, {one} differ in data");
+    assert!(mean < 1e-6 && max < 1e-3, "mean {mean:e} m, max {max:e} m");
 }

@@ -47,8 +47,8 @@ pub use report::{overview, tissot_report};
 pub use shard::{array_ranges, merge_summary, plan_summary, shard_summary};
 pub use slurm::{SubmitRequest, slurm_submit};
 pub use store::{
-    WarpComparison, bench_import, default_work_dir, import_summary, parse_bytes, sample_lines, store_info,
-    warp_comparison,
+    WarpComparison, bench_import, default_work_dir, import_summary, lattice_line, parse_bytes, sample_lines,
+    store_difference, store_info, warp_comparison,
 };
 
 /// Formats a float with full precision: the shortest decimal that reads back to the same f64

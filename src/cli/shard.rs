@@ -43,12 +43,13 @@ pub fn shard_summary(store: &Path, shard: usize, r: &ImportReport) -> String {
     let (_, written, resumed) = r.levels.first().copied().unwrap_or_default();
     let resumed = if resumed > 0 { format!(", {resumed} quads finished by an earlier run") } else { String::new() };
     format!(
-        "shard {shard} → {}: level {}, {written} tiles with data{resumed}; {:.2} s ({:.2} M samples/s), peak memory {:.0} MiB\n",
+        "shard {shard} → {}: level {}, {written} tiles with data{resumed}; {:.2} s ({:.2} M samples/s), peak memory {:.0} MiB\n{}",
         store.display(),
         r.finest_level,
         r.seconds_finest,
         r.finest_samples as f64 / r.seconds_finest.max(1e-9) / 1e6,
-        r.peak_rss_bytes as f64 / f64::from(1u32 << 20)
+        r.peak_rss_bytes as f64 / f64::from(1u32 << 20),
+        super::store::lattice_line(r)
     )
 }
 

@@ -8,8 +8,9 @@ use std::time::Instant;
 
 use crate::ecm::Face;
 use crate::store::gpkg::{Store, face_proj};
-use crate::store::grid::{self, TILE};
+use crate::store::grid::{self, GRID, TILE};
 use crate::store::import::peak_rss_bytes;
+use crate::store::lattice::Transform;
 use crate::store::{GridReader, ImportOptions, ImportReport, StoreError, import};
 
 /// Parses a memory size: `2GiB`, `512MiB`, `64KiB` or bytes.
@@ -52,7 +53,20 @@ pub fn import_summary(store: &Path, r: &ImportReport) -> String {
         r.peak_rss_bytes as f64 / (1u64 << 20) as f64
     );
     let _ = writeln!(out, "heights: {}", r.vertical_datum);
+    let _ = write!(out, "{}", lattice_line(r));
     out
+}
+
+/// How sample positions were found: quads on each lattice spacing, exact quads, the error.
+pub fn lattice_line(r: &ImportReport) -> String {
+    let ([l16, l8, l4], exact, err) = r.lattice;
+    if l16 + l8 + l4 + exact == 0 {
+        return String::new();
+    }
+    format!(
+        "positions: {l16} quads on a 16-sample lattice, {l8} on 8, {l4} on 4, {exact} exact; largest lattice error {err:.1e} source pixels (bound {:.0e})\n",
+        crate::store::lattice::TOLERANCE_PX
+    )
 }
 
 /// `terrafuse store info`: bodies, datasets, levels, tile counts, extents and provenance.
@@ -171,21 +185,29 @@ pub fn sample_lines(
 /// grid (pixel centres on our samples), with throughput, peak memory and their difference.
 pub fn bench_import(opts: &ImportOptions, work: &Path, threads: usize) -> Result<String, StoreError> {
     std::fs::create_dir_all(work).map_err(|e| StoreError::new(work, e.to_string()))?;
-    let store_path = work.join("bench-store.gpkg");
-    let _ = std::fs::remove_file(&store_path);
-    let mut opts = opts.clone();
-    opts.store = store_path.clone();
-    opts.finest_only = true;
-    opts.progress = false;
-    opts.threads = Some(threads);
-    let t = Instant::now();
-    let report = import(&opts)?;
-    let ours_s = t.elapsed().as_secs_f64();
+    // Ours twice: positions on the lattice (the default) and exact.
+    let run = |transform: Transform| -> Result<(ImportReport, f64, PathBuf), StoreError> {
+        let store_path = work.join(format!("bench-{}.gpkg", transform.name()));
+        let _ = std::fs::remove_file(&store_path);
+        let mut opts = opts.clone();
+        opts.store = store_path.clone();
+        opts.finest_only = true;
+        opts.progress = false;
+        opts.threads = Some(threads);
+        opts.transform = transform;
+        let t = Instant::now();
+        let report = import(&opts)?;
+        Ok((report, t.elapsed().as_secs_f64(), store_path))
+    };
+    let (report, ours_s, store_path) = run(Transform::Lattice)?;
     let ours_rss = peak_rss_bytes();
+    let (_, exact_s, exact_path) = run(Transform::Exact)?;
     let level = report.finest_level;
     let store = Store::open_read_only(&store_path)?;
     let quads = store.finished_quads(&report.dataset, level)?;
     let ours_samples = quads.len() as u64 * u64::from(TILE * TILE);
+    let (lattice_mean, lattice_max, lattice_n, data_differs) =
+        store_difference(&store, &Store::open_read_only(&exact_path)?, &report.dataset, level)?;
 
     let mut rows = Vec::new();
     for (label, exact) in [("gdalwarp (default -et 0.125)", false), ("gdalwarp -et 0 (exact)", true)] {
@@ -213,19 +235,20 @@ pub fn bench_import(opts: &ImportOptions, work: &Path, threads: usize) -> Result
     let _ = writeln!(
         out,
         "{:<30} {:>9} {:>14} {:>13} {:>10} {:>22}",
-        "tool", "seconds", "output samples", "M samples/s", "peak MiB", "|ours − it| mean/max m"
+        "tool", "seconds", "output samples", "M samples/s", "peak MiB", "|lattice − it| mean/max m"
     );
     let mib = |b: u64| b as f64 / (1u64 << 20) as f64;
-    let _ = writeln!(
-        out,
-        "{:<30} {:>9.3} {:>14} {:>13.3} {:>10.0} {:>22}",
-        "terrafuse import",
-        ours_s,
-        ours_samples,
-        ours_samples as f64 / ours_s / 1e6,
-        mib(ours_rss),
-        "-"
-    );
+    for (label, secs, diff) in [
+        ("terrafuse (lattice, default)", ours_s, "-".to_owned()),
+        ("terrafuse --transform exact", exact_s, format!("{lattice_mean:.2e} / {lattice_max:.2e}")),
+    ] {
+        let _ = writeln!(
+            out,
+            "{label:<30} {secs:>9.3} {ours_samples:>14} {:>13.3} {:>10.0} {diff:>22}",
+            ours_samples as f64 / secs / 1e6,
+            mib(ours_rss),
+        );
+    }
     for (label, secs, pixels, (sum, max, n)) in &rows {
         let _ = writeln!(
             out,
@@ -238,12 +261,41 @@ pub fn bench_import(opts: &ImportOptions, work: &Path, threads: usize) -> Result
             format!("{:.2e} / {:.2e}", sum / (*n).max(1) as f64, max)
         );
     }
+    let _ = write!(out, "{}", lattice_line(&report));
+    let _ = writeln!(out, "lattice vs exact: {lattice_n} samples compared, {data_differs} where only one has data");
+    let _ = writeln!(out, "throughput ratio terrafuse lattice / exact: {:.2}", exact_s / ours_s);
     for (label, secs, pixels, _) in &rows {
         let ratio = (ours_samples as f64 / ours_s) / (*pixels as f64 / secs);
-        let _ = writeln!(out, "throughput ratio terrafuse / {label}: {ratio:.2}");
+        let _ = writeln!(out, "throughput ratio terrafuse lattice / {label}: {ratio:.2}");
     }
     let _ = writeln!(out, "anchor: Lambers & Kolb 2012 preprocessed SRTM at ≈0.9 M samples/s with 8 threads");
     Ok(out)
+}
+
+/// Mean and largest |a − b| over a level's samples where both stores have data, how many
+/// samples that is, and how many have data in one store only.
+pub fn store_difference(a: &Store, b: &Store, dataset: &str, level: u8) -> Result<(f64, f64, u64, u64), StoreError> {
+    let (mut sum, mut max, mut n, mut one) = (0.0f64, 0.0f64, 0u64, 0u64);
+    let mut quads: Vec<_> = a.data_quads(dataset, level)?.union(&b.data_quads(dataset, level)?).copied().collect();
+    quads.sort();
+    for q in quads {
+        let (ga, gb) = (a.read_grid(dataset, q)?, b.read_grid(dataset, q)?);
+        let nan = vec![f32::NAN; (GRID * GRID) as usize];
+        let (va, vb) = (ga.map_or_else(|| nan.clone(), |g| g.values), gb.map_or(nan, |g| g.values));
+        for (x, y) in va.iter().zip(&vb) {
+            match (x.is_nan(), y.is_nan()) {
+                (false, false) => {
+                    let d = f64::from((x - y).abs());
+                    sum += d;
+                    max = max.max(d);
+                    n += 1;
+                }
+                (true, true) => {}
+                _ => one += 1,
+            }
+        }
+    }
+    Ok((sum / n.max(1) as f64, max, n, one))
 }
 
 /// gdalwarp's resampling of the same sources into the same grid as a dataset level (per face,

@@ -455,6 +455,7 @@ pub fn import_needed(project: &Project, d: &LayerSpec) -> Result<Option<ImportOp
         name: Some(name.to_string()),
         level: source.max_level.map_or(LevelChoice::Auto, LevelChoice::Level),
         resampling: Resampling::Bilinear,
+        transform: crate::store::lattice::Transform::Lattice,
         vertical,
         memory_budget: 1 << 30,
         threads: None,

@@ -13,7 +13,7 @@ use serde::{Deserialize, Serialize};
 
 use super::StoreError;
 use super::grid::{TILE, intervals_per_face_edge};
-use super::tile::QuadGrid;
+use super::tile::{EncodedQuad, QuadGrid};
 use crate::ecm::{Face, QuadId};
 use crate::geodesy::Ellipsoid;
 
@@ -38,10 +38,18 @@ pub struct DatasetSettings {
     pub resampling: String,
     /// Sub-samples per axis averaged per sample at the finest level (1: point sampling).
     pub supersample: u32,
+    /// How sample positions in the sources were computed: `lattice` (exact on a lattice,
+    /// interpolated within 10⁻³ pixel, else exact) or `exact` (stores made before the lattice).
+    #[serde(default = "exact_transform")]
+    pub transform: String,
     /// The vertical datum of the stored heights, in words.
     pub vertical_datum: String,
     /// The geoid grid used to convert geoid heights to ellipsoidal ones, if any.
     pub geoid_grid: Option<String>,
+}
+
+fn exact_transform() -> String {
+    "exact".into()
 }
 
 /// What the store keeps about each source of a dataset.
@@ -464,7 +472,7 @@ impl Store {
     /// Writes finished quads of one level in one transaction: tiles with data (GeoPackage tile,
     /// tile statistics, rim) and, for every quad, its journal entry, so that a resumed import
     /// skips it.
-    pub fn write_quads(&mut self, dataset: &str, quads: &[(QuadId, Option<QuadGrid>)]) -> Result<(), StoreError> {
+    pub fn write_quads(&mut self, dataset: &str, quads: &[(QuadId, Option<EncodedQuad>)]) -> Result<(), StoreError> {
         let path = self.path.clone();
         let e = |what: &'static str| sql_err(&path, what);
         let tx = self.conn.transaction().map_err(e("cannot start a transaction"))?;
@@ -477,11 +485,11 @@ impl Store {
                     &format!(
                         "INSERT OR REPLACE INTO \"{table}\" (zoom_level, tile_column, tile_row, tile_data) VALUES (?1, ?2, ?3, ?4)"
                     ),
-                    params![quad.level, quad.x, row, grid.encode_tile()],
+                    params![quad.level, quad.x, row, grid.tile],
                 )
                 .map_err(e("cannot write a tile"))?;
                 let id = tx.last_insert_rowid();
-                let s = grid.tile_stats().unwrap_or_default();
+                let s = &grid.stats;
                 tx.execute(
                     "INSERT OR REPLACE INTO gpkg_2d_gridded_tile_ancillary (tpudt_name, tpudt_id, scale, offset, min, max, mean, std_dev)
                      VALUES (?1, ?2, 1.0, 0.0, ?3, ?4, ?5, ?6)",
@@ -490,7 +498,7 @@ impl Store {
                 .map_err(e("cannot write tile statistics"))?;
                 tx.execute(
                     "INSERT OR REPLACE INTO terrafuse_rims VALUES (?1, ?2, ?3, ?4, ?5, ?6)",
-                    params![dataset, quad.level, face, quad.x, quad.y, grid.encode_rim()],
+                    params![dataset, quad.level, face, quad.x, quad.y, grid.rim],
                 )
                 .map_err(e("cannot write a tile rim"))?;
             }

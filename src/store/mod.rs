@@ -9,6 +9,7 @@
 //! - [`import`]: the import pipeline.
 //! - [`shard`]: sharded imports: the plan (manifest) and one shard's partial store.
 //! - [`merge`]: partial stores merged into a store, and its pyramid built once.
+//! - [`lattice`]: sample positions in a source on an interpolated lattice, error measured.
 //! - [`resample`]: the import's sampling (footprints, resampling, the pyramid's averages).
 //! - [`read`]: reading back.
 //! - [`watch`]: an import's progress and cancel switch, for another thread.
@@ -18,6 +19,7 @@ pub mod export;
 pub mod gpkg;
 pub mod grid;
 pub mod import;
+pub mod lattice;
 pub mod merge;
 pub mod read;
 pub mod resample;

@@ -9,6 +9,7 @@ use gdal::spatial_ref::CoordTransform;
 use super::StoreError;
 use super::grid::{self, GRID, TILE, face_xy, spacing_m};
 use super::import::{Plan, Resampling, Worker};
+use super::lattice::{PixelLattice, Transform};
 use super::read::GridReader;
 use super::source::{SourceReader, Window};
 use super::tile::QuadGrid;
@@ -78,19 +79,41 @@ pub(super) fn resample_quad(
     let n = GRID as usize;
     let mut grid = QuadGrid::empty();
     let j0 = i64::from(quad.y) * i64::from(TILE);
+    let i0 = i64::from(quad.x) * i64::from(TILE);
+    let m = grid::intervals_per_face_edge(quad.level) as f64;
+    // Sub-samples lie within half a sample of the quad's samples, on the face.
+    let span = |c0: i64| {
+        let t = f64::from(TILE);
+        if k == 1 { [0.0, t] } else { [(-0.5f64).max(-c0 as f64), (t + 0.5).min(m - c0 as f64)] }
+    };
+    let (span_u, span_v) = (span(i0), span(j0));
+    let lattices: Vec<Option<PixelLattice>> = match plan.transform {
+        Transform::Exact => worker.readers.iter().map(|_| None).collect(),
+        Transform::Lattice => {
+            worker.readers.iter().map(|r| PixelLattice::build(r, body, quad, span_u, span_v, &plan.lattice)).collect()
+        }
+    };
     // Rows of samples in bands, each band's positions computed once and read per source.
     let band_rows = (16_384 / (n * (k * k) as usize)).max(1);
     let mut row = 0usize;
     while row < n {
         let rows = band_rows.min(n - row);
-        let (lons, lats) = band_positions(body, quad, j0 + row as i64, rows, k);
+        let mut geodetic = None;
         let mut values = vec![f64::NAN; rows * n];
-        for reader in &worker.readers {
+        for (reader, lattice) in worker.readers.iter().zip(&lattices) {
             if values.iter().all(|v| !v.is_nan()) {
                 break;
             }
-            let (mut fx, mut fy) = (lons.clone(), lats.clone());
-            reader.centre_coords(&mut fx, &mut fy);
+            let (fx, fy) = match lattice {
+                Some(l) => band_pixels(l, quad, j0 + row as i64, rows, k, m),
+                None => {
+                    let (lons, lats) =
+                        geodetic.get_or_insert_with(|| band_positions(body, quad, j0 + row as i64, rows, k));
+                    let (mut fx, mut fy) = (lons.clone(), lats.clone());
+                    reader.centre_coords(&mut fx, &mut fy);
+                    (fx, fy)
+                }
+            };
             fill_from_source(reader, plan, &fx, &fy, 0, rows, n, k, &mut values)?;
         }
         if let Some(t) = &worker.geoid {
@@ -106,6 +129,50 @@ pub(super) fn resample_quad(
     Ok((!grid.is_empty()).then_some(grid))
 }
 
+/// Sub-sample offsets within a sample's cell, in samples, for k×k sub-samples.
+fn sub_offset(s: u32, k: u32) -> f64 {
+    (f64::from(s) + 0.5) / f64::from(k) - 0.5
+}
+
+/// The source pixel-centre coordinates of a band's sub-sample points, interpolated from the
+/// quad's lattice; the same points, in the same order, as [`band_positions`] gives.
+fn band_pixels(l: &PixelLattice, quad: QuadId, j0: i64, rows: usize, k: u32, m: f64) -> (Vec<f64>, Vec<f64>) {
+    let n = GRID as usize;
+    let i0 = i64::from(quad.x) * i64::from(TILE);
+    let jq = i64::from(quad.y) * i64::from(TILE);
+    let mut fx = Vec::with_capacity(rows * n * (k * k) as usize);
+    let mut fy = Vec::with_capacity(fx.capacity());
+    let u_of = |i: usize, b: u32| {
+        if k == 1 { i as f64 } else { ((i0 + i as i64) as f64 + sub_offset(b, k)).clamp(0.0, m) - i0 as f64 }
+    };
+    // The weights along u are the same on every row.
+    let weights: Vec<_> =
+        (0..n).flat_map(|i| (0..k).map(move |b| (i, b))).map(|(i, b)| l.u_weights(u_of(i, b))).collect();
+    for r in 0..rows {
+        // The lattice interpolated along v once per row of sub-samples.
+        let lattice_rows: Vec<_> = (0..k)
+            .map(|a| {
+                let v = if k == 1 {
+                    (j0 - jq + r as i64) as f64
+                } else {
+                    ((j0 + r as i64) as f64 + sub_offset(a, k)).clamp(0.0, m) - jq as f64
+                };
+                l.row(v)
+            })
+            .collect();
+        for i in 0..n {
+            for row in &lattice_rows {
+                for w in &weights[i * k as usize..(i + 1) * k as usize] {
+                    let (x, y) = row.at_weights(w);
+                    fx.push(x);
+                    fy.push(y);
+                }
+            }
+        }
+    }
+    (fx, fy)
+}
+
 /// Longitudes and latitudes (degrees) of the sub-sample points of `rows` rows of the quad's
 /// 257 samples, starting at global row j0; k×k sub-samples per sample, spread over its cell.
 fn band_positions(body: &Ellipsoid, quad: QuadId, j0: i64, rows: usize, k: u32) -> (Vec<f64>, Vec<f64>) {
@@ -114,7 +181,7 @@ fn band_positions(body: &Ellipsoid, quad: QuadId, j0: i64, rows: usize, k: u32) 
     let mut lons = Vec::with_capacity(rows * n * (k * k) as usize);
     let mut lats = Vec::with_capacity(lons.capacity());
     let m = grid::intervals_per_face_edge(quad.level) as f64;
-    let off = |s: u32| (f64::from(s) + 0.5) / f64::from(k) - 0.5;
+    let off = |s: u32| sub_offset(s, k);
     for r in 0..rows {
         for i in 0..n {
             for a in 0..k {

@@ -50,6 +50,8 @@ pub struct ManifestImport {
     pub level: u8,
     /// bilinear, cubic or nearest.
     pub resampling: String,
+    /// lattice or exact.
+    pub transform: String,
     /// The vertical datum as `--vertical-datum` takes it.
     pub vertical_datum: String,
 }
@@ -231,6 +233,7 @@ impl Manifest {
             name: Some(self.import.dataset.clone()),
             level: LevelChoice::Level(self.import.level),
             resampling: self.import.resampling.parse::<Resampling>().map_err(|e| format!("import.resampling: {e}"))?,
+            transform: self.import.transform.parse().map_err(|e| format!("import.transform: {e}"))?,
             vertical: self.import.vertical_datum.parse().map_err(|e| format!("import.vertical_datum: {e}"))?,
             memory_budget,
             threads,
@@ -316,6 +319,7 @@ pub fn plan(opts: &ImportOptions, manifest: &Path, shards: usize) -> Result<Plan
             dataset: prepared.name.clone(),
             level: prepared.level,
             resampling: opts.resampling.name().into(),
+            transform: opts.transform.name().into(),
             vertical_datum: vertical_text(&opts.vertical),
         },
         settings: prepared.settings.clone(),
@@ -465,6 +469,7 @@ pub fn import_shard(opts: &ShardOptions) -> Result<ImportReport, StoreError> {
         levels: vec![(prepared.level, written, finished)],
         finest_samples: computed as u64 * u64::from(GRID * GRID),
         seconds_finest,
+        lattice: prepared.plan.lattice.summary(),
         already_complete: false,
         peak_rss_bytes: peak_rss_bytes(),
         ..done

@@ -32,6 +32,17 @@ impl std::fmt::Debug for QuadGrid {
     }
 }
 
+/// A quad's grid as the store keeps it.
+#[derive(Clone, Debug)]
+pub struct EncodedQuad {
+    /// The GeoPackage tile (float32 TIFF, deflate).
+    pub tile: Vec<u8>,
+    /// The rim.
+    pub rim: Vec<u8>,
+    /// Tile statistics.
+    pub stats: TileStats,
+}
+
 /// Statistics of a tile's stored samples, as the GeoPackage tile ancillary table keeps them.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct TileStats {
@@ -77,6 +88,12 @@ impl QuadGrid {
             .with_compression(Compression::Deflate(DeflateLevel::Fast));
         encoder.write_image::<Gray32Float>(TILE, TILE, &pixels).expect("a float image encodes in memory");
         bytes.into_inner()
+    }
+
+    /// The tile, its statistics and its rim, ready to be written (encoded by the worker that
+    /// computed the grid, not by the one thread that writes).
+    pub fn encode(&self) -> EncodedQuad {
+        EncodedQuad { tile: self.encode_tile(), rim: self.encode_rim(), stats: self.tile_stats().unwrap_or_default() }
     }
 
     /// The rim: the north row (i = 0..=256 at j = 256), then the east column (j = 0..256 at

@@ -12,7 +12,7 @@ use rayon::prelude::*;
 
 use super::super::StoreError;
 use super::super::gpkg::Store;
-use super::super::tile::QuadGrid;
+use super::super::tile::{EncodedQuad, QuadGrid};
 use super::super::watch::ImportWatch;
 use crate::ecm::QuadId;
 
@@ -72,7 +72,7 @@ impl LevelWriter<'_> {
         );
         bar.set_prefix(label.to_owned());
         let stop = AtomicBool::new(false);
-        let (tx, rx) = sync_channel::<Result<(QuadId, Option<QuadGrid>), StoreError>>(queue);
+        let (tx, rx) = sync_channel::<Result<(QuadId, Option<EncodedQuad>), StoreError>>(queue);
         let mut written = 0u64;
         let mut failure = None;
         std::thread::scope(|s| {
@@ -88,7 +88,7 @@ impl LevelWriter<'_> {
                                 return;
                             }
                             let result = match worker {
-                                Ok(w) => compute(w, q).map(|g| (q, g)),
+                                Ok(w) => compute(w, q).map(|g| (q, g.map(|g| g.encode()))),
                                 Err(m) => Err(StoreError::new(Path::new(dataset), m.clone())),
                             };
                             if tx.send(result).is_err() {
@@ -101,7 +101,7 @@ impl LevelWriter<'_> {
             });
             let mut batch = Vec::new();
             let mut last = Instant::now();
-            let flush = |store: &mut Store, batch: &mut Vec<(QuadId, Option<QuadGrid>)>| -> Result<(), StoreError> {
+            let flush = |store: &mut Store, batch: &mut Vec<(QuadId, Option<EncodedQuad>)>| -> Result<(), StoreError> {
                 store.write_quads(dataset, batch)?;
                 batch.clear();
                 Ok(())
