@@ -291,7 +291,33 @@ pub fn interpolate(win: &Window, size: (usize, usize), wraps: bool, fx: f64, fy:
     let px = |c: i64, r: i64| win.get(col(c), row(r));
     match how {
         Resampling::Nearest => px((fx + 0.5).floor() as i64, (fy + 0.5).floor() as i64),
-        Resampling::Bilinear => bilinear(&px, fx, fy),
+        Resampling::Bilinear => {
+            // Inside the raster and the window with four samples of data: the same sum as
+            // `bilinear`, in the same order, without its per-sample checks.
+            let (x0, y0) = (fx.floor(), fy.floor());
+            let (c, r) = (x0 as i64, y0 as i64);
+            if c >= 0
+                && r >= 0
+                && c + 1 < size.0 as i64
+                && r + 1 < size.1 as i64
+                && let Some(v) = win.block(c, r)
+                && v.iter().all(|x| !x.is_nan())
+            {
+                let (tx, ty) = (fx - x0, fy - y0);
+                let w = [(1.0 - tx) * (1.0 - ty), tx * (1.0 - ty), (1.0 - tx) * ty, tx * ty];
+                let (mut sum, mut weight) = (0.0, 0.0);
+                for k in 0..4 {
+                    if w[k] > 0.0 {
+                        sum += w[k] * v[k];
+                        weight += w[k];
+                    }
+                }
+                if weight >= 1e-5 {
+                    return sum / weight;
+                }
+            }
+            bilinear(&px, fx, fy)
+        }
         Resampling::Cubic => {
             let (x0, y0) = (fx.floor() as i64, fy.floor() as i64);
             let (tx, ty) = (fx - x0 as f64, fy - y0 as f64);

@@ -191,6 +191,17 @@ impl Window {
         self.data[row as usize * self.w + k as usize]
     }
 
+    /// The 2×2 samples at columns c, c + 1 and rows r, r + 1 (row-major), when the window holds
+    /// them without wrapping: the bilinear fast path.
+    pub fn block(&self, c: i64, r: i64) -> Option<[f64; 4]> {
+        let (k, row) = (c - self.c0, r - self.r0);
+        if self.full_wrap.is_some() || k < 0 || row < 0 || k + 1 >= self.w as i64 || row + 1 >= self.h as i64 {
+            return None;
+        }
+        let i = row as usize * self.w + k as usize;
+        Some([self.data[i], self.data[i + 1], self.data[i + self.w], self.data[i + self.w + 1]])
+    }
+
     /// Bytes held.
     pub fn bytes(&self) -> usize {
         self.data.len() * 8
