@@ -698,6 +698,36 @@ enum Bench {
         #[arg(long, default_value = "out/bench")]
         out: PathBuf,
     },
+    /// A sharded import with 1, 2, 4… shard processes at once against one process: shard, merge
+    /// and pyramid times, and a projection to a cluster (default: SRTM 3″ on 64 nodes).
+    Shards {
+        /// Source raster.
+        source: PathBuf,
+        /// Body: wgs84, moon, mars, a=A,b=B.
+        #[arg(long)]
+        body: String,
+        /// Level: auto or 0–30.
+        #[arg(long, default_value = "auto")]
+        level: String,
+        /// Shard counts, comma-separated.
+        #[arg(long, default_value = "1,2,4")]
+        shards: String,
+        /// Threads per process.
+        #[arg(long, default_value_t = 1)]
+        threads: usize,
+        /// Nodes of the cluster projected to.
+        #[arg(long, default_value_t = 64)]
+        nodes: usize,
+        /// Cores per node.
+        #[arg(long, default_value_t = 32)]
+        cores: usize,
+        /// Output samples of the projected import (default: SRTM 3″, 872 tiles of 6000²).
+        #[arg(long)]
+        samples: Option<f64>,
+        /// Work folder (default: a temporary folder, removed after).
+        #[arg(long)]
+        work: Option<PathBuf>,
+    },
     /// Import against gdalwarp into the same QSC grid: throughput, peak memory, difference.
     Import {
         #[command(flatten)]
@@ -1241,6 +1271,30 @@ fn run(args: Args) -> Result<ExitCode> {
             print!("{report}");
             let (csv, png) = cli::write_render_bench(&out, &rows).map_err(anyhow::Error::msg)?;
             println!("wrote {} and {}", csv.display(), png.display());
+        }
+        Command::Bench {
+            bench: Bench::Shards { source, body, level, shards, threads, nodes, cores, samples, work },
+        } => {
+            let dir = work.clone().unwrap_or_else(cli::default_work_dir);
+            let settings = cli::ShardBenchSettings {
+                source,
+                body,
+                level,
+                shards: shards
+                    .split(',')
+                    .map(|n| n.trim().parse::<usize>().map_err(|_| anyhow::anyhow!("--shards: '{n}' is not a number")))
+                    .collect::<Result<_>>()?,
+                threads,
+                work: dir.clone(),
+                nodes,
+                cores,
+                projected_samples: samples.unwrap_or(cli::SRTM_SAMPLES),
+            };
+            let report = cli::bench_shards(&settings, &mut |line| eprintln!("{line}"));
+            if work.is_none() {
+                let _ = std::fs::remove_dir_all(&dir);
+            }
+            print!("{}", report?);
         }
         Command::Bench { bench: Bench::Import { import } } => {
             let work = import.work.clone().unwrap_or_else(cli::default_work_dir);
