@@ -156,7 +156,7 @@ fn shards_run_as_plain_processes_merge_into_the_single_process_store() {
     assert_eq!(o.status.code(), Some(3), "{}", text(&o));
     assert!(text(&o).contains("INCOMPLETE: 1 of 3 shards missing (1)"), "{}", text(&o));
     let info = ok(&["store", "info", s(&merged)]);
-    assert!(info.contains("INCOMPLETE"), "{info}");
+    assert!(info.contains("INCOMPLETE") && info.contains(": 2 of 3 shards"), "{info}");
     let out = ok(&["store", "merge", s(&merged), s(&part(0)), s(&part(1)), s(&part(2)), "--quiet"]);
     assert!(out.contains("merged 1 shards (1)") && out.contains("already merged, skipped: 0,2"), "{out}");
     assert!(out.contains("complete: all 3 shards in"), "{out}");

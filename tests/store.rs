@@ -707,6 +707,14 @@ fn lattice_positions_stay_within_their_bound_and_imports_match_the_exact_transfo
         import(&o).unwrap();
         stores.push(Store::open_read_only(&path).unwrap());
     }
+    // A complete dataset made on one path is complete for the other (the same samples to float
+    // rounding): stores made before the lattice are not refused.
+    let old = dir.join("old.gpkg");
+    let mut o = options(std::slice::from_ref(&src), &old, Ellipsoid::WGS84, "d", LevelChoice::Level(7));
+    o.transform = Transform::Exact;
+    import(&o).unwrap();
+    o.transform = Transform::Lattice;
+    assert!(import(&o).unwrap().already_complete, "a store made exactly is found complete");
     let (mean, max, n, one) = terrafuse::cli::store_difference(&stores[0], &stores[1], "d", 10).unwrap();
     println!(
         "lattice vs exact, SRTM level 10: {n} samples, mean {mean:.1e} m, max {max:.1e} m, {one} with data in one only"

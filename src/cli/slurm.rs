@@ -43,7 +43,11 @@ fn run(cmd: &mut Command) -> Result<String> {
         format!("cannot run {:?}: is Slurm installed (sbatch, squeue on the PATH, SLURM_CONF set)?", cmd.get_program())
     })?;
     if !out.status.success() {
-        bail!("{:?} failed: {}", cmd.get_program(), String::from_utf8_lossy(&out.stderr).trim());
+        bail!(
+            "{:?} failed (is this a Slurm login node: slurmctld reachable, SLURM_CONF set if needed?): {}",
+            cmd.get_program(),
+            String::from_utf8_lossy(&out.stderr).trim()
+        );
     }
     Ok(String::from_utf8_lossy(&out.stdout).trim().to_owned())
 }
@@ -125,9 +129,12 @@ pub fn slurm_submit(req: &SubmitRequest) -> Result<String> {
     if req.dry_run {
         if !missing.is_empty() {
             let _ = writeln!(out, "{}", show(&array));
-            merge.arg("--dependency=afterok:$ARRAY_JOB_ID").arg("--kill-on-invalid-dep=yes");
+            merge.arg("--dependency=afterok:ARRAY_JOB_ID").arg("--kill-on-invalid-dep=yes");
         }
         let _ = writeln!(out, "{}", show(merge.arg(&merge_script)));
+        if !missing.is_empty() {
+            let _ = writeln!(out, "(ARRAY_JOB_ID: the job id the first sbatch prints)");
+        }
         return Ok(out);
     }
     if !missing.is_empty() {

@@ -95,6 +95,10 @@ pub fn store_info(path: &Path) -> Result<String, StoreError> {
             s.supersample * s.supersample
         );
         let _ = writeln!(out, "  heights: {}", s.vertical_datum);
+        let _ = writeln!(out, "  sample positions: {}", s.transform);
+        if let Some((plan, shards, merged)) = crate::store::merge::merge_record(path, &d.name)? {
+            let _ = writeln!(out, "  merged from plan {}: {merged} of {shards} shards", &plan[..12.min(plan.len())]);
+        }
         let _ = writeln!(
             out,
             "  levels 0–{} (finest spacing {:.2} m)",

@@ -52,6 +52,16 @@ fn exact_transform() -> String {
     "exact".into()
 }
 
+impl DatasetSettings {
+    /// Whether two settings make the same samples: equal but for the transform (the lattice and
+    /// the exact path agree to float rounding), so that a store made before the lattice, or with
+    /// the other path, is resumed or found complete rather than refused.
+    pub fn same_samples(&self, other: &DatasetSettings) -> bool {
+        DatasetSettings { transform: String::new(), ..self.clone() }
+            == DatasetSettings { transform: String::new(), ..other.clone() }
+    }
+}
+
 /// What the store keeps about each source of a dataset.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct SourceProvenance {

@@ -12,7 +12,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use gdal::spatial_ref::SpatialRef;
-use rusqlite::params;
+use rusqlite::{OptionalExtension, params};
 
 use super::StoreError;
 use super::gpkg::{DatasetRecord, Store, face_proj, face_table};
@@ -332,4 +332,24 @@ pub fn merged_shards(
     }
     let merged = recorded_merges(&mut s, dataset)?;
     Ok(Some((merged.into_iter().filter(|(_, (m, _))| m == manifest).map(|(k, _)| k).collect(), complete)))
+}
+
+/// What `store info` says of a merged dataset: the plan's hash, its shards and those merged.
+pub fn merge_record(store: &Path, dataset: &str) -> Result<Option<(String, usize, usize)>, StoreError> {
+    let mut s = Store::open_read_only(store)?;
+    let conn = s.connection();
+    let has_table: bool = conn
+        .query_row("SELECT count(*) FROM sqlite_master WHERE name = 'terrafuse_merges'", [], |r| r.get::<_, i64>(0))
+        .map(|n| n > 0)
+        .map_err(|e| StoreError::new(store, format!("cannot read the merges: {e}")))?;
+    if !has_table {
+        return Ok(None);
+    }
+    conn.query_row(
+        "SELECT manifest, max(shards), count(*) FROM terrafuse_merges WHERE dataset = ?1 GROUP BY manifest",
+        [dataset],
+        |r| Ok((r.get::<_, String>(0)?, r.get::<_, i64>(1)? as usize, r.get::<_, i64>(2)? as usize)),
+    )
+    .optional()
+    .map_err(|e| StoreError::new(store, format!("cannot read the merges: {e}")))
 }

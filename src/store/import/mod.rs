@@ -358,7 +358,11 @@ pub(in crate::store) fn already_complete(
     let existing = Store::open_read_only(path)?;
     check_body(path, existing.body(), body)?;
     Ok(match existing.dataset(&p.name)? {
-        Some(d) if d.completed.is_some() && d.settings == p.settings && same_files(&d.sources, &p.provenance) => {
+        Some(d)
+            if d.completed.is_some()
+                && d.settings.same_samples(&p.settings)
+                && same_files(&d.sources, &p.provenance) =>
+        {
             Some(ImportReport {
                 dataset: p.name.clone(),
                 finest_level: p.level,
@@ -390,7 +394,9 @@ pub(in crate::store) fn open_dataset(path: &Path, body: &Ellipsoid, p: &Prepared
     check_body(path, store.body(), body)?;
     let name = &p.name;
     match store.dataset(name)? {
-        Some(existing) if existing.settings != p.settings || !same_files(&existing.sources, &p.provenance) => {
+        Some(existing)
+            if !existing.settings.same_samples(&p.settings) || !same_files(&existing.sources, &p.provenance) =>
+        {
             return Err(StoreError::new(
                 path,
                 format!(
