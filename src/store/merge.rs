@@ -208,14 +208,7 @@ pub fn merge(opts: &MergeOptions) -> Result<MergeReport, StoreError> {
         let threads =
             opts.threads.unwrap_or_else(|| std::thread::available_parallelism().map_or(2, |n| n.get())).max(1);
         let pool = worker_pool(&opts.store, threads)?;
-        let mut levels = LevelWriter {
-            store: &mut store,
-            dataset: &dataset,
-            pool: &pool,
-            queue: 2 * threads + 4,
-            progress: opts.progress,
-            watch: opts.watch.as_deref(),
-        };
+        let mut levels = LevelWriter::new(&mut store, &dataset, &pool, 2 << 30, opts.progress, opts.watch.as_deref());
         if stored.completed.is_none() {
             report.levels = pyramid(&mut levels, &opts.store, finest)?;
             store.mark_complete(&dataset)?;

@@ -451,14 +451,8 @@ pub fn import_shard(opts: &ShardOptions) -> Result<ImportReport, StoreError> {
     store.set_header(HEADER_SHARDS, &m.shards.len().to_string())?;
     let body = *store.body();
     let pool = worker_pool(&opts.store, prepared.threads)?;
-    let mut levels = LevelWriter {
-        store: &mut store,
-        dataset: &prepared.name,
-        pool: &pool,
-        queue: (2 * prepared.threads + 4).min((prepared.budget / 4 / (600 << 10)).max(4) as usize),
-        progress: opts.progress,
-        watch: opts.watch.as_deref(),
-    };
+    let mut levels =
+        LevelWriter::new(&mut store, &prepared.name, &pool, prepared.budget, opts.progress, opts.watch.as_deref());
     let start = Instant::now();
     let (written, finished, computed) = finest_level(&mut levels, &prepared, &body, quads)?;
     let seconds_finest = start.elapsed().as_secs_f64();

@@ -27,7 +27,22 @@ pub(in crate::store) struct LevelWriter<'a> {
     pub(in crate::store) watch: Option<&'a ImportWatch>,
 }
 
-impl LevelWriter<'_> {
+impl<'a> LevelWriter<'a> {
+    /// A writer for one dataset, with a queue between workers and writer sized by the threads
+    /// and the memory budget (each quad in flight holds ≈ 600 KiB).
+    pub(in crate::store) fn new(
+        store: &'a mut Store,
+        dataset: &'a str,
+        pool: &'a rayon::ThreadPool,
+        budget: u64,
+        progress: bool,
+        watch: Option<&'a ImportWatch>,
+    ) -> LevelWriter<'a> {
+        let threads = pool.current_num_threads();
+        let queue = (2 * threads + 4).min((budget / 4 / (600 << 10)).max(4) as usize);
+        LevelWriter { store, dataset, pool, queue, progress, watch }
+    }
+
     /// Computes the candidates of a level that no earlier run finished, committing every 32 quads
     /// or every second. Returns the tiles with data written, the quads an earlier run had
     /// finished, and the quads computed now.

@@ -262,14 +262,8 @@ pub fn import(opts: &ImportOptions) -> Result<ImportReport, StoreError> {
         ..Default::default()
     };
     let pool = worker_pool(&opts.store, prepared.threads)?;
-    let mut levels = LevelWriter {
-        store: &mut store,
-        dataset: &prepared.name,
-        pool: &pool,
-        queue: (2 * prepared.threads + 4).min((prepared.budget / 4 / (600 << 10)).max(4) as usize),
-        progress: opts.progress,
-        watch: opts.watch.as_deref(),
-    };
+    let mut levels =
+        LevelWriter::new(&mut store, &prepared.name, &pool, prepared.budget, opts.progress, opts.watch.as_deref());
 
     // 3. The finest level from the sources.
     let start = Instant::now();
