@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 
 use common::{repo_path, run_tool, terrafuse};
-use terrafuse::cli::warp_comparison;
+use terrafuse::cli::{WarpMode, warp_comparison};
 use terrafuse::ecm::{Face, QuadId};
 use terrafuse::geodesy::Ellipsoid;
 use terrafuse::store::grid::{self, fold_sample};
@@ -73,7 +73,8 @@ fn every_sample_dem_matches_gdalwarp_on_the_same_qsc_grid() {
         let name = format!("d{k}");
         import(&options(&[data(file)], &store_path, body, &name, LevelChoice::Level(level))).unwrap();
         let store = Store::open_read_only(&store_path).unwrap();
-        let c = warp_comparison(&store, &name, level, &[data(file)], "bilinear", true, 2, &dir, faces).unwrap();
+        let c =
+            warp_comparison(&store, &name, level, &[data(file)], "bilinear", WarpMode::Exact, 2, &dir, faces).unwrap();
         table += &format!(
             "{file} level {level}: {} samples, mean {:.2e} m, p99 {:.2e} m, max {:.2e} m\n",
             c.compared, c.mean_m, c.p99_m, c.max_m

@@ -49,7 +49,7 @@ pub use report::{overview, tissot_report};
 pub use shard::{array_ranges, merge_summary, plan_summary, shard_summary};
 pub use slurm::{SubmitRequest, slurm_submit};
 pub use store::{
-    WarpComparison, bench_import, default_work_dir, import_summary, lattice_line, parse_bytes, sample_lines,
+    WarpComparison, WarpMode, bench_import, default_work_dir, import_summary, lattice_line, parse_bytes, sample_lines,
     store_difference, store_info, warp_comparison,
 };
 

@@ -214,14 +214,18 @@ pub fn bench_import(opts: &ImportOptions, work: &Path, threads: usize) -> Result
         store_difference(&store, &Store::open_read_only(&exact_path)?, &report.dataset, level)?;
 
     let mut rows = Vec::new();
-    for (label, exact) in [("gdalwarp (default -et 0.125)", false), ("gdalwarp -et 0 (exact)", true)] {
+    for (label, mode) in [
+        ("gdalwarp (default -et 0.125)", WarpMode::Default),
+        ("gdalwarp default, deflate tiles", WarpMode::DefaultDeflate),
+        ("gdalwarp -et 0 (exact)", WarpMode::Exact),
+    ] {
         let c = warp_comparison(
             &store,
             &report.dataset,
             level,
             &opts.sources,
             opts.resampling.name(),
-            exact,
+            mode,
             threads,
             work,
             &Face::ALL,
@@ -302,6 +306,18 @@ pub fn store_difference(a: &Store, b: &Store, dataset: &str, level: u8) -> Resul
     Ok((sum / n.max(1) as f64, max, n, one))
 }
 
+/// How gdalwarp is run.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum WarpMode {
+    /// Its default approximate transformer (`-et 0.125`), an uncompressed GeoTIFF.
+    Default,
+    /// The same, writing deflated tiles as the store does (`-co TILED=YES -co COMPRESS=DEFLATE
+    /// -co ZLEVEL=1`): the like-for-like output.
+    DefaultDeflate,
+    /// The exact transformer (`-et 0`).
+    Exact,
+}
+
 /// gdalwarp's resampling of the same sources into the same grid as a dataset level (per face,
 /// the bounding box of the dataset's quads, pixel centres on its samples), and how far the
 /// dataset's samples are from it.
@@ -330,7 +346,7 @@ pub fn warp_comparison(
     level: u8,
     sources: &[PathBuf],
     resampling: &str,
-    exact: bool,
+    mode: WarpMode,
     threads: usize,
     work: &Path,
     faces: &[Face],
@@ -364,8 +380,14 @@ pub fn warp_comparison(
             .args(["-t_srs", &face_proj(&body, face)])
             .args(["-te", &te[0].to_string(), &te[1].to_string(), &te[2].to_string(), &te[3].to_string()])
             .args(["-tr", &dx.to_string(), &dx.to_string()]);
-        if exact {
-            cmd.args(["-et", "0"]);
+        match mode {
+            WarpMode::Exact => {
+                cmd.args(["-et", "0"]);
+            }
+            WarpMode::DefaultDeflate => {
+                cmd.args(["-co", "TILED=YES", "-co", "COMPRESS=DEFLATE", "-co", "ZLEVEL=1"]);
+            }
+            WarpMode::Default => {}
         }
         cmd.args(sources).arg(&out);
         let start = Instant::now();

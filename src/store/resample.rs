@@ -237,10 +237,7 @@ fn fill_from_source(
         }
     }
     let margin = if plan.resampling == Resampling::Cubic { 2 } else { 1 };
-    let bound =
-        |v: &[f64], f: fn(f64, f64) -> f64, init: f64| v.iter().filter(|x| x.is_finite()).fold(init, |a, &b| f(a, b));
-    let (x_min, x_max) = (bound(&xs, f64::min, f64::INFINITY), bound(&xs, f64::max, f64::NEG_INFINITY));
-    let (y_min, y_max) = (bound(ys, f64::min, f64::INFINITY), bound(ys, f64::max, f64::NEG_INFINITY));
+    let ((x_min, x_max), (y_min, y_max)) = (finite_range(&xs), finite_range(ys));
     if x_min > x_max {
         return Ok(());
     }
@@ -277,6 +274,35 @@ fn fill_from_source(
         }
     }
     Ok(())
+}
+
+/// The smallest and largest finite values of `v` (∞ and −∞ when it has none), in four
+/// independent lanes: a single fold is one long chain of dependent min/max.
+fn finite_range(v: &[f64]) -> (f64, f64) {
+    let mut lo = [f64::INFINITY; 4];
+    let mut hi = [f64::NEG_INFINITY; 4];
+    let chunks = v.chunks_exact(4);
+    let rest = chunks.remainder();
+    for c in chunks {
+        for k in 0..4 {
+            let x = c[k];
+            if x.abs() < f64::INFINITY {
+                if x < lo[k] {
+                    lo[k] = x;
+                }
+                if x > hi[k] {
+                    hi[k] = x;
+                }
+            }
+        }
+    }
+    for &x in rest {
+        if x.abs() < f64::INFINITY {
+            lo[0] = lo[0].min(x);
+            hi[0] = hi[0].max(x);
+        }
+    }
+    (lo.into_iter().fold(f64::INFINITY, f64::min), hi.into_iter().fold(f64::NEG_INFINITY, f64::max))
 }
 
 /// Interpolates a window at fractional pixel-centre coordinates (fx, fy). NaN outside the
@@ -457,4 +483,26 @@ pub fn area_mean(quad: QuadId, region: &[f32]) -> QuadGrid {
         }
     }
     grid
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn the_finite_range_is_the_fold_over_finite_values() {
+        let fold = |v: &[f64]| {
+            v.iter()
+                .filter(|x| x.is_finite())
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| (a.min(x), b.max(x)))
+        };
+        let cases: [&[f64]; 5] = [
+            &[],
+            &[f64::NAN, f64::INFINITY, f64::NEG_INFINITY],
+            &[3.0, f64::NAN, -2.0, 7.5, f64::INFINITY, 0.25, -9.0],
+            &[1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, -1e300],
+            &[-0.0, 0.0, f64::NAN, 1e-300],
+        ];
+        for v in cases {
+            assert_eq!(super::finite_range(v), fold(v), "{v:?}");
+        }
+    }
 }
