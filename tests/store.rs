@@ -645,7 +645,7 @@ fn store_info_sample_and_export_from_the_command_line() {
 fn lattice_positions_stay_within_their_bound_and_imports_match_the_exact_transform() {
     use rand::{Rng, SeedableRng};
     use terrafuse::ecm::CubeProjection;
-    use terrafuse::store::lattice::{LatticeStats, PixelLattice, TOLERANCE_PX, Transform, exact_positions};
+    use terrafuse::store::lattice::{LatticeStats, PixelLattice, SPACINGS, TOLERANCE_PX, Transform, exact_positions};
     use terrafuse::store::source::{SourceInfo, SourceReader};
     let cases = [
         ("earth_srtm3_demcompare_N39E040.tif", Ellipsoid::WGS84, [9u8, 11]),
@@ -674,7 +674,7 @@ fn lattice_positions_stay_within_their_bound_and_imports_match_the_exact_transfo
             let mut worst = 0.0f64;
             for &q in &quads {
                 let span = [0.0, 256.0];
-                let Some(l) = PixelLattice::build(&reader, &body, q, span, span, &stats) else { continue };
+                let Some(l) = PixelLattice::build(&reader, &body, q, span, span, &SPACINGS, &stats) else { continue };
                 let (us, vs): (Vec<f64>, Vec<f64>) =
                     (0..200).map(|_| (rng.random_range(0.0..=256.0), rng.random_range(0.0..=256.0))).unzip();
                 let (xs, ys) = exact_positions(&reader, &body, q, &us, &vs);
@@ -683,7 +683,9 @@ fn lattice_positions_stay_within_their_bound_and_imports_match_the_exact_transfo
                     worst = worst.max((x - xs[k]).abs()).max((y - ys[k]).abs());
                 }
             }
-            let ([l16, l8, l4], exact, centre) = stats.summary();
+            let sum = stats.summary();
+            let ([l16, l8, l4], exact, centre) =
+                (sum.by_spacing, quads.len() as u64 - sum.by_spacing.iter().sum::<u64>(), sum.max_error_px);
             table += &format!(
                 "{file} level {level}: {} quads: {l16}/{l8}/{l4} on 16/8/4-sample lattices, {exact} exact; \
                  largest error at cell centres {centre:.1e} px, at 200 random points per quad {worst:.1e} px\n",

@@ -59,12 +59,16 @@ pub fn import_summary(store: &Path, r: &ImportReport) -> String {
 
 /// How sample positions were found: quads on each lattice spacing, exact quads, the error.
 pub fn lattice_line(r: &ImportReport) -> String {
-    let ([l16, l8, l4], exact, err) = r.lattice;
-    if l16 + l8 + l4 + exact == 0 {
+    let l = &r.lattice;
+    let [l16, l8, l4] = l.by_spacing;
+    if l16 + l8 + l4 + l.exact == 0 {
         return String::new();
     }
+    let split = if l.split > 0 { format!(" ({} quads split into 4×4 blocks)", l.split) } else { String::new() };
     format!(
-        "positions: {l16} quads on a 16-sample lattice, {l8} on 8, {l4} on 4, {exact} exact; largest lattice error {err:.1e} source pixels (bound {:.0e})\n",
+        "positions: {l16} lattices of 16 samples, {l8} of 8, {l4} of 4, {} exact{split}; largest lattice error {:.1e} source pixels (bound {:.0e})\n",
+        l.exact,
+        l.max_error_px,
         crate::store::lattice::TOLERANCE_PX
     )
 }

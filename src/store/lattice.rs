@@ -64,8 +64,12 @@ impl std::str::FromStr for Transform {
 pub struct LatticeStats {
     /// Quads (per source) interpolated at each of [`SPACINGS`].
     pub by_spacing: [AtomicU64; 3],
-    /// Quads (per source) computed exactly because no lattice met the tolerance.
+    /// Quads (per source), or blocks of a split quad, computed exactly because no lattice met the
+    /// tolerance.
     pub exact: AtomicU64,
+    /// Quads (per source) whose lattice did not meet the tolerance and were split into
+    /// [`BLOCKS`]² blocks, each with its own lattice (counted in `by_spacing`) or exact.
+    pub split: AtomicU64,
     /// The largest error measured at a cell centre of an accepted lattice, pixels (f64 bits).
     max_error_bits: AtomicU64,
 }
@@ -81,13 +85,97 @@ impl LatticeStats {
         self.max_error_bits.fetch_max(e.to_bits(), Ordering::Relaxed);
     }
 
-    /// A copy of the counts: quads per spacing, exact quads, and the largest error.
-    pub fn summary(&self) -> ([u64; 3], u64, f64) {
-        (
-            self.by_spacing.each_ref().map(|a| a.load(Ordering::Relaxed)),
-            self.exact.load(Ordering::Relaxed),
-            self.max_error_px(),
-        )
+    /// A copy of the counts: lattices per spacing (whole quads or blocks), exact quads or blocks,
+    /// quads split into blocks, and the largest error.
+    pub fn summary(&self) -> LatticeSummary {
+        LatticeSummary {
+            by_spacing: self.by_spacing.each_ref().map(|a| a.load(Ordering::Relaxed)),
+            exact: self.exact.load(Ordering::Relaxed),
+            split: self.split.load(Ordering::Relaxed),
+            max_error_px: self.max_error_px(),
+        }
+    }
+}
+
+/// [`LatticeStats`] read out.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct LatticeSummary {
+    /// Lattices at 16, 8 and 4 samples (whole quads, or blocks of split quads).
+    pub by_spacing: [u64; 3],
+    /// Quads or blocks computed exactly.
+    pub exact: u64,
+    /// Quads split into blocks.
+    pub split: u64,
+    /// The largest error at a cell centre of an accepted lattice, source pixels.
+    pub max_error_px: f64,
+}
+
+/// Blocks per axis of a quad whose whole lattice misses the tolerance: 4 (64 samples each).
+pub const BLOCKS: usize = 4;
+
+/// Where a quad's samples fall in one source: one lattice over the quad; or, where that misses
+/// the tolerance (a pole, a seam, points PROJ cannot transform), a lattice per block with the
+/// exact chain only in the blocks that still miss it; or the exact chain everywhere.
+pub enum QuadPositions {
+    /// One lattice.
+    Whole(PixelLattice),
+    /// Per block (row-major, [`BLOCKS`]²), a lattice or `None` for the exact chain.
+    Blocks {
+        /// The quad's span along u and v, samples from its corner.
+        span: [[f64; 2]; 2],
+        /// The blocks.
+        blocks: Vec<Option<PixelLattice>>,
+    },
+    /// The exact chain everywhere (`--transform exact`, or a geometry a lattice cannot follow).
+    Exact,
+}
+
+impl QuadPositions {
+    /// The positions of a quad in a source, counted in `stats`.
+    pub fn build(
+        reader: &SourceReader,
+        body: &Ellipsoid,
+        quad: QuadId,
+        span_u: [f64; 2],
+        span_v: [f64; 2],
+        stats: &LatticeStats,
+    ) -> QuadPositions {
+        // The whole quad at 16 and 8 samples; what misses the tolerance there is split.
+        if let Some(l) = PixelLattice::build(reader, body, quad, span_u, span_v, &SPACINGS[..2], stats) {
+            return QuadPositions::Whole(l);
+        }
+        let part = |s: [f64; 2], b: usize| {
+            let w = (s[1] - s[0]) / BLOCKS as f64;
+            [s[0] + b as f64 * w, s[0] + (b + 1) as f64 * w]
+        };
+        let blocks: Vec<Option<PixelLattice>> = (0..BLOCKS * BLOCKS)
+            .map(|k| {
+                let (u, v) = (part(span_u, k % BLOCKS), part(span_v, k / BLOCKS));
+                PixelLattice::build(reader, body, quad, u, v, &SPACINGS, stats)
+            })
+            .collect();
+        let exact = blocks.iter().filter(|b| b.is_none()).count() as u64;
+        if exact == (BLOCKS * BLOCKS) as u64 {
+            // Not one block could be interpolated: the quad counts once, as exact.
+            stats.exact.fetch_add(1, Ordering::Relaxed);
+            return QuadPositions::Exact;
+        }
+        stats.exact.fetch_add(exact, Ordering::Relaxed);
+        stats.split.fetch_add(1, Ordering::Relaxed);
+        QuadPositions::Blocks { span: [span_u, span_v], blocks }
+    }
+
+    /// The block of a split quad a point `(u, v)` lies in.
+    pub fn block(&self, u: f64, v: f64) -> Option<&PixelLattice> {
+        match self {
+            QuadPositions::Blocks { span, blocks } => {
+                let index = |x: f64, s: [f64; 2]| {
+                    (((x - s[0]) / (s[1] - s[0]) * BLOCKS as f64).floor().max(0.0) as usize).min(BLOCKS - 1)
+                };
+                blocks[index(v, span[1]) * BLOCKS + index(u, span[0])].as_ref()
+            }
+            _ => None,
+        }
     }
 }
 
@@ -147,6 +235,7 @@ impl PixelLattice {
         quad: QuadId,
         span_u: [f64; 2],
         span_v: [f64; 2],
+        spacings: &[usize],
         stats: &LatticeStats,
     ) -> Option<PixelLattice> {
         let info = reader.info();
@@ -156,14 +245,13 @@ impl PixelLattice {
             let (o, east, north) = (info.pixel(0.0, 0.0), info.pixel(1.0, 0.0), info.pixel(0.0, 1.0));
             let per_degree = east.0 - o.0;
             if !(per_degree > 0.0 && east.1 == o.1 && north.0 == o.0) {
-                stats.exact.fetch_add(1, Ordering::Relaxed);
                 return None;
             }
             Some(360.0 * per_degree)
         } else {
             None
         };
-        for (k, &spacing) in SPACINGS.iter().enumerate() {
+        for &spacing in spacings {
             let longest = (span_u[1] - span_u[0]).max(span_v[1] - span_v[0]);
             let cells = (longest / spacing as f64).ceil().max(1.0) as usize;
             let n = cells + 1;
@@ -212,19 +300,31 @@ impl PixelLattice {
             if error <= TOLERANCE_PX {
                 lattice.period_px = period_px;
                 lattice.error_px = error;
+                let k = SPACINGS.iter().position(|&s| s == spacing).unwrap_or(SPACINGS.len() - 1);
                 stats.by_spacing[k].fetch_add(1, Ordering::Relaxed);
                 stats.record_error(error);
                 return Some(lattice);
             }
         }
-        stats.exact.fetch_add(1, Ordering::Relaxed);
         None
     }
 
     /// The interpolated pixel-centre coordinates of a point `(u, v)` samples from the quad's
     /// corner.
     pub fn at(&self, u: f64, v: f64) -> (f64, f64) {
-        self.row(v).at(u)
+        let (bu, wu) = self.u_weights(u);
+        let (bv, wv) = cubic_weights((v - self.origin[1]) / self.step[1], self.n);
+        let n = self.n;
+        let mix = |g: &[f64]| -> f64 {
+            (0..4).map(|b| wv[b] * (0..4).map(|a| wu[a] * g[(bv + b) * n + bu + a]).sum::<f64>()).sum()
+        };
+        let mut x = mix(&self.xs);
+        if let Some(p) = self.period_px
+            && !(-0.5..p - 0.5).contains(&x)
+        {
+            x = (x + 0.5).rem_euclid(p) - 0.5;
+        }
+        (x, mix(&self.ys))
     }
 
     /// The first node and weights of the cubic along u at `u` samples from the quad's corner.

@@ -9,7 +9,7 @@ use gdal::spatial_ref::CoordTransform;
 use super::StoreError;
 use super::grid::{self, GRID, TILE, face_xy, spacing_m};
 use super::import::{Plan, Resampling, Worker};
-use super::lattice::{PixelLattice, Transform};
+use super::lattice::{PixelLattice, QuadPositions, Transform, exact_positions};
 use super::read::GridReader;
 use super::source::{SourceReader, Window};
 use super::tile::QuadGrid;
@@ -87,10 +87,10 @@ pub(super) fn resample_quad(
         if k == 1 { [0.0, t] } else { [(-0.5f64).max(-c0 as f64), (t + 0.5).min(m - c0 as f64)] }
     };
     let (span_u, span_v) = (span(i0), span(j0));
-    let lattices: Vec<Option<PixelLattice>> = match plan.transform {
-        Transform::Exact => worker.readers.iter().map(|_| None).collect(),
+    let positions: Vec<QuadPositions> = match plan.transform {
+        Transform::Exact => worker.readers.iter().map(|_| QuadPositions::Exact).collect(),
         Transform::Lattice => {
-            worker.readers.iter().map(|r| PixelLattice::build(r, body, quad, span_u, span_v, &plan.lattice)).collect()
+            worker.readers.iter().map(|r| QuadPositions::build(r, body, quad, span_u, span_v, &plan.lattice)).collect()
         }
     };
     // Rows of samples in bands, each band's positions computed once and read per source.
@@ -100,13 +100,16 @@ pub(super) fn resample_quad(
         let rows = band_rows.min(n - row);
         let mut geodetic = None;
         let mut values = vec![f64::NAN; rows * n];
-        for (reader, lattice) in worker.readers.iter().zip(&lattices) {
+        for (reader, positions) in worker.readers.iter().zip(&positions) {
             if values.iter().all(|v| !v.is_nan()) {
                 break;
             }
-            let (fx, fy) = match lattice {
-                Some(l) => band_pixels(l, quad, j0 + row as i64, rows, k, m),
-                None => {
+            let (fx, fy) = match positions {
+                QuadPositions::Whole(l) => band_pixels(l, quad, j0 + row as i64, rows, k, m),
+                QuadPositions::Blocks { .. } => {
+                    band_pixels_split(positions, reader, body, quad, j0 + row as i64, rows, k, m)
+                }
+                QuadPositions::Exact => {
                     let (lons, lats) =
                         geodetic.get_or_insert_with(|| band_positions(body, quad, j0 + row as i64, rows, k));
                     let (mut fx, mut fy) = (lons.clone(), lats.clone());
@@ -132,6 +135,55 @@ pub(super) fn resample_quad(
 /// Sub-sample offsets within a sample's cell, in samples, for k×k sub-samples.
 fn sub_offset(s: u32, k: u32) -> f64 {
     (f64::from(s) + 0.5) / f64::from(k) - 0.5
+}
+
+/// The same for a split quad: each point from its block's lattice, or exactly where its block
+/// has none.
+#[allow(clippy::too_many_arguments)]
+fn band_pixels_split(
+    positions: &QuadPositions,
+    reader: &SourceReader,
+    body: &Ellipsoid,
+    quad: QuadId,
+    j0: i64,
+    rows: usize,
+    k: u32,
+    m: f64,
+) -> (Vec<f64>, Vec<f64>) {
+    let n = GRID as usize;
+    let i0 = i64::from(quad.x) * i64::from(TILE);
+    let jq = i64::from(quad.y) * i64::from(TILE);
+    let along = |c: i64, s: u32, c0: i64| {
+        if k == 1 { (c - c0) as f64 } else { (c as f64 + sub_offset(s, k)).clamp(0.0, m) - c0 as f64 }
+    };
+    let mut fx = Vec::with_capacity(rows * n * (k * k) as usize);
+    let mut fy = Vec::with_capacity(fx.capacity());
+    let (mut exact, mut exact_u, mut exact_v) = (Vec::new(), Vec::new(), Vec::new());
+    for r in 0..rows {
+        for i in 0..n {
+            for a in 0..k {
+                for b in 0..k {
+                    let (u, v) = (along(i0 + i as i64, b, i0), along(j0 + r as i64, a, jq));
+                    let (x, y) = match positions.block(u, v) {
+                        Some(l) => l.at(u, v),
+                        None => {
+                            exact.push(fx.len());
+                            exact_u.push(u);
+                            exact_v.push(v);
+                            (f64::NAN, f64::NAN)
+                        }
+                    };
+                    fx.push(x);
+                    fy.push(y);
+                }
+            }
+        }
+    }
+    let (xs, ys) = exact_positions(reader, body, quad, &exact_u, &exact_v);
+    for (t, &at) in exact.iter().enumerate() {
+        (fx[at], fy[at]) = (xs[t], ys[t]);
+    }
+    (fx, fy)
 }
 
 /// The source pixel-centre coordinates of a band's sub-sample points, interpolated from the

@@ -183,9 +183,9 @@ pub struct ImportReport {
     pub already_complete: bool,
     /// Peak resident memory of the process, bytes.
     pub peak_rss_bytes: u64,
-    /// The lattice: quads (per source) interpolated at 16, 8 and 4 samples, quads computed
-    /// exactly, and the largest error measured at a lattice cell's centre, source pixels.
-    pub lattice: ([u64; 3], u64, f64),
+    /// How sample positions were found (lattices per spacing, exact quads or blocks, split
+    /// quads, the largest error measured at a lattice cell's centre).
+    pub lattice: super::lattice::LatticeSummary,
 }
 
 /// Peak resident set size of this process (VmHWM), bytes.
