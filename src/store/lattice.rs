@@ -318,13 +318,16 @@ impl PixelLattice {
         let mix = |g: &[f64]| -> f64 {
             (0..4).map(|b| wv[b] * (0..4).map(|a| wu[a] * g[(bv + b) * n + bu + a]).sum::<f64>()).sum()
         };
-        let mut x = mix(&self.xs);
-        if let Some(p) = self.period_px
-            && !(-0.5..p - 0.5).contains(&x)
-        {
-            x = (x + 0.5).rem_euclid(p) - 0.5;
+        (self.own_column(mix(&self.xs)), mix(&self.ys))
+    }
+
+    /// An interpolated column brought into a geographic source's own 360° range, as the exact
+    /// path brings longitudes (unchanged for other sources).
+    fn own_column(&self, x: f64) -> f64 {
+        match self.period_px {
+            Some(p) if !(-0.5..p - 0.5).contains(&x) => (x + 0.5).rem_euclid(p) - 0.5,
+            _ => x,
         }
-        (x, mix(&self.ys))
     }
 
     /// The first node and weights of the cubic along u at `u` samples from the quad's corner.
@@ -360,13 +363,7 @@ impl LatticeRow<'_> {
     /// same for every row, so computed once per quad.
     pub fn at_weights(&self, &(base, w): &(usize, [f64; 4])) -> (f64, f64) {
         let mix = |g: &[f64]| w[0] * g[base] + w[1] * g[base + 1] + w[2] * g[base + 2] + w[3] * g[base + 3];
-        let mut x = mix(&self.xs);
-        if let Some(p) = self.lattice.period_px
-            && !(-0.5..p - 0.5).contains(&x)
-        {
-            x = (x + 0.5).rem_euclid(p) - 0.5;
-        }
-        (x, mix(&self.ys))
+        (self.lattice.own_column(mix(&self.xs)), mix(&self.ys))
     }
 }
 

@@ -20,6 +20,7 @@ use super::import::{LevelWriter, check_body, peak_rss_bytes, pyramid, worker_poo
 use super::shard::{PartInfo, part_info};
 use super::watch::ImportWatch;
 use crate::ecm::Face;
+use crate::geodesy::Ellipsoid;
 
 /// How a merge runs.
 #[derive(Clone, Debug)]
@@ -70,6 +71,7 @@ const MERGES_TABLE: &str = "CREATE TABLE IF NOT EXISTS terrafuse_merges (dataset
 /// A part, checked.
 struct Part {
     path: PathBuf,
+    body: Ellipsoid,
     info: PartInfo,
     record: DatasetRecord,
 }
@@ -94,8 +96,7 @@ fn check_parts(paths: &[PathBuf]) -> Result<Vec<Part>, StoreError> {
         }
         let record = datasets.remove(0);
         if let Some(first) = parts.first() {
-            let first_store = Store::open_read_only(&first.path)?;
-            check_body(path, store.body(), first_store.body())?;
+            check_body(path, store.body(), &first.body)?;
             if info.manifest != first.info.manifest {
                 return Err(StoreError::new(
                     path,
@@ -118,7 +119,7 @@ fn check_parts(paths: &[PathBuf]) -> Result<Vec<Part>, StoreError> {
         if info.shard >= info.shards {
             return Err(StoreError::new(path, format!("damaged header: shard {} of {}", info.shard, info.shards)));
         }
-        parts.push(Part { path: path.clone(), info, record });
+        parts.push(Part { path: path.clone(), body: *store.body(), info, record });
     }
     parts.sort_by_key(|p| p.info.shard);
     Ok(parts)
@@ -136,7 +137,7 @@ pub fn merge(opts: &MergeOptions) -> Result<MergeReport, StoreError> {
     }
     let parts = check_parts(&opts.parts)?;
     let first = &parts[0];
-    let body = *Store::open_read_only(&first.path)?.body();
+    let body = first.body;
     let (manifest, shards, dataset) = (first.info.manifest.clone(), first.info.shards, first.record.name.clone());
     let mut store = if opts.store.exists() { Store::open(&opts.store)? } else { Store::create(&opts.store, &body)? };
     check_body(&opts.store, store.body(), &body)?;
