@@ -312,6 +312,35 @@ fn a_job_array_on_slurm_with_a_shard_cancelled_and_resubmitted_gives_the_single_
     let manifest = plan(&dir, "plan.json", SRTM, "wgs84", "11", 6);
     let (parts, store) = (dir.join("parts"), dir.join("merged.gpkg"));
     let local = dir.join("node-local");
+    // Shard 1's first run is paused (SIGSTOP) once its working file exists, so that the test
+    // cancels it mid-import however fast the machine: without the pause it could finish first.
+    let (task, paused) = (1usize, dir.join("shard-1-paused"));
+    let wrapper = dir.join("terrafuse-pausing-shard-1");
+    std::fs::write(
+        &wrapper,
+        format!(
+            r#"#!/bin/bash
+if [ "${{SLURM_ARRAY_TASK_ID:-}}" = {task} ] && [ "$1" = import ] && [ ! -e {paused} ]; then
+  {bin} "$@" &
+  pid=$!
+  until compgen -G {working} >/dev/null; do
+    kill -0 $pid 2>/dev/null || exit 1
+    sleep 0.02
+  done
+  kill -STOP $pid
+  touch {paused}
+  wait $pid
+  exit $?
+fi
+exec {bin} "$@"
+"#,
+            paused = s(&paused),
+            bin = BIN,
+            working = format!("'{}/terrafuse-*/.part-{task:04}.gpkg.importing'", s(&local)),
+        ),
+    )
+    .unwrap();
+    std::fs::set_permissions(&wrapper, std::os::unix::fs::PermissionsExt::from_mode(0o755)).unwrap();
     let submit = |cluster: &Cluster| {
         cluster.terrafuse(&[
             "slurm",
@@ -326,6 +355,8 @@ fn a_job_array_on_slurm_with_a_shard_cancelled_and_resubmitted_gives_the_single_
             "1",
             "--work-dir",
             s(&local),
+            "--terrafuse",
+            s(&wrapper),
         ])
     };
     let out = submit(&cluster);
@@ -334,24 +365,23 @@ fn a_job_array_on_slurm_with_a_shard_cancelled_and_resubmitted_gives_the_single_
     let name = format!("tf-{}", &m["hash"].as_str().unwrap()[..12]);
     let names = format!("{name},{name}-merge");
 
-    // Cancel one shard while it runs.
+    // Cancel shard 1 while it is paused mid-import.
     let start = Instant::now();
-    let cancelled = loop {
-        let running: Vec<String> = cluster
-            .queue(&name)
-            .into_iter()
-            .filter(|l| l.ends_with("RUNNING"))
-            .map(|l| l.split(' ').next().unwrap().to_owned())
-            .collect();
-        if let Some(id) = running.last() {
-            break id.clone();
-        }
-        assert!(start.elapsed() < Duration::from_secs(120), "no shard ran within 120 s: {:?}", cluster.queue(&names));
+    while !paused.exists() {
+        assert!(
+            start.elapsed() < Duration::from_secs(120),
+            "shard {task} did not start importing within 120 s: {:?}",
+            cluster.queue(&names)
+        );
         std::thread::sleep(Duration::from_millis(50));
-    };
+    }
+    let id = cluster.queue(&name).into_iter().find_map(|l| {
+        let id = l.split(' ').next()?;
+        (id.rsplit('_').next() == Some(&task.to_string())).then(|| id.to_owned())
+    });
+    let cancelled = id.unwrap_or_else(|| panic!("shard {task} is not in the queue: {:?}", cluster.queue(&names)));
     let o = cluster.run("scancel", &[&cancelled]);
     assert!(o.status.success(), "scancel {cancelled}: {}", text(&o));
-    let task: usize = cancelled.rsplit('_').next().unwrap().parse().unwrap();
     cluster.wait_empty(&names);
     let part = parts.join(format!("part-{task:04}.gpkg"));
     assert!(!part.exists(), "the cancelled shard {task} published nothing");
