@@ -120,8 +120,17 @@ fn shards_run_as_plain_processes_merge_into_the_single_process_store() {
         .spawn()
         .unwrap();
     let start = Instant::now();
-    // Killed once its first transaction is in (the journal names quads).
+    // Killed once its first transaction is in (the journal names quads). The shard is stopped
+    // (SIGSTOP) while the test looks, so that however fast the machine it cannot run to the end
+    // between a look and the kill.
+    let pid = child.id().to_string();
+    let signal = |sig: &str| {
+        let o = Command::new("kill").args([sig, &pid]).output().unwrap();
+        assert!(o.status.success(), "kill {sig}: {}", text(&o));
+    };
     loop {
+        std::thread::sleep(Duration::from_millis(10));
+        signal("-STOP");
         let committed = Store::open_read_only(&work)
             .ok()
             .and_then(|st| st.resolve_dataset(None).ok().map(|d| (st, d)))
@@ -131,7 +140,7 @@ fn shards_run_as_plain_processes_merge_into_the_single_process_store() {
         }
         assert!(start.elapsed() < Duration::from_secs(120), "shard 1 committed nothing in 120 s");
         assert!(child.try_wait().unwrap().is_none(), "shard 1 ended before it could be killed");
-        std::thread::sleep(Duration::from_millis(20));
+        signal("-CONT");
     }
     child.kill().unwrap();
     child.wait().unwrap();
