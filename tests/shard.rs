@@ -325,6 +325,7 @@ fn a_job_array_on_slurm_with_a_shard_cancelled_and_resubmitted_gives_the_single_
     // cancels it mid-import however fast the machine: without the pause it could finish first.
     let (task, paused) = (1usize, dir.join("shard-1-paused"));
     let wrapper = dir.join("terrafuse-pausing-shard-1");
+    let working = format!("'{}/terrafuse-*/.part-{task:04}.gpkg.importing'", s(&local));
     std::fs::write(
         &wrapper,
         format!(
@@ -345,7 +346,6 @@ exec {bin} "$@"
 "#,
             paused = s(&paused),
             bin = BIN,
-            working = format!("'{}/terrafuse-*/.part-{task:04}.gpkg.importing'", s(&local)),
         ),
     )
     .unwrap();

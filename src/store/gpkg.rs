@@ -214,6 +214,11 @@ CREATE TABLE terrafuse_journal (dataset TEXT NOT NULL, level INTEGER NOT NULL, f
   y INTEGER NOT NULL, has_data INTEGER NOT NULL, PRIMARY KEY (dataset, level, face, x, y)) WITHOUT ROWID;
 "#;
 
+/// SQLite's page size for new stores, bytes (its largest). A tile is a blob of about 260 KB:
+/// with 64 KiB pages it spans 5 pages instead of 65, so writing and reading it takes 13× fewer
+/// page operations and system calls.
+const PAGE_SIZE: u32 = 65_536;
+
 impl Store {
     /// Creates a new, empty store for a body. The file appears complete or not at all: it is
     /// built beside the target and renamed into place. Refuses to overwrite an existing file.
@@ -231,7 +236,8 @@ impl Store {
         let result = (|| {
             let conn = Connection::open(&tmp).map_err(sql_err(path, "cannot create the store"))?;
             conn.execute_batch(&format!(
-                "PRAGMA application_id = {APPLICATION_ID}; PRAGMA user_version = {USER_VERSION}; BEGIN; {SCHEMA} COMMIT;"
+                "PRAGMA page_size = {PAGE_SIZE}; PRAGMA application_id = {APPLICATION_ID}; \
+                 PRAGMA user_version = {USER_VERSION}; BEGIN; {SCHEMA} COMMIT;"
             ))
             .map_err(sql_err(path, "cannot write the store schema"))?;
             let header = [
@@ -333,6 +339,14 @@ impl Store {
     }
 
     /// The SQLite connection, for the merge's attached statements.
+    /// Turns the writer's automatic checkpoints of the log on (SQLite's default, every 1000
+    /// pages) or off, while a [`super::checkpoint::BackgroundCheckpoints`] does them.
+    pub fn set_auto_checkpoints(&self, on: bool) -> Result<(), StoreError> {
+        self.conn
+            .execute_batch(if on { "PRAGMA wal_autocheckpoint = 1000;" } else { "PRAGMA wal_autocheckpoint = 0;" })
+            .map_err(self.err("cannot set the automatic checkpoints"))
+    }
+
     pub(super) fn connection(&mut self) -> &mut Connection {
         &mut self.conn
     }
@@ -491,32 +505,26 @@ impl Store {
             if let Some(grid) = grid {
                 let table = face_table(dataset, quad.face);
                 let row = (1i64 << quad.level) - 1 - i64::from(quad.y);
-                tx.execute(
-                    &format!(
-                        "INSERT OR REPLACE INTO \"{table}\" (zoom_level, tile_column, tile_row, tile_data) VALUES (?1, ?2, ?3, ?4)"
-                    ),
-                    params![quad.level, quad.x, row, grid.tile],
-                )
+                tx.prepare_cached(&format!(
+                    "INSERT OR REPLACE INTO \"{table}\" (zoom_level, tile_column, tile_row, tile_data) VALUES (?1, ?2, ?3, ?4)"
+                ))
+                .and_then(|mut st| st.execute(params![quad.level, quad.x, row, grid.tile]))
                 .map_err(e("cannot write a tile"))?;
                 let id = tx.last_insert_rowid();
                 let s = &grid.stats;
-                tx.execute(
+                tx.prepare_cached(
                     "INSERT OR REPLACE INTO gpkg_2d_gridded_tile_ancillary (tpudt_name, tpudt_id, scale, offset, min, max, mean, std_dev)
                      VALUES (?1, ?2, 1.0, 0.0, ?3, ?4, ?5, ?6)",
-                    params![table, id, s.min, s.max, s.mean, s.std_dev],
                 )
+                .and_then(|mut st| st.execute(params![table, id, s.min, s.max, s.mean, s.std_dev]))
                 .map_err(e("cannot write tile statistics"))?;
-                tx.execute(
-                    "INSERT OR REPLACE INTO terrafuse_rims VALUES (?1, ?2, ?3, ?4, ?5, ?6)",
-                    params![dataset, quad.level, face, quad.x, quad.y, grid.rim],
-                )
-                .map_err(e("cannot write a tile rim"))?;
+                tx.prepare_cached("INSERT OR REPLACE INTO terrafuse_rims VALUES (?1, ?2, ?3, ?4, ?5, ?6)")
+                    .and_then(|mut st| st.execute(params![dataset, quad.level, face, quad.x, quad.y, grid.rim]))
+                    .map_err(e("cannot write a tile rim"))?;
             }
-            tx.execute(
-                "INSERT OR REPLACE INTO terrafuse_journal VALUES (?1, ?2, ?3, ?4, ?5, ?6)",
-                params![dataset, quad.level, face, quad.x, quad.y, grid.is_some()],
-            )
-            .map_err(e("cannot write the import journal"))?;
+            tx.prepare_cached("INSERT OR REPLACE INTO terrafuse_journal VALUES (?1, ?2, ?3, ?4, ?5, ?6)")
+                .and_then(|mut st| st.execute(params![dataset, quad.level, face, quad.x, quad.y, grid.is_some()]))
+                .map_err(e("cannot write the import journal"))?;
         }
         tx.commit().map_err(e("cannot commit tiles"))
     }

@@ -323,6 +323,7 @@ impl PixelLattice {
 
     /// An interpolated column brought into a geographic source's own 360° range, as the exact
     /// path brings longitudes (unchanged for other sources).
+    #[inline(always)]
     fn own_column(&self, x: f64) -> f64 {
         match self.period_px {
             Some(p) if !(-0.5..p - 0.5).contains(&x) => (x + 0.5).rem_euclid(p) - 0.5,
@@ -359,8 +360,28 @@ impl LatticeRow<'_> {
         self.at_weights(&self.lattice.u_weights(u))
     }
 
+    /// [`LatticeRow::at_weights`] at every point of a row at once, into `xs` and `ys` (the
+    /// same arithmetic, so the same bits; one pass without the column wrap's branch, then the
+    /// wrap where the source has one).
+    pub fn fill(&self, weights: &[(usize, [f64; 4])], xs: &mut [f64], ys: &mut [f64]) {
+        let mix = |g: &[f64], &(base, w): &(usize, [f64; 4])| {
+            let g = &g[base..base + 4];
+            w[0] * g[0] + w[1] * g[1] + w[2] * g[2] + w[3] * g[3]
+        };
+        for ((x, y), w) in xs.iter_mut().zip(ys.iter_mut()).zip(weights) {
+            *x = mix(&self.xs, w);
+            *y = mix(&self.ys, w);
+        }
+        if self.lattice.period_px.is_some() {
+            for x in xs {
+                *x = self.lattice.own_column(*x);
+            }
+        }
+    }
+
     /// The same at a point whose weights along u ([`PixelLattice::u_weights`]) are known: the
     /// same for every row, so computed once per quad.
+    #[inline(always)]
     pub fn at_weights(&self, &(base, w): &(usize, [f64; 4])) -> (f64, f64) {
         let mix = |g: &[f64]| w[0] * g[base] + w[1] * g[base + 1] + w[2] * g[base + 2] + w[3] * g[base + 3];
         (self.lattice.own_column(mix(&self.xs)), mix(&self.ys))

@@ -5,6 +5,7 @@
 //! - [`grid`]: the sample grid, levels, and folding across face edges.
 //! - [`tile`]: a quad's 257² grid and how it is stored (tile + rim).
 //! - [`gpkg`]: the GeoPackage file, transactions, provenance.
+//! - [`checkpoint`]: the write-ahead log checkpointed on a thread of its own during imports.
 //! - [`source`]: a GDAL source, checked and read in windows.
 //! - [`import`]: the import pipeline.
 //! - [`shard`]: sharded imports: the plan (manifest) and one shard's partial store.
@@ -15,6 +16,7 @@
 //! - [`watch`]: an import's progress and cancel switch, for another thread.
 //! - [`export`]: GeoTIFF export in any CRS.
 
+pub mod checkpoint;
 pub mod export;
 pub mod gpkg;
 pub mod grid;

@@ -200,6 +200,14 @@ fn band_pixels(l: &PixelLattice, quad: QuadId, j0: i64, rows: usize, k: u32, m: 
     // The weights along u are the same on every row.
     let weights: Vec<_> =
         (0..n).flat_map(|i| (0..k).map(move |b| (i, b))).map(|(i, b)| l.u_weights(u_of(i, b))).collect();
+    if k == 1 {
+        fx.resize(rows * n, 0.0);
+        fy.resize(rows * n, 0.0);
+        for (r, (xs, ys)) in fx.chunks_exact_mut(n).zip(fy.chunks_exact_mut(n)).enumerate() {
+            l.row((j0 - jq + r as i64) as f64).fill(&weights, xs, ys);
+        }
+        return (fx, fy);
+    }
     for r in 0..rows {
         // The lattice interpolated along v once per row of sub-samples.
         let lattice_rows: Vec<_> = (0..k)
@@ -307,6 +315,20 @@ fn fill_from_source(
         return fill_from_source(reader, plan, fx, fy, r0 + half, rows - half, n, k, values);
     }
     let win = reader.window(c0, c1, rr0, rr1)?;
+    if kk == 1 {
+        // One point per sample: its value, or NaN (what the loop below gives, without the mean).
+        let bilinear = plan.resampling == Resampling::Bilinear;
+        for (s, target) in values[r0 * n..(r0 + rows) * n].iter_mut().enumerate() {
+            if target.is_nan() {
+                let (x, y) = (xs[s], ys[s]);
+                *target = match bilinear.then(|| bilinear_inside(&win, info.size, x, y)).flatten() {
+                    Some(v) => v,
+                    None => interpolate(&win, info.size, info.wraps, x, y, plan.resampling),
+                };
+            }
+        }
+        return Ok(());
+    }
     for s in 0..rows * n {
         let target = &mut values[r0 * n + s];
         if !target.is_nan() {
@@ -359,6 +381,7 @@ fn finite_range(v: &[f64]) -> (f64, f64) {
 
 /// Interpolates a window at fractional pixel-centre coordinates (fx, fy). NaN outside the
 /// raster's area; within half a pixel of its edge the edge pixels are extended.
+#[inline]
 pub fn interpolate(win: &Window, size: (usize, usize), wraps: bool, fx: f64, fy: f64, how: Resampling) -> f64 {
     let (w, h) = (size.0 as f64, size.1 as f64);
     if !(fx.is_finite() && fy.is_finite()) || fy < -0.5 || fy > h - 0.5 || (!wraps && (fx < -0.5 || fx > w - 0.5)) {
@@ -372,29 +395,7 @@ pub fn interpolate(win: &Window, size: (usize, usize), wraps: bool, fx: f64, fy:
         Resampling::Bilinear => {
             // Inside the raster and the window with four samples of data: the same sum as
             // `bilinear`, in the same order, without its per-sample checks.
-            let (x0, y0) = (fx.floor(), fy.floor());
-            let (c, r) = (x0 as i64, y0 as i64);
-            if c >= 0
-                && r >= 0
-                && c + 1 < size.0 as i64
-                && r + 1 < size.1 as i64
-                && let Some(v) = win.block(c, r)
-                && v.iter().all(|x| !x.is_nan())
-            {
-                let (tx, ty) = (fx - x0, fy - y0);
-                let w = [(1.0 - tx) * (1.0 - ty), tx * (1.0 - ty), (1.0 - tx) * ty, tx * ty];
-                let (mut sum, mut weight) = (0.0, 0.0);
-                for k in 0..4 {
-                    if w[k] > 0.0 {
-                        sum += w[k] * v[k];
-                        weight += w[k];
-                    }
-                }
-                if weight >= 1e-5 {
-                    return sum / weight;
-                }
-            }
-            bilinear(&px, fx, fy)
+            bilinear_inside(win, size, fx, fy).unwrap_or_else(|| bilinear(&px, fx, fy))
         }
         Resampling::Cubic => {
             let (x0, y0) = (fx.floor() as i64, fy.floor() as i64);
@@ -413,6 +414,28 @@ pub fn interpolate(win: &Window, size: (usize, usize), wraps: bool, fx: f64, fy:
             sum
         }
     }
+}
+
+/// Bilinear interpolation where the four pixels around (fx, fy) lie inside the raster and the
+/// window and all have data: the same sum as [`bilinear`], in the same order, without its
+/// per-pixel checks (None elsewhere). A zero weight adds ±0 to a sum that starts at +0: skipping
+/// it, as `bilinear` does, gives the same bits.
+#[inline(always)]
+fn bilinear_inside(win: &Window, size: (usize, usize), fx: f64, fy: f64) -> Option<f64> {
+    // Also false for NaN; for x ≥ 0 the truncation is the floor.
+    if !(fx >= 0.0 && fy >= 0.0 && fx < (size.0 - 1) as f64 && fy < (size.1 - 1) as f64) {
+        return None;
+    }
+    let (c, r) = (fx as i64, fy as i64);
+    let v = win.block(c, r)?;
+    if (v[0] + v[1] + v[2] + v[3]).is_nan() {
+        return None;
+    }
+    let (tx, ty) = (fx - c as f64, fy - r as f64);
+    let w = [(1.0 - tx) * (1.0 - ty), tx * (1.0 - ty), (1.0 - tx) * ty, tx * ty];
+    let sum = 0.0 + w[0] * v[0] + w[1] * v[1] + w[2] * v[2] + w[3] * v[3];
+    let weight = w[0] + w[1] + w[2] + w[3];
+    (weight >= 1e-5).then(|| sum / weight)
 }
 
 fn bilinear(px: &dyn Fn(i64, i64) -> f64, fx: f64, fy: f64) -> f64 {

@@ -179,6 +179,7 @@ pub struct Window {
 
 impl Window {
     /// The sample at column c, row r, both already inside the raster (or wrapped columns).
+    #[inline]
     pub fn get(&self, c: i64, r: i64) -> f64 {
         let k = match self.full_wrap {
             Some(width) => c.rem_euclid(width),
@@ -193,6 +194,7 @@ impl Window {
 
     /// The 2×2 samples at columns c, c + 1 and rows r, r + 1 (row-major), when the window holds
     /// them without wrapping: the bilinear fast path.
+    #[inline(always)]
     pub fn block(&self, c: i64, r: i64) -> Option<[f64; 4]> {
         let (k, row) = (c - self.c0, r - self.r0);
         if self.full_wrap.is_some() || k < 0 || row < 0 || k + 1 >= self.w as i64 || row + 1 >= self.h as i64 {

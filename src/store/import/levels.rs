@@ -11,6 +11,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
 
 use super::super::StoreError;
+use super::super::checkpoint::BackgroundCheckpoints;
 use super::super::gpkg::Store;
 use super::super::tile::{EncodedQuad, QuadGrid};
 use super::super::watch::ImportWatch;
@@ -87,6 +88,8 @@ impl<'a> LevelWriter<'a> {
         );
         bar.set_prefix(label.to_owned());
         let stop = AtomicBool::new(false);
+        store.set_auto_checkpoints(false)?;
+        let checkpoints = BackgroundCheckpoints::start(store.path())?;
         let (tx, rx) = sync_channel::<Result<(QuadId, Option<EncodedQuad>), StoreError>>(queue);
         let mut written = 0u64;
         let mut failure = None;
@@ -157,6 +160,8 @@ impl<'a> LevelWriter<'a> {
             }
         });
         bar.finish_and_clear();
+        drop(checkpoints);
+        store.set_auto_checkpoints(true)?;
         match failure {
             Some(e) => Err(e),
             None => Ok(written),
