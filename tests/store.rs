@@ -649,7 +649,9 @@ fn store_info_sample_and_export_from_the_command_line() {
 fn lattice_positions_stay_within_their_bound_and_imports_match_the_exact_transform() {
     use rand::{Rng, SeedableRng};
     use terrafuse::ecm::CubeProjection;
-    use terrafuse::store::lattice::{LatticeStats, PixelLattice, SPACINGS, TOLERANCE_PX, Transform, exact_positions};
+    use terrafuse::store::lattice::{
+        LatticeStats, PixelLattice, QuadPositions, SPACINGS, TOLERANCE_PX, Transform, exact_positions,
+    };
     use terrafuse::store::source::{SourceInfo, SourceReader};
     let cases = [
         ("earth_srtm3_demcompare_N39E040.tif", Ellipsoid::WGS84, [9u8, 11]),
@@ -687,6 +689,39 @@ fn lattice_positions_stay_within_their_bound_and_imports_match_the_exact_transfo
                     worst = worst.max((x - xs[k]).abs()).max((y - ys[k]).abs());
                 }
             }
+            // Quads whose whole lattice misses the bound, split into blocks and cells: every point
+            // that a block's or cell's lattice covers is within the same bound.
+            let split_stats = LatticeStats::default();
+            let (mut split_worst, mut covered, mut exact_points) = (0.0f64, 0usize, 0usize);
+            for &q in &quads {
+                let span = [0.0, 256.0];
+                let p = QuadPositions::build(&reader, &body, q, span, span, &split_stats);
+                if !matches!(p, QuadPositions::Blocks { .. }) {
+                    continue;
+                }
+                let (us, vs): (Vec<f64>, Vec<f64>) =
+                    (0..400).map(|_| (rng.random_range(0.0..=256.0), rng.random_range(0.0..=256.0))).unzip();
+                let (xs, ys) = exact_positions(&reader, &body, q, &us, &vs);
+                for k in 0..us.len() {
+                    match p.block(us[k], vs[k]) {
+                        Some(l) => {
+                            let (x, y) = l.at(us[k], vs[k]);
+                            split_worst = split_worst.max((x - xs[k]).abs()).max((y - ys[k]).abs());
+                            covered += 1;
+                        }
+                        None => exact_points += 1,
+                    }
+                }
+            }
+            let split = split_stats.summary();
+            if split.split > 0 {
+                table += &format!(
+                    "{file} level {level}: {} quads split, {} cells of 16² exact; random points: {covered} on a \
+                     lattice (largest error {split_worst:.1e} px), {exact_points} exact\n",
+                    split.split, split.exact_cells
+                );
+            }
+            assert!(split_worst <= 2.0 * TOLERANCE_PX, "{file} level {level}: {split_worst:e} px in a split quad");
             let sum = stats.summary();
             let ([l16, l8, l4], exact, centre) =
                 (sum.by_spacing, quads.len() as u64 - sum.by_spacing.iter().sum::<u64>(), sum.max_error_px);
@@ -698,8 +733,9 @@ fn lattice_positions_stay_within_their_bound_and_imports_match_the_exact_transfo
             assert!(worst <= 2.0 * TOLERANCE_PX, "{file} level {level}: {worst:e} px at a random point");
         }
     }
-    // High-level imports are interpolated, not computed exactly.
+    // High-level imports are interpolated, not computed exactly; the pole's quads are split.
     assert!(table.contains("earth_srtm3_demcompare_N39E040.tif level 11") && !table.contains(" 0/0/0 on"), "{table}");
+    assert!(table.contains("moon_lola_north_stere_1600m.tif level 5: ") && table.contains("quads split"), "{table}");
     println!("{table}");
 
     // A whole import both ways: the same samples to float rounding.

@@ -64,9 +64,13 @@ pub fn lattice_line(r: &ImportReport) -> String {
     if l16 + l8 + l4 + l.exact == 0 {
         return String::new();
     }
-    let split = if l.split > 0 { format!(" ({} quads split into 4×4 blocks)", l.split) } else { String::new() };
+    let split = if l.split > 0 {
+        format!(", {} quads split into blocks of 64² and cells of 16² samples ({} cells exact)", l.split, l.exact_cells)
+    } else {
+        String::new()
+    };
     format!(
-        "positions: {l16} lattices of 16 samples, {l8} of 8, {l4} of 4, {} exact{split}; largest lattice error {:.1e} source pixels (bound {:.0e})\n",
+        "positions: {l16} lattices of 16 samples, {l8} of 8, {l4} of 4, {} quads exact{split}; largest lattice error {:.1e} source pixels (bound {:.0e})\n",
         l.exact,
         l.max_error_px,
         crate::store::lattice::TOLERANCE_PX

@@ -64,11 +64,13 @@ impl std::str::FromStr for Transform {
 pub struct LatticeStats {
     /// Quads (per source) interpolated at each of [`SPACINGS`].
     pub by_spacing: [AtomicU64; 3],
-    /// Quads (per source), or blocks of a split quad, computed exactly because no lattice met the
-    /// tolerance.
+    /// Quads (per source) computed exactly because no lattice met the tolerance anywhere in them.
     pub exact: AtomicU64,
+    /// Cells of 16² samples of split quads computed exactly.
+    pub exact_cells: AtomicU64,
     /// Quads (per source) whose lattice did not meet the tolerance and were split into
-    /// [`BLOCKS`]² blocks, each with its own lattice (counted in `by_spacing`) or exact.
+    /// [`BLOCKS`]² blocks, each with its own lattice (counted in `by_spacing`) or split again
+    /// into cells with a lattice or exact.
     pub split: AtomicU64,
     /// The largest error measured at a cell centre of an accepted lattice, pixels (f64 bits).
     max_error_bits: AtomicU64,
@@ -85,12 +87,13 @@ impl LatticeStats {
         self.max_error_bits.fetch_max(e.to_bits(), Ordering::Relaxed);
     }
 
-    /// A copy of the counts: lattices per spacing (whole quads or blocks), exact quads or blocks,
-    /// quads split into blocks, and the largest error.
+    /// A copy of the counts: lattices per spacing (whole quads, blocks or cells), exact quads
+    /// and cells, quads split into blocks, and the largest error.
     pub fn summary(&self) -> LatticeSummary {
         LatticeSummary {
             by_spacing: self.by_spacing.each_ref().map(|a| a.load(Ordering::Relaxed)),
             exact: self.exact.load(Ordering::Relaxed),
+            exact_cells: self.exact_cells.load(Ordering::Relaxed),
             split: self.split.load(Ordering::Relaxed),
             max_error_px: self.max_error_px(),
         }
@@ -100,31 +103,42 @@ impl LatticeStats {
 /// [`LatticeStats`] read out.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct LatticeSummary {
-    /// Lattices at 16, 8 and 4 samples (whole quads, or blocks of split quads).
+    /// Lattices at 16, 8 and 4 samples (whole quads, or blocks and cells of split quads).
     pub by_spacing: [u64; 3],
-    /// Quads or blocks computed exactly.
+    /// Quads computed exactly.
     pub exact: u64,
+    /// Cells (16² samples) of split quads computed exactly.
+    pub exact_cells: u64,
     /// Quads split into blocks.
     pub split: u64,
     /// The largest error at a cell centre of an accepted lattice, source pixels.
     pub max_error_px: f64,
 }
 
-/// Blocks per axis of a quad whose whole lattice misses the tolerance: 4 (64 samples each).
+/// Blocks per axis of a quad whose whole lattice misses the tolerance: 4 (64 samples each); a
+/// block whose own lattices miss it too is split again into 4×4 cells of 16 samples.
 pub const BLOCKS: usize = 4;
 
+/// Cells per axis of a split quad: [`BLOCKS`]² (16 samples each), the finest split.
+const CELLS: usize = BLOCKS * BLOCKS;
+
 /// Where a quad's samples fall in one source: one lattice over the quad; or, where that misses
-/// the tolerance (a pole, a seam, points PROJ cannot transform), a lattice per block with the
-/// exact chain only in the blocks that still miss it; or the exact chain everywhere.
+/// the tolerance (a pole, a seam, the kinks of the QSC projection along a face's diagonals,
+/// points PROJ cannot transform), a lattice per block of 64 samples, or per cell of 16 samples
+/// within the blocks that miss it, with the exact chain only in the cells that still miss it; or
+/// the exact chain everywhere.
 pub enum QuadPositions {
     /// One lattice.
     Whole(PixelLattice),
-    /// Per block (row-major, [`BLOCKS`]²), a lattice or `None` for the exact chain.
+    /// A split quad: the lattices of its blocks and cells, and per cell (row-major, [`CELLS`]²)
+    /// the lattice that covers it, or `None` for the exact chain.
     Blocks {
         /// The quad's span along u and v, samples from its corner.
         span: [[f64; 2]; 2],
-        /// The blocks.
-        blocks: Vec<Option<PixelLattice>>,
+        /// The lattices.
+        lattices: Vec<PixelLattice>,
+        /// Per cell, its lattice's index.
+        cells: Vec<Option<u16>>,
     },
     /// The exact chain everywhere (`--transform exact`, or a geometry a lattice cannot follow).
     Exact,
@@ -144,35 +158,67 @@ impl QuadPositions {
         if let Some(l) = PixelLattice::build(reader, body, quad, span_u, span_v, &SPACINGS[..2], stats) {
             return QuadPositions::Whole(l);
         }
-        let part = |s: [f64; 2], b: usize| {
-            let w = (s[1] - s[0]) / BLOCKS as f64;
+        let part = |s: [f64; 2], b: usize, parts: usize| {
+            let w = (s[1] - s[0]) / parts as f64;
             [s[0] + b as f64 * w, s[0] + (b + 1) as f64 * w]
         };
-        let blocks: Vec<Option<PixelLattice>> = (0..BLOCKS * BLOCKS)
-            .map(|k| {
-                let (u, v) = (part(span_u, k % BLOCKS), part(span_v, k / BLOCKS));
-                PixelLattice::build(reader, body, quad, u, v, &SPACINGS, stats)
-            })
-            .collect();
-        let exact = blocks.iter().filter(|b| b.is_none()).count() as u64;
-        if exact == (BLOCKS * BLOCKS) as u64 {
-            // Not one block could be interpolated: the quad counts once, as exact.
+        let mut lattices = Vec::new();
+        let mut cells = vec![None; CELLS * CELLS];
+        for k in 0..BLOCKS * BLOCKS {
+            let (bu, bv) = (k % BLOCKS, k / BLOCKS);
+            let block = PixelLattice::build(
+                reader,
+                body,
+                quad,
+                part(span_u, bu, BLOCKS),
+                part(span_v, bv, BLOCKS),
+                &SPACINGS,
+                stats,
+            );
+            for c in 0..BLOCKS * BLOCKS {
+                let (cu, cv) = (bu * BLOCKS + c % BLOCKS, bv * BLOCKS + c / BLOCKS);
+                let cell = match &block {
+                    Some(_) => Some(lattices.len()),
+                    // A cell of 16 samples takes a lattice of 4 (5 nodes per axis) or none.
+                    None => PixelLattice::build(
+                        reader,
+                        body,
+                        quad,
+                        part(span_u, cu, CELLS),
+                        part(span_v, cv, CELLS),
+                        &SPACINGS[2..],
+                        stats,
+                    )
+                    .map(|l| {
+                        lattices.push(l);
+                        lattices.len() - 1
+                    }),
+                };
+                cells[cv * CELLS + cu] = cell.map(|i| i as u16);
+            }
+            if let Some(l) = block {
+                lattices.push(l);
+            }
+        }
+        let exact = cells.iter().filter(|c| c.is_none()).count() as u64;
+        if exact == (CELLS * CELLS) as u64 {
+            // Not one cell could be interpolated: the quad counts once, as exact.
             stats.exact.fetch_add(1, Ordering::Relaxed);
             return QuadPositions::Exact;
         }
-        stats.exact.fetch_add(exact, Ordering::Relaxed);
+        stats.exact_cells.fetch_add(exact, Ordering::Relaxed);
         stats.split.fetch_add(1, Ordering::Relaxed);
-        QuadPositions::Blocks { span: [span_u, span_v], blocks }
+        QuadPositions::Blocks { span: [span_u, span_v], lattices, cells }
     }
 
-    /// The block of a split quad a point `(u, v)` lies in.
+    /// The lattice of a split quad that covers a point `(u, v)`, if any.
     pub fn block(&self, u: f64, v: f64) -> Option<&PixelLattice> {
         match self {
-            QuadPositions::Blocks { span, blocks } => {
+            QuadPositions::Blocks { span, lattices, cells } => {
                 let index = |x: f64, s: [f64; 2]| {
-                    (((x - s[0]) / (s[1] - s[0]) * BLOCKS as f64).floor().max(0.0) as usize).min(BLOCKS - 1)
+                    (((x - s[0]) / (s[1] - s[0]) * CELLS as f64).floor().max(0.0) as usize).min(CELLS - 1)
                 };
-                blocks[index(v, span[1]) * BLOCKS + index(u, span[0])].as_ref()
+                cells[index(v, span[1]) * CELLS + index(u, span[0])].map(|i| &lattices[usize::from(i)])
             }
             _ => None,
         }

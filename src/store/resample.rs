@@ -9,7 +9,7 @@ use gdal::spatial_ref::CoordTransform;
 use super::StoreError;
 use super::grid::{self, GRID, TILE, face_xy, spacing_m};
 use super::import::{Plan, Resampling, Worker};
-use super::lattice::{PixelLattice, QuadPositions, Transform, exact_positions};
+use super::lattice::{LatticeRow, PixelLattice, QuadPositions, Transform, exact_positions};
 use super::read::GridReader;
 use super::source::{SourceReader, Window};
 use super::tile::QuadGrid;
@@ -159,12 +159,21 @@ fn band_pixels_split(
     let mut fx = Vec::with_capacity(rows * n * (k * k) as usize);
     let mut fy = Vec::with_capacity(fx.capacity());
     let (mut exact, mut exact_u, mut exact_v) = (Vec::new(), Vec::new(), Vec::new());
+    // With one point per sample, a row of points crosses each block once: its lattice is
+    // interpolated along v once per block and row, as in `band_pixels`.
+    let mut row: Option<(&PixelLattice, f64, LatticeRow)> = None;
     for r in 0..rows {
         for i in 0..n {
             for a in 0..k {
                 for b in 0..k {
                     let (u, v) = (along(i0 + i as i64, b, i0), along(j0 + r as i64, a, jq));
                     let (x, y) = match positions.block(u, v) {
+                        Some(l) if k == 1 => {
+                            if !matches!(&row, Some((c, cv, _)) if std::ptr::eq(*c, l) && *cv == v) {
+                                row = Some((l, v, l.row(v)));
+                            }
+                            row.as_ref().map_or((f64::NAN, f64::NAN), |(_, _, lr)| lr.at(u))
+                        }
                         Some(l) => l.at(u, v),
                         None => {
                             exact.push(fx.len());
