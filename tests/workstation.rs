@@ -698,3 +698,89 @@ fn the_file_bar_saves_as_opens_autosaves_and_offers_the_recovery_after_a_crash()
     assert!(!Project::load(&project).unwrap().layers[0].visible, "{}", h.state().message());
     assert!(recovery::find(&project).is_none(), "saving removes the recovery file");
 }
+
+/// Steps until the cluster-import panel's plan or merge is over.
+fn wait_for_cluster(h: &mut Harness<'static, App>) {
+    for _ in 0..6000 {
+        h.step();
+        if !h.state().cluster_import().busy() {
+            h.run_steps(2);
+            return;
+        }
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    panic!("the plan or merge did not finish");
+}
+
+/// Runs shard `i` of a plan as the cluster would, into the parts folder.
+fn run_shard(manifest: &std::path::Path, parts: &std::path::Path, i: usize) {
+    std::fs::create_dir_all(parts).unwrap();
+    let part = parts.join(format!("part-{i:04}.gpkg"));
+    let (m, p, shard) = (manifest.to_str().unwrap(), part.to_str().unwrap(), i.to_string());
+    let o = common::terrafuse(&["import", "--manifest", m, "--shard", &shard, "--store", p, "--quiet"], "");
+    assert!(o.status.success(), "shard {i}: {}", String::from_utf8_lossy(&o.stderr));
+}
+
+#[test]
+fn a_cluster_import_is_planned_followed_merged_in_two_goes_and_added_from_the_panel() {
+    let dir = repo_path("tests/out/workstation-cluster");
+    let _ = std::fs::remove_dir_all(dir.join("plans"));
+    let project = sample_project("moon-lola", &dir);
+    let mut h = harness_of_size(&project, "globe", egui::vec2(900.0, 1700.0));
+    settle(&mut h);
+    h.get_by_label("cluster import").click_accesskit();
+    h.run_steps(2);
+
+    // Bad input is refused by field, and nothing is written.
+    let raster = repo_path("projects/data/moon_lola_north_stere_1600m.tif");
+    let manifest = dir.join("plans/polar.json");
+    type_into(&mut h, "source", raster.to_str().unwrap());
+    type_into(&mut h, "shards", "two");
+    type_into(&mut h, "plan file", manifest.to_str().unwrap());
+    h.get_by_label("write plan").click_accesskit();
+    h.run_steps(2);
+    assert!(h.state().cluster_import().message.contains("shards: 'two'"), "{}", h.state().cluster_import().message);
+    assert!(!manifest.exists());
+
+    // The plan: written in the background, opened, no shard done yet.
+    type_into(&mut h, "shards", "2");
+    h.get_by_label("write plan").click_accesskit();
+    wait_for_cluster(&mut h);
+    let c = h.state().cluster_import();
+    assert!(c.message.starts_with("wrote plan "), "{}", c.message);
+    assert_eq!(c.plan().map(|m| m.shards.len()), Some(2));
+    assert_eq!(c.shards_done(), [false, false]);
+    assert!(manifest.exists());
+    h.get_by_label_contains("0 of 2 shards done");
+    let parts = dir.join("plans/parts");
+    assert_eq!(c.parts, parts.display().to_string(), "the parts folder defaults to plans/parts");
+
+    // One shard finishes on the "cluster": merged alone, the store says what is missing.
+    run_shard(&manifest, &parts, 0);
+    h.get_by_label("refresh").click_accesskit();
+    h.run_steps(2);
+    assert_eq!(h.state().cluster_import().shards_done(), [true, false]);
+    h.get_by_label("merge 1 parts").click_accesskit();
+    wait_for_cluster(&mut h);
+    let c = h.state().cluster_import();
+    assert!(c.message.contains("INCOMPLETE, 1 of 2 shards missing"), "{}", c.message);
+    assert!(c.merged().is_none());
+    h.render().unwrap().save(dir.join("cluster-panel.png")).unwrap(); // for people, not compared
+
+    // The other one: the second merge adds it and builds the pyramid; the dataset goes on the stack.
+    run_shard(&manifest, &parts, 1);
+    h.get_by_label("refresh").click_accesskit();
+    h.run_steps(2);
+    h.get_by_label("merge 2 parts").click_accesskit();
+    wait_for_cluster(&mut h);
+    let c = h.state().cluster_import();
+    assert!(c.message.contains("complete, all 2 shards in"), "{}", c.message);
+    let (store, dataset) = c.merged().cloned().expect("the merged dataset is complete");
+    h.get_by_label("add merged dataset").click_accesskit();
+    h.step();
+    wait_for_dataset(&mut h);
+    let stack = h.state().stack();
+    assert_eq!(stack.layers.len(), 2, "{}", h.state().message());
+    assert_eq!(stack.layers[1].spec.name, dataset);
+    assert!(store.exists());
+}

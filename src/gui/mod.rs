@@ -3,6 +3,7 @@
 
 pub mod add_dataset;
 pub mod app;
+pub mod cluster_import;
 pub mod compare_panel;
 pub mod difference_ui;
 pub mod layers_panel;

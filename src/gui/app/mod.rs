@@ -77,6 +77,7 @@ pub struct App {
     closing: bool,
     /// The "add a dataset" form and its import in flight.
     add_dataset: crate::gui::add_dataset::AddDataset,
+    cluster: crate::gui::cluster_import::ClusterImport,
     /// The *Compare* section.
     compare: crate::gui::compare_panel::ComparePanel,
     /// A swipe in progress (a second renderer).
@@ -138,6 +139,7 @@ impl App {
             confirm_close: false,
             closing: false,
             add_dataset: Default::default(),
+            cluster: Default::default(),
             compare: Default::default(),
             difference_range: Default::default(),
             brush: Default::default(),
@@ -216,6 +218,11 @@ impl App {
     /// Whether a dataset is being imported or opened in the background.
     pub fn adding_dataset(&self) -> bool {
         self.add_dataset.busy()
+    }
+
+    /// The cluster-import panel (tests read its plan and shards).
+    pub fn cluster_import(&self) -> &crate::gui::cluster_import::ClusterImport {
+        &self.cluster
     }
 
     /// The last message in the status bar (saves, errors).

@@ -182,6 +182,15 @@ impl App {
                 Some(Err(e)) => self.message = e,
                 None => {}
             }
+            if let crate::gui::cluster_import::ClusterAction::AddStore { store, dataset } =
+                self.cluster.ui(ui, &self.project)
+            {
+                self.add_dataset.path = store.display().to_string();
+                self.add_dataset.name = dataset;
+                if let Err(e) = self.add_dataset.start(&self.project) {
+                    self.message = e;
+                }
+            }
 
             ui.separator();
             ui.heading("Brush");
