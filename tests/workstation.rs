@@ -226,17 +226,23 @@ fn the_workstation_draws_probes_navigates_and_saves() {
     assert_eq!(h.state().stack().layers[0].spec.name, "lola_global");
 }
 
-/// Steps until the background import or opening of a dataset is over.
-fn wait_for_dataset(h: &mut Harness<'static, App>) {
-    for _ in 0..6000 {
+/// Steps (10 ms apart, at most `steps` times) while the window is `busy`, then two more; panics
+/// naming `what` if it never stops.
+fn step_while(h: &mut Harness<'static, App>, steps: usize, what: &str, busy: impl Fn(&App) -> bool) {
+    for _ in 0..steps {
         h.step();
-        if !h.state().adding_dataset() {
+        if !busy(h.state()) {
             h.run_steps(2);
             return;
         }
         std::thread::sleep(Duration::from_millis(10));
     }
-    panic!("adding the dataset did not finish");
+    panic!("{what} did not finish");
+}
+
+/// Steps until the background import or opening of a dataset is over.
+fn wait_for_dataset(h: &mut Harness<'static, App>) {
+    step_while(h, 6000, "adding the dataset", |a| a.adding_dataset());
 }
 
 /// Types into the text field labelled `label`, replacing what it held.
@@ -320,15 +326,7 @@ fn datasets_are_imported_in_the_background_cancelled_and_layers_reorder_by_dragg
 
 /// Steps until the *Compare* section's computation is over.
 fn wait_for_compare(h: &mut Harness<'static, App>) {
-    for _ in 0..20_000 {
-        h.step();
-        if !h.state().compare_panel().busy() {
-            h.run_steps(2);
-            return;
-        }
-        std::thread::sleep(Duration::from_millis(10));
-    }
-    panic!("the comparison did not finish");
+    step_while(h, 20_000, "the comparison", |a| a.compare_panel().busy());
 }
 
 #[test]
@@ -613,15 +611,7 @@ fn the_erosion_section_starts_steps_runs_keeps_undoes_and_brushes_a_run() {
 
 /// Steps until the project being opened has been taken over.
 fn wait_for_open(h: &mut Harness<'static, App>) {
-    for _ in 0..6000 {
-        h.step();
-        if !h.state().opening() {
-            h.run_steps(2);
-            return;
-        }
-        std::thread::sleep(Duration::from_millis(10));
-    }
-    panic!("opening the project did not finish");
+    step_while(h, 6000, "opening the project", |a| a.opening());
 }
 
 #[test]
@@ -701,15 +691,7 @@ fn the_file_bar_saves_as_opens_autosaves_and_offers_the_recovery_after_a_crash()
 
 /// Steps until the cluster-import panel's plan or merge is over.
 fn wait_for_cluster(h: &mut Harness<'static, App>) {
-    for _ in 0..6000 {
-        h.step();
-        if !h.state().cluster_import().busy() {
-            h.run_steps(2);
-            return;
-        }
-        std::thread::sleep(Duration::from_millis(10));
-    }
-    panic!("the plan or merge did not finish");
+    step_while(h, 6000, "the plan or merge", |a| a.cluster_import().busy());
 }
 
 /// Runs shard `i` of a plan as the cluster would, into the parts folder.
