@@ -765,3 +765,31 @@ fn lattice_positions_stay_within_their_bound_and_imports_match_the_exact_transfo
     assert!(n > 1_000_000 && one == 0, "{n} samples, {one} differ in data");
     assert!(mean < 1e-6 && max < 1e-3, "mean {mean:e} m, max {max:e} m");
 }
+
+/// The pyramid's average of a quad reads its region by runs of samples per child grid; the same
+/// region read sample by sample (`GridReader::sample`, what `fill_area_mean_region` describes)
+/// gives the same grid bit for bit, on a small area and across every face edge of the Moon.
+#[test]
+fn the_pyramids_average_reads_the_same_region_as_sample_by_sample() {
+    use terrafuse::store::resample::{AREA_MEAN_SPAN, area_mean, average_quad, fill_area_mean_region};
+    let dir = scratch("average");
+    let cases = [
+        ("earth_srtm3_demcompare_N39E040.tif", Ellipsoid::WGS84, 9u8),
+        ("moon_lola_ldem_4ppd_global.tif", Ellipsoid::MOON, 2),
+    ];
+    for (file, body, level) in cases {
+        let path = dir.join(format!("{level}.gpkg"));
+        import(&options(&[data(file)], &path, body, "d", LevelChoice::Level(level))).unwrap();
+        let mut reader = GridReader::new(Store::open_read_only(&path).unwrap(), "d").unwrap();
+        let quads: Vec<QuadId> = reader.store().data_quads("d", level - 1).unwrap().into_iter().collect();
+        assert!(!quads.is_empty());
+        for q in quads {
+            let mut region = vec![f32::NAN; AREA_MEAN_SPAN * AREA_MEAN_SPAN];
+            fill_area_mean_region(q, &mut region, &mut |f, l, i, j| reader.sample(f, l, i, j).unwrap());
+            let reference = area_mean(q, &region);
+            let fast = average_quad(&mut reader, q).unwrap().expect("a quad with data");
+            let same = reference.values.iter().zip(&fast.values).all(|(a, b)| a.to_bits() == b.to_bits());
+            assert!(same, "{file}: quad {q:?} differs from the sample-by-sample average");
+        }
+    }
+}

@@ -491,16 +491,42 @@ fn convert_heights(t: &CoordTransform, body: &Ellipsoid, quad: QuadId, j0: i64, 
 /// per axis over the child samples at and beside it, across quad and face edges), ignoring no
 /// data; no data where less than half the cell has data.
 pub fn average_quad(reader: &mut GridReader, quad: QuadId) -> Result<Option<QuadGrid>, StoreError> {
-    let mut region = vec![f32::NAN; AREA_MEAN_SPAN * AREA_MEAN_SPAN];
-    let mut err = None;
-    fill_area_mean_region(quad, &mut region, &mut |face, level, i, j| {
-        reader.sample(face, level, i, j).unwrap_or_else(|e| {
-            err.get_or_insert(e);
-            f32::NAN
-        })
-    });
-    if let Some(e) = err {
-        return Err(e);
+    // The region [`fill_area_mean_region`] describes, read as `GridReader::sample` reads each
+    // sample (the same quad and place for every sample, so the same values), but along a row a
+    // run of samples in one quad takes one look-up of its grid instead of one per sample.
+    let span = AREA_MEAN_SPAN;
+    let child = quad.level + 1;
+    let m = grid::intervals_per_face_edge(child);
+    let last = (1i64 << child) - 1;
+    let (ci0, cj0) = (2 * i64::from(quad.x) * i64::from(TILE) - 1, 2 * i64::from(quad.y) * i64::from(TILE) - 1);
+    let mut region = vec![f32::NAN; span * span];
+    for b in 0..span {
+        let j = cj0 + b as i64;
+        let row = &mut region[b * span..(b + 1) * span];
+        let mut a = 0;
+        while a < span {
+            let i = ci0 + a as i64;
+            if !((0..=m).contains(&i) && (0..=m).contains(&j)) {
+                // Off the face: folded onto the next one, sample by sample.
+                row[a] = reader.sample(quad.face, child, i, j)?;
+                a += 1;
+                continue;
+            }
+            let (q, li, lj) = grid::quad_of_sample(quad.face, child, i, j);
+            // The samples of this row that `quad_of_sample` puts in the same quad: up to its
+            // last column, or the face's last sample for the face's last quad.
+            let end = if i64::from(q.x) == last { m } else { (i64::from(q.x) + 1) * i64::from(TILE) - 1 };
+            let len = ((end - i + 1) as usize).min(span - a);
+            match reader.grid(q)? {
+                Some(g) => {
+                    for (t, v) in row[a..a + len].iter_mut().enumerate() {
+                        *v = g.get(li + t as u32, lj);
+                    }
+                }
+                None => row[a..a + len].fill(f32::NAN),
+            }
+            a += len;
+        }
     }
     let grid = area_mean(quad, &region);
     Ok((!grid.is_empty()).then_some(grid))
