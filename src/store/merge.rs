@@ -18,6 +18,7 @@ use super::StoreError;
 use super::gpkg::{DatasetRecord, Store, face_proj, face_table};
 use super::import::{LevelWriter, check_body, peak_rss_bytes, pyramid, worker_pool};
 use super::shard::{PartInfo, part_info};
+use super::checkpoint::BackgroundCheckpoints;
 use super::watch::ImportWatch;
 use crate::ecm::Face;
 use crate::geodesy::Ellipsoid;
@@ -183,6 +184,10 @@ pub fn merge(opts: &MergeOptions) -> Result<MergeReport, StoreError> {
     let stored = store.dataset(&dataset)?.expect("registered above");
     let mut report = MergeReport { dataset: dataset.clone(), manifest: manifest.clone(), shards, ..Default::default() };
     let start = Instant::now();
+    // The parts' tiles are copied in big transactions: the log is checkpointed on a thread of
+    // its own meanwhile, as during an import, so the copying never waits for the disk.
+    store.set_auto_checkpoints(false)?;
+    let checkpoints = BackgroundCheckpoints::start(&opts.store)?;
     for part in &parts {
         if part.record.settings != stored.settings || part.record.sources != stored.sources {
             return Err(StoreError::new(
@@ -200,6 +205,8 @@ pub fn merge(opts: &MergeOptions) -> Result<MergeReport, StoreError> {
         let tiles = merge_part(&mut store, part, &dataset)?;
         report.merged.push((part.info.shard, tiles));
     }
+    drop(checkpoints);
+    store.set_auto_checkpoints(true)?;
     report.seconds_merge = start.elapsed().as_secs_f64();
     let have: BTreeSet<usize> = recorded_merges(&mut store, &dataset)?.into_keys().collect();
     report.missing = (0..shards).filter(|s| !have.contains(s)).collect();
