@@ -15,10 +15,10 @@ use gdal::spatial_ref::SpatialRef;
 use rusqlite::{OptionalExtension, params};
 
 use super::StoreError;
+use super::checkpoint::BackgroundCheckpoints;
 use super::gpkg::{DatasetRecord, Store, face_proj, face_table};
 use super::import::{LevelWriter, check_body, peak_rss_bytes, pyramid, worker_pool};
 use super::shard::{PartInfo, part_info};
-use super::checkpoint::BackgroundCheckpoints;
 use super::watch::ImportWatch;
 use crate::ecm::Face;
 use crate::geodesy::Ellipsoid;
