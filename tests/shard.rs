@@ -323,6 +323,7 @@ fn a_job_array_on_slurm_with_a_shard_cancelled_and_resubmitted_gives_the_single_
     let local = dir.join("node-local");
     // Shard 1's first run is paused (SIGSTOP) once its working file exists, so that the test
     // cancels it mid-import however fast the machine: without the pause it could finish first.
+    // Until then it runs in slices of 5 ms, so it cannot get far past that point either.
     let (task, paused) = (1usize, dir.join("shard-1-paused"));
     let wrapper = dir.join("terrafuse-pausing-shard-1");
     let working = format!("'{}/terrafuse-*/.part-{task:04}.gpkg.importing'", s(&local));
@@ -333,11 +334,11 @@ fn a_job_array_on_slurm_with_a_shard_cancelled_and_resubmitted_gives_the_single_
 if [ "${{SLURM_ARRAY_TASK_ID:-}}" = {task} ] && [ "$1" = import ] && [ ! -e {paused} ]; then
   {bin} "$@" &
   pid=$!
+  kill -STOP $pid
   until compgen -G {working} >/dev/null; do
     kill -0 $pid 2>/dev/null || exit 1
-    sleep 0.02
+    kill -CONT $pid; sleep 0.005; kill -STOP $pid
   done
-  kill -STOP $pid
   touch {paused}
   wait $pid
   exit $?
