@@ -37,8 +37,8 @@ fn quad_at(e: &Ellipsoid, lat: f64, lon: f64, level: u8) -> QuadId {
 fn the_moon_session_composes_on_the_gpu_as_on_the_cpu_across_a_face_edge_and_a_corner() {
     let dir = repo_path("tests/out/brush-compose");
     let p = Project::load(&sample_project("moon-brushing", &dir)).unwrap();
-    let edit = p.layers.iter().find(|l| l.kind == LayerKind::Edit).expect("the sample's edit layer");
-    assert!(edit.strokes.len() >= 5, "a session of strokes");
+    let edit = p.layers.iter().find(|l| l.kind() == LayerKind::Edit).expect("the sample's edit layer");
+    assert!(edit.strokes().len() >= 5, "a session of strokes");
     let mut r = renderer(&p);
     let e = Ellipsoid::MOON;
     // On the ridge across the front/right face edge (45°E), on the trench, on the corner.
@@ -52,7 +52,7 @@ fn the_moon_session_composes_on_the_gpu_as_on_the_cpu_across_a_face_edge_and_a_c
     let cpu = r.scene().compose_cpu(&quads).unwrap();
     // The same quads without the edit layer: the deltas are what the layer adds.
     let mut bare = p.clone();
-    bare.layers.retain(|l| l.kind != LayerKind::Edit);
+    bare.layers.retain(|l| l.kind() != LayerKind::Edit);
     let base = Scene::open(&bare).unwrap().0.compose_cpu(&quads).unwrap();
     let (mut worst, mut edited) = (0f64, 0usize);
     for q in &quads {
@@ -96,11 +96,11 @@ fn the_brushed_corner_seen_straight_down_has_no_crack_and_the_session_rebuilds_b
     assert_eq!(faces.len(), 3, "the corner's three faces are drawn");
     // Replay: the strokes (every tool; smooth, flatten and ramp read the LOLA grid below) rebuild
     // the same tiles, twice and in another thread pool, and as the scene built them.
-    let edit = p.layers.iter().find(|l| l.kind == LayerKind::Edit).unwrap();
+    let edit = p.layers.iter().find(|l| l.kind() == LayerKind::Edit).unwrap();
     for tool in terrafuse::edit::Tool::ALL {
-        assert!(edit.strokes.iter().any(|s| s.tool == tool), "the session has a {} stroke", tool.name());
+        assert!(edit.strokes().iter().any(|s| s.tool == tool), "the session has a {} stroke", tool.name());
     }
-    let index = p.layers.iter().position(|l| l.kind == LayerKind::Edit).unwrap();
+    let index = p.layers.iter().position(|l| l.kind() == LayerKind::Edit).unwrap();
     let below = r.scene().below(index).unwrap();
     let below = |q| below.heights_cpu(q);
     let once = EditRaster::build(Ellipsoid::MOON, edit.applied_strokes(), &below).unwrap();
@@ -124,8 +124,8 @@ fn strokes_undo_and_redo_from_the_command_line_and_bad_strokes_leave_the_file_as
     let p = path.to_str().unwrap();
     let strokes = |path: &std::path::Path| {
         let q = Project::load(path).unwrap();
-        let l = q.layers.iter().find(|l| l.kind == LayerKind::Edit).unwrap().clone();
-        (l.strokes.len(), l.applied_strokes().len())
+        let l = q.layers.iter().find(|l| l.kind() == LayerKind::Edit).unwrap().clone();
+        (l.strokes().len(), l.applied_strokes().len())
     };
     let (n, applied) = strokes(&path);
     assert_eq!(n, applied);
@@ -402,23 +402,23 @@ fn edit_rasters_are_cached_beside_the_project_and_rebuilt_when_stale_or_unreadab
     assert_eq!(again, built);
     // Another undo position: another digest, another cache; the previous one is kept (a redo
     // reads it) among the layer's most recent few.
-    let index = p.layers.iter().position(|l| l.kind == LayerKind::Edit).unwrap();
-    p.layers[index].applied = Some(7);
+    let index = p.layers.iter().position(|l| l.kind() == LayerKind::Edit).unwrap();
+    p.layers[index].as_edit_mut().unwrap().applied = Some(7);
     let (undone, line) = open(&p);
     assert!(line.contains("rebuilt from 7 strokes"), "{line}");
     assert_ne!(undone, built);
     assert_eq!(caches().len(), 2, "{:?}", caches());
-    p.layers[index].applied = None;
+    p.layers[index].as_edit_mut().unwrap().applied = None;
     let (redone, line) = open(&p);
     assert!(line.contains("8 strokes read from"), "{line}");
     assert_eq!(redone, built);
     for k in (3..7).rev() {
-        p.layers[index].applied = Some(k);
+        p.layers[index].as_edit_mut().unwrap().applied = Some(k);
         open(&p);
     }
     assert_eq!(caches().len(), terrafuse::edit::cache::KEPT, "only the most recent are kept: {:?}", caches());
     // A layer below changed: the strokes that read the terrain read another one.
-    p.layers[index].applied = None;
+    p.layers[index].as_edit_mut().unwrap().applied = None;
     p.layers[0].offset_m = 100.0;
     let (_, line) = open(&p);
     assert!(line.contains("rebuilt from 8 strokes"), "{line}");

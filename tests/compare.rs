@@ -84,7 +84,7 @@ fn a_layer_offset_by_5_m_differs_by_exactly_5_m_everywhere() {
     // Closed form through the whole pipeline: the same dataset, once with offset_m 5.
     let mut p = Project::load(&project()).unwrap();
     let srtm = p.layers.iter().find(|l| l.name == "srtm").unwrap().clone();
-    p.layers.push(LayerSpec { name: "raised".into(), dataset: Some("srtm".into()), offset_m: 5.0, ..srtm });
+    p.layers.push(LayerSpec { name: "raised".into(), offset_m: 5.0, ..srtm.with_dataset_name("srtm") });
     for weighting in [Weighting::Area, Weighting::Samples] {
         let opts = CompareOptions { level: Some(8), weighting, ..CompareOptions::default() };
         let c = compare(&p, "raised", "srtm", &opts).unwrap();
@@ -122,7 +122,7 @@ fn a_difference_layer_draws_blue_where_a_is_higher_and_red_where_lower_over_its_
     let srtm = p.layers.iter().find(|l| l.name == "srtm").unwrap().clone();
     p.layers = vec![
         srtm.clone(),
-        LayerSpec { name: "raised".into(), dataset: Some("srtm".into()), offset_m: 40.0, visible: false, ..srtm },
+        LayerSpec { name: "raised".into(), offset_m: 40.0, visible: false, ..srtm.with_dataset_name("srtm") },
     ];
     p.visuals.isolines.enabled = false;
     p.comparison = Default::default();
@@ -310,7 +310,7 @@ fn a_known_shift_is_recovered_at_least_as_closely_as_xdem_recovers_it() {
         serde_json::from_str(&run(&["compare", p.to_str().unwrap(), "moved", "ref", "--json"])).unwrap();
     run(&["coregister", p.to_str().unwrap(), "moved", "--to", "ref", "--region", "40.22,39.4,40.62,39.8", "--apply"]);
     let saved = Project::load(&p).unwrap();
-    let shift = saved.layers[1].shift_m;
+    let shift = saved.layers[1].shift_m();
     assert!((shift[0] - ours["east_m"].as_f64().unwrap()).abs() < 1e-9, "{shift:?}");
     let after: serde_json::Value =
         serde_json::from_str(&run(&["compare", p.to_str().unwrap(), "moved", "ref", "--json"])).unwrap();

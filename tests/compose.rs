@@ -171,10 +171,14 @@ fn datasets_with_scale_offset_valid_range_and_feathers_compose_on_the_gpu_as_on_
             feather_m: 5000.0,
             ..srtm
         },
-        LayerSpec {
-            noise: Some(NoiseSpec { placement: DetailWhere::BeyondData, ..noise(NoiseType::Fbm, 20.0, 800.0, 8) }),
-            ..layer(LayerSpec::procedural("detail", noise(NoiseType::Fbm, 1.0, 1.0, 1)), BlendMode::Add, 1.0)
-        },
+        layer(
+            LayerSpec::procedural(
+                "detail",
+                NoiseSpec { placement: DetailWhere::BeyondData, ..noise(NoiseType::Fbm, 20.0, 800.0, 8) },
+            ),
+            BlendMode::Add,
+            1.0,
+        ),
     ];
     let mut r = renderer(&p);
     let e = Ellipsoid::WGS84;
@@ -205,7 +209,7 @@ fn a_difference_of_a_shifted_layer_and_a_composed_group_composes_on_the_gpu_as_o
     p.layers = vec![
         srtm,
         detail,
-        LayerSpec { shift_m: [300.0, 0.0], ..blurred },
+        blurred.with_shift_m([300.0, 0.0]),
         LayerSpec::difference("dh", Operand::Layer("blurred".into()), group),
     ];
     let mut r = renderer(&p);
@@ -376,10 +380,14 @@ fn a_settled_view_stays_settled_when_detail_fills_the_gpu_cache() {
     // other frame collapse to a few coarse quads (and `settle` stop on the collapsed one).
     let mut p = Project::load(&erzurum()).unwrap();
     p.detail.gpu_cache_mib = 256;
-    p.layers.push(LayerSpec {
-        noise: Some(NoiseSpec { placement: DetailWhere::BeyondData, ..noise(NoiseType::Fbm, 14.0, 140.0, 7) }),
-        ..layer(LayerSpec::procedural("detail", noise(NoiseType::Fbm, 1.0, 1.0, 1)), BlendMode::Add, 1.0)
-    });
+    p.layers.push(layer(
+        LayerSpec::procedural(
+            "detail",
+            NoiseSpec { placement: DetailWhere::BeyondData, ..noise(NoiseType::Fbm, 14.0, 140.0, 7) },
+        ),
+        BlendMode::Add,
+        1.0,
+    ));
     let mut r = renderer(&p);
     let camera = cam(39.55, 40.3, 2600.0, 60.0, -25.0);
     let settled = r.settle(&camera, 400, 300, Duration::from_secs(300));
@@ -479,7 +487,7 @@ fn a_dataset_fades_in_from_its_own_no_data_edge_by_the_distance_on_the_surface_w
     let feather = 5000.0;
     let mut p = Project::load(&erzurum()).unwrap();
     let srtm = p.layers[0].clone();
-    p.layers = vec![LayerSpec::constant("base", 0.0), LayerSpec { feather_edge_m: feather, ..srtm }];
+    p.layers = vec![LayerSpec::constant("base", 0.0), srtm.with_feather_edge_m(feather)];
     let mut r = renderer(&p);
     let e = Ellipsoid::WGS84;
     let a = quad_at(&e, 39.5, 40.02, 10);

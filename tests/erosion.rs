@@ -154,8 +154,8 @@ fn the_erzurum_session_replays_bit_for_bit_and_reopens_from_its_cache() {
     // Opening the sample built its erosion layer from its two runs and cached it.
     let path = common::sample_project("erzurum-erosion", &dir);
     let project = Project::load(&path).unwrap();
-    let index = project.layers.iter().position(|l| l.kind == LayerKind::Erosion).expect("the sample's erosion layer");
-    assert_eq!(project.layers[index].runs.len(), 2);
+    let index = project.layers.iter().position(|l| l.kind() == LayerKind::Erosion).expect("the sample's erosion layer");
+    assert_eq!(project.layers[index].runs().len(), 2);
     let (cached, report) = Scene::open(&project).unwrap();
     assert!(report.edits.iter().any(|l| l.contains("2 runs read from")), "{:?}", report.edits);
     let raster = |s: &Scene| s.edits[&s.stack.layers[index].uid].clone();
@@ -219,8 +219,8 @@ fn terrafuse_erode_runs_reports_json_undoes_redoes_and_refuses_bad_input_untouch
     assert!(cells.iter().all(|c| c.as_u64().unwrap() % 256 == 0), "{v}");
     let project = terrafuse::project::Project::load(&path).unwrap();
     let layer = project.layers.iter().find(|l| l.name == "wash").unwrap();
-    assert_eq!(layer.runs.len(), 1);
-    assert_eq!(layer.runs[0].steps, 30);
+    assert_eq!(layer.runs().len(), 1);
+    assert_eq!(layer.runs()[0].steps, 30);
     // Undo, then redo: the layer comes back from its cache.
     let undo = erode(&[p, "--layer", "wash", "--undo", "1"]);
     assert!(undo.status.success(), "{}", String::from_utf8_lossy(&undo.stderr));

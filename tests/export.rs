@@ -25,7 +25,7 @@ fn read_f32(path: &std::path::Path) -> Vec<f32> {
 #[test]
 fn a_single_dataset_exports_as_the_store_does_and_gpu_matches_cpu() {
     let project = common::sample_project("erzurum", &dir());
-    let store = terrafuse::project::Project::load(&project).unwrap().layers[0].store.clone().unwrap();
+    let store = terrafuse::project::Project::load(&project).unwrap().layers[0].as_dataset().unwrap().store.clone();
     let args = ["--crs", "EPSG:32637", "--bounds", "585000,4340000,650000,4420000", "--resolution", "250"];
     let composed = dir().join("composed.tif");
     let o =

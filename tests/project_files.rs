@@ -25,7 +25,7 @@ fn scratch(name: &str) -> PathBuf {
 fn project_of_strokes(n: usize) -> Project {
     let mut p = Project::new("moon");
     let mut edit = LayerSpec::edit("sculpt");
-    edit.strokes = (0..n)
+    edit.as_edit_mut().unwrap().strokes = (0..n)
         .map(|k| Stroke {
             tool: if k % 3 == 0 { Tool::Lower } else { Tool::Raise },
             radius_m: 2000.0 + (k % 7) as f64 * 100.0,
@@ -51,7 +51,8 @@ fn saves_killed_at_random_moments_leave_the_old_or_the_new_project() {
     let (a, b, target) = (dir.join("a.json"), dir.join("b.json"), dir.join("t.json"));
     let small = project_of_strokes(20_000);
     let mut large = small.clone();
-    large.layers[0].strokes.extend(project_of_strokes(20_001).layers[0].strokes.drain(20_000..));
+    let more = project_of_strokes(20_001).layers[0].strokes()[20_000..].to_vec();
+    large.layers[0].as_edit_mut().unwrap().strokes.extend(more);
     small.save(&a).unwrap();
     large.save(&b).unwrap();
     small.save(&target).unwrap();
@@ -81,9 +82,12 @@ fn saves_killed_at_random_moments_leave_the_old_or_the_new_project() {
         let orphans = terrafuse::files::orphans(&dir, "t.json");
         mid_write += usize::from(!orphans.is_empty());
         let loaded = Project::load(&target).unwrap_or_else(|e| panic!("after kill {k}: {e}"));
-        let n = loaded.layers[0].strokes.len();
+        let n = loaded.layers[0].strokes().len();
         assert!(n == 20_000 || n == 20_001, "after kill {k}: {n} strokes");
-        assert!(loaded.layers[0].strokes[..20_000] == small.layers[0].strokes[..], "after kill {k}: strokes differ");
+        assert!(
+            loaded.layers[0].strokes()[..20_000] == small.layers[0].strokes()[..],
+            "after kill {k}: strokes differ"
+        );
         if mid_write >= 5 && kills >= 20 {
             break;
         }
@@ -205,7 +209,7 @@ fn bad_project_files_are_refused_naming_the_file_the_field_and_the_problem() {
     );
     let earth_store = common::sample_project("erzurum", &repo_path("tests/out/project-files/earth"));
     let earth = Project::load(&earth_store).unwrap();
-    let store = earth.layers[0].store.clone().unwrap();
+    let store = earth.layers[0].as_dataset().unwrap().store.clone();
     let other_body =
         with_layers("moon", &format!(r#"{{"name": "srtm", "kind": "dataset", "store": "{}"}}"#, store.display()));
     for (name, text, expected) in [
@@ -393,7 +397,7 @@ fn replay_check_passes_as_recorded_and_names_the_layer_and_first_differing_tile(
     let mut p = Project::new("moon");
     p.layers.push(LayerSpec::constant("datum", -1000.0));
     let mut edit = project_of_strokes(3).layers.remove(0);
-    for (k, s) in edit.strokes.iter_mut().enumerate() {
+    for (k, s) in edit.as_edit_mut().unwrap().strokes.iter_mut().enumerate() {
         s.path = vec![[0.05 * k as f64, 20.0], [0.05 * k as f64 + 0.02, 20.03]];
     }
     p.layers.push(edit);
@@ -436,7 +440,7 @@ fn replay_check_passes_as_recorded_and_names_the_layer_and_first_differing_tile(
     // A stroke changed after recording: the replay differs from the record, named.
     let mut changed = p.clone();
     changed.checks.insert("sculpt".into(), recorded);
-    changed.layers[1].strokes[2].strength += 1.0;
+    changed.layers[1].as_edit_mut().unwrap().strokes[2].strength += 1.0;
     changed.save(&path).unwrap();
     let out = replay(&["--check", "--json"]);
     assert_eq!(out.status.code(), Some(1));

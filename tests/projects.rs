@@ -44,11 +44,9 @@ fn copy_into_out(file: &Path) -> Result<PathBuf, Failed> {
     let mut p = Project::load(file)?;
     let stores = common::store_dir(&dir, &name, &serde_json::to_string(&p.layers)?);
     let base = p.base_dir.clone();
-    for layer in &mut p.layers {
-        if let Some(store) = &mut layer.store {
-            *store = stores.join(store.file_name().unwrap());
-        }
-        if let Some(source) = &mut layer.source {
+    for data in p.layers.iter_mut().filter_map(|l| l.as_dataset_mut()) {
+        data.store = stores.join(data.store.file_name().unwrap());
+        if let Some(source) = &mut data.source {
             source.files = source.files.iter().map(|f| base.join(f)).collect();
         }
     }
@@ -76,7 +74,7 @@ fn replay_and_render(file: &Path) -> Result<(), Failed> {
     if checks.iter().any(|c| c["ok"] != true) {
         return Err(format!("a check failed: {checks:?}").into());
     }
-    for layer in project.layers.iter().filter(|l| l.kind.holds_deltas()) {
+    for layer in project.layers.iter().filter(|l| l.holds_deltas()) {
         if !project.checks.values().any(|c| c.layer.as_deref() == Some(layer.name.as_str()) && c.digest.is_some()) {
             return Err(format!("layer '{}' is rebuilt but no recorded check covers it", layer.name).into());
         }

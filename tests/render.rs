@@ -363,8 +363,9 @@ fn the_render_command_writes_the_png_and_reports_what_it_drew() {
     let no_file = terrafuse(&["render", missing.to_str().unwrap(), "--out", "/tmp/x.png"], "");
     assert!(String::from_utf8_lossy(&no_file.stderr).contains("missing.json: cannot read"));
     let mut p = Project::load(&moon).unwrap();
-    p.layers[0].store = Some(out_dir().join("absent.gpkg"));
-    p.layers[0].source = None;
+    let data = p.layers[0].as_dataset_mut().unwrap();
+    data.store = out_dir().join("absent.gpkg");
+    data.source = None;
     let orphan = out_dir().join("orphan.json");
     p.save(&orphan).unwrap();
     let o = terrafuse(&["render", orphan.to_str().unwrap(), "--out", "/tmp/x.png"], "");
@@ -408,17 +409,16 @@ fn datasets_fill_each_other_and_show_below_their_finest_level() {
     // Both Moon grids: the polar one (levels 0–3) on top of the global one (levels 0–1).
     let mut p = Project::load(&repo_path("projects/moon-lola.json")).unwrap();
     let stores = common::store_dir(&out_dir(), "moon-fusion", &serde_json::to_string(&p.layers).unwrap());
-    for d in &mut p.layers {
-        if d.store.is_some() {
-            d.store = Some(stores.join("moon-fusion.gpkg"));
-        }
+    p.layers.retain(|l| l.is_data());
+    for layer in &mut p.layers {
+        layer.extent = None; // plain `over`: the polar samples win exactly where they exist
+        layer.feather_m = 0.0;
+        let d = layer.as_dataset_mut().unwrap();
+        d.store = stores.join("moon-fusion.gpkg");
         if let Some(s) = &mut d.source {
             s.files = s.files.iter().map(|f| repo_path("projects").join(f)).collect();
         }
-        d.extent = None; // plain `over`: the polar samples win exactly where they exist
-        d.feather_m = 0.0;
     }
-    p.layers.retain(|l| l.store.is_some());
     let (scene, _) = Scene::open(&p).unwrap();
     let north_layer = scene.stack.layers.iter().position(|l| l.spec.name == "lola_north").unwrap();
     let global_layer = scene.stack.layers.iter().position(|l| l.spec.name == "lola_global").unwrap();

@@ -285,7 +285,7 @@ fn datasets_are_imported_in_the_background_cancelled_and_layers_reorder_by_dragg
     assert_eq!(stack.layers.len(), 2);
     let north = &stack.layers[1];
     assert_eq!(north.spec.name, "north");
-    assert_eq!(north.spec.store.as_deref(), Some(std::path::Path::new("stores/north.gpkg")));
+    assert_eq!(north.spec.as_dataset().unwrap().store, std::path::Path::new("stores/north.gpkg"));
     assert!(north.raw_range_m.1 > north.raw_range_m.0, "the dataset is attached: {:?}", north.raw_range_m);
     assert!(dir.join("stores/north.gpkg").exists());
     settle(&mut h);
@@ -293,7 +293,7 @@ fn datasets_are_imported_in_the_background_cancelled_and_layers_reorder_by_dragg
     h.step();
     let saved = Project::load(&project).unwrap();
     assert_eq!(saved.layers.iter().map(|l| l.name.as_str()).collect::<Vec<_>>(), ["lola_global", "north"]);
-    assert_eq!(saved.layers[1].source.as_ref().unwrap().files, std::slice::from_ref(&raster));
+    assert_eq!(saved.layers[1].as_dataset().unwrap().source.as_ref().unwrap().files, std::slice::from_ref(&raster));
 
     // The same raster again under another name, cancelled at once: nothing added, the store it
     // began stays a valid store that a later import resumes.
@@ -356,7 +356,7 @@ fn the_compare_section_shows_statistics_and_applies_a_coregistration() {
     h.get_by_label("apply to blurred").click_accesskit();
     h.run_steps(2);
     let blurred = h.state().stack().layers.iter().find(|l| l.spec.name == "blurred").unwrap().spec.clone();
-    assert_eq!(blurred.shift_m, [east, north]);
+    assert_eq!(blurred.shift_m(), [east, north]);
     assert!(h.state().message().starts_with("moved 'blurred' east"), "{}", h.state().message());
     settle(&mut h);
     // Co-registered, the differences shrink, and so does the range they are drawn over.
@@ -368,7 +368,7 @@ fn the_compare_section_shows_statistics_and_applies_a_coregistration() {
     h.run_steps(2);
     let stack = h.state().stack();
     let top = &stack.layers.last().unwrap().spec;
-    assert_eq!((top.name.as_str(), top.kind), ("blurred - srtm 2", terrafuse::layers::LayerKind::Difference));
+    assert_eq!((top.name.as_str(), top.kind()), ("blurred - srtm 2", terrafuse::layers::LayerKind::Difference));
     assert_eq!(stack.drawn_difference(), Some(stack.layers.len() - 1));
     settle(&mut h);
 }
@@ -499,7 +499,7 @@ fn a_left_drag_with_the_brush_on_paints_a_stroke_and_ctrl_z_undoes_it() {
     settle(&mut h);
     let strokes = |h: &Harness<'static, App>| {
         let l = h.state().project().layers.iter().find(|l| l.name == "sculpt").unwrap();
-        (l.strokes.len(), l.applied_strokes().len())
+        (l.strokes().len(), l.applied_strokes().len())
     };
     let (n, _) = strokes(&h);
     h.get_by_label("brush (left drag paints)").click_accesskit();
@@ -520,14 +520,14 @@ fn a_left_drag_with_the_brush_on_paints_a_stroke_and_ctrl_z_undoes_it() {
     }
     // The terrain updates during the drag: the stroke so far is applied provisionally.
     assert_eq!(strokes(&h), (n + 1, n + 1), "a provisional stroke while dragging");
-    let partial = h.state().project().layers.iter().find(|l| l.name == "sculpt").unwrap().strokes[n].path.len();
+    let partial = h.state().project().layers.iter().find(|l| l.name == "sculpt").unwrap().strokes()[n].path.len();
     h.drop_at(to);
     h.step();
     h.run_steps(2);
     assert_eq!(h.state().camera(), camera, "painting does not move the camera");
     assert_eq!(strokes(&h), (n + 1, n + 1), "{}", h.state().message());
     assert!(h.state().message().starts_with(&format!("stroke {n} on 'sculpt'")), "{}", h.state().message());
-    let stroke = h.state().project().layers.iter().find(|l| l.name == "sculpt").unwrap().strokes[n].clone();
+    let stroke = h.state().project().layers.iter().find(|l| l.name == "sculpt").unwrap().strokes()[n].clone();
     assert!(stroke.path.len() >= 2 && stroke.path.len() >= partial, "the drag's path: {:?}", stroke.path);
     settle(&mut h);
     // The footprint follows the cursor (a ring on the terrain).
@@ -553,7 +553,7 @@ fn the_erosion_section_starts_steps_runs_keeps_undoes_and_brushes_a_run() {
     settle(&mut h);
     let runs = |h: &Harness<'static, App>| {
         let l = h.state().project().layers.iter().find(|l| l.name == "erosion").unwrap();
-        (l.runs.len(), l.applied_runs().len())
+        (l.runs().len(), l.applied_runs().len())
     };
     assert_eq!(runs(&h), (2, 2));
     h.state_mut().set_erosion(6, 2000.0);
@@ -582,7 +582,7 @@ fn the_erosion_section_starts_steps_runs_keeps_undoes_and_brushes_a_run() {
     assert_eq!(runs(&h), (3, 3), "{}", h.state().message());
     assert!(h.state().message().starts_with("erosion run 2 kept: 6 steps"), "{}", h.state().message());
     assert!(h.state().unsaved());
-    let kept = h.state().project().layers.iter().find(|l| l.name == "erosion").unwrap().runs[2].clone();
+    let kept = h.state().project().layers.iter().find(|l| l.name == "erosion").unwrap().runs()[2].clone();
     assert_eq!((kept.steps, kept.level, kept.seed), (6, 10, 1));
     settle(&mut h);
     h.render().unwrap().save(dir.join("eroded.png")).unwrap(); // for people, not compared
@@ -603,7 +603,7 @@ fn the_erosion_section_starts_steps_runs_keeps_undoes_and_brushes_a_run() {
     h.run_steps(2);
     assert_eq!(h.state().camera(), camera, "the erosion brush does not move the camera");
     assert_eq!(runs(&h), (4, 4), "{}", h.state().message());
-    let brushed = h.state().project().layers.iter().find(|l| l.name == "erosion").unwrap().runs[3].clone();
+    let brushed = h.state().project().layers.iter().find(|l| l.name == "erosion").unwrap().runs()[3].clone();
     let path = brushed.brush.expect("a brush run keeps its path");
     assert!(path.points.len() >= 2 && path.radius_m > 0.0, "{path:?}");
     settle(&mut h);
@@ -646,7 +646,7 @@ fn the_file_bar_saves_as_opens_autosaves_and_offers_the_recovery_after_a_crash()
     assert_eq!(h.state().project_path(), copy.as_path(), "{}", h.state().message());
     assert!(!h.state().unsaved() && h.state().title().starts_with("copy.json"));
     let (a, b) = (Project::load(&project).unwrap(), Project::load(&copy).unwrap());
-    let store = |p: &Project| std::path::absolute(p.resolve(p.layers[0].store.as_ref().unwrap())).unwrap();
+    let store = |p: &Project| std::path::absolute(p.resolve(&p.layers[0].as_dataset().unwrap().store)).unwrap();
     assert_eq!(store(&a), store(&b), "the copy reads the same store");
     assert!(!b.layers[0].visible);
     assert!(recovery::find(&project).is_none() && recovery::find(&copy).is_none());

@@ -146,7 +146,7 @@ pub fn bench_compose(settings: &ComposeBenchSettings) -> Result<(Vec<ComposeBenc
     let srtm = base
         .layers
         .iter()
-        .find(|l| l.store.is_some())
+        .find(|l| l.is_data())
         .cloned()
         .ok_or_else(|| format!("{}: the benchmark needs a dataset layer", settings.project.display()))?;
     let ctx = GpuContext::headless().map_err(|e| e.to_string())?;
@@ -197,7 +197,10 @@ pub fn bench_compose(settings: &ComposeBenchSettings) -> Result<(Vec<ComposeBenc
         vec![constant.clone(), LayerSpec { feather_m: 8000.0, ..pool[1].clone() }],
         true,
     )?;
-    let faded = LayerSpec { feather_edge_m: 5000.0, ..srtm.clone() };
+    let mut faded = srtm.clone();
+    if let Some(d) = faded.as_dataset_mut() {
+        d.feather_edge_m = 5000.0;
+    }
     row("dataset, 5 km edge feather".into(), vec![constant.clone(), faded.clone()], true)?;
     let fields = edge_field_cost(&base, faded, &quads)?;
     // Octave skipping: 16 octaves from 20 km down to 0.6 m; level 9 resolves those ≥ 70 m.
@@ -270,7 +273,7 @@ fn difference_cost(
     repeats: usize,
 ) -> Result<String, String> {
     let names: Vec<String> = layers.iter().map(|l| l.name.clone()).collect();
-    let dataset = layers.iter().find(|l| l.store.is_some()).ok_or("the stack has no dataset")?.name.clone();
+    let dataset = layers.iter().find(|l| l.is_data()).ok_or("the stack has no dataset")?.name.clone();
     let mut with = layers.to_vec();
     with.push(LayerSpec::difference("dh", Operand::Layer(dataset), Operand::Group(names)));
     let time = |layers: Vec<LayerSpec>| -> Result<(f64, Renderer, Scene), String> {

@@ -81,7 +81,9 @@ pub fn synthetic_session(strokes: usize, steps: u64) -> Result<Project, String> 
     base.blend = crate::layers::BlendMode::Over;
     p.layers.push(base);
     let mut edit = LayerSpec::edit("sculpt");
-    edit.strokes = session_strokes(strokes);
+    for stroke in session_strokes(strokes) {
+        edit.record_stroke(stroke).map_err(|e| e.to_string())?;
+    }
     p.layers.push(edit);
     let e = p.ellipsoid()?;
     // 128 cells of level 12 on the Moon (2.6 m) are 0.0110°: a box of that size at the centre.
@@ -100,7 +102,7 @@ pub fn synthetic_session(strokes: usize, steps: u64) -> Result<Project, String> 
         device: Default::default(),
     };
     let mut erosion = LayerSpec::erosion("erosion");
-    erosion.runs.push(run);
+    erosion.record_run(run).map_err(|e| e.to_string())?;
     p.layers.push(erosion);
     p.check()?;
     Ok(p)
@@ -160,7 +162,9 @@ pub fn bench_replay(s: &ReplayBenchSettings, progress: &mut dyn FnMut(&str)) -> 
     // The long log: save and load only.
     let mut log = Project::new("moon");
     let mut edit = LayerSpec::edit("sculpt");
-    edit.strokes = super::scripted_strokes(s.log_strokes, 9);
+    for stroke in super::scripted_strokes(s.log_strokes, 9) {
+        edit.record_stroke(stroke).map_err(|e| e.to_string())?;
+    }
     log.layers.push(edit);
     let log_path = s.out.join("log-bench.json");
     let t = Instant::now();

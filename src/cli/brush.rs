@@ -75,12 +75,12 @@ pub fn brush_command(request: &BrushRequest) -> Result<String, String> {
     let ellipsoid = project.ellipsoid()?;
     let mut out = String::new();
     let index = match project.layers.iter().position(|l| l.name == request.layer) {
-        Some(i) if project.layers[i].kind == LayerKind::Edit => i,
+        Some(i) if project.layers[i].kind() == LayerKind::Edit => i,
         Some(i) => {
             return Err(format!(
                 "--layer {}: a {} layer, not an edit layer",
                 request.layer,
-                project.layers[i].kind.name()
+                project.layers[i].kind().name()
             ));
         }
         None => {
@@ -90,25 +90,21 @@ pub fn brush_command(request: &BrushRequest) -> Result<String, String> {
         }
     };
     let spec = &mut project.layers[index];
-    let applied = spec.applied_strokes().len();
     match (request.undo, request.redo, &request.tool) {
         (Some(_), None, None) | (None, Some(_), None) => {
             let to = spec.move_applied(request.undo, request.redo)?;
             let done = if request.undo.is_some() { "undone" } else { "redone" };
-            let _ = writeln!(out, "layer '{}': {done} to {to} of {} strokes", spec.name, spec.strokes.len());
+            let _ = writeln!(out, "layer '{}': {done} to {to} of {} strokes", spec.name, spec.strokes().len());
         }
         (None, None, Some(tool)) => {
             let stroke = stroke_of(request, tool, ellipsoid.a_m(), &ellipsoid)?;
             let dabs = crate::edit::dabs::dab_centres(&ellipsoid, &stroke).map_err(|e| format!("--path: {e}"))?;
-            let dropped = spec.strokes.len() - applied;
-            spec.strokes.truncate(applied);
-            spec.strokes.push(stroke.clone());
-            spec.applied = None;
+            let dropped = spec.record_stroke(stroke.clone()).map_err(|e| e.to_string())?;
             let _ = writeln!(
                 out,
                 "layer '{}': stroke {} ({}, radius {} m, strength {}, {} falloff, {} dabs, level {}){}",
                 spec.name,
-                spec.strokes.len() - 1,
+                spec.strokes().len() - 1,
                 stroke.tool.name(),
                 stroke.radius_m,
                 stroke.strength,

@@ -150,8 +150,7 @@ pub fn coregister_command(request: &CoregRequest) -> Result<String, String> {
         .map_err(|e| format!("{}: {e}", request.project.display()))?;
     if request.apply {
         let layer = project.layers.iter_mut().find(|l| l.name == request.a).ok_or("the layer vanished")?;
-        let [e0, n0] = layer.shift_m;
-        layer.shift_m = [e0 + c.east_m, n0 + c.north_m];
+        layer.shift_by(c.east_m, c.north_m).map_err(|e| e.to_string())?;
         layer.offset_m += c.up_m;
         project.save(&request.project).map_err(|e| e.to_string())?;
     }

@@ -97,12 +97,12 @@ pub fn erode_command(request: &ErodeRequest) -> Result<String, String> {
     let mut project = Project::load(path).map_err(|e| e.to_string())?;
     let mut out = String::new();
     let index = match project.layers.iter().position(|l| l.name == request.layer) {
-        Some(i) if project.layers[i].kind == LayerKind::Erosion => i,
+        Some(i) if project.layers[i].kind() == LayerKind::Erosion => i,
         Some(i) => {
             return Err(format!(
                 "--layer {}: a {} layer, not an erosion layer",
                 request.layer,
-                project.layers[i].kind.name()
+                project.layers[i].kind().name()
             ));
         }
         None => {
@@ -112,7 +112,7 @@ pub fn erode_command(request: &ErodeRequest) -> Result<String, String> {
         }
     };
     let applied = project.layers[index].applied_runs().len();
-    let total = project.layers[index].runs.len();
+    let total = project.layers[index].runs().len();
     let asked_run = request.region.is_some() || request.level.is_some() || request.steps.is_some();
     match (request.undo, request.redo, asked_run) {
         (Some(_), None, false) | (None, Some(_), false) => {
@@ -130,8 +130,7 @@ pub fn erode_command(request: &ErodeRequest) -> Result<String, String> {
     let preset = request.preset.clone().unwrap_or_else(|| "rain".into());
     let params = params_of(&preset, &project.body, &request.set)?;
     // The layer as it stands (its runs in effect), opened and built or read from its cache.
-    project.layers[index].runs.truncate(applied);
-    project.layers[index].applied = None;
+    project.layers[index].drop_undone();
     let (mut scene, report) = Scene::open(&project).map_err(|e| format!("layer '{}': {e}", request.layer))?;
     for line in report.imported.iter().chain(&report.edits) {
         let _ = writeln!(out, "{line}");
@@ -173,10 +172,8 @@ pub fn erode_command(request: &ErodeRequest) -> Result<String, String> {
             };
             format!("{flag}: {}", e.problem)
         })?;
-    project.layers[index].runs.push(op);
-    let mut spec = scene.stack.layers[index].spec.clone();
-    spec.runs = project.layers[index].runs.clone();
-    scene.stack.set(index, spec).map_err(|e| e.to_string())?;
+    project.layers[index].record_run(op).map_err(|e| e.to_string())?;
+    scene.stack.set(index, project.layers[index].clone()).map_err(|e| e.to_string())?;
     scene.set_edit(index, raster);
     let cached = scene.save_edit_cache(index)?;
     project.save(path).map_err(|e| e.to_string())?;

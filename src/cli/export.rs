@@ -35,8 +35,8 @@ pub struct ComposedExport {
     pub bounds: [f64; 4],
     /// Pixel size in CRS units (x, y).
     pub resolution: (f64, f64),
-    /// Level to compose (default: the level of the output's pixel size, no finer than the
-    /// finest dataset unless procedural layers add detail).
+    /// Level to compose (default: the level of the output's pixel size, no finer than the finest
+    /// level at which a shown layer adds detail: datasets, strokes, erosion runs, noise octaves).
     pub level: Option<u8>,
     /// Where to compose.
     pub compose_on: ComposeOn,
@@ -81,10 +81,7 @@ pub fn export_composed(opts: &ComposedExport) -> Result<ComposedReport, String> 
         Some(l) => l,
         None => {
             let r = raster.pixel_ground_m(&opts.crs, &body, &opts.out).map_err(|e| e.to_string())?;
-            let finest = scene.datasets.iter().map(|d| d.finest_level).max().unwrap_or(0);
-            let procedural = scene.stack.layers.iter().any(|l| l.active() && l.spec.noise.is_some());
-            let level = level_for_resolution(&body, r);
-            if procedural { level } else { level.min(finest) }
+            crate::layers::default_level(level_for_resolution(&body, r), scene.detail_level())
         }
     };
     let points = raster.pixel_lat_lon(&opts.crs, &body, &opts.out).map_err(|e| e.to_string())?;

@@ -24,24 +24,25 @@ pub fn project_check(path: &Path) -> Result<String, String> {
     }
     for (k, layer) in project.layers.iter().enumerate() {
         let field = |f: &str| format!("{}: layers[{k}].{f}", path.display());
-        let mut line = format!("  layer '{}' ({}", layer.name, layer.kind.name());
+        let mut line = format!("  layer '{}' ({}", layer.name, layer.kind().name());
         if !layer.visible {
             line += ", hidden";
         }
         line += ")";
-        match layer.kind {
+        match layer.kind() {
             LayerKind::Dataset => {
-                let store = project.resolve(layer.store.as_ref().ok_or_else(|| field("store: missing"))?);
+                let data = layer.as_dataset().ok_or_else(|| field("kind: not a dataset"))?;
+                let store = project.resolve(&data.store);
                 if store.exists() {
                     match crate::gpu::scene::open_dataset(&project, layer) {
                         Ok(_) => {}
                         // An incomplete dataset is imported again from its sources.
-                        Err(e) if layer.source.is_some() && !e.contains("holds tiles on") => {}
+                        Err(e) if data.source.is_some() && !e.contains("holds tiles on") => {}
                         Err(e) => return Err(format!("{}: {e}", field("store"))),
                     }
                     let _ = write!(line, ": store {}", store.display());
                 } else {
-                    let source = layer.source.as_ref().ok_or_else(|| {
+                    let source = data.source.as_ref().ok_or_else(|| {
                         format!("{}: {} does not exist and the layer lists no source", field("store"), store.display())
                     })?;
                     for (j, f) in source.files.iter().enumerate() {
@@ -63,10 +64,11 @@ pub fn project_check(path: &Path) -> Result<String, String> {
                 }
             }
             LayerKind::Edit => {
-                let _ = write!(line, ": {} of {} strokes applied", layer.applied_strokes().len(), layer.strokes.len());
+                let _ =
+                    write!(line, ": {} of {} strokes applied", layer.applied_strokes().len(), layer.strokes().len());
             }
             LayerKind::Erosion => {
-                let _ = write!(line, ": {} of {} runs applied", layer.applied_runs().len(), layer.runs.len());
+                let _ = write!(line, ": {} of {} runs applied", layer.applied_runs().len(), layer.runs().len());
             }
             _ => {}
         }

@@ -77,7 +77,7 @@ fn show_only(project: &Project, show: &str, hide: &str) -> Project {
     for layer in &mut p.layers {
         if layer.name == show {
             layer.visible = true;
-        } else if layer.name == hide || layer.kind == crate::layers::LayerKind::Difference {
+        } else if layer.name == hide || layer.kind() == crate::layers::LayerKind::Difference {
             layer.visible = false;
         }
     }
@@ -136,7 +136,7 @@ pub fn resolve_difference_range(project: &Project, renderer: &mut Renderer) -> R
         Some(_) => "its range_m".to_string(),
         None => format!("the {}th percentile of |dh|", style.percentile),
     };
-    let of = spec.of.as_ref().map_or(String::new(), |[a, b]| format!("{a} - {b}"));
+    let of = spec.as_difference().map_or(String::new(), |d| format!("{} - {}", d.of[0], d.of[1]));
     Ok(Some(format!(
         "difference '{}' ({of}): red -{r:.2} m … white 0 … blue +{r:.2} m ({how})",
         spec.name,

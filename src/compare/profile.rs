@@ -25,7 +25,7 @@ pub struct ProfileOptions {
     pub to: [f64; 2],
     /// Samples along the line (default: one per sample spacing of the level).
     pub samples: Option<usize>,
-    /// The level (default: the finest level among the visible datasets).
+    /// The level (default: the finest level at which a shown layer adds detail).
     pub level: Option<u8>,
 }
 
@@ -85,20 +85,16 @@ pub fn profile(project: &Project, opts: &ProfileOptions) -> Result<Profile, Comp
     }
     let (stack, _) = Scene::open(project).map_err(CompareError::Open)?;
     // Layers with heights (a difference layer has none).
-    let visible: Vec<String> = project
-        .layers
-        .iter()
-        .filter(|l| l.visible && l.kind != crate::layers::LayerKind::Difference)
-        .map(|l| l.name.clone())
-        .collect();
+    let visible: Vec<String> =
+        project.layers.iter().filter(|l| l.visible && l.gives_heights()).map(|l| l.name.clone()).collect();
     let level = match opts.level {
         Some(l) => l,
-        None => stack
-            .datasets
-            .iter()
-            .map(|d| d.finest_level)
-            .max()
-            .ok_or_else(|| bad("--level", "the project has no dataset to choose a level from: give one".into()))?,
+        None => stack.detail_level().ok_or_else(|| {
+            bad(
+                "--level",
+                "no shown layer adds detail at any level (no dataset, stroke, run or noise): give one".into(),
+            )
+        })?,
     };
     let samples = opts.samples.unwrap_or(((length / spacing_m(&e, level)).ceil() as usize + 1).min(MAX_SAMPLES));
     if !(2..=MAX_SAMPLES).contains(&samples) {

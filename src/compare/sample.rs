@@ -28,7 +28,7 @@ use crate::ecm::QuadId;
 use crate::gpu::Scene;
 use crate::gpu::data::DatasetInfo;
 use crate::layers::stack::sample_point;
-use crate::layers::{BlendMode, LayerKind, LayerSpec, Operand};
+use crate::layers::{BlendMode, LayerSpec, Operand};
 use crate::project::Project;
 use crate::store::grid::{GRID, spacing_m};
 
@@ -137,7 +137,7 @@ fn height_layer<'a>(project: &'a Project, name: &str) -> Result<&'a LayerSpec, C
         let known = project.layers.iter().map(|l| l.name.as_str()).collect::<Vec<_>>().join(", ");
         return Err(CompareError::NoLayer { name: name.into(), known });
     };
-    if spec.kind == LayerKind::Difference {
+    if !spec.gives_heights() {
         return Err(CompareError::Option {
             option: name.into(),
             problem: "is a difference layer: it draws A − B and has no heights to compare".into(),
@@ -260,7 +260,9 @@ pub fn compare_operands(
     Ok(comparison)
 }
 
-/// The level to work at (default: the finest of the coarser dataset) and the quads of it where
+/// The level to work at (default: the finest at which the coarser side adds detail: its
+/// datasets' finest level, or finer where an edit, erosion or procedural layer adds detail below
+/// it) and the quads of it where
 /// every dataset among the two scenes has tiles, in order.
 pub(super) fn overlap_quads(
     scene_a: &Scene,
@@ -275,7 +277,10 @@ pub(super) fn overlap_quads(
         });
     }
     let finest = datasets.iter().map(|d| d.finest_level).min().unwrap_or(0);
-    let level = level.unwrap_or(finest);
+    // The coarser side's detail: its datasets', or finer where its strokes, runs or noise add
+    // detail below them.
+    let detail = [scene_a, scene_b].iter().filter_map(|s| s.detail_level()).min().unwrap_or(finest);
+    let level = level.unwrap_or(detail.max(finest));
     if level > finest + 4 {
         return Err(CompareError::Option {
             option: "--level".into(),
@@ -403,7 +408,7 @@ pub(super) fn quad_points(ellipsoid: &crate::geodesy::Ellipsoid, quad: QuadId) -
 /// operands' overlap, area-weighted, at one level coarser than a comparison's default (a quarter
 /// of its samples: a colour range, not a statistic). None where the operands do not overlap.
 pub fn difference_range(project: &Project, spec: &LayerSpec) -> Result<Option<f64>, CompareError> {
-    let Some([a, b]) = &spec.of else {
+    let Some([a, b]) = spec.as_difference().map(|d| &d.of) else {
         return Err(CompareError::Option { option: spec.name.clone(), problem: "is not a difference layer".into() });
     };
     let (scene_a, scene_b) = (open_operand(project, a)?, open_operand(project, b)?);

@@ -15,8 +15,8 @@ use super::context::GpuError;
 use super::terrain::bind_buffers;
 use super::uniforms::NO_SLOT;
 use crate::ecm::geometry::{MapSymmetry, QuadGeometry, Split};
-use crate::layers::spec::{BlendMode, DetailWhere, LayerKind, NoiseType};
-use crate::layers::{MaskPlan, PlannedLayer, QuadPlan, Stack, noise};
+use crate::layers::spec::{BlendMode, DetailWhere, NoiseType};
+use crate::layers::{MaskPlan, PlannedLayer, QuadPlan, Stack, ValueSource, noise};
 
 /// Stands for "no bound" and "no data spacing" in the shader (its `FAR`).
 const FAR: f32 = 3.0e38;
@@ -135,12 +135,13 @@ impl ComposeBatch {
     fn push_layer(&mut self, stack: &Stack, planned: &PlannedLayer, origin: DVec3, slots: (u32, u32)) {
         let layer = &stack.layers[planned.index];
         let spec = &layer.spec;
-        let kind = match spec.kind {
-            LayerKind::Dataset => 0,
-            LayerKind::Procedural => 1,
-            LayerKind::Constant => 2,
-            LayerKind::Edit | LayerKind::Erosion => 3,
-            LayerKind::Difference => unreachable!("a difference layer is never planned"),
+        // The kernel's value code and the tile it reads (keep in sync with shaders/compose/).
+        let (kind, source) = match spec.value_source() {
+            ValueSource::StoreTile => (0, slots.0),
+            ValueSource::Noise(_) => (1, NO_SLOT),
+            ValueSource::Constant(_) => (2, NO_SLOT),
+            ValueSource::Deltas => (3, slots.0),
+            ValueSource::Nothing => unreachable!("a layer without heights is never planned"),
         };
         let blend = match planned.blend {
             BlendMode::Over => 0,
@@ -179,7 +180,7 @@ impl ComposeBatch {
         };
         let mut noise_head = [0u32; 4];
         let mut extra = [0.0f32, 0.0, FAR, 0.0];
-        if let Some(n) = &spec.noise {
+        if let ValueSource::Noise(n) = spec.value_source() {
             noise_head = [
                 self.octaves.len() as u32,
                 planned.octaves,
@@ -197,24 +198,19 @@ impl ComposeBatch {
             extra[0] = n.amplitude_m as f32;
             extra[1] = n.gain as f32;
         }
-        if let Some(h) = spec.height_m {
+        if let ValueSource::Constant(h) = spec.value_source() {
             extra[0] = h as f32;
         }
-        if spec.kind == LayerKind::Dataset {
+        if spec.is_data() {
             // The edge slot where the noise head would be, the feather where the gain would.
             noise_head[0] = slots.1;
-            extra[1] = spec.feather_edge_m as f32;
+            extra[1] = spec.feather_edge_m() as f32;
             if layer.data_spacing_m.is_finite() {
                 extra[2] = layer.data_spacing_m as f32;
             }
         }
         extra[3] = orientation;
         let [lo, hi] = spec.valid_range_m.map_or([-FAR, FAR], |[a, b]| [a as f32, b as f32]);
-        let source = if matches!(spec.kind, LayerKind::Dataset | LayerKind::Edit | LayerKind::Erosion) {
-            slots.0
-        } else {
-            NO_SLOT
-        };
         self.layers.push(JobLayer {
             head: [kind, blend, source, partial],
             mask,

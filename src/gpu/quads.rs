@@ -11,7 +11,7 @@ use super::select::{QuadInfo, QuadSource};
 use super::slots::SlotPool;
 use crate::ecm::geometry::{FlatRule, HeightRange, MapSymmetry, QuadBounds, QuadGeometry};
 use crate::ecm::{CubeProjection, QuadId};
-use crate::layers::{LayerKind, MaskPlan, QuadPlan, noise, range_bound};
+use crate::layers::{MaskPlan, QuadPlan, ValueSource, noise, range_bound};
 
 /// Quads without data are split down to this level at most: there the chord between two samples
 /// is within millimetres of the ellipsoid on Earth-sized bodies.
@@ -107,13 +107,13 @@ impl QuadCache {
             let layer = &scene.stack.layers[planned.index];
             let spec = &layer.spec;
             let (lo, hi) = self.layer_range(scene, plan, k);
-            total += match (spec.kind, scene.dataset_of_layer(planned.index)) {
-                (LayerKind::Dataset, Some(d)) => {
+            total += match (spec.value_source(), scene.dataset_of_layer(planned.index)) {
+                (ValueSource::StoreTile, Some(d)) => {
                     self.tile_ranges.get(&(d as u32, plan.quad)).map_or(hi - lo, |t| f64::from(t.2) * spec.scale.abs())
                 }
-                (LayerKind::Procedural, _) => {
-                    spec.noise.as_ref().map_or(0.0, |n| noise::noise_change_bound_m(n, spacing_m)) * spec.scale.abs()
-                }
+                (ValueSource::Noise(n), _) => noise::noise_change_bound_m(n, spacing_m) * spec.scale.abs(),
+                // Deltas may step anywhere within their span (a stroke's edge, a channel).
+                (ValueSource::Deltas, _) if hi >= lo => hi - lo,
                 _ => 0.0,
             } * spec.opacity;
             if let (MaskPlan::Partial(_), true) = (&planned.mask, spec.feather_m > 0.0) {

@@ -10,10 +10,9 @@ use crate::colour::Ramp;
 use crate::ecm::QuadId;
 use crate::edit::EditRaster;
 use crate::geodesy::Ellipsoid;
-use crate::layers::{LayerKind, LayerSpec, LayerTiles, QuadPlan, Stack, compose_difference, compose_quad};
+use crate::layers::{LayerSpec, LayerTiles, QuadPlan, Stack, compose_difference, compose_quad};
 use crate::project::{ColourMapSpec, DetailSpec, Project, Visuals};
 use crate::store::grid::GRID;
-use crate::store::grid::spacing_m;
 use crate::store::{ImportOptions, LevelChoice, Resampling, Store, VerticalDatum};
 
 /// A quad's 257² values.
@@ -82,7 +81,7 @@ impl Scene {
             return Some((DataKey::Edit(layer.uid as u32, quad, raster.stamp(quad)), None));
         }
         let d = self.dataset_of_layer(index)? as u32;
-        let feather = self.stack.layers[index].spec.feather_edge_m;
+        let feather = self.stack.layers[index].spec.feather_edge_m();
         let edge = (feather > 0.0)
             .then(|| DataKey::Edge(d, quad, crate::layers::edge::edge_level(self.ellipsoid.a_m(), feather)));
         Some((DataKey::Source(d, quad), edge))
@@ -111,6 +110,13 @@ impl Scene {
             plan.stamp = (plan.stamp ^ s.wrapping_mul(0x9e37_79b9_7f4a_7c15)).wrapping_mul(0x100_0000_01b3);
         }
         plan
+    }
+
+    /// The finest level at which any shown layer adds detail (a dataset's finest stored level,
+    /// an edit layer's strokes, an erosion layer's runs, a procedural layer's octaves): what a
+    /// request's default level may go down to ([`crate::layers::default_level`]).
+    pub fn detail_level(&self) -> Option<u8> {
+        self.stack.detail_level(&|_| true)
     }
 
     /// The finest level of the datasets a plan reads, if it reads any.
@@ -146,14 +152,14 @@ impl Scene {
             edit_cache_dir: Some(project.base_dir.join("stores")),
         };
         for (index, d) in project.layers.iter().enumerate() {
-            if d.kind.holds_deltas() {
+            if d.holds_deltas() {
                 match edits {
                     Edits::Cached => report.edits.push(scene.attach_edit(index)?),
                     Edits::Empty => scene.set_edit(index, EditRaster::new(ellipsoid, 0)),
                 }
                 continue;
             }
-            if d.kind != LayerKind::Dataset || d.store.is_none() {
+            if !d.is_data() {
                 continue;
             }
             if let Some(opts) = import_needed(project, d)? {
@@ -242,7 +248,7 @@ impl Scene {
         let t = std::time::Instant::now();
         let spec = &self.stack.layers[index].spec;
         let name = spec.name.clone();
-        let erosion = spec.kind == LayerKind::Erosion;
+        let erosion = spec.as_erosion().is_some();
         let (kind, what) = if erosion { ("erosion", "runs") } else { ("edit", "strokes") };
         let count = if erosion { spec.applied_runs().len() } else { spec.applied_strokes().len() };
         let path = self.edit_cache_path(index);
@@ -329,9 +335,12 @@ impl Scene {
             let mut spec = below.stack.layers[k].spec.clone();
             // Hidden, they are never planned; their strokes are not needed.
             spec.visible = false;
-            spec.strokes.clear();
-            spec.runs.clear();
-            spec.applied = None;
+            if let Some(edit) = spec.as_edit_mut() {
+                *edit = crate::layers::EditLayer::default();
+            }
+            if let Some(erosion) = spec.as_erosion_mut() {
+                *erosion = crate::layers::ErosionLayer::default();
+            }
             below.stack.set(k, spec).map_err(|e| e.to_string())?;
         }
         Ok(below)
@@ -348,7 +357,7 @@ impl Scene {
         if let Some(old) = self.edits.get(&self.stack.layers[index].uid) {
             raster.succeed(old);
         }
-        self.stack.set_dataset_info(index, raster.range_m(), f64::INFINITY);
+        self.stack.set_dataset_info(index, raster.range_m(), None);
         self.edits.insert(self.stack.layers[index].uid, Arc::new(raster));
     }
 
@@ -362,8 +371,8 @@ impl Scene {
 
     /// Inserts a dataset layer at `index` (0: bottom) reading `info` (see [`open_dataset`]).
     pub fn insert_dataset_layer(&mut self, index: usize, spec: LayerSpec, info: DatasetInfo) -> Result<(), String> {
-        if spec.kind != LayerKind::Dataset {
-            return Err(format!("layer '{}': kind: {} is not a dataset", spec.name, spec.kind.name()));
+        if !spec.is_data() {
+            return Err(format!("layer '{}': kind: {} is not a dataset", spec.name, spec.kind().name()));
         }
         self.stack.insert(index, spec).map_err(|e| e.to_string())?;
         if let Err(e) = self.attach(index, info) {
@@ -379,7 +388,7 @@ impl Scene {
     /// the same store and dataset.
     fn attach(&mut self, index: usize, mut info: DatasetInfo) -> Result<(), String> {
         let name = &self.stack.layers[index].spec.name;
-        info.shift_m = self.stack.layers[index].spec.shift_m;
+        info.shift_m = self.stack.layers[index].spec.shift_m();
         let store_body = info.body;
         if store_body.a_m() != self.ellipsoid.a_m() || store_body.b_m() != self.ellipsoid.b_m() {
             return Err(format!(
@@ -389,7 +398,7 @@ impl Scene {
                 self.ellipsoid.name()
             ));
         }
-        self.stack.set_dataset_info(index, info.range_m, spacing_m(&self.ellipsoid, info.finest_level));
+        self.stack.set_dataset_info(index, info.range_m, Some(info.finest_level));
         let same = |o: &DatasetInfo| o.store == info.store && o.dataset == info.dataset && o.shift_m == info.shift_m;
         let k = match self.datasets.iter().position(same) {
             Some(k) => k,
@@ -411,9 +420,10 @@ fn to_json<T: serde::Serialize + ?Sized>(value: &T) -> String {
 /// What importing a dataset layer's sources into its store takes, when the store lacks a
 /// complete copy of it (None: nothing to import). Errors name the layer and the store.
 pub fn import_needed(project: &Project, d: &LayerSpec) -> Result<Option<ImportOptions>, String> {
-    let Some(store) = &d.store else {
-        return Err(format!("layer '{}': store: a dataset layer needs its store", d.name));
+    let Some(data) = d.as_dataset() else {
+        return Err(format!("layer '{}': kind: {} is not a dataset", d.name, d.kind().name()));
     };
+    let store = &data.store;
     let store_path = project.resolve(store);
     let name = d.store_dataset();
     let has = if store_path.exists() {
@@ -434,7 +444,7 @@ pub fn import_needed(project: &Project, d: &LayerSpec) -> Result<Option<ImportOp
     if has {
         return Ok(None);
     }
-    let Some(source) = &d.source else {
+    let Some(source) = &data.source else {
         return Err(format!(
             "dataset '{}': {} has no complete dataset '{name}' and the project lists no source to import it from",
             d.name,
@@ -468,7 +478,7 @@ pub fn import_needed(project: &Project, d: &LayerSpec) -> Result<Option<ImportOp
 /// Opens what a dataset layer reads (its store must hold the dataset complete).
 pub fn open_dataset(project: &Project, d: &LayerSpec) -> Result<DatasetInfo, String> {
     let store =
-        d.store.as_ref().ok_or_else(|| format!("layer '{}': store: a dataset layer needs its store", d.name))?;
+        &d.as_dataset().ok_or_else(|| format!("layer '{}': kind: {} is not a dataset", d.name, d.kind().name()))?.store;
     let path = project.resolve(store);
     let info = DatasetInfo::open(&path, d.store_dataset()).map_err(|e| format!("dataset '{}': {e}", d.name))?;
     let body = project.ellipsoid()?;

@@ -103,19 +103,21 @@ impl AddDataset {
         if !is_store {
             crate::store::gpkg::check_dataset_name(&name).map_err(|e| format!("name: {e}"))?;
         }
-        let mut spec = if is_store {
-            LayerSpec { dataset: Some(name.clone()), ..LayerSpec::dataset(&name, relative(&path)) }
+        let spec = if is_store {
+            // The dataset's name in the store is the layer's, the default.
+            LayerSpec::dataset(&name, relative(&path))
         } else {
             let vertical = match self.vertical.trim() {
                 "" | "ellipsoidal" => None,
                 v => Some(v.to_string()),
             };
             let source = SourceSpec { files: vec![relative(&path)], max_level: None, vertical_datum: vertical };
-            LayerSpec { source: Some(source), ..LayerSpec::dataset(&name, format!("stores/{name}.gpkg")) }
+            let mut spec = LayerSpec::dataset(&name, format!("stores/{name}.gpkg"));
+            if let Some(d) = spec.as_dataset_mut() {
+                d.source = Some(source);
+            }
+            spec
         };
-        if spec.dataset.as_deref() == Some(name.as_str()) {
-            spec.dataset = None; // the default: the layer's name
-        }
         spec.check(project.ellipsoid()?.a_m()).map_err(|e| e.to_string())?;
         Ok(spec)
     }

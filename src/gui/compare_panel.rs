@@ -80,7 +80,7 @@ impl ComparePanel {
     pub fn ui(&mut self, ui: &mut egui::Ui, project: &Project) -> CompareAction {
         self.poll();
         let names: Vec<String> =
-            project.layers.iter().filter(|l| l.kind == LayerKind::Dataset).map(|l| l.name.clone()).collect();
+            project.layers.iter().filter(|l| l.kind() == LayerKind::Dataset).map(|l| l.name.clone()).collect();
         if names.len() < 2 {
             ui.label("add a second dataset layer to compare");
             return CompareAction::None;

@@ -5,7 +5,7 @@
 use std::thread::JoinHandle;
 
 use crate::gpu::Renderer;
-use crate::layers::{DifferenceStyle, LayerKind, LayerSpec, Operand};
+use crate::layers::{LayerKind, LayerSpec, Operand};
 use crate::project::Project;
 
 /// A difference layer's settings. `names`: the layers an operand may name; `visible`: the shown
@@ -13,7 +13,7 @@ use crate::project::Project;
 pub fn settings_ui(ui: &mut egui::Ui, spec: &mut LayerSpec, names: &[String], visible: &[String], range_m: f64) {
     ui.add(egui::Slider::new(&mut spec.opacity, 0.0..=1.0).text("opacity"))
         .on_hover_text("how strongly dh covers the colour ramp (hillshade stays)");
-    if let Some(of) = &mut spec.of {
+    if let Some(of) = spec.as_difference_mut().map(|d| &mut d.of) {
         ui.horizontal(|ui| {
             operand_ui(ui, "A", &mut of[0], names, visible);
             ui.label("minus");
@@ -43,8 +43,10 @@ pub fn settings_ui(ui: &mut egui::Ui, spec: &mut LayerSpec, names: &[String], vi
             .suffix(" m"),
     )
     .on_hover_text("lines at ±1, ±2, … intervals (0: none; zero is the colour map's white)");
-    if style != spec.difference_style() || spec.style.is_none() {
-        spec.style = Some(style);
+    if let Some(d) = spec.as_difference_mut()
+        && d.style != style
+    {
+        d.style = style;
     }
     legend_ui(ui, range_m);
 }
@@ -93,7 +95,7 @@ pub fn new_layer(project: &Project, a: &str, b: &str) -> LayerSpec {
     let used = |n: &str| project.layers.iter().any(|l| l.name == n);
     let name = if used(&base) { (2..).map(|k| format!("{base} {k}")).find(|n| !used(n)).unwrap_or(base) } else { base };
     let operand = |n: &str| crate::compare::operand(project, n);
-    LayerSpec { style: Some(DifferenceStyle::default()), ..LayerSpec::difference(&name, operand(a), operand(b)) }
+    LayerSpec::difference(&name, operand(a), operand(b))
 }
 
 /// A range computed on a thread (None: the operands do not overlap).
@@ -136,9 +138,9 @@ impl AutoRange {
         }
         // The layer, its percentile, and every layer its operands read, as the project has them.
         let read: Vec<&LayerSpec> = spec
-            .of
+            .as_difference()
             .iter()
-            .flatten()
+            .flat_map(|d| d.of.iter())
             .flat_map(|o| o.names())
             .filter_map(|n| project.layers.iter().find(|l| l.name == n))
             .collect();
@@ -160,5 +162,5 @@ impl AutoRange {
 
 /// The project's drawn difference layer (the topmost shown one with opacity).
 fn drawn_difference(project: &Project) -> Option<&LayerSpec> {
-    project.layers.iter().rev().find(|l| l.kind == LayerKind::Difference && l.visible && l.opacity > 0.0)
+    project.layers.iter().rev().find(|l| l.kind() == LayerKind::Difference && l.visible && l.opacity > 0.0)
 }

@@ -6,7 +6,7 @@
 //! reads).
 
 use crate::gpu::Renderer;
-use crate::layers::{BlendMode, DetailWhere, ExtentSpec, LayerKind, LayerSpec, NoiseSpec, NoiseType};
+use crate::layers::{BlendMode, DetailWhere, ExtentSpec, LayerKind, LayerPayload, LayerSpec, NoiseSpec, NoiseType};
 use crate::project::Project;
 
 /// What the panel did this frame.
@@ -48,7 +48,7 @@ pub fn layers_ui(ui: &mut egui::Ui, renderer: &mut Renderer, project: &mut Proje
             insert(renderer, project, LayerSpec::procedural(&unique_name(project, "detail"), noise), &mut change);
         }
         let heights: Vec<&str> =
-            project.layers.iter().filter(|l| l.kind != LayerKind::Difference).map(|l| l.name.as_str()).collect();
+            project.layers.iter().filter(|l| l.kind() != LayerKind::Difference).map(|l| l.name.as_str()).collect();
         let two = heights.len() >= 2;
         if ui
             .add_enabled(two, egui::Button::new("add difference").small())
@@ -76,7 +76,7 @@ pub fn layers_ui(ui: &mut egui::Ui, renderer: &mut Renderer, project: &mut Proje
                         .on_hover_text("drag onto another layer to move it there");
                     ui.checkbox(&mut spec.visible, "visible");
                     ui.label(egui::RichText::new(&spec.name).strong());
-                    ui.label(egui::RichText::new(spec.kind.name()).small());
+                    ui.label(egui::RichText::new(spec.kind().name()).small());
                     if ui.small_button("up").on_hover_text("move up the stack").clicked() && index + 1 < count {
                         moved = Some((index, index + 1));
                     }
@@ -87,8 +87,8 @@ pub fn layers_ui(ui: &mut egui::Ui, renderer: &mut Renderer, project: &mut Proje
                         remove = Some(index);
                     }
                 });
-                if spec.kind == LayerKind::Difference {
-                    let heights = project.layers.iter().filter(|l| l.kind != LayerKind::Difference);
+                if spec.kind() == LayerKind::Difference {
+                    let heights = project.layers.iter().filter(|l| l.kind() != LayerKind::Difference);
                     let names: Vec<String> = heights.clone().map(|l| l.name.clone()).collect();
                     let visible: Vec<String> = heights.filter(|l| l.visible).map(|l| l.name.clone()).collect();
                     let drawn = renderer.scene().stack.drawn_difference() == Some(index);
@@ -198,55 +198,47 @@ fn layer_settings_ui(ui: &mut egui::Ui, spec: &mut LayerSpec) {
     });
     valid_range_ui(ui, spec);
     extent_ui(ui, spec);
-    match spec.kind {
-        LayerKind::Constant => {
-            if let Some(h) = &mut spec.height_m {
-                ui.add(egui::DragValue::new(h).speed(1.0).prefix("height ").suffix(" m"));
-            }
+    let (applied_strokes, applied_runs) = (spec.applied_strokes().len(), spec.applied_runs().len());
+    match &mut spec.payload {
+        LayerPayload::Constant(c) => {
+            ui.add(egui::DragValue::new(&mut c.height_m).speed(1.0).prefix("height ").suffix(" m"));
         }
-        LayerKind::Procedural => {
-            if let Some(n) = &mut spec.noise {
-                ui.add(
-                    egui::DragValue::new(&mut n.amplitude_m)
-                        .speed(1.0)
-                        .range(0.0..=1e5)
-                        .prefix("amplitude ")
-                        .suffix(" m"),
-                );
-                ui.add(
-                    egui::DragValue::new(&mut n.wavelength_m)
-                        .speed(10.0)
-                        .range(1.0..=1e7)
-                        .prefix("wavelength ")
-                        .suffix(" m"),
-                );
-                egui::ComboBox::from_label("noise").selected_text(noise_name(n.noise_type)).show_ui(ui, |ui| {
-                    for t in [NoiseType::Fbm, NoiseType::Ridged] {
-                        ui.selectable_value(&mut n.noise_type, t, noise_name(t));
-                    }
-                });
-                ui.add(egui::Slider::new(&mut n.octaves, 1..=16).text("octaves"));
-                ui.add(egui::Slider::new(&mut n.lacunarity, 1.5..=3.0).text("lacunarity"));
-                ui.add(egui::Slider::new(&mut n.gain, 0.05..=0.95).text("gain"));
-                let mut beyond = n.placement == DetailWhere::BeyondData;
-                if ui.checkbox(&mut beyond, "only beyond the data").changed() {
-                    n.placement = if beyond { DetailWhere::BeyondData } else { DetailWhere::Everywhere };
-                }
-                ui.add(egui::DragValue::new(&mut n.seed).prefix("seed "));
-            }
-        }
-        LayerKind::Difference => {}
-        LayerKind::Edit => {
-            let applied = spec.applied_strokes().len();
-            ui.label(format!("{applied} strokes applied of {}", spec.strokes.len()));
-        }
-        LayerKind::Erosion => {
-            let applied = spec.applied_runs().len();
-            ui.label(format!("{applied} erosion runs applied of {}", spec.runs.len()));
-        }
-        LayerKind::Dataset => {
+        LayerPayload::Procedural(p) => {
+            let n = &mut p.noise;
             ui.add(
-                egui::DragValue::new(&mut spec.feather_edge_m)
+                egui::DragValue::new(&mut n.amplitude_m).speed(1.0).range(0.0..=1e5).prefix("amplitude ").suffix(" m"),
+            );
+            ui.add(
+                egui::DragValue::new(&mut n.wavelength_m)
+                    .speed(10.0)
+                    .range(1.0..=1e7)
+                    .prefix("wavelength ")
+                    .suffix(" m"),
+            );
+            egui::ComboBox::from_label("noise").selected_text(noise_name(n.noise_type)).show_ui(ui, |ui| {
+                for t in [NoiseType::Fbm, NoiseType::Ridged] {
+                    ui.selectable_value(&mut n.noise_type, t, noise_name(t));
+                }
+            });
+            ui.add(egui::Slider::new(&mut n.octaves, 1..=16).text("octaves"));
+            ui.add(egui::Slider::new(&mut n.lacunarity, 1.5..=3.0).text("lacunarity"));
+            ui.add(egui::Slider::new(&mut n.gain, 0.05..=0.95).text("gain"));
+            let mut beyond = n.placement == DetailWhere::BeyondData;
+            if ui.checkbox(&mut beyond, "only beyond the data").changed() {
+                n.placement = if beyond { DetailWhere::BeyondData } else { DetailWhere::Everywhere };
+            }
+            ui.add(egui::DragValue::new(&mut n.seed).prefix("seed "));
+        }
+        LayerPayload::Difference(_) => {}
+        LayerPayload::Edit(e) => {
+            ui.label(format!("{applied_strokes} strokes applied of {}", e.strokes.len()));
+        }
+        LayerPayload::Erosion(e) => {
+            ui.label(format!("{applied_runs} erosion runs applied of {}", e.runs.len()));
+        }
+        LayerPayload::Dataset(d) => {
+            ui.add(
+                egui::DragValue::new(&mut d.feather_edge_m)
                     .speed(100.0)
                     .range(0.0..=1e6)
                     .prefix("edge feather ")
@@ -254,7 +246,7 @@ fn layer_settings_ui(ui: &mut egui::Ui, spec: &mut LayerSpec) {
             )
             .on_hover_text("fade the dataset in from its own no-data edge over this distance on the surface");
             ui.horizontal(|ui| {
-                let [east, north] = &mut spec.shift_m;
+                let [east, north] = &mut d.shift_m;
                 ui.add(
                     egui::DragValue::new(east).speed(1.0).range(-10_000.0..=10_000.0).prefix("shift E ").suffix(" m"),
                 );

@@ -12,7 +12,8 @@
 use glam::DVec3;
 use rayon::prelude::*;
 
-use super::spec::{BlendMode, LayerKind};
+use super::kind::ValueSource;
+use super::spec::BlendMode;
 use super::stack::{DifferencePlan, MaskPlan, QuadPlan, SAMPLES, Stack, sample_point};
 use super::{edge, noise};
 
@@ -126,18 +127,17 @@ pub fn layer_sample(
     let planned = &plan.layers[k];
     let layer = &stack.layers[planned.index];
     let spec = &layer.spec;
-    let base = match spec.kind {
-        // An edit layer's tile holds its deltas (0 where no stroke reached).
-        LayerKind::Dataset | LayerKind::Edit | LayerKind::Erosion => data.raw,
-        LayerKind::Constant => spec.height_m.unwrap_or(0.0),
-        LayerKind::Procedural => {
-            let n = spec.noise.as_ref().expect("a checked procedural layer has noise");
+    let base = match spec.value_source() {
+        // An edit or erosion layer's tile holds its deltas (0 where no operation reached).
+        ValueSource::StoreTile | ValueSource::Deltas => data.raw,
+        ValueSource::Constant(h) => h,
+        ValueSource::Noise(n) => {
             let mut weights = noise::octave_weights(n, plan.spacing_m, below.data_spacing_m, below.data_coverage);
             weights.truncate(planned.octaves as usize);
             noise::noise_at(n, at.ecef, &weights)
         }
         // Never planned: it changes no height.
-        LayerKind::Difference => f64::NAN,
+        ValueSource::Nothing => f64::NAN,
     };
     let value = base * spec.scale + spec.offset_m;
     let valid = !value.is_nan() && spec.valid_range_m.is_none_or(|[lo, hi]| value >= lo && value <= hi);
@@ -150,7 +150,7 @@ pub fn layer_sample(
         }
         _ => 1.0,
     };
-    let edge = if spec.kind == LayerKind::Dataset { edge::edge_mask(data.edge_m, spec.feather_edge_m) } else { 1.0 };
+    let edge = if spec.is_data() { edge::edge_mask(data.edge_m, spec.feather_edge_m()) } else { 1.0 };
     LayerSample { value, alpha: planned.opacity * mask * edge }
 }
 
@@ -164,7 +164,7 @@ pub fn compose_sample(stack: &Stack, plan: &QuadPlan, at: &SamplePoint, data: &d
         let planned = &plan.layers[k];
         let layer = &stack.layers[planned.index];
         let s = layer_sample(stack, plan, k, at, data(k), &state);
-        let dataset = layer.spec.kind == LayerKind::Dataset;
+        let dataset = layer.spec.is_data();
         let spacing = if dataset { layer.data_spacing_m } else { f64::INFINITY };
         if planned.blend == BlendMode::Mean {
             if s.alpha > 0.0 {
@@ -216,7 +216,7 @@ pub fn compose_quad<'a>(stack: &Stack, plan: &QuadPlan, tiles: &dyn Fn(usize) ->
     let positioned = plan
         .layers
         .iter()
-        .any(|l| matches!(l.mask, MaskPlan::Partial(_)) || stack.layers[l.index].spec.kind == LayerKind::Procedural);
+        .any(|l| matches!(l.mask, MaskPlan::Partial(_)) || stack.layers[l.index].spec.noise().is_some());
     let mut out = vec![f32::NAN; n * n];
     out.par_chunks_mut(n).enumerate().for_each(|(j, row)| {
         for (i, h) in row.iter_mut().enumerate() {
@@ -264,7 +264,8 @@ pub fn range_bound(stack: &Stack, plan: &QuadPlan, range: &dyn Fn(usize) -> (f64
         let layer = &stack.layers[planned.index];
         let spec = &layer.spec;
         let (mut lo, mut hi) = range(k);
-        let full = planned.mask == MaskPlan::Full && spec.kind != LayerKind::Dataset && spec.valid_range_m.is_none();
+        // Tiles may hold no-data gaps; a constant or noise covers every sample.
+        let full = planned.mask == MaskPlan::Full && !spec.is_data() && spec.valid_range_m.is_none();
         let (mut a_lo, a_hi) = (if full { planned.opacity } else { 0.0 }, planned.opacity);
         let mut blend = planned.blend;
         if blend == BlendMode::Mean {

@@ -4,7 +4,8 @@
 //! (rayon), written to read like the GPU kernels in `shaders/compose/` and
 //! `shaders/shared/noise.wgsl`; nothing here knows about the GPU.
 //!
-//! - [`spec`]: the layers as the project file holds them, checked field by field;
+//! - [`spec`]: the layers as the project file holds them: common fields and one payload per kind;
+//! - [`kind`]: what each kind answers to the consumers (its value's source, its detail level);
 //! - [`stack`]: the stack in memory, each layer's identity and revision, per-quad plans (which
 //!   layers a quad reads, their masks, its cache stamp);
 //! - [`extent`]: extents and feathered masks in metres on the ellipsoid;
@@ -15,14 +16,16 @@
 pub mod compose;
 pub mod edge;
 pub mod extent;
+pub mod kind;
 pub mod noise;
 pub mod spec;
 pub mod stack;
 
 pub use compose::{DataAt, LayerTiles, compose_difference, compose_quad, compose_sample, fold, range_bound};
+pub use kind::{ValueSource, default_level};
 pub use spec::{
-    BlendMode, DetailWhere, DifferenceStyle, ExtentSpec, LayerKind, LayerSpec, NoiseSpec, NoiseType, Operand,
-    SourceSpec,
+    BlendMode, ConstantLayer, DatasetLayer, DetailWhere, DifferenceLayer, DifferenceStyle, EditLayer, ErosionLayer,
+    ExtentSpec, LayerKind, LayerPayload, LayerSpec, NoiseSpec, NoiseType, Operand, ProceduralLayer, SourceSpec,
 };
 pub use stack::{DifferencePlan, Layer, MaskPlan, PlannedLayer, QuadPlan, Stack};
 

@@ -9,7 +9,7 @@ use glam::DVec3;
 use super::LayerError;
 use super::extent::{Extent, Relation};
 use super::noise;
-use super::spec::{BlendMode, LayerKind, LayerSpec, Operand};
+use super::spec::{BlendMode, LayerSpec, Operand};
 use crate::ecm::{CubeProjection, FacePoint, QuadId};
 use crate::geodesy::{Ellipsoid, Geodetic, ecef_from_geodetic};
 use crate::store::grid::{GRID, spacing_m};
@@ -29,6 +29,9 @@ pub struct Layer {
     pub raw_range_m: (f64, f64),
     /// Dataset layers: the sample spacing of the dataset's finest level, metres (∞ otherwise).
     pub data_spacing_m: f64,
+    /// Dataset layers: the finest level their store holds (None until the store is opened, and
+    /// for other kinds).
+    pub stored_level: Option<u8>,
 }
 
 impl Layer {
@@ -36,6 +39,15 @@ impl Layer {
     /// with weight.
     pub fn active(&self) -> bool {
         self.spec.visible && self.spec.opacity > 0.0 && !(self.spec.blend == BlendMode::Mean && self.spec.weight == 0.0)
+    }
+
+    /// The finest level at which the layer adds detail ([`LayerSpec::detail_level`]); None for
+    /// a layer that adds none, or that is not [`Layer::active`].
+    pub fn detail_level(&self, ellipsoid: &Ellipsoid) -> Option<u8> {
+        if !self.active() {
+            return None;
+        }
+        self.spec.detail_level(ellipsoid, self.stored_level)
     }
 
     /// The layer's value range after scale, offset and valid range, metres (before coverage).
@@ -46,17 +58,11 @@ impl Layer {
     /// The same, for a dataset whose raw values span `dataset_raw_m` (e.g. one loaded tile's
     /// range instead of the whole dataset's); other kinds ignore it.
     pub fn value_range_from_raw_m(&self, dataset_raw_m: (f64, f64)) -> (f64, f64) {
-        let raw = match self.spec.kind {
-            // An edit layer's raw range is its deltas' (recorded like a dataset's).
-            LayerKind::Dataset | LayerKind::Edit | LayerKind::Erosion => dataset_raw_m,
-            LayerKind::Constant => {
-                let h = self.spec.height_m.unwrap_or(0.0);
-                (h, h)
-            }
-            LayerKind::Procedural => self.spec.noise.as_ref().map_or((0.0, 0.0), noise::noise_range_m),
-            // Changes no height.
-            LayerKind::Difference => return (f64::INFINITY, f64::NEG_INFINITY),
-        };
+        if !self.spec.gives_heights() {
+            return (f64::INFINITY, f64::NEG_INFINITY);
+        }
+        // An edit or erosion layer's raw range is its deltas' (recorded like a dataset's).
+        let raw = self.spec.raw_range_m(dataset_raw_m);
         let (a, b) = (raw.0 * self.spec.scale + self.spec.offset_m, raw.1 * self.spec.scale + self.spec.offset_m);
         let (lo, hi) = (a.min(b), a.max(b));
         match self.spec.valid_range_m {
@@ -127,7 +133,7 @@ impl QuadPlan {
 
     /// Indices of the dataset layers the plan reads (their source tiles must be loaded).
     pub fn datasets<'a>(&'a self, stack: &'a Stack) -> impl Iterator<Item = usize> + 'a {
-        self.layers.iter().map(|l| l.index).filter(|&i| stack.layers[i].spec.kind == LayerKind::Dataset)
+        self.layers.iter().map(|l| l.index).filter(|&i| stack.layers[i].spec.is_data())
     }
 
     /// Every planned layer the quad reads: the heights', then the difference's A and B.
@@ -193,7 +199,7 @@ impl Stack {
 
     /// A difference layer's operands must name layers of the stack that are not differences.
     fn check_operands(&self, spec: &LayerSpec) -> Result<(), LayerError> {
-        let Some(of) = &spec.of else { return Ok(()) };
+        let Some(of) = spec.as_difference().map(|d| &d.of) else { return Ok(()) };
         for (side, operand) in ["A", "B"].iter().zip(of) {
             for name in operand.names() {
                 match self.index_of(name) {
@@ -205,7 +211,7 @@ impl Stack {
                             format!("operand {side} names '{name}', which is not a layer (layers: {known})"),
                         ));
                     }
-                    Some(i) if self.layers[i].spec.kind == LayerKind::Difference => {
+                    Some(i) if !self.layers[i].spec.gives_heights() => {
                         return Err(LayerError::field(
                             &spec.name,
                             "of",
@@ -223,13 +229,13 @@ impl Stack {
     fn used_by(&self, name: &str) -> Option<&str> {
         self.layers
             .iter()
-            .find(|l| l.spec.of.as_ref().is_some_and(|of| of.iter().any(|o| o.names().contains(&name))))
+            .find(|l| l.spec.as_difference().is_some_and(|d| d.of.iter().any(|o| o.names().contains(&name))))
             .map(|l| l.spec.name.as_str())
     }
 
     /// The difference layer drawn: the topmost shown one with opacity.
     pub fn drawn_difference(&self) -> Option<usize> {
-        self.layers.iter().rposition(|l| l.spec.kind == LayerKind::Difference && l.spec.visible && l.spec.opacity > 0.0)
+        self.layers.iter().rposition(|l| !l.spec.gives_heights() && l.spec.visible && l.spec.opacity > 0.0)
     }
 
     fn compile(&self, spec: &LayerSpec) -> Result<Option<Extent>, LayerError> {
@@ -251,7 +257,15 @@ impl Stack {
         let extent = self.compile(&spec)?;
         let uid = self.next_uid;
         self.next_uid += 1;
-        let layer = Layer { spec, uid, revision: 1, extent, raw_range_m: (0.0, 0.0), data_spacing_m: f64::INFINITY };
+        let layer = Layer {
+            spec,
+            uid,
+            revision: 1,
+            extent,
+            raw_range_m: (0.0, 0.0),
+            data_spacing_m: f64::INFINITY,
+            stored_level: None,
+        };
         self.layers.insert(index.min(self.layers.len()), layer);
         Ok(())
     }
@@ -286,17 +300,19 @@ impl Stack {
     /// strokes change is stamped per quad by the layer's raster (`EditRaster::stamp`, mixed into
     /// plans by the scene), so that a stroke recomposes only the quads it changed.
     pub fn set_strokes(&mut self, index: usize, strokes: Vec<crate::edit::Stroke>, applied: Option<usize>) {
-        let spec = &mut self.layers[index].spec;
-        spec.strokes = strokes;
-        spec.applied = applied;
+        if let Some(edit) = self.layers[index].spec.as_edit_mut() {
+            edit.strokes = strokes;
+            edit.applied = applied;
+        }
     }
 
     /// An erosion layer's runs and undo position, without bumping its revision (like
     /// [`Stack::set_strokes`]: the raster's per-quad stamps say what changed).
     pub fn set_runs(&mut self, index: usize, runs: Vec<crate::erosion::operation::Operation>, applied: Option<usize>) {
-        let spec = &mut self.layers[index].spec;
-        spec.runs = runs;
-        spec.applied = applied;
+        if let Some(erosion) = self.layers[index].spec.as_erosion_mut() {
+            erosion.runs = runs;
+            erosion.applied = applied;
+        }
     }
 
     /// Removes a layer (not one a difference layer reads).
@@ -318,12 +334,20 @@ impl Stack {
         self.layers.insert(to.min(self.layers.len()), layer);
     }
 
-    /// Records what a dataset layer's store says (raw height range and finest sample spacing), or
-    /// an edit layer's raster (its deltas' range; spacing ∞).
-    pub fn set_dataset_info(&mut self, index: usize, raw_range_m: (f64, f64), data_spacing_m: f64) {
+    /// Records what a dataset layer's store says (raw height range and finest level), or an edit
+    /// or erosion layer's raster (its deltas' range; `stored_level` None, spacing ∞).
+    pub fn set_dataset_info(&mut self, index: usize, raw_range_m: (f64, f64), stored_level: Option<u8>) {
+        let ellipsoid = self.ellipsoid;
         let layer = &mut self.layers[index];
         layer.raw_range_m = raw_range_m;
-        layer.data_spacing_m = data_spacing_m;
+        layer.stored_level = stored_level;
+        layer.data_spacing_m = stored_level.map_or(f64::INFINITY, |l| spacing_m(&ellipsoid, l));
+    }
+
+    /// The finest level at which any of the layers `which` picks adds detail (the maximum of
+    /// their [`Layer::detail_level`]s; None where none adds any).
+    pub fn detail_level(&self, which: &dyn Fn(usize) -> bool) -> Option<u8> {
+        (0..self.layers.len()).filter(|&i| which(i)).filter_map(|i| self.layers[i].detail_level(&self.ellipsoid)).max()
     }
 
     /// The specs, bottom to top (what a project saves).
@@ -342,7 +366,7 @@ impl Stack {
         let mut stamp = 0xcbf2_9ce4_8422_2325u64;
         let mut layers = Vec::new();
         for (index, layer) in self.layers.iter().enumerate() {
-            if layer.spec.kind == LayerKind::Difference {
+            if !layer.spec.gives_heights() {
                 continue;
             }
             let Some(mask) = touch(index) else { continue };
@@ -354,7 +378,7 @@ impl Stack {
         }
         let spacing_m = if octave_skipping { spacing } else { 0.0 };
         let difference = self.drawn_difference().and_then(|d| {
-            let of = self.layers[d].spec.of.as_ref()?;
+            let of = &self.layers[d].spec.as_difference()?.of;
             // Its operands' layers are in the stamp already (every layer that touches the quad
             // is); the difference adds which one is drawn and what it reads, not its colours.
             stamp = mix(stamp, self.layers[d].uid);
@@ -383,7 +407,7 @@ impl Stack {
     ) -> Option<MaskPlan> {
         let layer = &self.layers[index];
         // Datasets without a tile there, and edit layers no stroke reached there, add nothing.
-        if matches!(layer.spec.kind, LayerKind::Dataset | LayerKind::Edit | LayerKind::Erosion) && !covers(index) {
+        if layer.spec.value_source().reads_tiles() && !covers(index) {
             return None;
         }
         match (&layer.extent, ball) {
@@ -407,12 +431,12 @@ impl Stack {
         opacity: f64,
     ) -> Option<PlannedLayer> {
         let layer = &self.layers[index];
-        let octaves = match &layer.spec.noise {
+        let octaves = match layer.spec.noise() {
             Some(n) if octave_skipping => noise::octaves_resolved(n, spacing),
             Some(n) => n.octaves,
             None => 0,
         };
-        if layer.spec.kind == LayerKind::Procedural && octaves == 0 {
+        if layer.spec.noise().is_some() && octaves == 0 {
             return None;
         }
         Some(PlannedLayer { index, mask, octaves, blend, opacity })
@@ -432,7 +456,7 @@ impl Stack {
         let alone = matches!(operand, Operand::Layer(_));
         let mut layers = Vec::new();
         for (index, layer) in self.layers.iter().enumerate() {
-            if !names.contains(&layer.spec.name.as_str()) || layer.spec.kind == LayerKind::Difference {
+            if !names.contains(&layer.spec.name.as_str()) || !layer.spec.gives_heights() {
                 continue;
             }
             let Some(mask) = touch(index) else { continue };
@@ -456,8 +480,7 @@ impl Stack {
         self.layers.iter().any(|l| {
             l.active()
                 && l.spec
-                    .noise
-                    .as_ref()
+                    .noise()
                     .is_some_and(|n| noise::octaves_resolved(n, child_spacing) > noise::octaves_resolved(n, spacing))
                 && l.extent.as_ref().is_none_or(|e| {
                     let (c, ll, r) = *ball.get_or_insert_with(|| quad_ball(&self.ellipsoid, quad));

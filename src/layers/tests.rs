@@ -20,8 +20,9 @@ fn at(stack: &Stack, quad: QuadId, i: u32, j: u32) -> SamplePoint {
 fn compose(specs: &[LayerSpec], raw: &[f64]) -> f64 {
     let mut stack = Stack::new(Ellipsoid::MOON, specs).unwrap();
     for (k, l) in specs.iter().enumerate() {
-        if l.kind == super::LayerKind::Dataset {
-            stack.set_dataset_info(k, (0.0, 1.0), 100.0);
+        if l.is_data() {
+            stack.set_dataset_info(k, (0.0, 1.0), None);
+            stack.layers[k].data_spacing_m = 100.0;
         }
     }
     let quad = QuadId { face: Face::Front, level: 3, x: 2, y: 5 };
@@ -197,28 +198,12 @@ fn bad_layers_name_the_layer_and_the_field() {
             "layer 'c': feather_m: feathers the extent's edge",
         ),
         (
-            LayerSpec { height_m: Some(1.0), ..LayerSpec::dataset("d", "s") },
-            "layer 'd': height_m: is not a field of a dataset layer",
-        ),
-        (
-            LayerSpec { store: None, ..LayerSpec::dataset("d", "s") },
-            "layer 'd': store: a dataset layer needs its store",
-        ),
-        (
-            LayerSpec { feather_edge_m: -5.0, ..LayerSpec::dataset("d", "s") },
+            with_dataset(|d| d.feather_edge_m = -5.0),
             "layer 'd': feather_edge_m: -5 must be a distance in metres from 0 to",
         ),
         (
-            LayerSpec { shift_m: [20_000.0, 0.0], ..LayerSpec::dataset("d", "s") },
+            with_dataset(|d| d.shift_m = [20_000.0, 0.0]),
             "layer 'd': shift_m: [20000.0, 0.0] must be [east, north] in metres, each within ±10000",
-        ),
-        (
-            LayerSpec { shift_m: [5.0, 0.0], ..LayerSpec::constant("c", 0.0) },
-            "layer 'c': shift_m: moves a dataset; a constant layer has none to move",
-        ),
-        (
-            LayerSpec { feather_edge_m: 500.0, ..LayerSpec::constant("c", 0.0) },
-            "layer 'c': feather_edge_m: fades a dataset in from its no-data edge; a constant layer has none",
         ),
         (
             LayerSpec { extent: Some(ExtentSpec::Box([0.0, 10.0, 5.0, 5.0])), ..LayerSpec::constant("c", 0.0) },
@@ -255,6 +240,105 @@ fn bad_layers_name_the_layer_and_the_field() {
     assert!(dup.unwrap_err().to_string().contains("layer 'a': name: is used by another layer"));
 }
 
+fn with_dataset(change: impl FnOnce(&mut super::DatasetLayer)) -> LayerSpec {
+    let mut spec = LayerSpec::dataset("d", "s");
+    change(spec.as_dataset_mut().unwrap());
+    spec
+}
+
+/// A layer read from a file's JSON (what a project's `layers` holds).
+fn read_layer(json: &str) -> Result<LayerSpec, String> {
+    serde_json::from_str::<LayerSpec>(json).map_err(|e| e.to_string())
+}
+
+#[test]
+fn a_file_that_gives_a_layer_another_kinds_field_is_refused_by_name() {
+    let cases = [
+        (
+            r#"{"name": "d", "kind": "dataset", "store": "s", "height_m": 1}"#,
+            "layer 'd': height_m: is not a field of a dataset layer",
+        ),
+        (r#"{"name": "d", "kind": "dataset"}"#, "layer 'd': store: a dataset layer needs its store"),
+        (
+            r#"{"name": "c", "kind": "constant", "height_m": 0, "shift_m": [5, 0]}"#,
+            "layer 'c': shift_m: is not a field of a constant layer",
+        ),
+        (
+            r#"{"name": "c", "kind": "constant", "height_m": 0, "feather_edge_m": 500}"#,
+            "layer 'c': feather_edge_m: is not a field of a constant layer",
+        ),
+        (
+            r#"{"name": "c", "kind": "constant", "height_m": 0, "of": ["a", "b"]}"#,
+            "layer 'c': of: is not a field of a constant layer",
+        ),
+        (
+            r#"{"name": "c", "kind": "constant", "height_m": 0, "applied": 2}"#,
+            "layer 'c': applied: is not a field of a constant layer",
+        ),
+        (
+            r#"{"name": "dh", "kind": "difference", "store": "s.gpkg", "of": ["a", "b"]}"#,
+            "layer 'dh': store: is not a field of a difference layer",
+        ),
+        (r#"{"name": "dh", "kind": "difference"}"#, "layer 'dh': of: a difference layer needs its operands"),
+        (
+            r#"{"name": "d", "kind": "dataset", "store": "s", "applied": 0}"#,
+            "layer 'd': applied: is not a field of a dataset layer",
+        ),
+        (r#"{"name": "p", "kind": "procedural"}"#, "layer 'p': noise: a procedural layer needs its noise settings"),
+        (r#"{"name": "c", "kind": "constant"}"#, "layer 'c': height_m: a constant layer needs its height"),
+        (r#"{"name": "c", "kind": "crater", "height_m": 0}"#, "unknown variant `crater`"),
+        (r#"{"name": "c", "kind": "constant", "height_m": 0, "colour": "red"}"#, "unknown field `colour`"),
+    ];
+    for (json, expected) in cases {
+        let e = read_layer(json).unwrap_err();
+        assert!(e.contains(expected), "{json}: {e}\n  expected: {expected}");
+    }
+    // What older files wrote for every kind (a zero shift, no edge feather, the identity
+    // transform on a difference) still reads.
+    for json in [
+        r#"{"name": "c", "kind": "constant", "height_m": 0, "shift_m": [0, 0], "feather_edge_m": 0}"#,
+        r#"{"name": "dh", "kind": "difference", "of": ["a", "b"], "scale": 1.0, "offset_m": 0.0}"#,
+        r#"{"name": "e", "kind": "edit", "strokes": [], "blend": "add"}"#,
+    ] {
+        read_layer(json).unwrap_or_else(|e| panic!("{json}: {e}"));
+    }
+}
+
+#[test]
+fn every_kind_reads_back_as_it_was_written() {
+    let n = NoiseSpec {
+        noise_type: super::NoiseType::Ridged,
+        seed: 3,
+        amplitude_m: 10.0,
+        wavelength_m: 5000.0,
+        octaves: 5,
+        lacunarity: 2.0,
+        gain: 0.5,
+        placement: super::DetailWhere::BeyondData,
+    };
+    let specs = [
+        with_dataset(|d| {
+            d.shift_m = [3.0, -4.0];
+            d.feather_edge_m = 250.0;
+            d.dataset = Some("srtm".into());
+        }),
+        LayerSpec::constant("c", -12.5),
+        LayerSpec::procedural("p", n),
+        LayerSpec::edit("e"),
+        LayerSpec::erosion("r"),
+        LayerSpec::difference(
+            "dh",
+            super::Operand::Layer("d".into()),
+            super::Operand::Group(vec!["c".into(), "p".into()]),
+        ),
+    ];
+    for spec in specs {
+        let json = serde_json::to_string(&spec).unwrap();
+        assert!(json.contains(&format!("\"kind\":\"{}\"", spec.kind().name())), "{json}");
+        assert_eq!(read_layer(&json).unwrap(), spec, "{json}");
+    }
+}
+
 #[test]
 fn detail_beyond_the_data_leaves_what_the_data_resolve() {
     // A dataset of 100 m spacing under fBm whose octaves (800 … 100 m) the data already have
@@ -271,7 +355,8 @@ fn detail_beyond_the_data_leaves_what_the_data_resolve() {
     };
     let specs = [LayerSpec::dataset("d", "s.gpkg"), LayerSpec::procedural("detail", n.clone())];
     let mut stack = Stack::new(Ellipsoid::MOON, &specs).unwrap();
-    stack.set_dataset_info(0, (0.0, 1.0), 100.0);
+    stack.set_dataset_info(0, (0.0, 1.0), None);
+    stack.layers[0].data_spacing_m = 100.0;
     let quad = QuadId { face: Face::Front, level: 12, x: 2000, y: 2100 };
     let plan = stack.plan(quad, &|_| true, false);
     let p = at(&stack, quad, 100, 100);
@@ -287,6 +372,10 @@ fn difference_layers_name_their_operands_and_refuse_what_would_break_them() {
     use super::spec::{DifferenceStyle, Operand};
     let layer = |n: &str| Operand::Layer(n.into());
     let dh = |a: &str, b: &str| LayerSpec::difference("dh", layer(a), layer(b));
+    let styled = |mut spec: LayerSpec, style: DifferenceStyle| {
+        spec.as_difference_mut().unwrap().style = style;
+        spec
+    };
     let cases: Vec<(LayerSpec, &str)> = vec![
         (dh("a", "a"), "layer 'dh': of: A and B are both 'a'"),
         (
@@ -294,18 +383,13 @@ fn difference_layers_name_their_operands_and_refuse_what_would_break_them() {
             "layer 'dh': blend: is not a field of a difference layer",
         ),
         (LayerSpec { offset_m: 3.0, ..dh("a", "b") }, "layer 'dh': offset_m: is not a field of a difference layer"),
-        (LayerSpec { of: None, ..dh("a", "b") }, "layer 'dh': of: a difference layer needs its operands"),
         (
-            LayerSpec { style: Some(DifferenceStyle { range_m: Some(-2.0), ..Default::default() }), ..dh("a", "b") },
+            styled(dh("a", "b"), DifferenceStyle { range_m: Some(-2.0), ..Default::default() }),
             "layer 'dh': style.range_m: -2 must be a positive height",
         ),
         (
-            LayerSpec { style: Some(DifferenceStyle { percentile: 0.0, ..Default::default() }), ..dh("a", "b") },
+            styled(dh("a", "b"), DifferenceStyle { percentile: 0.0, ..Default::default() }),
             "layer 'dh': style.percentile: 0 must lie in (0, 100]",
-        ),
-        (
-            LayerSpec { of: Some([layer("a"), layer("b")]), ..LayerSpec::constant("c", 0.0) },
-            "layer 'c': of: is not a field",
         ),
     ];
     for (spec, expected) in cases {

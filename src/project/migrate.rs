@@ -29,7 +29,12 @@ pub struct DatasetSpec {
 impl DatasetSpec {
     /// The version-2 layer: an `over` dataset layer with the same fields.
     pub fn into_layer(self) -> LayerSpec {
-        LayerSpec { dataset: self.dataset, source: self.source, ..LayerSpec::dataset(&self.name, self.store) }
+        let mut layer = LayerSpec::dataset(&self.name, self.store);
+        if let Some(d) = layer.as_dataset_mut() {
+            d.dataset = self.dataset;
+            d.source = self.source;
+        }
+        layer
     }
 }
 /// The steps: `STEPS[k]` takes a file of version k + 1 to version k + 2.

@@ -257,7 +257,7 @@ impl Project {
                 }
             }
         }
-        let kinds = |name: &str| self.layers.iter().find(|l| l.name == name).map(|l| l.kind.holds_deltas());
+        let kinds = |name: &str| self.layers.iter().find(|l| l.name == name).map(|l| l.holds_deltas());
         for (name, check) in &self.checks {
             let target = check.target(&kinds).map_err(|e| format!("checks.{name}.{e}"))?;
             if let checks::CheckTarget::View { view, .. } = target
@@ -313,7 +313,7 @@ impl Project {
 
     /// The dataset layers, bottom to top.
     pub fn dataset_layers(&self) -> impl Iterator<Item = &LayerSpec> {
-        self.layers.iter().filter(|l| l.kind == LayerKind::Dataset)
+        self.layers.iter().filter(|l| l.kind() == LayerKind::Dataset)
     }
 
     /// A path of the project, resolved against the project file's folder.
@@ -363,11 +363,9 @@ impl Project {
                 *p = relative_to(&absolute(&old.join(&*p)), &absolute(dir));
             }
         };
-        for layer in &mut self.layers {
-            if let Some(store) = &mut layer.store {
-                moved(store);
-            }
-            if let Some(source) = &mut layer.source {
+        for data in self.layers.iter_mut().filter_map(LayerSpec::as_dataset_mut) {
+            moved(&mut data.store);
+            if let Some(source) = &mut data.source {
                 source.files.iter_mut().for_each(moved);
             }
         }
@@ -415,7 +413,7 @@ mod tests {
         let q = Project::load(&path).unwrap();
         assert_eq!(q.layers, p.layers);
         assert_eq!(q.views, p.views);
-        assert_eq!(q.resolve(q.layers[0].store.as_ref().unwrap()), dir.join("s/e.gpkg"));
+        assert_eq!(q.resolve(&q.layers[0].as_dataset().unwrap().store), dir.join("s/e.gpkg"));
         assert_eq!(q.view(None).unwrap().heading, 30.0);
         std::fs::remove_dir_all(&dir).unwrap();
     }
@@ -456,9 +454,9 @@ mod tests {
         assert_eq!(p.version, VERSION);
         let names: Vec<&str> = p.layers.iter().map(|l| l.name.as_str()).collect();
         assert_eq!(names, ["global", "north"], "bottom to top: the first listed ends on top");
-        assert!(p.layers.iter().all(|l| l.kind == LayerKind::Dataset && l.blend == crate::layers::BlendMode::Over));
+        assert!(p.layers.iter().all(|l| l.kind() == LayerKind::Dataset && l.blend == crate::layers::BlendMode::Over));
         assert_eq!(p.layers[0].store_dataset(), "lola");
-        assert_eq!(p.layers[1].source.as_ref().unwrap().files, [PathBuf::from("n.tif")]);
+        assert_eq!(p.layers[1].as_dataset().unwrap().source.as_ref().unwrap().files, [PathBuf::from("n.tif")]);
         let text = serde_json::to_string(&p).unwrap();
         assert!(text.contains("\"version\":3") && text.contains("\"layers\"") && !text.contains("\"datasets\""));
         // A version-2 file with datasets is refused (the field is gone), naming it.
@@ -556,18 +554,16 @@ mod tests {
     fn save_as_elsewhere_rewrites_relative_paths_to_the_same_files() {
         let mut p = Project::new("moon");
         p.base_dir = PathBuf::from("/data/projects");
-        p.layers.push(LayerSpec {
-            source: Some(SourceSpec { files: vec!["data/a.tif".into(), "/abs/b.tif".into()], ..Default::default() }),
-            ..LayerSpec::dataset("a", "stores/a.gpkg")
-        });
+        let mut a = LayerSpec::dataset("a", "stores/a.gpkg");
+        a.as_dataset_mut().unwrap().source =
+            Some(SourceSpec { files: vec!["data/a.tif".into(), "/abs/b.tif".into()], ..Default::default() });
+        p.layers.push(a);
         p.rebase(Path::new("/data/other/sub"));
-        assert_eq!(p.layers[0].store.as_deref(), Some(Path::new("../../projects/stores/a.gpkg")));
-        let files = &p.layers[0].source.as_ref().unwrap().files;
+        let data = p.layers[0].as_dataset().unwrap();
+        assert_eq!(data.store, Path::new("../../projects/stores/a.gpkg"));
+        let files = &data.source.as_ref().unwrap().files;
         assert_eq!(files, &[PathBuf::from("../../projects/data/a.tif"), PathBuf::from("/abs/b.tif")]);
-        assert_eq!(
-            p.resolve(p.layers[0].store.as_ref().unwrap()),
-            Path::new("/data/other/sub/../../projects/stores/a.gpkg")
-        );
+        assert_eq!(p.resolve(&data.store), Path::new("/data/other/sub/../../projects/stores/a.gpkg"));
     }
 
     #[test]

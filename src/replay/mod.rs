@@ -115,7 +115,7 @@ pub fn replay(project: &Project, engine: Engine) -> Result<Replayed, ReplayError
     let mut layers = Vec::new();
     for index in 0..scene.stack.layers.len() {
         let spec = scene.stack.layers[index].spec.clone();
-        if !spec.kind.holds_deltas() {
+        if !spec.holds_deltas() {
             continue;
         }
         let fail = |problem: String| ReplayError::Layer { layer: spec.name.clone(), problem };
@@ -123,7 +123,7 @@ pub fn replay(project: &Project, engine: Engine) -> Result<Replayed, ReplayError
         let below = |q| below.heights_cpu(q);
         let e = scene.ellipsoid;
         let t = Instant::now();
-        let raster = match (spec.kind, engine, &kernels) {
+        let raster = match (spec.kind(), engine, &kernels) {
             (LayerKind::Erosion, Engine::Gpu(ctx), Some((_, erosion))) => {
                 let stepper =
                     crate::gpu::erosion::GpuStepper { device: &ctx.device, queue: &ctx.queue, kernel: erosion.clone() };
@@ -143,7 +143,7 @@ pub fn replay(project: &Project, engine: Engine) -> Result<Replayed, ReplayError
         layers.push(LayerReplay {
             index,
             name: spec.name.clone(),
-            kind: spec.kind,
+            kind: spec.kind(),
             operations: applied(&spec),
             digests: digest::of_tiles(raster.tiles.iter().map(|(q, t)| (*q, t.as_slice()))),
             range_m: raster.range_m(),
@@ -156,13 +156,13 @@ pub fn replay(project: &Project, engine: Engine) -> Result<Replayed, ReplayError
 
 /// How many of a layer's operations are in effect.
 fn applied(spec: &LayerSpec) -> usize {
-    if spec.kind == LayerKind::Erosion { spec.applied_runs().len() } else { spec.applied_strokes().len() }
+    if spec.kind() == LayerKind::Erosion { spec.applied_runs().len() } else { spec.applied_strokes().len() }
 }
 
 /// Evaluates check `name` on a replayed scene: the digests of what it hashes.
 pub fn evaluate(scene: &Scene, project: &Project, name: &str, check: &CheckSpec) -> Result<Digests, ReplayError> {
     let fail = |problem: String| ReplayError::Check { check: name.to_string(), problem };
-    let kinds = |layer: &str| project.layers.iter().find(|l| l.name == layer).map(|l| l.kind.holds_deltas());
+    let kinds = |layer: &str| project.layers.iter().find(|l| l.name == layer).map(|l| l.holds_deltas());
     let index_of = |layer: &str| {
         scene.stack.layers.iter().position(|l| l.spec.name == layer).ok_or_else(|| fail(format!("no layer '{layer}'")))
     };

@@ -101,10 +101,8 @@ pub fn sample_project(name: &str, dir: &std::path::Path) -> PathBuf {
     let _guard = LOCK.get_or_init(Default::default).lock().unwrap_or_else(|p| p.into_inner());
     let mut p = Project::load(&repo_path(&format!("projects/{name}.json"))).unwrap();
     let stores = store_dir(dir, name, &serde_json::to_string(&p.layers).unwrap());
-    for d in &mut p.layers {
-        if d.store.is_some() {
-            d.store = Some(stores.join(format!("{name}.gpkg")));
-        }
+    for d in p.layers.iter_mut().filter_map(|l| l.as_dataset_mut()) {
+        d.store = stores.join(format!("{name}.gpkg"));
         if let Some(s) = &mut d.source {
             s.files = s.files.iter().map(|f| repo_path("projects").join(f)).collect();
         }
@@ -114,7 +112,7 @@ pub fn sample_project(name: &str, dir: &std::path::Path) -> PathBuf {
     use terrafuse::layers::LayerKind;
     p.layers.retain(|d| {
         d.name != "lola_north"
-            && matches!(d.kind, LayerKind::Dataset | LayerKind::Difference | LayerKind::Edit | LayerKind::Erosion)
+            && matches!(d.kind(), LayerKind::Dataset | LayerKind::Difference | LayerKind::Edit | LayerKind::Erosion)
     });
     p.detail.gpu_cache_mib = 256;
     // The checks hold the whole project's digests (tests/projects.rs verifies them); tests change

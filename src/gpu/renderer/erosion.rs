@@ -15,7 +15,7 @@ use crate::erosion::operation::Operation;
 use crate::erosion::region::Region;
 use crate::erosion::sim::Run;
 use crate::gpu::erosion::{ErosionKernel, GpuRun};
-use crate::layers::{DifferenceStyle, Operand};
+use crate::layers::{DifferenceStyle, ErosionLayer, LayerPayload, Operand};
 
 /// The drape's layers: the field, the zero it is drawn against, the difference drawn.
 const LIVE_FIELD: &str = "erosion-live-field";
@@ -31,11 +31,11 @@ impl Renderer {
             .layers
             .get(index)
             .ok_or_else(|| LayerError::field("?", "index", format!("{index} is not a layer of the stack")))?;
-        if layer.spec.kind != crate::layers::LayerKind::Erosion {
+        if layer.spec.as_erosion().is_none() {
             return Err(LayerError::field(
                 &layer.spec.name,
                 "kind",
-                format!("{} is not an erosion layer", layer.spec.kind.name()),
+                format!("{} is not an erosion layer", layer.spec.kind().name()),
             ));
         }
         let raster = self
@@ -98,11 +98,12 @@ impl Renderer {
         op.steps = run.steps;
         op.check().map_err(|(f, p)| LayerError::field(&spec.name, &format!("runs[{applied}].{f}"), p))?;
         let outcome = layer::finish(&mut base, applied, region, run, seconds);
-        spec.runs.truncate(applied);
-        spec.runs.push(op);
-        spec.applied = None;
+        let mut runs = spec.runs().to_vec();
+        runs.truncate(applied);
+        runs.push(op);
         self.scene.set_edit(index, base);
-        self.scene.stack.set_runs(index, spec.runs.clone(), spec.applied);
+        self.scene.stack.set_runs(index, runs.clone(), None);
+        spec.payload = LayerPayload::Erosion(ErosionLayer { runs, applied: None });
         self.cache.plans.clear();
         Ok((spec, outcome))
     }
@@ -113,12 +114,9 @@ impl Renderer {
     pub fn set_erosion_applied(&mut self, index: usize, applied: usize) -> Result<LayerSpec, LayerError> {
         let (mut spec, mut raster) = self.erosion_layer(index)?;
         let now = spec.applied_runs().len();
-        if applied > spec.runs.len() {
-            return Err(LayerError::field(
-                &spec.name,
-                "applied",
-                format!("{applied} is past the {} runs", spec.runs.len()),
-            ));
+        let runs = spec.runs().to_vec();
+        if applied > runs.len() {
+            return Err(LayerError::field(&spec.name, "applied", format!("{applied} is past the {} runs", runs.len())));
         }
         let below = self.scene.below(index).map_err(|e| LayerError::field(&spec.name, "runs", e))?;
         let below = |q| below.heights_cpu(q);
@@ -126,15 +124,16 @@ impl Renderer {
             LayerError::field(&spec.name, &format!("runs[{}].{}", e.index, e.field), e.problem)
         };
         if applied < now {
-            layer::undo_to(&mut raster, &spec.runs, now, applied, &below).map_err(fail)?;
+            layer::undo_to(&mut raster, &runs, now, applied, &below).map_err(fail)?;
         } else {
-            for (k, op) in spec.runs.iter().enumerate().take(applied).skip(now) {
+            for (k, op) in runs.iter().enumerate().take(applied).skip(now) {
                 layer::apply(&mut raster, k, op, &below, &layer::CpuStepper).map_err(fail)?;
             }
         }
-        spec.applied = (applied < spec.runs.len()).then_some(applied);
+        let applied = (applied < runs.len()).then_some(applied);
         self.scene.set_edit(index, raster);
-        self.scene.stack.set_runs(index, spec.runs.clone(), spec.applied);
+        self.scene.stack.set_runs(index, runs.clone(), applied);
+        spec.payload = LayerPayload::Erosion(ErosionLayer { runs, applied });
         self.cache.plans.clear();
         Ok(spec)
     }
@@ -165,8 +164,7 @@ impl Renderer {
                 let extent = (outline.len() >= 3).then_some(crate::layers::ExtentSpec::Polygon(outline));
                 let zero = LayerSpec { visible: false, extent, ..LayerSpec::constant(LIVE_ZERO, 0.0) };
                 self.insert_layer(top + 1, zero)?;
-                let drawn = LayerSpec {
-                    style: Some(style),
+                let mut drawn = LayerSpec {
                     opacity: 0.8,
                     ..LayerSpec::difference(
                         LIVE_DRAWN,
@@ -174,6 +172,9 @@ impl Renderer {
                         Operand::Layer(LIVE_ZERO.into()),
                     )
                 };
+                if let Some(d) = drawn.as_difference_mut() {
+                    d.style = style;
+                }
                 self.insert_layer(top + 2, drawn)?;
             }
             Some(i) => {
@@ -181,7 +182,10 @@ impl Renderer {
                 let old = spec.difference_style().range_m.unwrap_or(0.0);
                 // A new range only when it moved by more than a quarter (each recomposes the region).
                 if (old - range_m).abs() > 0.25 * old {
-                    let spec = LayerSpec { style: Some(style), ..spec.clone() };
+                    let mut spec = spec.clone();
+                    if let Some(d) = spec.as_difference_mut() {
+                        d.style = style;
+                    }
                     self.update_layer(i, spec)?;
                 }
             }

@@ -280,7 +280,7 @@ impl Renderer {
             return r;
         }
         let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
-        for name in spec.of.iter().flatten().flat_map(|o| o.names()) {
+        for name in spec.as_difference().iter().flat_map(|d| d.of.iter()).flat_map(|o| o.names()) {
             if let Some(i) = stack.index_of(name) {
                 let (a, b) = stack.layers[i].value_range_m();
                 (lo, hi) = (lo.min(a), hi.max(b));

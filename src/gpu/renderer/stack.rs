@@ -14,17 +14,16 @@ impl Renderer {
         let Some(old) = self.scene.stack.layers.get(index) else {
             return Err(LayerError::field(&spec.name, "index", format!("{index} is not a layer of the stack")));
         };
-        if (old.spec.store.as_ref(), old.spec.store_dataset()) != (spec.store.as_ref(), spec.store_dataset())
-            || old.spec.kind != spec.kind
-        {
+        let store = |s: &LayerSpec| s.as_dataset().map(|d| (d.store.clone(), s.store_dataset().to_string()));
+        if store(&old.spec) != store(&spec) || old.spec.kind() != spec.kind() {
             return Err(LayerError::field(
                 &spec.name,
                 "store",
                 "a layer's kind, store and dataset are fixed once open".into(),
             ));
         }
-        let shifted = old.spec.shift_m != spec.shift_m;
-        let restroked = (&old.spec.strokes, old.spec.applied) != (&spec.strokes, spec.applied);
+        let shifted = old.spec.shift_m() != spec.shift_m();
+        let restroked = (old.spec.strokes(), old.spec.applied()) != (spec.strokes(), spec.applied());
         let name = spec.name.clone();
         self.scene.stack.set(index, spec)?;
         if restroked {
@@ -46,14 +45,14 @@ impl Renderer {
     /// it touches are recomposed. Dataset layers need their store opened with the scene (reopen
     /// the project, or [`Renderer::insert_dataset_layer`]).
     pub fn insert_layer(&mut self, index: usize, spec: LayerSpec) -> Result<(), LayerError> {
-        if spec.kind == crate::layers::LayerKind::Dataset {
+        if spec.is_data() {
             return Err(LayerError::field(
                 &spec.name,
                 "kind",
                 "a dataset layer is added to the project file and opened with it".into(),
             ));
         }
-        let edit = spec.kind.holds_deltas();
+        let edit = spec.holds_deltas();
         let name = spec.name.clone();
         self.scene.stack.insert(index, spec)?;
         if edit && let Err(e) = self.scene.attach_edit(index) {
@@ -80,20 +79,20 @@ impl Renderer {
         stroke: crate::edit::Stroke,
         gpu: bool,
     ) -> Result<LayerSpec, LayerError> {
-        let mut spec = self.edit_spec(index)?;
+        let (spec, mut edit) = self.edit_spec(index)?;
         let applied = spec.applied_strokes().len();
-        spec.strokes.truncate(applied);
+        edit.strokes.truncate(applied);
         let ellipsoid = self.scene.ellipsoid;
         let name = spec.name.clone();
         let fail = |e: crate::edit::StrokeError| LayerError::field(&name, "strokes", e.to_string());
-        let all = spec.strokes.iter().chain(std::iter::once(&stroke));
+        let all = edit.strokes.iter().chain(std::iter::once(&stroke));
         let below = self.terrain_below(index, all).map_err(|e| LayerError::field(&name, "strokes", e))?;
         let below = |q| below.as_ref().map_or_else(|| crate::edit::ellipsoid_below(q), |s| s.heights_cpu(q));
         let uid = self.scene.stack.layers[index].uid;
         let raster = std::sync::Arc::make_mut(self.scene.edits.get_mut(&uid).expect("checked by edit_spec"));
         if stroke.level > raster.level {
             // A finer stroke: the raster moves to its level (rebuilt from every stroke).
-            let mut all = spec.strokes.clone();
+            let mut all = edit.strokes.clone();
             all.push(stroke.clone());
             let mut finer = crate::edit::EditRaster::build(ellipsoid, &all, &below).map_err(fail)?;
             finer.succeed(raster);
@@ -107,27 +106,27 @@ impl Renderer {
             };
             raster.apply_with(applied, &stroke, &below, rasteriser).map_err(fail)?;
         }
-        spec.strokes.push(stroke);
-        spec.applied = None;
-        self.finish_edit(index, spec)
+        edit.strokes.push(stroke);
+        edit.applied = None;
+        self.finish_edit(index, spec, edit)
     }
 
     /// Moves edit layer `index`'s undo position to `applied` strokes (back: undo, restoring the
     /// touched quads from the undo history or recomputing them; forward: redo). Returns the
     /// layer's new spec.
     pub fn set_applied(&mut self, index: usize, applied: usize) -> Result<LayerSpec, LayerError> {
-        let mut spec = self.edit_spec(index)?;
+        let (spec, mut edit) = self.edit_spec(index)?;
         let now = spec.applied_strokes().len();
-        if applied > spec.strokes.len() {
+        if applied > edit.strokes.len() {
             return Err(LayerError::field(
                 &spec.name,
                 "applied",
-                format!("{applied} is past the {} strokes", spec.strokes.len()),
+                format!("{applied} is past the {} strokes", edit.strokes.len()),
             ));
         }
         let name = spec.name.clone();
         let fail = |e: crate::edit::StrokeError| LayerError::field(&name, "strokes", e.to_string());
-        let strokes = spec.strokes.clone();
+        let strokes = edit.strokes.clone();
         let below = self.terrain_below(index, strokes.iter()).map_err(|e| LayerError::field(&name, "strokes", e))?;
         let below = |q| below.as_ref().map_or_else(|| crate::edit::ellipsoid_below(q), |s| s.heights_cpu(q));
         let raster = self.raster_mut(index);
@@ -138,8 +137,8 @@ impl Renderer {
                 raster.apply(k, stroke, &below).map_err(fail)?;
             }
         }
-        spec.applied = (applied < spec.strokes.len()).then_some(applied);
-        self.finish_edit(index, spec)
+        edit.applied = (applied < edit.strokes.len()).then_some(applied);
+        self.finish_edit(index, spec, edit)
     }
 
     /// The scene of the layers below edit layer `index`, when one of `strokes` reads the terrain
@@ -152,22 +151,23 @@ impl Renderer {
         if strokes.any(|s| s.tool.reads_terrain()) { self.scene.below(index).map(Some) } else { Ok(None) }
     }
 
-    /// Edit layer `index`'s spec (an error for any other layer).
-    fn edit_spec(&self, index: usize) -> Result<LayerSpec, LayerError> {
+    /// Edit layer `index`'s spec, its strokes taken out to change (an error for any other layer).
+    fn edit_spec(&self, index: usize) -> Result<(LayerSpec, crate::layers::EditLayer), LayerError> {
         let layer = self
             .scene
             .stack
             .layers
             .get(index)
             .ok_or_else(|| LayerError::field("?", "index", format!("{index} is not a layer of the stack")))?;
+        let not_edit = || {
+            LayerError::field(&layer.spec.name, "kind", format!("{} is not an edit layer", layer.spec.kind().name()))
+        };
         if !self.scene.edits.contains_key(&layer.uid) {
-            return Err(LayerError::field(
-                &layer.spec.name,
-                "kind",
-                format!("{} is not an edit layer", layer.spec.kind.name()),
-            ));
+            return Err(not_edit());
         }
-        Ok(layer.spec.clone())
+        let mut spec = layer.spec.clone();
+        let edit = spec.as_edit_mut().map(std::mem::take).ok_or_else(not_edit)?;
+        Ok((spec, edit))
     }
 
     /// Edit layer `index`'s raster, changed in place (copied first only if another scene shares
@@ -177,12 +177,18 @@ impl Renderer {
         std::sync::Arc::make_mut(self.scene.edits.get_mut(&uid).expect("checked by edit_spec"))
     }
 
-    fn finish_edit(&mut self, index: usize, spec: LayerSpec) -> Result<LayerSpec, LayerError> {
+    fn finish_edit(
+        &mut self,
+        index: usize,
+        mut spec: LayerSpec,
+        edit: crate::layers::EditLayer,
+    ) -> Result<LayerSpec, LayerError> {
         // Strokes only: the raster's per-quad stamps say which quads to recompose.
-        self.scene.stack.set_strokes(index, spec.strokes.clone(), spec.applied);
+        self.scene.stack.set_strokes(index, edit.strokes.clone(), edit.applied);
+        spec.payload = crate::layers::LayerPayload::Edit(edit);
         let uid = self.scene.stack.layers[index].uid;
         let range = self.scene.edits[&uid].range_m();
-        self.scene.stack.set_dataset_info(index, range, f64::INFINITY);
+        self.scene.stack.set_dataset_info(index, range, None);
         self.cache.plans.clear();
         Ok(spec)
     }

@@ -107,11 +107,11 @@ impl App {
             let label = ui.label("edit layer").id;
             ui.text_edit_singleline(&mut b.layer).labelled_by(label);
         });
-        let index = self.project.layers.iter().position(|l| l.name == self.brush.layer && l.kind == LayerKind::Edit);
+        let index = self.project.layers.iter().position(|l| l.name == self.brush.layer && l.kind() == LayerKind::Edit);
         ui.horizontal(|ui| {
             let (applied, total) = index.map_or((0, 0), |i| {
                 let l = &self.project.layers[i];
-                (l.applied_strokes().len(), l.strokes.len())
+                (l.applied_strokes().len(), l.strokes().len())
             });
             if ui.add_enabled(applied > 0, egui::Button::new("undo")).on_hover_text("Ctrl+Z").clicked() {
                 self.move_undo(-1);
@@ -142,7 +142,7 @@ impl App {
     fn move_undo(&mut self, by: i64) {
         let Some(index) = self.project.layers.iter().position(|l| l.name == self.brush.layer) else { return };
         let applied = self.project.layers[index].applied_strokes().len() as i64 + by;
-        let total = self.project.layers[index].strokes.len() as i64;
+        let total = self.project.layers[index].strokes().len() as i64;
         if !(0..=total).contains(&applied) {
             return;
         }
@@ -287,7 +287,7 @@ impl App {
                 }
                 self.message = format!(
                     "stroke {} on '{name}' ({:.0} ms to rasterise)",
-                    spec.strokes.len() - 1,
+                    spec.strokes().len() - 1,
                     t.elapsed().as_secs_f64() * 1e3
                 );
                 self.project.layers[index] = spec;

@@ -262,11 +262,11 @@ impl App {
             }
         }
         let index =
-            self.project.layers.iter().position(|l| l.name == self.erosion.layer && l.kind == LayerKind::Erosion);
+            self.project.layers.iter().position(|l| l.name == self.erosion.layer && l.kind() == LayerKind::Erosion);
         ui.horizontal(|ui| {
             let (applied, total) = index.map_or((0, 0), |i| {
                 let l = &self.project.layers[i];
-                (l.applied_runs().len(), l.runs.len())
+                (l.applied_runs().len(), l.runs().len())
             });
             let idle = self.erosion.session.is_none();
             if ui.add_enabled(idle && applied > 0, egui::Button::new("undo run")).clicked() {
@@ -391,7 +391,7 @@ impl App {
         let t = &self.erosion;
         let side_m = (region[2] - region[0]).to_radians() * e.a_m();
         let index = self.project.layers.iter().position(|l| l.name == t.layer);
-        let layer_level = index.and_then(|i| self.project.layers[i].runs.first().map(|r| r.level));
+        let layer_level = index.and_then(|i| self.project.layers[i].runs().first().map(|r| r.level));
         let level = layer_level
             .or(t.level)
             .unwrap_or_else(|| (0..=22u8).find(|l| spacing_m(&e, *l) * 512.0 <= side_m).unwrap_or(22));
@@ -408,7 +408,7 @@ impl App {
         };
         let name = t.layer.clone();
         let index = match index {
-            Some(i) if self.project.layers[i].kind == LayerKind::Erosion => i,
+            Some(i) if self.project.layers[i].kind() == LayerKind::Erosion => i,
             Some(_) => {
                 self.message = format!("erosion: '{name}' is not an erosion layer");
                 return;
@@ -479,7 +479,7 @@ impl App {
             Ok((spec, o)) => {
                 self.message = format!(
                     "erosion run {} kept: {} steps, {:.1} s simulated, change {:.2} … {:.2} m",
-                    spec.runs.len() - 1,
+                    spec.runs().len() - 1,
                     o.steps,
                     o.simulated_s,
                     o.range_m.0,
@@ -496,7 +496,7 @@ impl App {
     fn move_erosion_undo(&mut self, by: i64) {
         let Some(index) = self.project.layers.iter().position(|l| l.name == self.erosion.layer) else { return };
         let applied = self.project.layers[index].applied_runs().len() as i64 + by;
-        let total = self.project.layers[index].runs.len() as i64;
+        let total = self.project.layers[index].runs().len() as i64;
         if !(0..=total).contains(&applied) {
             return;
         }

@@ -292,11 +292,11 @@ impl App {
                 // replaying its strokes (a cache: a failure is reported, the project is saved).
                 let scene = self.renderer.scene();
                 for (index, layer) in scene.stack.layers.iter().enumerate() {
-                    if layer.spec.kind.holds_deltas()
+                    if layer.spec.holds_deltas()
                         && let Err(e) = scene.save_edit_cache(index)
                     {
                         self.message +=
-                            &format!("; {} layer '{}' not cached: {e}", layer.spec.kind.name(), layer.spec.name);
+                            &format!("; {} layer '{}' not cached: {e}", layer.spec.kind().name(), layer.spec.name);
                     }
                 }
             }

@@ -274,7 +274,9 @@ impl App {
     fn apply_coregistration(&mut self, layer: &str, shift_m: [f64; 2], up_m: f64) {
         let Some(index) = self.project.layers.iter().position(|l| l.name == layer) else { return };
         let mut spec = self.project.layers[index].clone();
-        spec.shift_m = [spec.shift_m[0] + shift_m[0], spec.shift_m[1] + shift_m[1]];
+        if spec.shift_by(shift_m[0], shift_m[1]).is_err() {
+            return;
+        }
         spec.offset_m += up_m;
         match self.renderer.update_layer(index, spec.clone()) {
             Ok(()) => {

@@ -42,7 +42,7 @@ impl App {
         let (ia, ib) = (index(a)?, index(b)?);
         // A swipe shows the layers themselves: no difference drawn over either side.
         let differences =
-            self.project.layers.iter().enumerate().filter(|(_, l)| l.kind == LayerKind::Difference && l.visible);
+            self.project.layers.iter().enumerate().filter(|(_, l)| l.kind() == LayerKind::Difference && l.visible);
         let hide: Vec<(usize, bool)> = differences.map(|(i, _)| (i, false)).collect();
         for (i, visible) in [(ia, true), (ib, false)].into_iter().chain(hide) {
             let spec = LayerSpec { visible, ..self.project.layers[i].clone() };
