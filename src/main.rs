@@ -252,7 +252,7 @@ enum Command {
         /// The erosion layer.
         #[arg(long)]
         layer: String,
-        /// The box: LAT_MIN,LON_MIN,LAT_MAX,LON_MAX degrees.
+        /// The box: WEST,SOUTH,EAST,NORTH degrees (west > east crosses the antimeridian).
         #[arg(long, allow_hyphen_values = true)]
         region: Option<String>,
         /// The level whose samples are the cells.

@@ -188,10 +188,22 @@ fn bad_input_is_refused_by_name() {
         ),
         (vec!["compare", p, "blurred - srtm", "srtm"], "blurred - srtm: is a difference layer: it draws A − B"),
         (vec!["compare", p, "srtm", "srtm"], "'srtm' compared with itself"),
-        (vec!["compare", p, "blurred", "srtm", "--region", "40,39.5,41"], "--region 40,39.5,41: give four numbers"),
+        (
+            vec!["compare", p, "blurred", "srtm", "--region", "40,39.5,41"],
+            "--region: '40,39.5,41' is not WEST,SOUTH,EAST,NORTH in degrees (four numbers)",
+        ),
         (
             vec!["compare", p, "blurred", "srtm", "--region", "40,39.9,41,39.5"],
-            "--region: 40,39.9,41,39.5 is not a box",
+            "--region: south 39.9 and north 39.5 must be latitudes",
+        ),
+        // A box in the LAT,LON order: valid, but where neither dataset has data.
+        (
+            vec!["compare", p, "blurred", "srtm", "--region", "39.4,40.2,39.7,40.5"],
+            "--region: 39.4,40.2,39.7,40.5: no sample inside",
+        ),
+        (
+            vec!["coregister", p, "blurred", "--to", "srtm", "--region", "40,95,41,96"],
+            "--region: south 95 and north 96",
         ),
         (vec!["compare", p, "blurred", "srtm", "--level", "20"], "--level: 20 is more than 4 levels below"),
     ] {

@@ -193,7 +193,7 @@ fn terrafuse_erode_runs_reports_json_undoes_redoes_and_refuses_bad_input_untouch
     let _ = std::fs::remove_dir_all(&dir);
     let path = common::sample_project("erzurum", &dir);
     let p = path.to_str().unwrap();
-    let region = "39.60,40.50,39.62,40.53";
+    let region = "40.50,39.60,40.53,39.62";
     let out = erode(&[
         p, "--layer", "wash", "--region", region, "--level", "9", "--steps", "30", "--seed", "4", "--cpu", "--json",
     ]);
@@ -230,7 +230,15 @@ fn terrafuse_erode_runs_reports_json_undoes_redoes_and_refuses_bad_input_untouch
     // Bad input: a clear error naming the flag, and the file untouched.
     let before = std::fs::read(&path).unwrap();
     for (args, expect) in [
-        (vec!["--region", "39.7,40.5,39.6,40.6", "--level", "9", "--steps", "5"], "--region"),
+        (
+            vec!["--region", "40.5,39.7,40.6,39.6", "--level", "9", "--steps", "5"],
+            "--region: south 39.7 and north 39.6",
+        ),
+        // The old LAT,LON order on the Erzurum sample: a valid box, but in Iran, where nothing lies.
+        (
+            vec!["--region", "39.60,40.50,39.62,40.53", "--level", "9", "--steps", "5"],
+            "no data in 39.6,40.5,39.62,40.53",
+        ),
         (vec!["--region", "30,30,50,60", "--level", "9", "--steps", "5"], "at most 4096"),
         (vec!["--region", region, "--level", "9", "--steps", "0"], "--steps"),
         (vec!["--region", region, "--level", "9", "--steps", "5", "--set", "rain_m_s=5"], "rain_m_s"),

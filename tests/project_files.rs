@@ -101,7 +101,7 @@ fn saves_killed_at_random_moments_leave_the_old_or_the_new_project() {
 
 /// A version-3 project with `body`, these layers (JSON) and views.
 fn with_layers(body: &str, layers: &str) -> String {
-    format!(r#"{{"format": "terrafuse-project", "version": 3, "body": "{body}", "layers": [{layers}]}}"#)
+    format!(r#"{{"format": "terrafuse-project", "version": 4, "body": "{body}", "layers": [{layers}]}}"#)
 }
 
 #[test]

@@ -92,7 +92,8 @@ pub fn synthetic_session(strokes: usize, steps: u64) -> Result<Project, String> 
     let half = 0.5 * side.to_degrees();
     let params = Params::preset("rain", gravity_of_body(&p.body)).ok_or("no rain preset")?;
     let run = Operation {
-        region: [lat - half, lon - half, lat + half, lon + half],
+        region: crate::geodesy::GeoBox::new(lon - half, lat - half, lon + half, lat + half)
+            .map_err(|e| e.to_string())?,
         level: 12,
         steps,
         seed: 1,

@@ -6,6 +6,7 @@ use std::fmt::Write as _;
 use std::path::PathBuf;
 
 use crate::compare::{CompareOptions, Comparison, CoregOptions, Coregistration, Weighting, compare, coregister};
+use crate::geodesy::GeoBox;
 use crate::project::Project;
 
 /// What `terrafuse compare` was asked.
@@ -30,17 +31,8 @@ pub struct CompareRequest {
 }
 
 /// Parses `--region WEST,SOUTH,EAST,NORTH`.
-fn parse_region(region: Option<&str>) -> Result<Option<[f64; 4]>, String> {
-    let Some(text) = region else { return Ok(None) };
-    let v: Vec<f64> = text
-        .split(',')
-        .map(|s| s.trim().parse::<f64>())
-        .collect::<Result<_, _>>()
-        .map_err(|e| format!("--region {text}: {e} (give WEST,SOUTH,EAST,NORTH in degrees)"))?;
-    let [w, s, e, n] = v[..] else {
-        return Err(format!("--region {text}: give four numbers WEST,SOUTH,EAST,NORTH in degrees"));
-    };
-    Ok(Some([w, s, e, n]))
+fn parse_region(region: Option<&str>) -> Result<Option<GeoBox>, String> {
+    region.map(super::geo::parse_box).transpose()
 }
 
 /// Runs the comparison; returns what to print.

@@ -10,6 +10,7 @@ use std::sync::Arc;
 use crate::erosion::layer::{CpuStepper, Outcome, Stepper};
 use crate::erosion::operation::Operation;
 use crate::erosion::params::{Params, gravity_of_body};
+use crate::geodesy::GeoBox;
 use crate::gpu::GpuContext;
 use crate::gpu::erosion::{ErosionKernel, GpuStepper};
 use crate::gpu::scene::Scene;
@@ -35,7 +36,7 @@ pub struct ErodeRequest {
     pub project: PathBuf,
     /// The erosion layer.
     pub layer: String,
-    /// `LAT_MIN,LON_MIN,LAT_MAX,LON_MAX`, degrees.
+    /// `WEST,SOUTH,EAST,NORTH`, degrees (west > east crosses the antimeridian).
     pub region: Option<String>,
     /// The level of the cells.
     pub level: Option<u8>,
@@ -57,14 +58,8 @@ pub struct ErodeRequest {
     pub redo: Option<usize>,
 }
 
-fn parse_region(text: &str) -> Result<[f64; 4], String> {
-    let v: Vec<f64> = text
-        .split(',')
-        .map(|x| x.trim().parse::<f64>())
-        .collect::<Result<_, _>>()
-        .map_err(|_| format!("--region '{text}': not LAT_MIN,LON_MIN,LAT_MAX,LON_MAX in degrees"))?;
-    <[f64; 4]>::try_from(v.as_slice())
-        .map_err(|_| format!("--region '{text}': not LAT_MIN,LON_MIN,LAT_MAX,LON_MAX in degrees (four numbers)"))
+fn parse_region(text: &str) -> Result<GeoBox, String> {
+    super::geo::parse_box(text)
 }
 
 /// The preset `name` on the project's body with `set` overrides applied (`FIELD=VALUE`).

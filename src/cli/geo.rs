@@ -175,3 +175,9 @@ mod tests {
         assert!(err.contains("outside the face") && err.contains("unknown face 'side'"), "{err}");
     }
 }
+
+/// A `--region` box as every command takes it: `WEST,SOUTH,EAST,NORTH` in degrees (west > east
+/// crosses the antimeridian); the error names the flag.
+pub fn parse_box(text: &str) -> Result<crate::geodesy::GeoBox, String> {
+    text.parse().map_err(|e| format!("--region: {e}"))
+}

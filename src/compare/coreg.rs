@@ -21,6 +21,7 @@ use super::mosaic::Mosaic;
 use super::sample::{gradient, open_alone, overlap_quads, quad_points};
 use super::stats::{Diff, Stats, stats};
 use crate::ecm::QuadId;
+use crate::geodesy::GeoBox;
 use crate::gpu::Scene;
 use crate::gpu::shifted::{local_axes, locate};
 use crate::project::Project;
@@ -44,7 +45,7 @@ pub struct CoregOptions {
     /// of the finer grid gives 0.38 m again; BENCHMARKS.md).
     pub level: Option<u8>,
     /// Only inside this box: west, south, east, north, degrees.
-    pub region: Option<[f64; 4]>,
+    pub region: Option<GeoBox>,
     /// Most iterations.
     pub max_iterations: u32,
     /// Stop when a step is under this fraction of a sample spacing.
@@ -185,7 +186,7 @@ pub fn coregister(project: &Project, a: &str, b: &str, opts: &CoregOptions) -> R
 fn reference_samples(
     scene_b: &Scene,
     quads: &[QuadId],
-    region: Option<[f64; 4]>,
+    region: Option<GeoBox>,
 ) -> Result<Vec<RefSample>, CompareError> {
     let e = scene_b.ellipsoid;
     let mut out = Vec::new();

@@ -25,6 +25,7 @@ use serde::Serialize;
 use super::CompareError;
 use super::stats::{Diff, HISTOGRAM_BINS, Histogram, SLOPE_CLASSES_DEG, SlopeClass, Stats, by_slope, histogram, stats};
 use crate::ecm::QuadId;
+use crate::geodesy::GeoBox;
 use crate::gpu::Scene;
 use crate::gpu::data::DatasetInfo;
 use crate::layers::stack::sample_point;
@@ -54,8 +55,8 @@ pub enum Weighting {
 pub struct CompareOptions {
     /// The cube map level (default: the finest level of the coarser dataset among A and B).
     pub level: Option<u8>,
-    /// Only inside this box: west, south, east, north, degrees (east < west crosses ±180°).
-    pub region: Option<[f64; 4]>,
+    /// Only inside this box (east < west crosses ±180°).
+    pub region: Option<GeoBox>,
     /// Sample weights.
     pub weighting: Weighting,
     /// Slope class edges, degrees.
@@ -196,18 +197,6 @@ pub fn compare_operands(
     if a == b {
         return Err(CompareError::Option { option: "B".into(), problem: format!("'{a}' compared with itself") });
     }
-    if let Some([w, s, e, n]) = opts.region
-        && !(s < n
-            && (-90.0..=90.0).contains(&s)
-            && (-90.0..=90.0).contains(&n)
-            && w.abs() <= 180.0
-            && e.abs() <= 180.0)
-    {
-        return Err(CompareError::Option {
-            option: "--region".into(),
-            problem: format!("{w},{s},{e},{n} is not a box WEST,SOUTH,EAST,NORTH in degrees with south < north"),
-        });
-    }
     let (scene_a, scene_b) = (open_operand(project, a)?, open_operand(project, b)?);
     let (level, quads) = overlap_quads(&scene_a, &scene_b, opts.level)?;
     let ellipsoid = scene_a.ellipsoid;
@@ -238,6 +227,16 @@ pub fn compare_operands(
                 }
             }
         }
+    }
+    if let Some(region) = opts.region
+        && diffs.is_empty()
+    {
+        return Err(CompareError::Option {
+            option: "--region".into(),
+            problem: format!(
+                "{region}: no sample inside has data in both {a} and {b} (the order is WEST,SOUTH,EAST,NORTH)"
+            ),
+        });
     }
     let area_m2: f64 = if opts.weighting == Weighting::Area { diffs.iter().map(|d| d.weight).sum() } else { f64::NAN };
     let mut comparison = Comparison {
@@ -308,14 +307,9 @@ pub(super) fn overlap_quads(
     Ok((level, quads.into_iter().collect()))
 }
 
-/// Whether a point (radians) lies in the region (west, south, east, north in degrees; east <
-/// west crosses ±180°); everywhere without one.
-pub(super) fn in_region(region: Option<[f64; 4]>, lon: f64, lat: f64) -> bool {
-    region.is_none_or(|[w, s, e, n]| {
-        let (lon, lat) = (lon.to_degrees(), lat.to_degrees());
-        let in_lon = if w <= e { lon >= w && lon <= e } else { lon >= w || lon <= e };
-        in_lon && lat >= s && lat <= n
-    })
+/// Whether a point (radians) lies in the region (everywhere without one).
+pub(super) fn in_region(region: Option<GeoBox>, lon: f64, lat: f64) -> bool {
+    region.is_none_or(|b| b.contains(lon.to_degrees(), lat.to_degrees()))
 }
 
 /// A sample's outcome: outside the region or both layers (None), no data on one side (Err), or
@@ -328,7 +322,7 @@ fn quad_samples(
     quad: QuadId,
     a: &[f32],
     b: &[f32],
-    region: Option<[f64; 4]>,
+    region: Option<GeoBox>,
 ) -> Vec<Vec<Outcome>> {
     let points = quad_points(ellipsoid, quad);
     let inside = |lon: f64, lat: f64| in_region(region, lon, lat);

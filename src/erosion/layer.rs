@@ -161,6 +161,13 @@ pub fn prepare(
         Ok(h)
     };
     let mut grid = region.grid(&e, &heights).map_err(|p| err("terrain below", p))?;
+    // A box where the stack has no data (often one given in the wrong order) changes nothing.
+    if grid.base_m.iter().all(|h| h.is_nan()) {
+        return Err(err(
+            "region",
+            format!("the layers below have no data in {} (WEST,SOUTH,EAST,NORTH): nothing to erode", op.region),
+        ));
+    }
     if let Some(brush) = &op.brush {
         let mask = brush_mask(&e, &region, brush);
         grid.rain_mask = Some(mask.clone());

@@ -3,21 +3,23 @@
 //! are a cache of its operations, rebuilt from them when missing or stale.
 //!
 //! ```json
-//! { "region": [39.85, 41.2, 39.95, 41.35], "level": 10, "steps": 400, "seed": 1,
+//! { "region": [41.2, 39.85, 41.35, 39.95], "level": 10, "steps": 400, "seed": 1,
 //!   "preset": "rain", "params": { "rain_m_s": 0.0001, … } }
 //! ```
 
 use serde::{Deserialize, Serialize};
 
 use super::params::Params;
+use crate::geodesy::GeoBox;
 
 /// One erosion run.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct Operation {
-    /// The box asked for, degrees: `[lat_min, lon_min, lat_max, lon_max]`; the run covers it
+    /// The box asked for, degrees: `[west, south, east, north]` (a project of version 3 or
+    /// older held `[lat_min, lon_min, lat_max, lon_max]`, migrated on load); the run covers it
     /// rounded out to whole quads of `level` (see [`super::region::Region::from_box`]).
-    pub region: [f64; 4],
+    pub region: GeoBox,
     /// The level whose samples are the run's cells (every operation of a layer has the same).
     pub level: u8,
     /// Steps (each the asked Δt or less, by the CFL bound).

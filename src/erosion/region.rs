@@ -11,7 +11,7 @@ use glam::DVec3;
 
 use super::grid::Grid;
 use crate::ecm::{Face, QuadId};
-use crate::geodesy::Ellipsoid;
+use crate::geodesy::{Ellipsoid, GeoBox};
 use crate::layers::stack::sample_point;
 use crate::store::grid::{GRID, TILE, fold_sample, quad_of_sample, spacing_m};
 
@@ -86,20 +86,14 @@ pub struct CellAt {
 pub const MAX_SIDE: usize = 4096;
 
 impl Region {
-    /// The region covering a box `[lat_min, lon_min, lat_max, lon_max]` (degrees) rounded out to
-    /// whole quads of `level`, in the index space of the face under the box's centre; quads on
-    /// adjacent faces are placed there by inverting the store's fold (exact, integer), so a box
-    /// across a face edge or a cube corner is one contiguous grid. Errors name the problem.
-    pub fn from_box(ellipsoid: &Ellipsoid, bounds: [f64; 4], level: u8) -> Result<Region, String> {
-        let [lat0, lon0, lat1, lon1] = bounds;
-        if !bounds.iter().all(|v| v.is_finite()) || !(-90.0..=90.0).contains(&lat0) || !(-90.0..=90.0).contains(&lat1) {
-            return Err(format!("{bounds:?} is not LAT_MIN,LON_MIN,LAT_MAX,LON_MAX in degrees"));
-        }
-        if lat0 >= lat1 || lon0 >= lon1 || lon1 - lon0 > 360.0 {
-            return Err(format!(
-                "{bounds:?}: the minimum must be below the maximum (latitude {lat0} … {lat1}, longitude {lon0} … {lon1})"
-            ));
-        }
+    /// The region covering a box (a checked [`GeoBox`]: it may cross the antimeridian) rounded
+    /// out to whole quads of `level`, in the index space of the face under the box's centre;
+    /// quads on adjacent faces are placed there by inverting the store's fold (exact, integer),
+    /// so a box across a face edge or a cube corner is one contiguous grid. Errors name the
+    /// problem.
+    pub fn from_box(ellipsoid: &Ellipsoid, bounds: GeoBox, level: u8) -> Result<Region, String> {
+        let (lat0, lon0, lat1, lon1) =
+            (bounds.south_deg, bounds.west_deg, bounds.north_deg, bounds.east_unwrapped_deg());
         if level > crate::ecm::MAX_LEVEL {
             return Err(format!("level {level} is past the finest, {}", crate::ecm::MAX_LEVEL));
         }

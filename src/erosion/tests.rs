@@ -326,8 +326,8 @@ fn a_box_across_a_face_edge_becomes_one_region_whose_cells_fold_back_onto_the_bo
     use crate::ecm::{CubeProjection, Face, QuadId};
     use crate::geodesy::Ellipsoid;
     let e = Ellipsoid::WGS84;
-    let bounds = [-0.2, 44.7, 0.2, 45.4];
-    let region = Region::from_box(&e, bounds, 8).unwrap();
+    let b = |w, s, e, n| crate::geodesy::GeoBox::new(w, s, e, n).unwrap();
+    let region = Region::from_box(&e, b(44.7, -0.2, 45.4, 0.2), 8).unwrap();
     // The box's centre (0°, 45.05°E) is on the right face: the region runs past its west edge.
     assert_eq!(region.face, Face::Right);
     assert_eq!((region.width % 256, region.height % 256), (0, 0));
@@ -339,7 +339,16 @@ fn a_box_across_a_face_edge_becomes_one_region_whose_cells_fold_back_onto_the_bo
         let q = QuadId::containing(p, 8).unwrap();
         assert!(quads.contains(&q), "({lat}, {lon}) in {q} is outside the region's quads");
     }
-    assert!(Region::from_box(&e, [0.2, 44.7, -0.2, 45.4], 8).unwrap_err().contains("minimum"));
-    assert!(Region::from_box(&e, [0.0, 0.0, 10.0, 10.0], 10).unwrap_err().contains("at most 4096"));
-    assert!(Region::from_box(&e, [-10.0, -170.0, 10.0, 170.0], 2).unwrap_err().contains("opposite"));
+    assert!(crate::geodesy::GeoBox::new(44.7, 0.2, 45.4, -0.2).unwrap_err().to_string().contains("south < north"));
+    assert!(Region::from_box(&e, b(0.0, 0.0, 10.0, 10.0), 10).unwrap_err().contains("at most 4096"));
+    assert!(Region::from_box(&e, b(-170.0, -10.0, 170.0, 10.0), 2).unwrap_err().contains("opposite"));
+    // A box across the antimeridian (west > east) is one region on the back face, 1° wide.
+    let across = Region::from_box(&e, b(179.5, -0.2, -179.5, 0.2), 8).unwrap();
+    assert_eq!(across.face, Face::Back);
+    let quads = across.quads();
+    for lon in [179.6, 180.0, -179.6] {
+        let p = CubeProjection::Qsc.face_point_from_geodetic(&e, 0.0, f64::to_radians(lon));
+        assert!(quads.contains(&QuadId::containing(p, 8).unwrap()), "{lon}°E is outside {across:?}");
+    }
+    assert!(across.width < 1024, "{across:?} is wider than the 1° asked for");
 }

@@ -7,9 +7,11 @@
 //! No I/O and no dependency on other Terrafuse modules.
 
 mod ellipsoid;
+mod geobox;
 pub mod geodesic;
 
 pub use ellipsoid::Ellipsoid;
+pub use geobox::{BoxError, GeoBox};
 use glam::DVec3;
 
 /// Errors of the geodesy module.

@@ -125,19 +125,9 @@ fn check_hex(field: &str, text: &str) -> Result<(), String> {
     }
 }
 
-/// A `[west, south, east, north]` box in degrees: finite, latitudes increasing within ±90°,
-/// longitudes within ±180°.
+/// A `[west, south, east, north]` box in degrees ([`crate::geodesy::GeoBox`]'s rules).
 pub fn check_region([w, s, e, n]: [f64; 4]) -> Result<(), String> {
-    if !([w, s, e, n].iter().all(|v| v.is_finite()) && w.abs() <= 180.0 && e.abs() <= 180.0) {
-        return Err(format!("region: [{w}, {s}, {e}, {n}] must be finite degrees, longitudes within ±180"));
-    }
-    if !(s.abs() <= 90.0 && n.abs() <= 90.0 && s < n) {
-        return Err(format!("region: south {s} and north {n} must be latitudes within ±90 with south < north"));
-    }
-    if w == e {
-        return Err(format!("region: west and east are both {w}: the region has no width"));
-    }
-    Ok(())
+    crate::geodesy::GeoBox::new(w, s, e, n).map(|_| ()).map_err(|e| format!("region: {e}"))
 }
 
 #[cfg(test)]

@@ -38,7 +38,7 @@ impl DatasetSpec {
     }
 }
 /// The steps: `STEPS[k]` takes a file of version k + 1 to version k + 2.
-pub const STEPS: [Step; 2] = [v1_to_v2, v2_to_v3];
+pub const STEPS: [Step; 3] = [v1_to_v2, v2_to_v3, v3_to_v4];
 
 /// One migration step: a file's top-level object, changed in place.
 pub type Step = fn(&mut serde_json::Map<String, serde_json::Value>) -> Result<(), String>;
@@ -104,6 +104,25 @@ fn v1_to_v2(object: &mut serde_json::Map<String, serde_json::Value>) -> Result<(
     };
     let layers: Vec<LayerSpec> = datasets.into_iter().rev().map(DatasetSpec::into_layer).collect();
     object.insert("layers".into(), serde_json::to_value(layers).map_err(|e| e.to_string())?);
+    Ok(())
+}
+
+/// Version 3 → 4: one order for every box. An erosion run's `region` was
+/// `[lat_min, lon_min, lat_max, lon_max]`; it becomes `[west, south, east, north]` like
+/// `comparison` boxes, check regions and extents (GDAL's `-te` order).
+fn v3_to_v4(object: &mut serde_json::Map<String, serde_json::Value>) -> Result<(), String> {
+    let Some(layers) = object.get_mut("layers").and_then(|l| l.as_array_mut()) else { return Ok(()) };
+    for (k, layer) in layers.iter_mut().enumerate() {
+        let Some(runs) = layer.get_mut("runs").and_then(|r| r.as_array_mut()) else { continue };
+        for (r, run) in runs.iter_mut().enumerate() {
+            let Some(region) = run.get_mut("region") else { continue };
+            let values: Option<Vec<f64>> = region.as_array().map(|a| a.iter().filter_map(|v| v.as_f64()).collect());
+            let [lat0, lon0, lat1, lon1] = values.as_deref().unwrap_or_default() else {
+                return Err(format!("layers[{k}].runs[{r}].region: {region} is not four numbers"));
+            };
+            *region = serde_json::json!([lon0, lat0, lon1, lat1]);
+        }
+    }
     Ok(())
 }
 

@@ -1,7 +1,7 @@
 //! The project file: a versioned JSON scene (body, layer stack, visual settings, named views).
 //!
 //! ```json
-//! { "format": "terrafuse-project", "version": 3, "body": "moon",
+//! { "format": "terrafuse-project", "version": 4, "body": "moon",
 //!   "layers": [ { "name": "lola", "kind": "dataset", "store": "stores/moon.gpkg",
 //!                 "source": { "files": ["data/moon.tif"] } } ],
 //!   "visuals": { "colour_map": { "preset": "hypsometric" }, "isolines": { "interval_m": 500 } },
@@ -16,7 +16,9 @@
 //! Versions (each older one migrates one step at a time, see [`migrate`]): 1 had `datasets`
 //! (first listed wins per sample); 2 has `layers`, bottom to top (a version-1 file's datasets
 //! become `over` dataset layers, the first listed on top); 3 adds `checks`, the expected digests
-//! a replay verifies ([`checks`]).
+//! a replay verifies ([`checks`]); 4 writes an erosion run's `region` as
+//! `[west, south, east, north]` like every other box (it was `[lat_min, lon_min, lat_max,
+//! lon_max]`).
 //!
 //! Loading is bounded: a file over [`MAX_FILE_BYTES`] is refused before it is read, the current
 //! version is parsed straight into the typed project (no intermediate JSON tree), every error
@@ -48,7 +50,7 @@ use crate::layers::{LayerKind, LayerSpec};
 /// The `format` value of every project file.
 pub const FORMAT: &str = "terrafuse-project";
 /// The version this build writes (and the newest it reads).
-pub const VERSION: u32 = 3;
+pub const VERSION: u32 = 4;
 /// The largest project file read, bytes: ten times a log of 10⁵ strokes.
 pub const MAX_FILE_BYTES: u64 = 512 << 20;
 /// Most quads a frame may draw (`detail.max_quads`).
@@ -467,7 +469,7 @@ mod tests {
     #[test]
     fn every_kept_older_version_migrates_step_by_step_to_the_current_one() {
         // One kept file per older version, each read by the chain of steps from its version.
-        let fixtures = [(1, "moon-lola-v1.json"), (2, "erzurum-erosion-v2.json")];
+        let fixtures = [(1, "moon-lola-v1.json"), (2, "erzurum-erosion-v2.json"), (3, "erzurum-erosion-v3.json")];
         assert_eq!(fixtures.len(), migrate::STEPS.len(), "a kept file for every step");
         for (version, file) in fixtures {
             let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures").join(file);
@@ -480,6 +482,22 @@ mod tests {
             let again = Project::parse(&serde_json::to_string(&p).unwrap()).unwrap();
             assert_eq!(again.layers, p.layers);
         }
+        // Version 3's erosion regions were [lat_min, lon_min, lat_max, lon_max]: they migrate to
+        // [west, south, east, north], the same boxes the current sample holds.
+        let fixtures = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures");
+        let old = Project::load(&fixtures.join("erzurum-erosion-v3.json")).unwrap();
+        let now = Project::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("projects/erzurum-erosion.json")).unwrap();
+        let text = std::fs::read_to_string(fixtures.join("erzurum-erosion-v3.json")).unwrap();
+        let raw: serde_json::Value = serde_json::from_str(&text).unwrap();
+        let (old_runs, now_runs) = (old.layers[1].runs(), now.layers[1].runs());
+        assert!(!old_runs.is_empty());
+        for (k, (o, n)) in old_runs.iter().zip(now_runs).enumerate() {
+            let [lat0, lon0, lat1, lon1]: [f64; 4] =
+                serde_json::from_value(raw["layers"][1]["runs"][k]["region"].clone()).unwrap();
+            assert_eq!(o.region.to_array(), [lon0, lat0, lon1, lat1], "run {k}");
+            assert_eq!(o.region, n.region, "run {k}");
+        }
+        assert_eq!(old.layers, now.layers);
         let v2 = r#"{"format": "terrafuse-project", "version": 2, "body": "moon", "checks": {}}"#;
         let e = Project::parse(v2).unwrap_err();
         assert!(e.contains("migrating version 2 to 3: checks: a version-2 project has no checks"), "{e}");
@@ -518,29 +536,29 @@ mod tests {
     fn errors_name_the_field_by_its_path() {
         let cases = [
             (
-                r#"{"format": "terrafuse-project", "version": 3, "body": "moon",
+                r#"{"format": "terrafuse-project", "version": 4, "body": "moon",
                     "layers": [{"name": "e", "kind": "edit", "strokes": [{"tool": "raise", "radius_m": "wide"}]}]}"#,
                 "layers[0].strokes[0].radius_m: invalid type: string \"wide\", expected f64",
             ),
             (
-                r#"{"format": "terrafuse-project", "version": 3, "body": "moon", "visuals": {"lighting": {"sun": 1}}}"#,
+                r#"{"format": "terrafuse-project", "version": 4, "body": "moon", "visuals": {"lighting": {"sun": 1}}}"#,
                 "visuals.lighting.sun: unknown field `sun`, expected one of",
             ),
             (
-                r#"{"format": "terrafuse-project", "version": 3, "body": "r=1e10"}"#,
+                r#"{"format": "terrafuse-project", "version": 4, "body": "r=1e10"}"#,
                 "body: a semi-major axis of 10000000000.0 m",
             ),
             (
-                r#"{"format": "terrafuse-project", "version": 3, "body": "moon", "detail": {"max_quads": 1e99}}"#,
+                r#"{"format": "terrafuse-project", "version": 4, "body": "moon", "detail": {"max_quads": 1e99}}"#,
                 "detail.max_quads",
             ),
             (
                 r#"{"format": "terrafuse-project", "version": "3", "body": "moon"}"#,
                 "version: \"3\" is not a whole number",
             ),
-            (r#"{"format": "terrafuse-project", "version": 3, "body": "moon"} {}"#, "trailing characters"),
+            (r#"{"format": "terrafuse-project", "version": 4, "body": "moon"} {}"#, "trailing characters"),
             (
-                r#"{"format": "terrafuse-project", "version": 3, "body": "moon", "checks": {"c": {"level": 4, "view": "v"}}}"#,
+                r#"{"format": "terrafuse-project", "version": 4, "body": "moon", "checks": {"c": {"level": 4, "view": "v"}}}"#,
                 "checks.c.view: 'v' is not one of the views",
             ),
         ];

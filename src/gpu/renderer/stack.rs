@@ -80,7 +80,7 @@ impl Renderer {
         gpu: bool,
     ) -> Result<LayerSpec, LayerError> {
         let (spec, mut edit) = self.edit_spec(index)?;
-        let applied = spec.applied_strokes().len();
+        let applied = edit.in_effect().len();
         edit.strokes.truncate(applied);
         let ellipsoid = self.scene.ellipsoid;
         let name = spec.name.clone();
@@ -116,7 +116,7 @@ impl Renderer {
     /// layer's new spec.
     pub fn set_applied(&mut self, index: usize, applied: usize) -> Result<LayerSpec, LayerError> {
         let (spec, mut edit) = self.edit_spec(index)?;
-        let now = spec.applied_strokes().len();
+        let now = edit.in_effect().len();
         if applied > edit.strokes.len() {
             return Err(LayerError::field(
                 &spec.name,

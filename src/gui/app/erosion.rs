@@ -15,6 +15,7 @@ use crate::erosion::operation::{BrushPath, Device, Operation};
 use crate::erosion::params::{Params, gravity_of_body};
 use crate::erosion::region::Region;
 use crate::erosion::sim::Run;
+use crate::geodesy::GeoBox;
 use crate::gpu::erosion::GpuRun;
 use crate::layers::{LayerKind, LayerSpec};
 use crate::store::grid::spacing_m;
@@ -350,12 +351,12 @@ impl App {
                 let (lat0, lat1) = b.points.iter().fold((90f64, -90f64), |m, p| (m.0.min(p[0]), m.1.max(p[0])));
                 let (lon0, lon1) = b.points.iter().fold((180f64, -180f64), |m, p| (m.0.min(p[1]), m.1.max(p[1])));
                 let r = (b.radius_m / e.a_m()).to_degrees();
-                let box_ = [
-                    lat0 - r,
+                let box_ = GeoBox::wrapped(
                     lon0 - r / lat0.to_radians().cos().max(0.05),
-                    lat1 + r,
+                    lat0 - r,
                     lon1 + r / lat1.to_radians().cos().max(0.05),
-                ];
+                    lat1 + r,
+                );
                 (None, Some(box_))
             }
             None => {
@@ -376,20 +377,23 @@ impl App {
                 let g = geodesy::geodetic_from_ecef(&e, p);
                 let (lat, lon) = (g.lat_rad.to_degrees(), g.lon_rad.to_degrees());
                 let d = (self.erosion.half_m / e.a_m()).to_degrees();
-                [
-                    lat - d,
-                    lon - d / lat.to_radians().cos().max(0.05),
-                    lat + d,
-                    lon + d / lat.to_radians().cos().max(0.05),
-                ]
+                let d_lon = d / lat.to_radians().cos().max(0.05);
+                GeoBox::wrapped(lon - d_lon, lat - d, lon + d_lon, lat + d)
             }
             (None, None) => {
                 self.message = "erosion: no terrain at the view's centre".into();
                 return;
             }
         };
+        let region = match region {
+            Ok(b) => b,
+            Err(e) => {
+                self.message = format!("erosion: {e}");
+                return;
+            }
+        };
         let t = &self.erosion;
-        let side_m = (region[2] - region[0]).to_radians() * e.a_m();
+        let side_m = (region.north_deg - region.south_deg).to_radians() * e.a_m();
         let index = self.project.layers.iter().position(|l| l.name == t.layer);
         let layer_level = index.and_then(|i| self.project.layers[i].runs().first().map(|r| r.level));
         let level = layer_level

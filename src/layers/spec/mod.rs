@@ -388,6 +388,20 @@ pub struct ErosionLayer {
     pub applied: Option<usize>,
 }
 
+impl EditLayer {
+    /// The strokes in effect (those before the undo position).
+    pub fn in_effect(&self) -> &[crate::edit::Stroke] {
+        in_effect(&self.strokes, self.applied)
+    }
+}
+
+impl ErosionLayer {
+    /// The runs in effect (those before the undo position).
+    pub fn in_effect(&self) -> &[crate::erosion::operation::Operation] {
+        in_effect(&self.runs, self.applied)
+    }
+}
+
 impl<'de> Deserialize<'de> for LayerSpec {
     /// Through the flat record of [`file`], so a field of another kind is refused by name.
     fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<LayerSpec, D::Error> {
@@ -644,12 +658,12 @@ impl LayerSpec {
 
     /// An erosion layer's runs in effect (those before its undo position).
     pub fn applied_runs(&self) -> &[crate::erosion::operation::Operation] {
-        self.as_erosion().map_or(&[], |e| in_effect(&e.runs, e.applied))
+        self.as_erosion().map_or(&[], ErosionLayer::in_effect)
     }
 
     /// An edit layer's strokes in effect (those before its undo position).
     pub fn applied_strokes(&self) -> &[crate::edit::Stroke] {
-        self.as_edit().map_or(&[], |e| in_effect(&e.strokes, e.applied))
+        self.as_edit().map_or(&[], EditLayer::in_effect)
     }
 
     /// How many of an edit or erosion layer's operations there are.
