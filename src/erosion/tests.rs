@@ -350,5 +350,6 @@ fn a_box_across_a_face_edge_becomes_one_region_whose_cells_fold_back_onto_the_bo
         let p = CubeProjection::Qsc.face_point_from_geodetic(&e, 0.0, f64::to_radians(lon));
         assert!(quads.contains(&QuadId::containing(p, 8).unwrap()), "{lon}°E is outside {across:?}");
     }
-    assert!(across.width < 1024, "{across:?} is wider than the 1° asked for");
+    // 1° is about 790 samples of 140 m, rounded out to whole quads of 256: 4 or 5 quads wide.
+    assert!((768..=1280).contains(&across.width), "{across:?} is not the 1° asked for");
 }
