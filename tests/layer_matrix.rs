@@ -199,8 +199,12 @@ fn a_brushed_layer_exports_at_its_strokes_level_by_default() {
     assert_eq!(level, 6);
     let (_, at6) = export(&path, Some(6));
     assert!(same_bits(&auto, &at6));
-    let peak = auto.iter().copied().filter(|h| h.is_finite()).fold(f32::MIN, f32::max);
-    assert!((peak - 1200.0).abs() < 1.0, "peak {peak} m: a 200 m raise over 1 000 m");
+    // Overlapping dabs raise the path's middle by 800 m (the figure); the level the
+    // export used to pick (1) smears it below that.
+    let peak = |h: &[f32]| h.iter().copied().filter(|h| h.is_finite()).fold(f32::MIN, f32::max) - 1000.0;
+    assert!((peak(&auto) - 800.0).abs() < 1.0, "peak {} m, not 800 m", peak(&auto));
+    let (_, at1) = export(&path, Some(1));
+    assert!(peak(&at1) < 790.0, "at level 1 the stroke peaks at {} m: not smeared?", peak(&at1));
 }
 
 #[test]
@@ -211,9 +215,10 @@ fn a_hidden_or_transparent_layer_changes_no_output_bit_for_bit() {
         let (below, layer, _) = fixture(kind, &d);
         let without = project(below.clone(), &d.join(format!("{}-without.json", kind.name())));
         let (level, reference) = export(&without, None);
-        for (what, changed) in
-            [("hidden", LayerSpec { visible: false, ..layer.clone() }), ("opacity 0", LayerSpec { opacity: 0.0, ..layer.clone() })]
-        {
+        for (what, changed) in [
+            ("hidden", LayerSpec { visible: false, ..layer.clone() }),
+            ("opacity 0", LayerSpec { opacity: 0.0, ..layer.clone() }),
+        ] {
             let mut layers = below.clone();
             layers.push(changed);
             let path = project(layers, &d.join(format!("{}-{}.json", kind.name(), what.replace(' ', ""))));

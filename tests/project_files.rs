@@ -157,7 +157,7 @@ fn bad_project_files_are_refused_naming_the_file_the_field_and_the_problem() {
             sample.replace("\"falloff\": \"smooth\",", "\"falloff\": \"smooth\", \"fallof\": 1,"),
             "layers[1].strokes[0].fallof: unknown field `fallof`",
         ),
-        ("newer-version", sample.replace("\"version\": 3", "\"version\": 4"), "version: 4 is not supported"),
+        ("newer-version", sample.replace("\"version\": 4", "\"version\": 5"), "version: 5 is not supported"),
         (
             "unknown-difference-operand",
             with_layers(

@@ -136,6 +136,12 @@ fn convert(
     }
 }
 
+/// A `--region` box as every command takes it: `WEST,SOUTH,EAST,NORTH` in degrees (west > east
+/// crosses the antimeridian); the error names the flag.
+pub fn parse_box(text: &str) -> Result<crate::geodesy::GeoBox, String> {
+    text.parse().map_err(|e| format!("--region: {e}"))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -174,10 +180,4 @@ mod tests {
         assert_eq!(report.refused, 2);
         assert!(err.contains("outside the face") && err.contains("unknown face 'side'"), "{err}");
     }
-}
-
-/// A `--region` box as every command takes it: `WEST,SOUTH,EAST,NORTH` in degrees (west > east
-/// crosses the antimeridian); the error names the flag.
-pub fn parse_box(text: &str) -> Result<crate::geodesy::GeoBox, String> {
-    text.parse().map_err(|e| format!("--region: {e}"))
 }

@@ -460,7 +460,11 @@ mod tests {
         assert_eq!(p.layers[0].store_dataset(), "lola");
         assert_eq!(p.layers[1].as_dataset().unwrap().source.as_ref().unwrap().files, [PathBuf::from("n.tif")]);
         let text = serde_json::to_string(&p).unwrap();
-        assert!(text.contains(&format!("\"version\":{VERSION}")) && text.contains("\"layers\"") && !text.contains("\"datasets\""));
+        assert!(
+            text.contains(&format!("\"version\":{VERSION}"))
+                && text.contains("\"layers\"")
+                && !text.contains("\"datasets\"")
+        );
         // A version-2 file with datasets is refused (the field is gone), naming it.
         let e = Project::parse(r#"{"format": "terrafuse-project", "version": 2, "body": "moon", "datasets": []}"#);
         assert!(e.unwrap_err().contains("unknown field `datasets`"));
