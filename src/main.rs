@@ -154,7 +154,7 @@ enum Command {
         a: String,
         /// Layer B, the reference.
         b: String,
-        /// Level to compare at (default: the finest level of the coarser dataset).
+        /// Level to compare at (default: the coarser dataset's finest, or finer where strokes, erosion runs or noise on either side add detail below it, within 4096 quads).
         #[arg(long)]
         level: Option<u8>,
         /// Only inside WEST,SOUTH,EAST,NORTH (degrees; east < west crosses ±180°).

@@ -7,7 +7,7 @@ use std::path::PathBuf;
 
 use crate::edit::{Falloff, Stroke, Tool};
 use crate::gpu::scene::Scene;
-use crate::layers::{LayerKind, LayerSpec};
+use crate::layers::LayerSpec;
 use crate::project::Project;
 use crate::store::grid::spacing_m;
 
@@ -75,7 +75,7 @@ pub fn brush_command(request: &BrushRequest) -> Result<String, String> {
     let ellipsoid = project.ellipsoid()?;
     let mut out = String::new();
     let index = match project.layers.iter().position(|l| l.name == request.layer) {
-        Some(i) if project.layers[i].kind() == LayerKind::Edit => i,
+        Some(i) if project.layers[i].as_edit().is_some() => i,
         Some(i) => {
             return Err(format!(
                 "--layer {}: a {} layer, not an edit layer",

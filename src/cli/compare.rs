@@ -18,7 +18,8 @@ pub struct CompareRequest {
     pub a: String,
     /// Layer B, the reference.
     pub b: String,
-    /// The level (default: the coarser dataset's finest).
+    /// The level (default: the coarser dataset's finest, or finer where a layer of strokes, runs
+    /// or noise adds detail below it).
     pub level: Option<u8>,
     /// `WEST,SOUTH,EAST,NORTH` in degrees.
     pub region: Option<String>,

@@ -14,7 +14,7 @@ use crate::geodesy::GeoBox;
 use crate::gpu::GpuContext;
 use crate::gpu::erosion::{ErosionKernel, GpuStepper};
 use crate::gpu::scene::Scene;
-use crate::layers::{LayerKind, LayerSpec};
+use crate::layers::LayerSpec;
 use crate::project::Project;
 
 /// Where `terrafuse erode` runs.
@@ -92,7 +92,7 @@ pub fn erode_command(request: &ErodeRequest) -> Result<String, String> {
     let mut project = Project::load(path).map_err(|e| e.to_string())?;
     let mut out = String::new();
     let index = match project.layers.iter().position(|l| l.name == request.layer) {
-        Some(i) if project.layers[i].kind() == LayerKind::Erosion => i,
+        Some(i) if project.layers[i].as_erosion().is_some() => i,
         Some(i) => {
             return Err(format!(
                 "--layer {}: a {} layer, not an erosion layer",
@@ -202,10 +202,13 @@ pub fn erode_command(request: &ErodeRequest) -> Result<String, String> {
     );
     let _ = writeln!(
         out,
-        "budgets: rain {:.3} m³, water out {:.3} m³, soil out {:.3} m³; unexplained: water {:.1e}, soil {:.1e} of the total",
+        "budgets: rain {:.3} m³, water out {:.3} m³, soil out {:.3} m³; terrain eroded {:.3} m³, deposited {:.3} m³, change {:.3} m³; unexplained: water {:.1e}, soil {:.1e} of the total",
         outcome.rain_m3,
         outcome.water_out_m3,
         outcome.soil_out_m3,
+        outcome.eroded_m3,
+        outcome.deposited_m3,
+        outcome.volume_change_m3,
         outcome.water_unexplained_rel,
         outcome.soil_unexplained_rel
     );
@@ -230,6 +233,9 @@ fn json_of(o: &Outcome, device: &str, cached: Option<&std::path::Path>, path: &s
         "dt_max_s": o.dt_range_s.1,
         "dt_asked_s": o.dt_asked_s,
         "rain_m3": o.rain_m3,
+        "volume_change_m3": o.volume_change_m3,
+        "eroded_m3": o.eroded_m3,
+        "deposited_m3": o.deposited_m3,
         "cells": [r.width, r.height],
         "level": r.level,
         "quads": o.quads.len(),

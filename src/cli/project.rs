@@ -4,7 +4,7 @@
 use std::fmt::Write as _;
 use std::path::Path;
 
-use crate::layers::LayerKind;
+use crate::layers::LayerPayload;
 use crate::project::{Project, recovery};
 
 /// `terrafuse project check`: every field, the files it names (a store there, or the sources to
@@ -29,9 +29,8 @@ pub fn project_check(path: &Path) -> Result<String, String> {
             line += ", hidden";
         }
         line += ")";
-        match layer.kind() {
-            LayerKind::Dataset => {
-                let data = layer.as_dataset().ok_or_else(|| field("kind: not a dataset"))?;
+        match &layer.payload {
+            LayerPayload::Dataset(data) => {
                 let store = project.resolve(&data.store);
                 if store.exists() {
                     match crate::gpu::scene::open_dataset(&project, layer) {
@@ -63,12 +62,11 @@ pub fn project_check(path: &Path) -> Result<String, String> {
                     );
                 }
             }
-            LayerKind::Edit => {
-                let _ =
-                    write!(line, ": {} of {} strokes applied", layer.applied_strokes().len(), layer.strokes().len());
+            LayerPayload::Edit(edit) => {
+                let _ = write!(line, ": {} of {} strokes applied", edit.in_effect().len(), edit.strokes.len());
             }
-            LayerKind::Erosion => {
-                let _ = write!(line, ": {} of {} runs applied", layer.applied_runs().len(), layer.runs().len());
+            LayerPayload::Erosion(erosion) => {
+                let _ = write!(line, ": {} of {} runs applied", erosion.in_effect().len(), erosion.runs.len());
             }
             _ => {}
         }

@@ -77,7 +77,7 @@ fn show_only(project: &Project, show: &str, hide: &str) -> Project {
     for layer in &mut p.layers {
         if layer.name == show {
             layer.visible = true;
-        } else if layer.name == hide || layer.kind() == crate::layers::LayerKind::Difference {
+        } else if layer.name == hide || !layer.gives_heights() {
             layer.visible = false;
         }
     }

@@ -115,8 +115,8 @@ pub fn coregister(project: &Project, a: &str, b: &str, opts: &CoregOptions) -> R
         });
     }
     let (scene_a, scene_b) = (open_alone(project, a)?, open_alone(project, b)?);
-    let (finest, _) = overlap_quads(&scene_a, &scene_b, None).map(|(l, q)| (l, q.len()))?;
-    let (level, quads) = overlap_quads(&scene_a, &scene_b, Some(opts.level.unwrap_or(finest + 1)))?;
+    let (finest, _) = overlap_quads(&scene_a, &scene_b, None, opts.region).map(|(l, q)| (l, q.len()))?;
+    let (level, quads) = overlap_quads(&scene_a, &scene_b, Some(opts.level.unwrap_or(finest + 1)), opts.region)?;
     let ellipsoid = scene_b.ellipsoid;
     let reference = reference_samples(&scene_b, &quads, opts.region)?;
     if reference.is_empty() {

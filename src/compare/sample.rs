@@ -28,7 +28,7 @@ use crate::ecm::QuadId;
 use crate::geodesy::GeoBox;
 use crate::gpu::Scene;
 use crate::gpu::data::DatasetInfo;
-use crate::layers::stack::sample_point;
+use crate::layers::stack::{quad_ball, sample_point};
 use crate::layers::{BlendMode, LayerSpec, Operand};
 use crate::project::Project;
 use crate::store::grid::{GRID, spacing_m};
@@ -53,7 +53,8 @@ pub enum Weighting {
 /// What to compare and how.
 #[derive(Clone, Debug)]
 pub struct CompareOptions {
-    /// The cube map level (default: the finest level of the coarser dataset among A and B).
+    /// The cube map level (default: the coarser dataset's finest level, or finer where an edit,
+    /// erosion or procedural layer on either side adds detail below it; see `overlap_quads`).
     pub level: Option<u8>,
     /// Only inside this box (east < west crosses ±180°).
     pub region: Option<GeoBox>,
@@ -159,26 +160,36 @@ pub fn operand(project: &Project, text: &str) -> Operand {
 
 /// Opens an operand: a layer alone ([`open_alone`]), or a group's layers in the project's order,
 /// shown, with their own blend modes and opacities (the stack's `operand_layers` reads the same).
+///
+/// The whole project is opened and the other layers hidden, so an edit or erosion layer's deltas
+/// are the ones its operations make on the terrain really below it (a stroke that smooths or
+/// flattens reads it). A layer of deltas alone is its deltas over a zero plane.
 pub fn open_operand(project: &Project, operand: &Operand) -> Result<Scene, CompareError> {
-    let mut alone = project.clone();
-    alone.layers = match operand {
-        Operand::Layer(name) => {
-            let spec = height_layer(project, name)?;
-            vec![LayerSpec { visible: true, blend: BlendMode::Over, opacity: 1.0, ..spec.clone() }]
-        }
-        Operand::Group(names) => {
-            for name in names {
-                height_layer(project, name)?;
+    let names = operand.names();
+    for name in &names {
+        height_layer(project, name)?;
+    }
+    let (mut scene, _) = Scene::open(project).map_err(CompareError::Open)?;
+    let alone = matches!(operand, Operand::Layer(_));
+    let mut deltas_alone = false;
+    for k in 0..scene.stack.layers.len() {
+        let mut spec = scene.stack.layers[k].spec.clone();
+        spec.visible = names.contains(&spec.name.as_str());
+        if spec.visible && alone {
+            spec.opacity = 1.0;
+            deltas_alone = spec.holds_deltas();
+            if !deltas_alone {
+                spec.blend = BlendMode::Over;
             }
-            project
-                .layers
-                .iter()
-                .filter(|l| names.contains(&l.name))
-                .map(|l| LayerSpec { visible: true, ..l.clone() })
-                .collect()
         }
-    };
-    Scene::open(&alone).map(|(scene, _)| scene).map_err(CompareError::Open)
+        scene.stack.set(k, spec).map_err(|e| CompareError::Open(e.to_string()))?;
+    }
+    if deltas_alone {
+        let used = |n: &str| scene.stack.index_of(n).is_some();
+        let zero = (0..).map(|k| format!("zero plane {k}")).find(|n| !used(n)).unwrap_or_default();
+        scene.stack.insert(0, LayerSpec::constant(&zero, 0.0)).map_err(|e| CompareError::Open(e.to_string()))?;
+    }
+    Ok(scene)
 }
 
 /// Compares `a` with `b` (the reference) of a project: each a layer or a composed group
@@ -198,7 +209,7 @@ pub fn compare_operands(
         return Err(CompareError::Option { option: "B".into(), problem: format!("'{a}' compared with itself") });
     }
     let (scene_a, scene_b) = (open_operand(project, a)?, open_operand(project, b)?);
-    let (level, quads) = overlap_quads(&scene_a, &scene_b, opts.level)?;
+    let (level, quads) = overlap_quads(&scene_a, &scene_b, opts.level, opts.region)?;
     let ellipsoid = scene_a.ellipsoid;
     let mut diffs = Vec::new();
     let mut samples = Vec::new();
@@ -259,52 +270,91 @@ pub fn compare_operands(
     Ok(comparison)
 }
 
-/// The level to work at (default: the finest at which the coarser side adds detail: its
-/// datasets' finest level, or finer where an edit, erosion or procedural layer adds detail below
-/// it) and the quads of it where
-/// every dataset among the two scenes has tiles, in order.
+/// The level to work at and the quads of it that may reach `region` where every dataset among
+/// the two scenes has tiles, in order. By default: the coarser dataset's finest level (finer
+/// levels would only upsample it), or finer where an edit, erosion or procedural layer on either
+/// side adds detail below that (comparing it coarser would smear it), stepped back to the finest
+/// level whose quads fit the comparison's [`MAX_QUADS`].
 pub(super) fn overlap_quads(
     scene_a: &Scene,
     scene_b: &Scene,
     level: Option<u8>,
+    region: Option<GeoBox>,
 ) -> Result<(u8, Vec<QuadId>), CompareError> {
-    let datasets: Vec<&DatasetInfo> = scene_a.datasets.iter().chain(scene_b.datasets.iter()).collect();
-    if datasets.is_empty() {
-        return Err(CompareError::Option {
-            option: "A, B".into(),
-            problem: "neither layer is a dataset: nothing bounds the overlap to compare".into(),
-        });
-    }
+    let datasets: Vec<&DatasetInfo> = scene_a.shown_datasets().into_iter().chain(scene_b.shown_datasets()).collect();
+    // Without a dataset on either side (constants, noise, deltas) the operands have data
+    // everywhere: the overlap is the whole planet, or the region.
     let finest = datasets.iter().map(|d| d.finest_level).min().unwrap_or(0);
-    // The coarser side's detail: its datasets', or finer where its strokes, runs or noise add
-    // detail below them.
-    let detail = [scene_a, scene_b].iter().filter_map(|s| s.detail_level()).min().unwrap_or(finest);
-    let level = level.unwrap_or(detail.max(finest));
-    if level > finest + 4 {
-        return Err(CompareError::Option {
-            option: "--level".into(),
-            problem: format!("{level} is more than 4 levels below the datasets' finest ({finest})"),
-        });
-    }
-    let mut quads: Option<HashSet<QuadId>> = None;
-    for d in &datasets {
-        let here = quads_at(d, level);
-        quads = Some(match quads {
-            None => here,
-            Some(q) => q.intersection(&here).copied().collect(),
-        });
-    }
-    let quads: BTreeSet<QuadId> = quads.unwrap_or_default().into_iter().collect();
-    if quads.len() > MAX_QUADS {
+    let ellipsoid = &scene_a.ellipsoid;
+    let reaches = |q: &QuadId| {
+        region.is_none_or(|b| {
+            let (_, (lon, lat), radius_m) = quad_ball(ellipsoid, *q);
+            b.may_reach(lon.to_degrees(), lat.to_degrees(), (radius_m / ellipsoid.b_m()).to_degrees())
+        })
+    };
+    // The quads at a level; None where they are more than a comparison reads.
+    let at = |level: u8| -> Option<BTreeSet<QuadId>> {
+        if datasets.is_empty() {
+            return quads_reaching(level, &reaches);
+        }
+        let mut quads: Option<HashSet<QuadId>> = None;
+        for d in &datasets {
+            let here = quads_at(d, level);
+            quads = Some(match quads {
+                None => here,
+                Some(q) => q.intersection(&here).copied().collect(),
+            });
+        }
+        let quads: BTreeSet<QuadId> = quads.unwrap_or_default().into_iter().filter(reaches).collect();
+        (quads.len() <= MAX_QUADS).then_some(quads)
+    };
+    let (level, quads) = match level {
+        Some(level) if level > finest + 4 && !datasets.is_empty() => {
+            return Err(CompareError::Option {
+                option: "--level".into(),
+                problem: format!("{level} is more than 4 levels below the datasets' finest ({finest})"),
+            });
+        }
+        Some(level) => (level, at(level)),
+        None => {
+            let added = [scene_a, scene_b]
+                .iter()
+                .filter_map(|s| s.stack.detail_level(&|i| !s.stack.layers[i].spec.is_data()))
+                .max()
+                .unwrap_or(0);
+            let mut level = added.max(finest);
+            let mut quads = at(level);
+            while quads.is_none() && level > finest {
+                level -= 1;
+                quads = at(level);
+            }
+            (level, quads)
+        }
+    };
+    let Some(quads) = quads else {
         return Err(CompareError::Option {
             option: "--level".into(),
             problem: format!(
-                "{} quads at level {level} exceed the {MAX_QUADS} a comparison reads: choose a coarser level or a region",
-                quads.len()
+                "more than {MAX_QUADS} quads at level {level}, more than a comparison reads: choose a coarser level or a region"
             ),
         });
-    }
+    };
     Ok((level, quads.into_iter().collect()))
+}
+
+/// The quads of `level` for which `reaches` holds, found down the quadtree from the six faces (a
+/// quad's children are looked at only where it reaches); None when there are more than
+/// [`MAX_QUADS`] (a quad that reaches has a child that does, so a level past it has as many).
+fn quads_reaching(level: u8, reaches: &dyn Fn(&QuadId) -> bool) -> Option<BTreeSet<QuadId>> {
+    let mut quads: Vec<QuadId> =
+        crate::ecm::Face::ALL.iter().map(|&face| QuadId { face, level: 0, x: 0, y: 0 }).filter(reaches).collect();
+    for _ in 0..level {
+        quads = quads.iter().filter_map(|q| q.children()).flatten().filter(reaches).collect();
+        if quads.len() > MAX_QUADS {
+            return None;
+        }
+    }
+    Some(quads.into_iter().collect())
 }
 
 /// Whether a point (radians) lies in the region (everywhere without one).
@@ -406,10 +456,10 @@ pub fn difference_range(project: &Project, spec: &LayerSpec) -> Result<Option<f6
         return Err(CompareError::Option { option: spec.name.clone(), problem: "is not a difference layer".into() });
     };
     let (scene_a, scene_b) = (open_operand(project, a)?, open_operand(project, b)?);
-    let (finest, _) = overlap_quads(&scene_a, &scene_b, None)?;
+    let (finest, _) = overlap_quads(&scene_a, &scene_b, None, None)?;
     let mut level = finest.saturating_sub(1);
     // Coarser still while the overlap is more than a comparison reads.
-    while level > 0 && overlap_quads(&scene_a, &scene_b, Some(level)).is_err() {
+    while level > 0 && overlap_quads(&scene_a, &scene_b, Some(level), None).is_err() {
         level -= 1;
     }
     let opts = CompareOptions { level: Some(level), keep_samples: true, ..CompareOptions::default() };

@@ -82,6 +82,13 @@ pub struct Outcome {
     pub soil_out_m3: f64,
     /// Rain that fell, m³.
     pub rain_m3: f64,
+    /// The terrain's change of volume, m³: Σ Δh × cell area over the region (exact: the fixed
+    /// point's units of soil taken or laid), negative where material left the region.
+    pub volume_change_m3: f64,
+    /// Terrain removed where the run lowered it, m³ (≥ 0).
+    pub eroded_m3: f64,
+    /// Terrain laid down where the run raised it, m³ (≥ 0).
+    pub deposited_m3: f64,
     /// Wall-clock time of the run (not counting reading the terrain), seconds.
     pub seconds: f64,
     /// The smallest and largest change of height, metres.
@@ -219,6 +226,9 @@ pub fn finish(raster: &mut EditRaster, index: usize, region: Region, run: &Run, 
         water_out_m3: b.water_out as f64 * unit,
         soil_out_m3: b.soil_out as f64 * unit,
         rain_m3: b.rain_in as f64 * unit,
+        volume_change_m3: run.state.soil.iter().sum::<i64>() as f64 * unit,
+        eroded_m3: -(run.state.soil.iter().filter(|s| **s < 0).sum::<i64>() as f64) * unit,
+        deposited_m3: run.state.soil.iter().filter(|s| **s > 0).sum::<i64>() as f64 * unit,
         seconds,
         range_m: range,
         quads,

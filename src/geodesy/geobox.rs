@@ -123,6 +123,20 @@ impl GeoBox {
         east_of_west <= self.width_deg()
     }
 
+    /// Whether a ball of angular radius `radius_deg` around (lon, lat) may reach the box
+    /// (conservative: it may say yes for a ball just outside a corner, never no for one inside).
+    pub fn may_reach(&self, lon_deg: f64, lat_deg: f64, radius_deg: f64) -> bool {
+        if lat_deg + radius_deg < self.south_deg || lat_deg - radius_deg > self.north_deg {
+            return false;
+        }
+        let widest = (lat_deg.abs() + radius_deg).min(90.0);
+        if widest >= 89.0 {
+            return true;
+        }
+        let d_lon = radius_deg / widest.to_radians().cos();
+        (lon_deg - (self.west_deg - d_lon)).rem_euclid(360.0) <= self.width_deg() + 2.0 * d_lon
+    }
+
     /// Its values in file order.
     pub fn to_array(self) -> [f64; 4] {
         [self.west_deg, self.south_deg, self.east_deg, self.north_deg]

@@ -164,6 +164,6 @@ impl QuadSource for Source<'_> {
             Some(f) => quad.level < f,
             None => quad.level < NODATA_MAX_LEVEL,
         };
-        data || self.scene.stack.refines_below_data(quad)
+        data || self.scene.stack.refines_below_data(quad) || self.scene.stack.deltas_refine(&plan)
     }
 }

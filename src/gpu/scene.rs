@@ -119,6 +119,17 @@ impl Scene {
         self.stack.detail_level(&|_| true)
     }
 
+    /// The datasets that the shown layers read (a hidden layer's bound nothing).
+    pub fn shown_datasets(&self) -> Vec<&DatasetInfo> {
+        let mut shown: Vec<usize> = (0..self.stack.layers.len())
+            .filter(|&i| self.stack.layers[i].active())
+            .filter_map(|i| self.dataset_of_layer(i))
+            .collect();
+        shown.sort_unstable();
+        shown.dedup();
+        shown.into_iter().map(|d| &self.datasets[d]).collect()
+    }
+
     /// The finest level of the datasets a plan reads, if it reads any.
     pub fn finest_level_in(&self, plan: &QuadPlan) -> Option<u8> {
         plan.datasets(&self.stack).filter_map(|i| self.dataset_of_layer(i)).map(|d| self.datasets[d].finest_level).max()

@@ -5,7 +5,6 @@
 use std::thread::JoinHandle;
 
 use crate::compare::{CompareOptions, Comparison, CoregOptions, Coregistration, compare, coregister};
-use crate::layers::LayerKind;
 use crate::project::Project;
 
 /// What the panel asks of the window.
@@ -79,8 +78,7 @@ impl ComparePanel {
     /// Draws the section.
     pub fn ui(&mut self, ui: &mut egui::Ui, project: &Project) -> CompareAction {
         self.poll();
-        let names: Vec<String> =
-            project.layers.iter().filter(|l| l.kind() == LayerKind::Dataset).map(|l| l.name.clone()).collect();
+        let names: Vec<String> = project.layers.iter().filter(|l| l.is_data()).map(|l| l.name.clone()).collect();
         if names.len() < 2 {
             ui.label("add a second dataset layer to compare");
             return CompareAction::None;

@@ -5,7 +5,7 @@
 use std::thread::JoinHandle;
 
 use crate::gpu::Renderer;
-use crate::layers::{LayerKind, LayerSpec, Operand};
+use crate::layers::{LayerSpec, Operand};
 use crate::project::Project;
 
 /// A difference layer's settings. `names`: the layers an operand may name; `visible`: the shown
@@ -162,5 +162,5 @@ impl AutoRange {
 
 /// The project's drawn difference layer (the topmost shown one with opacity).
 fn drawn_difference(project: &Project) -> Option<&LayerSpec> {
-    project.layers.iter().rev().find(|l| l.kind() == LayerKind::Difference && l.visible && l.opacity > 0.0)
+    project.layers.iter().rev().find(|l| !l.gives_heights() && l.visible && l.opacity > 0.0)
 }

@@ -6,7 +6,7 @@
 //! reads).
 
 use crate::gpu::Renderer;
-use crate::layers::{BlendMode, DetailWhere, ExtentSpec, LayerKind, LayerPayload, LayerSpec, NoiseSpec, NoiseType};
+use crate::layers::{BlendMode, DetailWhere, ExtentSpec, LayerPayload, LayerSpec, NoiseSpec, NoiseType};
 use crate::project::Project;
 
 /// What the panel did this frame.
@@ -47,8 +47,7 @@ pub fn layers_ui(ui: &mut egui::Ui, renderer: &mut Renderer, project: &mut Proje
             };
             insert(renderer, project, LayerSpec::procedural(&unique_name(project, "detail"), noise), &mut change);
         }
-        let heights: Vec<&str> =
-            project.layers.iter().filter(|l| l.kind() != LayerKind::Difference).map(|l| l.name.as_str()).collect();
+        let heights: Vec<&str> = project.layers.iter().filter(|l| l.gives_heights()).map(|l| l.name.as_str()).collect();
         let two = heights.len() >= 2;
         if ui
             .add_enabled(two, egui::Button::new("add difference").small())
@@ -87,8 +86,8 @@ pub fn layers_ui(ui: &mut egui::Ui, renderer: &mut Renderer, project: &mut Proje
                         remove = Some(index);
                     }
                 });
-                if spec.kind() == LayerKind::Difference {
-                    let heights = project.layers.iter().filter(|l| l.kind() != LayerKind::Difference);
+                if !spec.gives_heights() {
+                    let heights = project.layers.iter().filter(|l| l.gives_heights());
                     let names: Vec<String> = heights.clone().map(|l| l.name.clone()).collect();
                     let visible: Vec<String> = heights.filter(|l| l.visible).map(|l| l.name.clone()).collect();
                     let drawn = renderer.scene().stack.drawn_difference() == Some(index);

@@ -470,6 +470,16 @@ impl Stack {
         layers
     }
 
+    /// Whether splitting the plan's quad shows detail that a planned layer of deltas adds at a
+    /// finer level (an edit layer's strokes, an erosion layer's runs; the plan holds such a layer
+    /// only where its operations reach).
+    pub fn deltas_refine(&self, plan: &QuadPlan) -> bool {
+        plan.layers.iter().any(|l| {
+            let layer = &self.layers[l.index];
+            layer.spec.holds_deltas() && layer.detail_level(&self.ellipsoid).is_some_and(|d| plan.quad.level < d)
+        })
+    }
+
     /// Whether splitting `quad` adds detail that the layers make beyond the datasets: a child
     /// resolves more octaves of an active procedural layer that touches the quad than the quad
     /// does (so refinement stops where the remaining octaves are below the grid's spacing).

@@ -44,8 +44,8 @@ pub use self::settings::{
     ColourMapSpec, ComparisonSpec, DetailSpec, IsolineSpec, LightingSpec, ProfileLine, SwipeSpec, Visuals,
 };
 use crate::geodesy::Ellipsoid;
+use crate::layers::LayerSpec;
 pub use crate::layers::SourceSpec;
-use crate::layers::{LayerKind, LayerSpec};
 
 /// The `format` value of every project file.
 pub const FORMAT: &str = "terrafuse-project";
@@ -315,7 +315,7 @@ impl Project {
 
     /// The dataset layers, bottom to top.
     pub fn dataset_layers(&self) -> impl Iterator<Item = &LayerSpec> {
-        self.layers.iter().filter(|l| l.kind() == LayerKind::Dataset)
+        self.layers.iter().filter(|l| l.is_data())
     }
 
     /// A path of the project, resolved against the project file's folder.
@@ -456,7 +456,7 @@ mod tests {
         assert_eq!(p.version, VERSION);
         let names: Vec<&str> = p.layers.iter().map(|l| l.name.as_str()).collect();
         assert_eq!(names, ["global", "north"], "bottom to top: the first listed ends on top");
-        assert!(p.layers.iter().all(|l| l.kind() == LayerKind::Dataset && l.blend == crate::layers::BlendMode::Over));
+        assert!(p.layers.iter().all(|l| l.is_data() && l.blend == crate::layers::BlendMode::Over));
         assert_eq!(p.layers[0].store_dataset(), "lola");
         assert_eq!(p.layers[1].as_dataset().unwrap().source.as_ref().unwrap().files, [PathBuf::from("n.tif")]);
         let text = serde_json::to_string(&p).unwrap();

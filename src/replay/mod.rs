@@ -18,7 +18,7 @@ use std::time::Instant;
 use crate::edit::raster::EditRaster;
 use crate::gpu::scene::Edits;
 use crate::gpu::{GpuContext, Scene};
-use crate::layers::{LayerKind, LayerSpec};
+use crate::layers::{LayerKind, LayerPayload, LayerSpec};
 use crate::project::checks::CheckTarget;
 use crate::project::{CheckSpec, Project};
 
@@ -123,15 +123,17 @@ pub fn replay(project: &Project, engine: Engine) -> Result<Replayed, ReplayError
         let below = |q| below.heights_cpu(q);
         let e = scene.ellipsoid;
         let t = Instant::now();
-        let raster = match (spec.kind(), engine, &kernels) {
-            (LayerKind::Erosion, Engine::Gpu(ctx), Some((_, erosion))) => {
+        // The deltas rebuilt from the operations in effect: runs by the erosion model, strokes
+        // by the rasteriser, each on the engine asked for.
+        let raster = match (&spec.payload, engine, &kernels) {
+            (LayerPayload::Erosion(runs), Engine::Gpu(ctx), Some((_, erosion))) => {
                 let stepper =
                     crate::gpu::erosion::GpuStepper { device: &ctx.device, queue: &ctx.queue, kernel: erosion.clone() };
-                crate::erosion::layer::build_with(e, spec.applied_runs(), &below, &stepper)
+                crate::erosion::layer::build_with(e, runs.in_effect(), &below, &stepper)
                     .map_err(|e| fail(e.to_string()))
             }
-            (LayerKind::Erosion, ..) => {
-                crate::erosion::layer::build(e, spec.applied_runs(), &below).map_err(|e| fail(e.to_string()))
+            (LayerPayload::Erosion(runs), ..) => {
+                crate::erosion::layer::build(e, runs.in_effect(), &below).map_err(|e| fail(e.to_string()))
             }
             (_, Engine::Gpu(ctx), Some((strokes, _))) => {
                 EditRaster::build_with(e, spec.applied_strokes(), &below, &strokes.on_context(ctx))
@@ -154,9 +156,9 @@ pub fn replay(project: &Project, engine: Engine) -> Result<Replayed, ReplayError
     Ok(Replayed { scene, layers, open_seconds })
 }
 
-/// How many of a layer's operations are in effect.
+/// How many of a layer's operations (strokes or runs) are in effect.
 fn applied(spec: &LayerSpec) -> usize {
-    if spec.kind() == LayerKind::Erosion { spec.applied_runs().len() } else { spec.applied_strokes().len() }
+    spec.applied_strokes().len() + spec.applied_runs().len()
 }
 
 /// Evaluates check `name` on a replayed scene: the digests of what it hashes.

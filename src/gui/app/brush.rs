@@ -10,7 +10,7 @@
 
 use super::*;
 use crate::edit::{Falloff, Stroke, Tool};
-use crate::layers::{LayerKind, LayerSpec};
+use crate::layers::LayerSpec;
 use crate::store::grid::spacing_m;
 
 /// The brush's settings and the stroke in progress.
@@ -107,7 +107,7 @@ impl App {
             let label = ui.label("edit layer").id;
             ui.text_edit_singleline(&mut b.layer).labelled_by(label);
         });
-        let index = self.project.layers.iter().position(|l| l.name == self.brush.layer && l.kind() == LayerKind::Edit);
+        let index = self.project.layers.iter().position(|l| l.name == self.brush.layer && l.as_edit().is_some());
         ui.horizontal(|ui| {
             let (applied, total) = index.map_or((0, 0), |i| {
                 let l = &self.project.layers[i];

@@ -17,7 +17,7 @@ use crate::erosion::region::Region;
 use crate::erosion::sim::Run;
 use crate::geodesy::GeoBox;
 use crate::gpu::erosion::GpuRun;
-use crate::layers::{LayerKind, LayerSpec};
+use crate::layers::LayerSpec;
 use crate::store::grid::spacing_m;
 
 /// What the region map shows.
@@ -262,8 +262,7 @@ impl App {
                 ui.image((map.id(), egui::vec2(200.0, 200.0)));
             }
         }
-        let index =
-            self.project.layers.iter().position(|l| l.name == self.erosion.layer && l.kind() == LayerKind::Erosion);
+        let index = self.project.layers.iter().position(|l| l.name == self.erosion.layer && l.as_erosion().is_some());
         ui.horizontal(|ui| {
             let (applied, total) = index.map_or((0, 0), |i| {
                 let l = &self.project.layers[i];
@@ -412,7 +411,7 @@ impl App {
         };
         let name = t.layer.clone();
         let index = match index {
-            Some(i) if self.project.layers[i].kind() == LayerKind::Erosion => i,
+            Some(i) if self.project.layers[i].as_erosion().is_some() => i,
             Some(_) => {
                 self.message = format!("erosion: '{name}' is not an erosion layer");
                 return;

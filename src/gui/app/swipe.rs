@@ -5,7 +5,7 @@
 
 use super::*;
 use crate::gpu::GpuContext;
-use crate::layers::{LayerKind, LayerSpec};
+use crate::layers::LayerSpec;
 
 /// Within this many points of the line a drag moves the line instead of the camera.
 const GRAB_PT: f32 = 8.0;
@@ -41,8 +41,7 @@ impl App {
         };
         let (ia, ib) = (index(a)?, index(b)?);
         // A swipe shows the layers themselves: no difference drawn over either side.
-        let differences =
-            self.project.layers.iter().enumerate().filter(|(_, l)| l.kind() == LayerKind::Difference && l.visible);
+        let differences = self.project.layers.iter().enumerate().filter(|(_, l)| !l.gives_heights() && l.visible);
         let hide: Vec<(usize, bool)> = differences.map(|(i, _)| (i, false)).collect();
         for (i, visible) in [(ia, true), (ib, false)].into_iter().chain(hide) {
             let spec = LayerSpec { visible, ..self.project.layers[i].clone() };
