@@ -107,7 +107,8 @@ pub fn export_composed(opts: &ComposedExport) -> Result<ComposedReport, String> 
         None => compose_grids(scene, &quads, opts.compose_on)?,
         Some((a, b)) => {
             let alone = |name: &str| {
-                crate::compare::sample::open_alone(&project, name)
+                let operand = crate::layers::Operand::Layer(name.into());
+                crate::compare::sample::operand_scene(&scene, &project, &operand)
                     .map_err(|e| format!("{}: {e}", opts.project.display()))
             };
             let (mut grids, composer) = compose_grids(alone(a)?, &quads, opts.compose_on)?;

@@ -18,12 +18,13 @@ use serde::Serialize;
 
 use super::CompareError;
 use super::mosaic::Mosaic;
-use super::sample::{gradient, open_alone, overlap_quads, quad_points};
+use super::sample::{gradient, operand_scene, overlap_quads, quad_points};
 use super::stats::{Diff, Stats, stats};
 use crate::ecm::QuadId;
 use crate::geodesy::GeoBox;
 use crate::gpu::Scene;
 use crate::gpu::shifted::{local_axes, locate};
+use crate::layers::Operand;
 use crate::project::Project;
 use crate::store::grid::{GRID, spacing_m};
 
@@ -114,7 +115,9 @@ pub fn coregister(project: &Project, a: &str, b: &str, opts: &CoregOptions) -> R
             problem: format!("'{a}' co-registered onto itself"),
         });
     }
-    let (scene_a, scene_b) = (open_alone(project, a)?, open_alone(project, b)?);
+    let (scene, _) = Scene::open(project).map_err(CompareError::Open)?;
+    let alone = |name: &str| operand_scene(&scene, project, &Operand::Layer(name.into()));
+    let (scene_a, scene_b) = (alone(a)?, alone(b)?);
     let (finest, _) = overlap_quads(&scene_a, &scene_b, None, opts.region).map(|(l, q)| (l, q.len()))?;
     let (level, quads) = overlap_quads(&scene_a, &scene_b, Some(opts.level.unwrap_or(finest + 1)), opts.region)?;
     let ellipsoid = scene_b.ellipsoid;

@@ -6,10 +6,11 @@ use serde::Serialize;
 
 use super::CompareError;
 use super::mosaic::Mosaic;
-use super::sample::open_alone;
+use super::sample::operand_scene;
 use crate::geodesy::geodesic::{direct, inverse};
 use crate::geodesy::{Geodetic, ecef_from_geodetic};
 use crate::gpu::Scene;
+use crate::layers::Operand;
 use crate::project::Project;
 use crate::store::grid::spacing_m;
 
@@ -121,7 +122,7 @@ pub fn profile(project: &Project, opts: &ProfileOptions) -> Result<Profile, Comp
     };
     let mut layers = Vec::new();
     for name in &visible {
-        layers.push((name.clone(), sample(open_alone(project, name)?)?));
+        layers.push((name.clone(), sample(operand_scene(&stack, project, &Operand::Layer(name.clone()))?)?));
     }
     let composed = sample(stack)?;
     Ok(Profile { level, length_m: length, distance_m, lat_deg, lon_deg, layers, composed })

@@ -148,28 +148,31 @@ fn height_layer<'a>(project: &'a Project, name: &str) -> Result<&'a LayerSpec, C
     Ok(spec)
 }
 
-/// Opens layer `name` alone: shown, `over`, opacity 1, its other settings as the project has them.
-pub fn open_alone(project: &Project, name: &str) -> Result<Scene, CompareError> {
-    open_operand(project, &Operand::Layer(name.into()))
-}
-
 /// An operand as the command line names it (`NAME`, or `NAME+NAME…` for a composed group).
 pub fn operand(project: &Project, text: &str) -> Operand {
     Operand::parse(text, &|name| project.layers.iter().any(|l| l.name == name))
 }
 
-/// Opens an operand: a layer alone ([`open_alone`]), or a group's layers in the project's order,
+/// Opens an operand: a layer alone (shown, `over`, opacity 1, its other settings as the project
+/// has them), or a group's layers in the project's order,
 /// shown, with their own blend modes and opacities (the stack's `operand_layers` reads the same).
 ///
-/// The whole project is opened and the other layers hidden, so an edit or erosion layer's deltas
-/// are the ones its operations make on the terrain really below it (a stroke that smooths or
-/// flattens reads it). A layer of deltas alone is its deltas over a zero plane.
+/// The whole project is opened and the other layers hidden (see [`operand_scene`]).
 pub fn open_operand(project: &Project, operand: &Operand) -> Result<Scene, CompareError> {
+    let (scene, _) = Scene::open(project).map_err(CompareError::Open)?;
+    operand_scene(&scene, project, operand)
+}
+
+/// An operand's scene from the project's scene, already open: the whole stack with the layers
+/// that are not the operand's hidden, so an edit or erosion layer's deltas are the ones its
+/// operations make on the terrain really below it (a stroke that smooths or flattens reads it).
+/// A layer of deltas alone is its deltas over a zero plane.
+pub fn operand_scene(scene: &Scene, project: &Project, operand: &Operand) -> Result<Scene, CompareError> {
     let names = operand.names();
     for name in &names {
         height_layer(project, name)?;
     }
-    let (mut scene, _) = Scene::open(project).map_err(CompareError::Open)?;
+    let mut scene = scene.clone();
     let alone = matches!(operand, Operand::Layer(_));
     let mut deltas_alone = false;
     for k in 0..scene.stack.layers.len() {
@@ -208,7 +211,8 @@ pub fn compare_operands(
     if a == b {
         return Err(CompareError::Option { option: "B".into(), problem: format!("'{a}' compared with itself") });
     }
-    let (scene_a, scene_b) = (open_operand(project, a)?, open_operand(project, b)?);
+    let (scene, _) = Scene::open(project).map_err(CompareError::Open)?;
+    let (scene_a, scene_b) = (operand_scene(&scene, project, a)?, operand_scene(&scene, project, b)?);
     let (level, quads) = overlap_quads(&scene_a, &scene_b, opts.level, opts.region)?;
     let ellipsoid = scene_a.ellipsoid;
     let mut diffs = Vec::new();
@@ -455,7 +459,8 @@ pub fn difference_range(project: &Project, spec: &LayerSpec) -> Result<Option<f6
     let Some([a, b]) = spec.as_difference().map(|d| &d.of) else {
         return Err(CompareError::Option { option: spec.name.clone(), problem: "is not a difference layer".into() });
     };
-    let (scene_a, scene_b) = (open_operand(project, a)?, open_operand(project, b)?);
+    let (scene, _) = Scene::open(project).map_err(CompareError::Open)?;
+    let (scene_a, scene_b) = (operand_scene(&scene, project, a)?, operand_scene(&scene, project, b)?);
     let (finest, _) = overlap_quads(&scene_a, &scene_b, None, None)?;
     let mut level = finest.saturating_sub(1);
     // Coarser still while the overlap is more than a comparison reads.

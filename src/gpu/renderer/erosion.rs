@@ -98,12 +98,9 @@ impl Renderer {
         op.steps = run.steps;
         op.check().map_err(|(f, p)| LayerError::field(&spec.name, &format!("runs[{applied}].{f}"), p))?;
         let outcome = layer::finish(&mut base, applied, region, run, seconds);
-        let mut runs = spec.runs().to_vec();
-        runs.truncate(applied);
-        runs.push(op);
+        spec.record_run(op)?;
         self.scene.set_edit(index, base);
-        self.scene.stack.set_runs(index, runs.clone(), None);
-        spec.payload = LayerPayload::Erosion(ErosionLayer { runs, applied: None });
+        self.scene.stack.set_runs(index, spec.runs().to_vec(), None);
         self.cache.plans.clear();
         Ok((spec, outcome))
     }
