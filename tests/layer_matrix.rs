@@ -35,6 +35,8 @@ enum Consumer {
     Profile,
     /// `render` on lavapipe: a hidden layer draws nothing.
     Render,
+    /// `render --swipe` on lavapipe: each side draws its layer with the other hidden.
+    Swipe,
     /// Replay: the rebuilt rasters against the cached ones.
     Replay,
     /// Every consumer, with the layer hidden or at opacity 0.
@@ -44,13 +46,14 @@ enum Consumer {
 }
 
 impl Consumer {
-    const ALL: [Consumer; 9] = [
+    const ALL: [Consumer; 10] = [
         Consumer::Export,
         Consumer::Compare,
         Consumer::Erode,
         Consumer::Brush,
         Consumer::Profile,
         Consumer::Render,
+        Consumer::Swipe,
         Consumer::Replay,
         Consumer::Hidden,
         Consumer::SaveLoad,
@@ -164,7 +167,13 @@ fn project(layers: Vec<LayerSpec>, path: &Path) -> PathBuf {
 /// Exports a 3.6° × 2° box around the stroke at 0.004° (≈ 121 m) on the CPU; the level used and
 /// the samples (read back through GDAL).
 fn export(project: &Path, level: Option<u8>) -> (u8, Vec<f32>) {
-    let out = project.with_extension(format!("{}.tif", level.map_or("auto".into(), |l| l.to_string())));
+    export_on(project, level, ComposeOn::Cpu)
+}
+
+/// [`export`], composed where `on` says.
+fn export_on(project: &Path, level: Option<u8>, on: ComposeOn) -> (u8, Vec<f32>) {
+    let device = if on == ComposeOn::Gpu { "gpu" } else { "cpu" };
+    let out = project.with_extension(format!("{}-{device}.tif", level.map_or("auto".into(), |l| l.to_string())));
     let report = export_composed(&ComposedExport {
         project: project.to_path_buf(),
         out: out.clone(),
@@ -172,7 +181,7 @@ fn export(project: &Path, level: Option<u8>) -> (u8, Vec<f32>) {
         bounds: [43.2, -1.0, 46.8, 1.0],
         resolution: (0.004, 0.004),
         level,
-        compose_on: ComposeOn::Cpu,
+        compose_on: on,
         difference: None,
     })
     .unwrap_or_else(|e| panic!("{}: {e}", project.display()));
@@ -218,6 +227,12 @@ fn export_composes_at_the_finest_level_any_layer_adds_detail_at() {
         // The default export equals the export at that level asked for, bit for bit.
         let (_, at) = export(&path, Some(expected));
         assert!(same_bits(&auto, &at), "{kind:?}: the default export differs from --level {expected}");
+        // On the GPU (lavapipe) the same level, within the compose kernels' budget (tests/compose.rs:
+        // heights of kilometres in f32, quad-local f32 positions moving noise and masks: 0.02 m).
+        let (gpu_level, gpu) = export_on(&path, None, ComposeOn::Gpu);
+        assert_eq!(gpu_level, expected, "{kind:?}: the GPU export's level");
+        let worst = auto.iter().zip(&gpu).map(|(a, b)| (a - b).abs()).fold(0f32, f32::max);
+        assert!(worst < 0.02, "{kind:?}: GPU − CPU export differs by {worst} m");
     }
 }
 
@@ -505,24 +520,7 @@ fn render_draws_nothing_of_a_hidden_layer() {
         let (below, layer, _) = fixture(kind);
         let png = |layers: Vec<LayerSpec>, name: &str| -> Vec<u8> {
             let path = project(layers, &d.join(format!("{}-{name}.json", kind.name())));
-            let out = d.join(format!("{}-{name}.png", kind.name()));
-            let run = common::terrafuse(
-                &[
-                    "render",
-                    path.to_str().unwrap(),
-                    "--out",
-                    out.to_str().unwrap(),
-                    "--width",
-                    "160",
-                    "--height",
-                    "120",
-                    "--camera",
-                    "0,45,300000,0,-90",
-                ],
-                "",
-            );
-            assert!(run.status.success(), "{kind:?} {name}: {}", String::from_utf8_lossy(&run.stderr));
-            image::open(&out).unwrap().to_rgba8().into_raw()
+            render(&path, &path.with_extension("png"), &[])
         };
         let without = png(below.clone(), "without");
         let mut hidden = below.clone();
@@ -583,4 +581,53 @@ fn no_consumer_names_a_kind() {
         }
     }
     assert!(offenders.is_empty(), "consumers that match kinds instead of asking the layer: {offenders:#?}");
+}
+
+/// Renders `project` on lavapipe from above the stroke (160 × 120), with `extra` arguments; RGBA.
+fn render(project: &Path, out: &Path, extra: &[&str]) -> Vec<u8> {
+    let mut args = vec![
+        "render",
+        project.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--width",
+        "160",
+        "--height",
+        "120",
+        "--camera",
+        "0,45,300000,0,-90",
+    ];
+    args.extend_from_slice(extra);
+    let run = common::terrafuse(&args, "");
+    assert!(run.status.success(), "{}: {}", project.display(), String::from_utf8_lossy(&run.stderr));
+    image::open(out).unwrap().to_rgba8().into_raw()
+}
+
+#[test]
+fn swipe_draws_each_side_as_the_stack_with_the_other_hidden() {
+    let d = dir("swipe");
+    let (w, h) = (160usize, 120usize);
+    for kind in LayerKind::ALL {
+        assert!(Consumer::ALL.contains(&Consumer::Swipe));
+        let (mut layers, layer, _) = fixture(kind);
+        layers.push(layer);
+        let path = project(layers.clone(), &d.join(format!("{}.json", kind.name())));
+        let swiped = render(&path, &d.join(format!("{}-swipe.png", kind.name())), &["--swipe", "k,hills,0.5"]);
+        let without = |name: &str| {
+            let mut hidden = layers.clone();
+            hidden.iter_mut().filter(|l| l.name == name).for_each(|l| l.visible = false);
+            let path = project(hidden, &d.join(format!("{}-no-{name}.json", kind.name())));
+            render(&path, &path.with_extension("png"), &[])
+        };
+        let (left, right) = (without("hills"), without("k"));
+        // Away from the swipe line (its two-pixel rule), each side is the stack with the other
+        // layer hidden, pixel for pixel.
+        for y in 0..h {
+            for x in (0..w).filter(|x| x.abs_diff(w / 2) > 2) {
+                let i = 4 * (y * w + x);
+                let want = if x < w / 2 { &left[i..i + 4] } else { &right[i..i + 4] };
+                assert_eq!(&swiped[i..i + 4], want, "{kind:?}: pixel ({x}, {y})");
+            }
+        }
+    }
 }

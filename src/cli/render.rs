@@ -175,10 +175,13 @@ pub fn render(request: &RenderRequest) -> Result<String, String> {
         renderer.set_threshold(t);
     }
     if let Some(s) = &swipe {
-        // Each side is rendered as its own project would be, by a renderer of its own.
-        let (scene, _) = Scene::open(&show_only(&project, &s.a, &s.b))?;
+        // Each side is rendered as its own project would be, by a renderer of its own (a
+        // difference layer shown on it with its colour range).
+        let side = show_only(&project, &s.a, &s.b);
+        let (scene, _) = Scene::open(&side)?;
         renderer = Renderer::new(&GpuContext::headless().map_err(|e| e.to_string())?, scene, IMAGE_FORMAT)
             .map_err(|e| e.to_string())?;
+        resolve_difference_range(&side, &mut renderer)?;
         if let Some(t) = request.lod_threshold {
             renderer.set_threshold(t);
         }
@@ -210,10 +213,12 @@ pub fn render(request: &RenderRequest) -> Result<String, String> {
     let mut image = renderer.render_image(DrawMode::Colour).map_err(|e| e.to_string())?;
     let mut swiped = String::new();
     if let Some(s) = &swipe {
-        let (scene, _) = Scene::open(&show_only(&project, &s.b, &s.a))?;
+        let side = show_only(&project, &s.b, &s.a);
+        let (scene, _) = Scene::open(&side)?;
         let mut right_renderer =
             Renderer::new(&GpuContext::headless().map_err(|e| e.to_string())?, scene, IMAGE_FORMAT)
                 .map_err(|e| e.to_string())?;
+        resolve_difference_range(&side, &mut right_renderer)?;
         if let Some(t) = request.lod_threshold {
             right_renderer.set_threshold(t);
         }

@@ -40,8 +40,14 @@ impl App {
                 .ok_or(format!("layer '{name}' is not in the project"))
         };
         let (ia, ib) = (index(a)?, index(b)?);
-        // A swipe shows the layers themselves: no difference drawn over either side.
-        let differences = self.project.layers.iter().enumerate().filter(|(_, l)| !l.gives_heights() && l.visible);
+        // A swipe shows the layers themselves: no difference drawn over either side, but the ones
+        // swiped (as `render --swipe` draws them).
+        let differences = self
+            .project
+            .layers
+            .iter()
+            .enumerate()
+            .filter(|(i, l)| *i != ia && *i != ib && !l.gives_heights() && l.visible);
         let hide: Vec<(usize, bool)> = differences.map(|(i, _)| (i, false)).collect();
         for (i, visible) in [(ia, true), (ib, false)].into_iter().chain(hide) {
             let spec = LayerSpec { visible, ..self.project.layers[i].clone() };
@@ -60,6 +66,14 @@ impl App {
         };
         let mut renderer = Renderer::new(&ctx, scene, crate::gpu::IMAGE_FORMAT).map_err(|e| e.to_string())?;
         renderer.set_threshold(self.threshold_px);
+        // A difference layer shown on the second side, with its colour range like the first's.
+        if let Some(d) = renderer.scene().stack.drawn_difference() {
+            let spec = renderer.scene().stack.layers[d].spec.clone();
+            if spec.difference_style().range_m.is_none() {
+                let range = crate::compare::difference_range(&other, &spec).map_err(|e| e.to_string())?;
+                renderer.set_difference_range(range);
+            }
+        }
         self.swipe = Some(Swipe {
             a: a.into(),
             b: b.into(),
