@@ -10,7 +10,6 @@ use std::sync::Arc;
 use crate::erosion::layer::{CpuStepper, Outcome, Stepper};
 use crate::erosion::operation::Operation;
 use crate::erosion::params::{Params, gravity_of_body};
-use crate::geodesy::GeoBox;
 use crate::gpu::GpuContext;
 use crate::gpu::erosion::{ErosionKernel, GpuStepper};
 use crate::gpu::scene::Scene;
@@ -56,10 +55,6 @@ pub struct ErodeRequest {
     pub undo: Option<usize>,
     /// Redo this many runs.
     pub redo: Option<usize>,
-}
-
-fn parse_region(text: &str) -> Result<GeoBox, String> {
-    super::geo::parse_box(text)
 }
 
 /// The preset `name` on the project's body with `set` overrides applied (`FIELD=VALUE`).
@@ -119,7 +114,7 @@ pub fn erode_command(request: &ErodeRequest) -> Result<String, String> {
         (None, None, true) => {}
         _ => return Err("give either --region, --level and --steps for a run, or --undo N, or --redo N".into()),
     }
-    let region = parse_region(request.region.as_deref().ok_or("--region: a run needs its box")?)?;
+    let region = super::geo::parse_box(request.region.as_deref().ok_or("--region: a run needs its box")?)?;
     let level = request.level.ok_or("--level: a run needs the level of its cells")?;
     let steps = request.steps.ok_or("--steps: a run needs its number of steps")?;
     let preset = request.preset.clone().unwrap_or_else(|| "rain".into());

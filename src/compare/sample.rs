@@ -154,8 +154,8 @@ pub fn operand(project: &Project, text: &str) -> Operand {
 }
 
 /// Opens an operand: a layer alone (shown, `over`, opacity 1, its other settings as the project
-/// has them), or a group's layers in the project's order,
-/// shown, with their own blend modes and opacities (the stack's `operand_layers` reads the same).
+/// has them), or a group's layers in the project's order, shown, with their own blend modes and
+/// opacities (the stack's `operand_layers` reads the same).
 ///
 /// The whole project is opened and the other layers hidden (see [`operand_scene`]).
 pub fn open_operand(project: &Project, operand: &Operand) -> Result<Scene, CompareError> {

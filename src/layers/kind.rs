@@ -9,8 +9,6 @@
 
 use super::noise;
 use super::spec::{LayerKind, LayerPayload, LayerSpec, NoiseSpec};
-use crate::edit::Stroke;
-use crate::erosion::operation::Operation;
 use crate::geodesy::Ellipsoid;
 use crate::store::grid::spacing_m;
 
@@ -75,8 +73,8 @@ impl LayerSpec {
     pub fn detail_level(&self, ellipsoid: &Ellipsoid, stored_level: Option<u8>) -> Option<u8> {
         match &self.payload {
             LayerPayload::Dataset(_) => stored_level,
-            LayerPayload::Edit(_) => self.applied_strokes().iter().map(|s: &Stroke| s.level).max(),
-            LayerPayload::Erosion(_) => self.applied_runs().iter().map(|r: &Operation| r.level).max(),
+            LayerPayload::Edit(_) => self.applied_strokes().iter().map(|s| s.level).max(),
+            LayerPayload::Erosion(_) => self.applied_runs().iter().map(|r| r.level).max(),
             LayerPayload::Procedural(p) => Some(noise_detail_level(&p.noise, ellipsoid)),
             LayerPayload::Constant(_) | LayerPayload::Difference(_) => None,
         }
