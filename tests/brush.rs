@@ -7,7 +7,7 @@ mod common;
 
 use std::time::Duration;
 
-use common::{repo_path, sample_project, terrafuse};
+use common::{sample_project, terrafuse};
 use terrafuse::ecm::{CubeProjection, QuadId};
 use terrafuse::edit::EditRaster;
 use terrafuse::geodesy::Ellipsoid;
@@ -35,7 +35,7 @@ fn quad_at(e: &Ellipsoid, lat: f64, lon: f64, level: u8) -> QuadId {
 
 #[test]
 fn the_moon_session_composes_on_the_gpu_as_on_the_cpu_across_a_face_edge_and_a_corner() {
-    let dir = repo_path("tests/out/brush-compose");
+    let dir = common::out_path("brush-compose");
     let p = Project::load(&sample_project("moon-brushing", &dir)).unwrap();
     let edit = p.layers.iter().find(|l| l.kind() == LayerKind::Edit).expect("the sample's edit layer");
     assert!(edit.strokes().len() >= 5, "a session of strokes");
@@ -78,7 +78,7 @@ fn the_moon_session_composes_on_the_gpu_as_on_the_cpu_across_a_face_edge_and_a_c
 
 #[test]
 fn the_brushed_corner_seen_straight_down_has_no_crack_and_the_session_rebuilds_bit_for_bit() {
-    let dir = repo_path("tests/out/brush-corner");
+    let dir = common::out_path("brush-corner");
     let path = sample_project("moon-brushing", &dir);
     let mut p = Project::load(&path).unwrap();
     // A background no terrain colour has (the ramp is viridis): any background pixel inside the
@@ -119,7 +119,7 @@ fn the_brushed_corner_seen_straight_down_has_no_crack_and_the_session_rebuilds_b
 
 #[test]
 fn strokes_undo_and_redo_from_the_command_line_and_bad_strokes_leave_the_file_as_it_was() {
-    let dir = repo_path("tests/out/brush-cli");
+    let dir = common::out_path("brush-cli");
     let path = sample_project("moon-brushing", &dir);
     let p = path.to_str().unwrap();
     let strokes = |path: &std::path::Path| {
@@ -317,7 +317,7 @@ fn a_stroke_recomposes_only_the_quads_it_changed_and_undo_restores_their_heights
     // alone (the layer's other quads keep their stamps), and its heights moved; undone, they are
     // back bit for bit.
     use terrafuse::edit::{Falloff, Stroke, Tool};
-    let dir = repo_path("tests/out/brush-recompose");
+    let dir = common::out_path("brush-recompose");
     let p = Project::load(&sample_project("moon-brushing", &dir)).unwrap();
     let mut r = renderer(&p);
     let e = Ellipsoid::MOON;
@@ -368,7 +368,7 @@ fn a_stroke_recomposes_only_the_quads_it_changed_and_undo_restores_their_heights
 
 #[test]
 fn edit_rasters_are_cached_beside_the_project_and_rebuilt_when_stale_or_unreadable() {
-    let dir = repo_path("tests/out/brush-cache");
+    let dir = common::out_path("brush-cache");
     let path = sample_project("moon-brushing", &dir);
     let stores = dir.join("stores");
     let caches = || -> Vec<std::path::PathBuf> {

@@ -8,7 +8,7 @@ use terrafuse::colour::Ramp;
 
 #[test]
 fn gdaldem_colour_files_colour_like_gdaldem() {
-    let dir = repo_path("tests/out/colour");
+    let dir = common::out_path("colour");
     std::fs::create_dir_all(&dir).unwrap();
     let colours = dir.join("relief.txt");
     std::fs::write(

@@ -12,7 +12,7 @@ use terrafuse::layers::{BlendMode, LayerSpec, Operand};
 use terrafuse::project::Project;
 
 fn project() -> PathBuf {
-    sample_project("erzurum-compare", &repo_path("tests/out/compare"))
+    sample_project("erzurum-compare", &common::out_path("compare"))
 }
 
 fn run(args: &[&str]) -> String {
@@ -40,7 +40,7 @@ fn close(field: &str, ours: f64, theirs: f64) {
 #[test]
 fn the_erzurum_pair_gives_xdems_statistics_on_the_same_samples_and_area_weighted_ones() {
     let p = project();
-    let dir = repo_path("tests/out/compare");
+    let dir = common::out_path("compare");
     for (weighting, key) in [("--unweighted", "samples"), ("", "area")] {
         let csv = dir.join(format!("samples-{key}.csv"));
         let mut args =
@@ -117,7 +117,7 @@ fn a_difference_layer_draws_blue_where_a_is_higher_and_red_where_lower_over_its_
     // The same tile raised by 40 m, minus the tile: dh = +40 m everywhere, so the 98th percentile
     // of |dh| is 40 m and every pixel of terrain shows the map's blue end (then the other way
     // round, red). Hillshade darkens both, the hue stays.
-    let dir = repo_path("tests/out/compare-difference");
+    let dir = common::out_path("compare-difference");
     let mut p = Project::load(&sample_project("erzurum-compare", &dir)).unwrap();
     let srtm = p.layers.iter().find(|l| l.name == "srtm").unwrap().clone();
     p.layers = vec![
@@ -159,7 +159,10 @@ fn a_difference_layer_draws_blue_where_a_is_higher_and_red_where_lower_over_its_
     bad.layers.push(LayerSpec::difference("dh", Operand::Layer("raised".into()), Operand::Layer("nope".into())));
     let path = dir.join("bad.json");
     std::fs::write(&path, serde_json::to_string_pretty(&bad).unwrap()).unwrap();
-    let out = terrafuse(&["render", path.to_str().unwrap(), "--out", "/tmp/x.png"], "");
+    let out = terrafuse(
+        &["render", path.to_str().unwrap(), "--out", common::out_path("compare/x.png").to_str().unwrap()],
+        "",
+    );
     let e = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success());
     assert!(e.contains("bad.json") && e.contains("layers[2]: layer 'dh': of: operand B names 'nope'"), "{e}");
@@ -169,7 +172,7 @@ fn a_difference_layer_draws_blue_where_a_is_higher_and_red_where_lower_over_its_
 fn a_saved_swipe_or_profile_that_names_no_layer_is_refused_on_load() {
     let mut p = Project::load(&project()).unwrap();
     p.comparison.swipes.get_mut("blurred-srtm").unwrap().b = "gone".into();
-    let bad = repo_path("tests/out/compare/bad-swipe.json");
+    let bad = common::out_path("compare/bad-swipe.json");
     p.save(&bad).unwrap_err(); // save checks too, and refuses
     let text = std::fs::read_to_string(project()).unwrap().replace(r#""b": "srtm""#, r#""b": "gone""#);
     std::fs::write(&bad, text).unwrap();
@@ -238,7 +241,7 @@ fn a_known_shift_is_recovered_at_least_as_closely_as_xdem_recovers_it() {
     // 40.42°E 39.6°N, xDEM on both rasters warped (bilinear, 90 m) to a transverse Mercator
     // centred there (so its x and y are east and north at the centre, scale 1); the expected
     // shift is taken at the centre (a shift in degrees varies by ±0.1 m in metres over the box).
-    let dir = repo_path("tests/out/compare/shift");
+    let dir = common::out_path("compare/shift");
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
     let source = repo_path("projects/data/earth_srtm3_demcompare_N39E040.tif");
@@ -363,7 +366,7 @@ fn the_erzurum_pair_is_three_and_five_pixels_apart_as_demcompare_finds() {
 #[test]
 fn a_profile_follows_the_geodesic_as_geographiclib_computes_it_and_samples_every_visible_layer() {
     let p = project();
-    let csv = repo_path("tests/out/compare/profile.csv");
+    let csv = common::out_path("compare/profile.csv");
     let report = run(&[
         "profile",
         p.to_str().unwrap(),
@@ -401,7 +404,7 @@ fn a_profile_follows_the_geodesic_as_geographiclib_computes_it_and_samples_every
         assert!(r[3].is_nan() || (1000.0..3500.0).contains(&r[3]), "{r:?}");
     }
     // The line saved in the project is the same line.
-    let saved_csv = repo_path("tests/out/compare/profile-saved.csv");
+    let saved_csv = common::out_path("compare/profile-saved.csv");
     run(&[
         "profile",
         p.to_str().unwrap(),
@@ -424,7 +427,7 @@ fn a_profile_follows_the_geodesic_as_geographiclib_computes_it_and_samples_every
 #[test]
 fn a_swiped_render_shows_a_left_of_the_line_and_b_right_of_it() {
     let p = project();
-    let dir = repo_path("tests/out/compare");
+    let dir = common::out_path("compare");
     let render = |name: &str, extra: &[&str]| {
         let out = dir.join(format!("{name}.png"));
         let mut args =
@@ -474,7 +477,17 @@ fn a_swiped_render_shows_a_left_of_the_line_and_b_right_of_it() {
     let (saved, report) = render("saved", &["--swipe", "blurred-srtm"]);
     assert!(report.contains("swipe: 'blurred' left of 50 % of the width, 'srtm' right of it"), "{report}");
     assert_eq!(saved.dimensions(), (w, h));
-    let out = terrafuse(&["render", p.to_str().unwrap(), "--out", "/tmp/x.png", "--swipe", "blurred,nope"], "");
+    let out = terrafuse(
+        &[
+            "render",
+            p.to_str().unwrap(),
+            "--out",
+            common::out_path("compare/x.png").to_str().unwrap(),
+            "--swipe",
+            "blurred,nope",
+        ],
+        "",
+    );
     assert!(String::from_utf8_lossy(&out.stderr).contains("--swipe blurred,nope: layer 'nope' is not in the project"));
 }
 
@@ -484,7 +497,7 @@ fn the_difference_raster_agrees_with_gdals_difference_of_the_sources() {
     // warped by gdalwarp (bilinear) to the same grid and subtracted with numpy. Both sides are
     // EGM96 heights turned ellipsoidal by the same geoid, which cancels in the difference.
     let p = project();
-    let dir = repo_path("tests/out/compare/difference");
+    let dir = common::out_path("compare/difference");
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
     let ours = dir.join("dh.tif");

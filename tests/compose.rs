@@ -150,7 +150,7 @@ fn every_kind_and_blend_mode_composes_on_the_gpu_as_on_the_cpu_across_a_cube_cor
 }
 
 fn erzurum() -> PathBuf {
-    let dir = common::repo_path("tests/out/compose");
+    let dir = common::out_path("compose");
     common::sample_project("erzurum", &dir)
 }
 
@@ -200,7 +200,7 @@ fn a_difference_of_a_shifted_layer_and_a_composed_group_composes_on_the_gpu_as_o
     // Erzurum: the SRTM tile shown under fBm detail; the blurred and shifted copy hidden, moved
     // 300 m east by its shift. The difference draws blurred alone minus the group srtm + detail,
     // beside heights that must not change.
-    let dir = common::repo_path("tests/out/compose-difference");
+    let dir = common::out_path("compose-difference");
     let mut p = Project::load(&common::sample_project("erzurum-compare", &dir)).unwrap();
     let srtm = p.layers.iter().find(|l| l.name == "srtm").unwrap().clone();
     let blurred = p.layers.iter().find(|l| l.name == "blurred").unwrap().clone();
@@ -344,7 +344,7 @@ fn a_composed_quad_is_recomposed_only_when_a_layer_touching_it_changes() {
 
 #[test]
 fn raising_the_terrain_by_5_km_culls_and_cracks_nothing() {
-    let p = Project::load(&common::sample_project("moon-lola", &common::repo_path("tests/out/compose"))).unwrap();
+    let p = Project::load(&common::sample_project("moon-lola", &common::out_path("compose"))).unwrap();
     let mut p2 = p.clone();
     p2.layers.push(layer(LayerSpec::constant("raise", 5000.0), BlendMode::Add, 0.0));
     let mut r = renderer(&p2);
@@ -436,7 +436,7 @@ fn the_version_1_moon_project_loads_as_over_layers_first_listed_on_top_and_saves
     let names: Vec<&str> = p.layers.iter().map(|l| l.name.as_str()).collect();
     assert_eq!(names, ["lola_global", "lola_north"], "the first listed (north) wins, so it is on top");
     assert!(p.layers.iter().all(|l| l.blend == BlendMode::Over && l.extent.is_none()));
-    let out = common::repo_path("tests/out/compose");
+    let out = common::out_path("compose");
     std::fs::create_dir_all(&out).unwrap();
     let saved = out.join("moon-migrated.json");
     p.save(&saved).unwrap();
@@ -451,7 +451,7 @@ fn the_version_1_moon_project_loads_as_over_layers_first_listed_on_top_and_saves
 
 #[test]
 fn hiding_and_showing_the_only_layer_brings_the_terrain_back() {
-    let mut p = Project::load(&common::sample_project("moon-lola", &common::repo_path("tests/out/compose"))).unwrap();
+    let mut p = Project::load(&common::sample_project("moon-lola", &common::out_path("compose"))).unwrap();
     p.detail.gpu_cache_mib = 256;
     let mut r = renderer(&p);
     let camera = cam(15.0, -20.0, 3_500_000.0, 0.0, -90.0);
@@ -565,7 +565,7 @@ fn a_settled_view_after_swapping_the_shown_dataset_equals_a_fresh_renderers_pixe
     // Regression: a drawn quad whose layers changed stays drawn with its old heights until its
     // new sources arrive, and `settle` took the view for complete meanwhile (the old dataset
     // stayed on screen). Such quads now count as pending.
-    let p = common::sample_project("erzurum-compare", &common::repo_path("tests/out/compose-swap"));
+    let p = common::sample_project("erzurum-compare", &common::out_path("compose-swap"));
     let project = Project::load(&p).unwrap();
     let camera = project.view(None).unwrap();
     let mut swapped = project.clone();

@@ -149,7 +149,7 @@ fn the_erzurum_session_replays_bit_for_bit_and_reopens_from_its_cache() {
     use terrafuse::gpu::Scene;
     use terrafuse::layers::LayerKind;
     use terrafuse::project::Project;
-    let dir = common::repo_path("tests/out/erosion-sample");
+    let dir = common::out_path("erosion-sample");
     let _ = std::fs::remove_dir_all(&dir);
     // Opening the sample built its erosion layer from its two runs and cached it.
     let path = common::sample_project("erzurum-erosion", &dir);
@@ -189,7 +189,7 @@ fn the_erzurum_session_replays_bit_for_bit_and_reopens_from_its_cache() {
 
 #[test]
 fn terrafuse_erode_runs_reports_json_undoes_redoes_and_refuses_bad_input_untouched() {
-    let dir = common::repo_path("tests/out/erosion-cli");
+    let dir = common::out_path("erosion-cli");
     let _ = std::fs::remove_dir_all(&dir);
     let path = common::sample_project("erzurum", &dir);
     let p = path.to_str().unwrap();

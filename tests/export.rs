@@ -6,10 +6,10 @@ mod common;
 
 use std::path::PathBuf;
 
-use common::{repo_path, run_tool, terrafuse};
+use common::{run_tool, terrafuse};
 
 fn dir() -> PathBuf {
-    let d = repo_path("tests/out/export");
+    let d = common::out_path("export");
     std::fs::create_dir_all(&d).unwrap();
     d
 }

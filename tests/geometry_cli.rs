@@ -1,17 +1,12 @@
 //! `terrafuse analyze cutoff` and `terrafuse bench accuracy` as a user runs them: the table, the
 //! CSV that scripts read, the plot, and clear errors for bad options.
 
+mod common;
+
 use std::process::{Command, Output};
 
 fn terrafuse(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_terrafuse")).args(args).output().expect("terrafuse runs")
-}
-
-fn out_dir(name: &str) -> std::path::PathBuf {
-    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join(name);
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
 }
 
 #[test]
@@ -38,7 +33,7 @@ fn the_cutoff_table_lists_every_level_and_the_rule_holds_on_it() {
 
 #[test]
 fn bench_accuracy_writes_the_csv_and_the_plot() {
-    let dir = out_dir("bench-accuracy");
+    let dir = common::scratch("bench-accuracy");
     let (csv, png) = (dir.join("accuracy.csv"), dir.join("accuracy.png"));
     let out = terrafuse(&[
         "bench",
@@ -105,7 +100,7 @@ fn bad_bench_options_are_refused_with_a_message() {
         assert!(err.contains(expected), "{args:?}: {err}");
     }
     // A folder that cannot be made (its parent is a file).
-    let dir = out_dir("bench-unwritable");
+    let dir = common::scratch("bench-unwritable");
     std::fs::write(dir.join("file"), b"x").unwrap();
     let csv = dir.join("file/a.csv");
     let out = terrafuse(&[

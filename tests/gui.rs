@@ -9,10 +9,10 @@ use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Output, Stdio};
 use std::time::{Duration, Instant};
 
-use common::{repo_path, sample_project};
+use common::sample_project;
 
 fn out_dir() -> PathBuf {
-    let dir = repo_path("tests/out/gui");
+    let dir = common::out_path("gui");
     std::fs::create_dir_all(&dir).unwrap();
     dir
 }

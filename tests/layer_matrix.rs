@@ -61,7 +61,7 @@ impl Consumer {
 }
 
 fn dir(name: &str) -> PathBuf {
-    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("layer_matrix").join(name);
+    let dir = common::out_path(&format!("layer_matrix/{name}"));
     std::fs::create_dir_all(&dir).unwrap();
     dir
 }

@@ -4,7 +4,7 @@
 
 mod common;
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
@@ -13,13 +13,6 @@ use proptest::prelude::*;
 use terrafuse::edit::{Falloff, Stroke, Tool};
 use terrafuse::layers::LayerSpec;
 use terrafuse::project::Project;
-
-fn scratch(name: &str) -> PathBuf {
-    let dir = repo_path(&format!("tests/out/project-files/{name}"));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
 
 /// A Moon project with an edit layer of `n` strokes (no store: it loads without opening one).
 fn project_of_strokes(n: usize) -> Project {
@@ -47,7 +40,7 @@ fn saves_killed_at_random_moments_leave_the_old_or_the_new_project() {
     // `terrafuse project upgrade A --out T` and `… B --out T` in turn, each killed after a
     // random delay within a run's length: T is A or B every time (never cut short, never a mix),
     // and the kills that hit a write leave only a temporary file, which the next save removes.
-    let dir = scratch("killed");
+    let dir = common::scratch("project-files/killed");
     let (a, b, target) = (dir.join("a.json"), dir.join("b.json"), dir.join("t.json"));
     let small = project_of_strokes(20_000);
     let mut large = small.clone();
@@ -106,7 +99,7 @@ fn with_layers(body: &str, layers: &str) -> String {
 
 #[test]
 fn bad_project_files_are_refused_naming_the_file_the_field_and_the_problem() {
-    let dir = scratch("bad");
+    let dir = common::scratch("project-files/bad");
     let sample = std::fs::read_to_string(repo_path("projects/moon-brushing.json")).unwrap();
     let erosion = std::fs::read_to_string(repo_path("tests/fuzz/corpus/erosion.json")).unwrap();
     let edit_of = |stroke: &str| {
@@ -207,7 +200,7 @@ fn bad_project_files_are_refused_naming_the_file_the_field_and_the_problem() {
         "moon",
         r#"{"name": "g", "kind": "dataset", "store": "nowhere.gpkg", "source": {"files": ["missing.tif"]}}"#,
     );
-    let earth_store = common::sample_project("erzurum", &repo_path("tests/out/project-files/earth"));
+    let earth_store = common::sample_project("erzurum", &common::out_path("project-files/earth"));
     let earth = Project::load(&earth_store).unwrap();
     let store = earth.layers[0].as_dataset().unwrap().store.clone();
     let other_body =
@@ -240,7 +233,7 @@ fn bad_project_files_are_refused_naming_the_file_the_field_and_the_problem() {
 
 #[test]
 fn a_log_of_ten_thousand_strokes_saves_and_loads_back_the_same() {
-    let dir = scratch("large");
+    let dir = common::scratch("project-files/large");
     let p = project_of_strokes(10_000);
     let path = dir.join("large.json");
     p.save(&path).unwrap();
@@ -392,7 +385,7 @@ proptest! {
 
 #[test]
 fn replay_check_passes_as_recorded_and_names_the_layer_and_first_differing_tile() {
-    let dir = scratch("replay");
+    let dir = common::scratch("project-files/replay");
     let path = dir.join("session.json");
     let mut p = Project::new("moon");
     p.layers.push(LayerSpec::constant("datum", -1000.0));

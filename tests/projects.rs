@@ -1,5 +1,5 @@
 //! Every project in `projects/` and `tests/projects/` is a test of its own (adding a project adds
-//! a test): copied into `tests/out/projects/NAME/` with its sources made absolute and its stores
+//! a test): copied into `projects/NAME/` under Cargo's test output folder (`CARGO_TARGET_TMPDIR`) with its sources made absolute and its stores
 //! there (rebuilt when the import code or the layers change), replayed on the CPU with
 //! `terrafuse replay --check` (every recorded check must hold, bit for bit; a project with an
 //! edit or erosion layer must record at least one check of it), and each of its named views
@@ -39,7 +39,7 @@ fn main() {
 /// [`common::store_dir`], small GPU pools.
 fn copy_into_out(file: &Path) -> Result<PathBuf, Failed> {
     let name = file.file_stem().unwrap().to_string_lossy().into_owned();
-    let dir = common::repo_path(&format!("tests/out/projects/{name}"));
+    let dir = common::out_path(&format!("projects/{name}"));
     std::fs::create_dir_all(&dir)?;
     let mut p = Project::load(file)?;
     let stores = common::store_dir(&dir, &name, &serde_json::to_string(&p.layers)?);

@@ -14,12 +14,12 @@ use terrafuse::gpu::{DrawMode, GpuContext, IMAGE_FORMAT, RenderedImage, Renderer
 use terrafuse::project::{CameraSpec, Project};
 
 fn out_dir() -> PathBuf {
-    let dir = repo_path("tests/out/render");
+    let dir = common::out_path("render");
     std::fs::create_dir_all(&dir).unwrap();
     dir
 }
 
-/// The sample project `name`, its datasets imported once into tests/out/render.
+/// The sample project `name`, its datasets imported once into the test output folder's `render/`.
 fn project(name: &str) -> PathBuf {
     common::sample_project(name, &out_dir())
 }
@@ -252,7 +252,7 @@ fn no_cracks_between_levels_and_across_the_cube_corner() {
 
 /// Compares with `tests/reference/NAME.png`: mean difference ≤ 1 level per channel and at most
 /// 0.5 % of pixels off by more than 24 levels. A failing run writes NAME.new.png and
-/// NAME.diff.png to tests/out/render; UPDATE_SNAPSHOTS=1 writes the reference instead.
+/// NAME.diff.png to the test output folder's `render/`; UPDATE_SNAPSHOTS=1 writes the reference instead.
 fn check_reference(name: &str, image: &RenderedImage) {
     let reference = repo_path(&format!("tests/reference/{name}.png"));
     if std::env::var_os("UPDATE_SNAPSHOTS").is_some() {
@@ -351,16 +351,38 @@ fn the_render_command_writes_the_png_and_reports_what_it_drew() {
 
     // Bad input: named, never a panic, nothing written.
     let missing = out_dir().join("missing.json");
-    let bad_view = terrafuse(&["render", moon.to_str().unwrap(), "--out", "/tmp/x.png", "--view", "nowhere"], "");
+    let bad_view = terrafuse(
+        &[
+            "render",
+            moon.to_str().unwrap(),
+            "--out",
+            common::out_path("compare/x.png").to_str().unwrap(),
+            "--view",
+            "nowhere",
+        ],
+        "",
+    );
     assert!(!bad_view.status.success());
     assert!(
         String::from_utf8_lossy(&bad_view.stderr)
             .contains("no view 'nowhere'; the project has: globe, north-pole, tycho")
     );
-    let bad_camera =
-        terrafuse(&["render", moon.to_str().unwrap(), "--out", "/tmp/x.png", "--camera", "95,0,1000,0,-90"], "");
+    let bad_camera = terrafuse(
+        &[
+            "render",
+            moon.to_str().unwrap(),
+            "--out",
+            common::out_path("compare/x.png").to_str().unwrap(),
+            "--camera",
+            "95,0,1000,0,-90",
+        ],
+        "",
+    );
     assert!(String::from_utf8_lossy(&bad_camera.stderr).contains("latitude 95"));
-    let no_file = terrafuse(&["render", missing.to_str().unwrap(), "--out", "/tmp/x.png"], "");
+    let no_file = terrafuse(
+        &["render", missing.to_str().unwrap(), "--out", common::out_path("compare/x.png").to_str().unwrap()],
+        "",
+    );
     assert!(String::from_utf8_lossy(&no_file.stderr).contains("missing.json: cannot read"));
     let mut p = Project::load(&moon).unwrap();
     let data = p.layers[0].as_dataset_mut().unwrap();
@@ -368,7 +390,10 @@ fn the_render_command_writes_the_png_and_reports_what_it_drew() {
     data.source = None;
     let orphan = out_dir().join("orphan.json");
     p.save(&orphan).unwrap();
-    let o = terrafuse(&["render", orphan.to_str().unwrap(), "--out", "/tmp/x.png"], "");
+    let o = terrafuse(
+        &["render", orphan.to_str().unwrap(), "--out", common::out_path("compare/x.png").to_str().unwrap()],
+        "",
+    );
     let e = String::from_utf8_lossy(&o.stderr);
     assert!(e.contains("orphan.json") && e.contains("absent.gpkg") && e.contains("no source"), "{e}");
     assert!(!out_dir().join("absent.gpkg").exists());

@@ -16,13 +16,6 @@ const BIN: &str = env!("CARGO_BIN_EXE_terrafuse");
 const SRTM: &str = "projects/data/earth_srtm3_demcompare_N39E040.tif";
 const LOLA: &str = "projects/data/moon_lola_ldem_4ppd_global.tif";
 
-fn scratch(name: &str) -> PathBuf {
-    let dir = repo_path(&format!("tests/out/shard/{name}"));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
-
 fn s(p: &Path) -> &str {
     p.to_str().unwrap()
 }
@@ -107,7 +100,7 @@ fn shard(manifest: &Path, i: usize, part: &Path, extra: &[&str]) -> String {
 
 #[test]
 fn shards_run_as_plain_processes_merge_into_the_single_process_store() {
-    let dir = scratch("plain");
+    let dir = common::scratch("shard/plain");
     let single = single_import(&dir);
     let manifest = plan(&dir, "plan.json", SRTM, "wgs84", "11", 3);
     let part = |i: usize| dir.join(format!("part-{i}.gpkg"));
@@ -179,7 +172,7 @@ fn shards_run_as_plain_processes_merge_into_the_single_process_store() {
 
 #[test]
 fn bad_plans_parts_and_stores_are_refused_by_name() {
-    let dir = scratch("bad");
+    let dir = common::scratch("shard/bad");
     let a = plan(&dir, "a.json", SRTM, "wgs84", "9", 2);
     let b = plan(&dir, "b.json", SRTM, "wgs84", "9", 3);
     let moon = plan(&dir, "moon.json", LOLA, "moon", "1", 2);
@@ -315,7 +308,7 @@ impl Drop for Cluster {
 
 #[test]
 fn a_job_array_on_slurm_with_a_shard_cancelled_and_resubmitted_gives_the_single_process_store() {
-    let dir = scratch("slurm");
+    let dir = common::scratch("shard/slurm");
     let cluster = Cluster::start(&dir.join("cluster"));
     let single = single_import(&dir);
     let manifest = plan(&dir, "plan.json", SRTM, "wgs84", "11", 6);

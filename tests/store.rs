@@ -20,13 +20,6 @@ fn data(name: &str) -> PathBuf {
     repo_path(&format!("projects/data/{name}"))
 }
 
-fn scratch(name: &str) -> PathBuf {
-    let dir = repo_path(&format!("tests/out/store/{name}"));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
-
 fn options(sources: &[PathBuf], store: &Path, body: Ellipsoid, name: &str, level: LevelChoice) -> ImportOptions {
     ImportOptions {
         sources: sources.to_vec(),
@@ -51,7 +44,7 @@ fn options(sources: &[PathBuf], store: &Path, body: Ellipsoid, name: &str, level
 /// 1 m vertical step.
 #[test]
 fn every_sample_dem_matches_gdalwarp_on_the_same_qsc_grid() {
-    let dir = scratch("gdalwarp");
+    let dir = common::scratch("store/gdalwarp");
     let all = &Face::ALL[..];
     // The global grid on the faces where gdalwarp does plain bilinear: not the polar faces (the
     // source's columns converge there, so gdalwarp widens its kernel) and not the back face
@@ -90,7 +83,7 @@ fn every_sample_dem_matches_gdalwarp_on_the_same_qsc_grid() {
 /// every edge agree too.
 #[test]
 fn seams_agree_across_every_face_edge_and_cube_corner() {
-    let dir = scratch("seams");
+    let dir = common::scratch("store/seams");
     let store_path = dir.join("moon.gpkg");
     import(&options(
         &[data("moon_lola_ldem_4ppd_global.tif")],
@@ -176,7 +169,7 @@ fn seams_agree_across_every_face_edge_and_cube_corner() {
 /// the wrong way (GTIFF_POINT_GEO_IGNORE) moves SRTM by half a pixel, 45 m, which the store shows.
 #[test]
 fn pixel_is_point_and_pixel_is_area_sources_land_on_the_same_place() {
-    let dir = scratch("pixel");
+    let dir = common::scratch("store/pixel");
     let area = data("earth_jacksboro_srtm3_epsg4326.tif");
     let point = dir.join("point.tif");
     run_tool(
@@ -244,7 +237,7 @@ fn pixel_is_point_and_pixel_is_area_sources_land_on_the_same_place() {
 /// the same grid, and ≈ +29.6 m near Erzurum.
 #[test]
 fn egm96_heights_become_ellipsoidal_heights_as_proj_computes_them() {
-    let dir = scratch("geoid");
+    let dir = common::scratch("store/geoid");
     let store_path = dir.join("s.gpkg");
     let src = data("earth_srtm3_demcompare_N39E040.tif");
     import(&options(std::slice::from_ref(&src), &store_path, Ellipsoid::WGS84, "geoid", LevelChoice::Level(8)))
@@ -283,7 +276,7 @@ fn egm96_heights_become_ellipsoidal_heights_as_proj_computes_them() {
 /// quadtree levels as overviews; GDAL reads the very values the store holds.
 #[test]
 fn gdal_opens_every_face_table_as_a_georeferenced_raster() {
-    let dir = scratch("gdalinfo");
+    let dir = common::scratch("store/gdalinfo");
     let store_path = dir.join("s.gpkg");
     import(&options(
         &[data("moon_lola_ldem_4ppd_global.tif")],
@@ -321,7 +314,7 @@ fn gdal_opens_every_face_table_as_a_georeferenced_raster() {
 /// Bad input is refused with the file and the problem named, and the store is left as it was.
 #[test]
 fn bad_input_is_refused_by_name_and_leaves_the_store_untouched() {
-    let dir = scratch("bad");
+    let dir = common::scratch("store/bad");
     let store_path = dir.join("s.gpkg");
     import(&options(
         &[data("earth_topobathy_merc2min_epsg3857.tif")],
@@ -424,7 +417,7 @@ fn bad_input_is_refused_by_name_and_leaves_the_store_untouched() {
 /// uninterrupted import tile for tile.
 #[test]
 fn a_killed_import_leaves_a_store_that_opens_and_resumes_to_the_same_result() {
-    let dir = scratch("kill");
+    let dir = common::scratch("store/kill");
     let src = data("moon_lola_ldem_4ppd_global.tif");
     let reference = dir.join("reference.gpkg");
     let t = std::time::Instant::now();
@@ -482,7 +475,7 @@ fn a_killed_import_leaves_a_store_that_opens_and_resumes_to_the_same_result() {
 
 #[test]
 fn a_cancelled_import_reports_its_progress_keeps_a_valid_store_and_resumes_to_the_same_result() {
-    let dir = scratch("cancel");
+    let dir = common::scratch("store/cancel");
     let src = data("moon_lola_ldem_4ppd_global.tif");
     let reference = dir.join("reference.gpkg");
     import(&options(std::slice::from_ref(&src), &reference, Ellipsoid::MOON, "lola", LevelChoice::Level(3))).unwrap();
@@ -532,7 +525,7 @@ fn a_cancelled_import_reports_its_progress_keeps_a_valid_store_and_resumes_to_th
 /// by GDAL against the store.
 #[test]
 fn store_info_sample_and_export_from_the_command_line() {
-    let dir = scratch("cli");
+    let dir = common::scratch("store/cli");
     let store_path = dir.join("erzurum.gpkg");
     let s = store_path.to_str().unwrap();
     let out = terrafuse(
@@ -739,7 +732,7 @@ fn lattice_positions_stay_within_their_bound_and_imports_match_the_exact_transfo
     println!("{table}");
 
     // A whole import both ways: the same samples to float rounding.
-    let dir = scratch("lattice");
+    let dir = common::scratch("store/lattice");
     let src = data("earth_srtm3_demcompare_N39E040.tif");
     let mut stores = Vec::new();
     for transform in [Transform::Lattice, Transform::Exact] {
@@ -772,7 +765,7 @@ fn lattice_positions_stay_within_their_bound_and_imports_match_the_exact_transfo
 #[test]
 fn the_pyramids_average_reads_the_same_region_as_sample_by_sample() {
     use terrafuse::store::resample::{AREA_MEAN_SPAN, area_mean, average_quad, fill_area_mean_region};
-    let dir = scratch("average");
+    let dir = common::scratch("store/average");
     let cases = [
         ("earth_srtm3_demcompare_N39E040.tif", Ellipsoid::WGS84, 9u8),
         ("moon_lola_ldem_4ppd_global.tif", Ellipsoid::MOON, 2),

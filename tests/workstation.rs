@@ -76,7 +76,7 @@ fn drag(h: &mut Harness<'static, App>, from: egui::Pos2, to: egui::Pos2) {
 
 #[test]
 fn the_workstation_draws_probes_navigates_and_saves() {
-    let dir = repo_path("tests/out/workstation");
+    let dir = common::out_path("workstation");
     let project = sample_project("moon-lola", &dir);
     let mut h = harness(&project, "globe");
     settle(&mut h);
@@ -256,7 +256,7 @@ fn type_into(h: &mut Harness<'static, App>, label: &str, text: &str) {
 
 #[test]
 fn datasets_are_imported_in_the_background_cancelled_and_layers_reorder_by_dragging() {
-    let dir = repo_path("tests/out/workstation-add");
+    let dir = common::out_path("workstation-add");
     let _ = std::fs::remove_dir_all(dir.join("stores"));
     let project = sample_project("moon-lola", &dir);
     let mut h = harness_of_size(&project, "globe", egui::vec2(900.0, 1500.0));
@@ -331,7 +331,7 @@ fn wait_for_compare(h: &mut Harness<'static, App>) {
 
 #[test]
 fn the_compare_section_shows_statistics_and_applies_a_coregistration() {
-    let dir = repo_path("tests/out/workstation-compare");
+    let dir = common::out_path("workstation-compare");
     let project = sample_project("erzurum-compare", &dir);
     let mut h = harness_of_size(&project, "30km", egui::vec2(900.0, 1700.0));
     settle(&mut h);
@@ -391,7 +391,7 @@ fn wait_for_range(h: &mut Harness<'static, App>) -> f64 {
 
 #[test]
 fn swiping_shows_a_left_of_a_line_and_b_right_of_it_and_the_line_drags() {
-    let dir = repo_path("tests/out/workstation-swipe");
+    let dir = common::out_path("workstation-swipe");
     let project = sample_project("erzurum-compare", &dir);
     let mut h = harness_of_size(&project, "30km", egui::vec2(900.0, 1700.0));
     settle(&mut h);
@@ -455,7 +455,7 @@ fn click(h: &mut Harness<'static, App>, at: egui::Pos2) {
 
 #[test]
 fn a_profile_drawn_with_two_clicks_shows_each_visible_layer_and_saves_its_line() {
-    let dir = repo_path("tests/out/workstation-profile");
+    let dir = common::out_path("workstation-profile");
     let project = sample_project("erzurum-compare", &dir);
     let mut h = harness_of_size(&project, "30km", egui::vec2(900.0, 1700.0));
     settle(&mut h);
@@ -493,7 +493,7 @@ fn a_profile_drawn_with_two_clicks_shows_each_visible_layer_and_saves_its_line()
 
 #[test]
 fn a_left_drag_with_the_brush_on_paints_a_stroke_and_ctrl_z_undoes_it() {
-    let dir = repo_path("tests/out/workstation-brush");
+    let dir = common::out_path("workstation-brush");
     let project = sample_project("moon-brushing", &dir);
     let mut h = harness_of_size(&project, "sculpt", egui::vec2(900.0, 1700.0));
     settle(&mut h);
@@ -547,7 +547,7 @@ fn a_left_drag_with_the_brush_on_paints_a_stroke_and_ctrl_z_undoes_it() {
 
 #[test]
 fn the_erosion_section_starts_steps_runs_keeps_undoes_and_brushes_a_run() {
-    let dir = repo_path("tests/out/workstation-erosion");
+    let dir = common::out_path("workstation-erosion");
     let project = sample_project("erzurum-erosion", &dir);
     let mut h = harness_of_size(&project, "eroded", egui::vec2(900.0, 2600.0));
     settle(&mut h);
@@ -617,7 +617,7 @@ fn wait_for_open(h: &mut Harness<'static, App>) {
 #[test]
 fn the_file_bar_saves_as_opens_autosaves_and_offers_the_recovery_after_a_crash() {
     use terrafuse::project::recovery;
-    let dir = repo_path("tests/out/workstation-file");
+    let dir = common::out_path("workstation-file");
     let _ = std::fs::remove_dir_all(&dir);
     let project = sample_project("erzurum", &dir);
     let mut h = harness(&project, "30km");
@@ -705,7 +705,7 @@ fn run_shard(manifest: &std::path::Path, parts: &std::path::Path, i: usize) {
 
 #[test]
 fn a_cluster_import_is_planned_followed_merged_in_two_goes_and_added_from_the_panel() {
-    let dir = repo_path("tests/out/workstation-cluster");
+    let dir = common::out_path("workstation-cluster");
     let _ = std::fs::remove_dir_all(dir.join("plans"));
     let project = sample_project("moon-lola", &dir);
     let mut h = harness_of_size(&project, "globe", egui::vec2(900.0, 1700.0));

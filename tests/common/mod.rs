@@ -11,6 +11,24 @@ pub fn repo_path(relative: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(relative)
 }
 
+/// Where a test writes `name` (a file or a folder): under Cargo's folder for integration tests'
+/// output (`CARGO_TARGET_TMPDIR`), never in the source tree; its parent folders are made.
+pub fn out_path(name: &str) -> PathBuf {
+    let path = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join(name);
+    if let Some(parent) = path.parent() {
+        std::fs::create_dir_all(parent).unwrap();
+    }
+    path
+}
+
+/// A fresh, empty folder `name` under [`out_path`] (what a previous run left there is removed).
+pub fn scratch(name: &str) -> PathBuf {
+    let dir = out_path(name);
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
 /// Runs `program args…` with `input` on stdin and returns its status, stdout and stderr. A
 /// program that exits before reading its input (a refused argument) is not an error here.
 pub fn run_piped(program: &str, args: &[&str], input: &str) -> std::io::Result<Output> {
@@ -53,10 +71,12 @@ pub fn parse_rows(text: &str) -> Vec<Vec<f64>> {
 pub const PYTHON: &str = "/usr/bin/python3";
 
 /// The code an import's result depends on: a store made by other code is stale.
-const IMPORT_CODE: [&str; 13] = [
+const IMPORT_CODE: [&str; 15] = [
     include_str!("../../src/store/import/mod.rs"),
     include_str!("../../src/store/import/levels.rs"),
     include_str!("../../src/store/resample.rs"),
+    include_str!("../../src/store/lattice.rs"),
+    include_str!("../../src/ecm/face.rs"),
     include_str!("../../src/store/source.rs"),
     include_str!("../../src/store/gpkg.rs"),
     include_str!("../../src/store/grid.rs"),
