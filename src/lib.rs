@@ -1,7 +1,10 @@
 //! Terrafuse: a planetary terrain workstation on the Ellipsoidal Cube Map (Lambers & Kolb 2012).
 //!
-//! Layers point one way: [`geodesy`] (ellipsoids, f64) → [`ecm`] (cube faces, QSC, quads) →
-//! the command line ([`cli`]). See `ARCHITECTURE.md` for the path data take through them.
+//! From the maths to the front ends: [`geodesy`] (ellipsoids, boxes, f64) → [`ecm`] (cube faces,
+//! QSC, quads, static geometry) → [`store`] (tile stores) and [`layers`] (the layer stack's CPU
+//! reference, with [`edit`] and [`erosion`]) → [`gpu`] (the renderer and its kernels) →
+//! [`compare`], [`project`], [`replay`] → the workstation ([`gui`]) and the command line
+//! ([`cli`]). `ARCHITECTURE.md` draws the module graph and the path data take through it.
 
 #![warn(missing_docs)]
 

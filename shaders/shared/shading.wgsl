@@ -1,5 +1,5 @@
 // Per-pixel shading helpers: sRGB transfer, isoline coverage, hillshade. Pure functions; the CPU
-// references are in src/colour.rs and src/gpu/shading.rs.
+// reference of the sRGB transfer is in src/colour.rs (hillshade's CPU twin is still to write).
 
 fn srgb_to_linear(c: vec3<f32>) -> vec3<f32> {
     let low = c / 12.92;

@@ -1,4 +1,4 @@
-//! Comparing two layers of a project (issue #13): the differences A − B over their overlap at a
+//! Comparing two layers of a project: the differences A − B over their overlap at a
 //! level of the cube map, each sample weighted by the true area of its cell on the ellipsoid, with
 //! the reference's slope, and their statistics (`stats`).
 //!

@@ -1,4 +1,4 @@
-//! Brushing (issue #14): edit layers built from recorded strokes. A stroke is an operation (tool,
+//! Brushing: edit layers built from recorded strokes. A stroke is an operation (tool,
 //! radius, strength, falloff, spacing, level, path, seed) that rebuilds the same height deltas bit
 //! for bit, not a change to a raster that happens to be on screen.
 //!

@@ -1,15 +1,18 @@
-//! Hydraulic and thermal erosion (issue #15): the CPU reference of the model, on a grid of cells
-//! with their areas and lengths in metres.
+//! Hydraulic and thermal erosion: the CPU reference of the model, on a grid of cells with their
+//! areas and lengths in metres, and the erosion layer built from recorded runs.
 //!
 //! - [`params`]: the parameters with their units and ranges, presets;
 //! - [`grid`]: the grid (terrain, areas, lengths, masks, hardness) and the fixed-point volume
 //!   unit;
 //! - [`sim`]: the step (two gather-only passes), the CFL bound, exact budgets;
 //! - [`region`]: a region of the planet (a box of a face's samples, folded across face edges) as
-//!   one grid, with its lengths and areas on the ellipsoid.
+//!   one grid, with its lengths and areas on the ellipsoid;
+//! - [`dither`]: the seeded dither that rounds flows to the fixed point;
+//! - [`operation`]: a run as a project records it;
+//! - [`layer`]: an erosion layer's raster built from its runs, with budgets and volumes.
 //!
-//! Not built yet (see issue #15): the GPU kernels, the erosion layer and its cache, `terrafuse erode`, the workstation panel,
-//! the sample session and `terrafuse bench erosion`.
+//! The GPU kernels that mirror [`sim`] are `crate::gpu::erosion` (`shaders/erosion/`);
+//! `terrafuse erode` and the workstation's *Erosion* section drive them.
 
 /// The version of the model: part of every erosion cache's digest, bumped whenever a change of
 /// the model changes what a run makes (so that no cache of an older model is read as current).
