@@ -8,7 +8,71 @@
 //! above the last the `above` colour (the end colours unless a `.cpt` says B or F), and NaN gets
 //! the no-data colour.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
+
+/// A colour map that could not be made.
+#[derive(Debug, thiserror::Error)]
+pub enum ColourError {
+    /// A preset name that is not one of [`preset_names`].
+    #[error("unknown colour map '{name}'; the presets are {}", preset_names().join(", "))]
+    UnknownPreset {
+        /// The name that was given.
+        name: String,
+    },
+    /// A colour file that could not be read.
+    #[error("{}: cannot read", path.display())]
+    Read {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        #[source]
+        source: std::io::Error,
+    },
+    /// A colour file whose text is not a ramp.
+    #[error("{}: {problem}", path.display())]
+    File {
+        /// The file.
+        path: PathBuf,
+        /// The line and what is wrong with it.
+        problem: Problem,
+    },
+}
+
+/// What is wrong in a colour file's text: the line (1-based; none for the whole file) and the
+/// problem in words.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Problem {
+    /// The line, from 1.
+    pub line: Option<usize>,
+    /// The problem.
+    pub what: String,
+}
+
+impl std::fmt::Display for Problem {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self.line {
+            Some(line) => write!(f, "line {line}: {}", self.what),
+            None => f.write_str(&self.what),
+        }
+    }
+}
+
+impl From<String> for Problem {
+    fn from(what: String) -> Problem {
+        Problem { line: None, what }
+    }
+}
+
+impl From<&str> for Problem {
+    fn from(what: &str) -> Problem {
+        Problem { line: None, what: what.into() }
+    }
+}
+
+/// The names of the presets.
+pub fn preset_names() -> Vec<&'static str> {
+    PRESETS.iter().map(|p| p.0).collect()
+}
 
 /// One stop of a ramp.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -87,11 +151,11 @@ pub const PRESETS: &[Preset] = &[
 
 impl Ramp {
     /// A preset spread over `range_m`.
-    pub fn preset(name: &str, range_m: (f64, f64), nodata: [u8; 4]) -> Result<Ramp, String> {
-        let (_, _, stops) = PRESETS.iter().find(|(n, _, _)| n.eq_ignore_ascii_case(name)).ok_or_else(|| {
-            let names: Vec<&str> = PRESETS.iter().map(|p| p.0).collect();
-            format!("unknown colour map '{name}'; the presets are {}", names.join(", "))
-        })?;
+    pub fn preset(name: &str, range_m: (f64, f64), nodata: [u8; 4]) -> Result<Ramp, ColourError> {
+        let (_, _, stops) = PRESETS
+            .iter()
+            .find(|(n, _, _)| n.eq_ignore_ascii_case(name))
+            .ok_or_else(|| ColourError::UnknownPreset { name: name.into() })?;
         let (lo, hi) = range_m;
         let stops: Vec<Stop> =
             stops.iter().map(|&(f, [r, g, b])| Stop { value_m: lo + f * (hi - lo), rgba: [r, g, b, 255] }).collect();
@@ -107,11 +171,11 @@ impl Ramp {
 
     /// Reads a gdaldem colour-relief file or a GMT `.cpt` (by extension, or by content when a
     /// line has 8 columns); `range_m` resolves gdaldem's percentages.
-    pub fn from_file(path: &Path, range_m: (f64, f64), nodata: [u8; 4]) -> Result<Ramp, String> {
-        let text = std::fs::read_to_string(path).map_err(|e| format!("{}: cannot read: {e}", path.display()))?;
+    pub fn from_file(path: &Path, range_m: (f64, f64), nodata: [u8; 4]) -> Result<Ramp, ColourError> {
+        let text = std::fs::read_to_string(path).map_err(|source| ColourError::Read { path: path.into(), source })?;
         let cpt = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("cpt"));
         let ramp = if cpt { parse_cpt(&text, nodata) } else { parse_gdaldem(&text, range_m, nodata) };
-        ramp.map_err(|e| format!("{}: {e}", path.display()))
+        ramp.map_err(|problem| ColourError::File { path: path.into(), problem })
     }
 
     /// The colour at height `h` (sRGB, 0–255 as reals, before rounding): the CPU reference of
@@ -164,17 +228,17 @@ fn named_colour(name: &str) -> Option<[u8; 4]> {
     Some([c[0], c[1], c[2], 255])
 }
 
-fn byte(text: &str, what: &str) -> Result<u8, String> {
-    let v: f64 = text.trim().parse().map_err(|_| format!("{what} '{text}' is not a number"))?;
+fn byte(text: &str, what: &str) -> Result<u8, Problem> {
+    let v: f64 = text.trim().parse().map_err(|_| Problem::from(format!("{what} '{text}' is not a number")))?;
     if !(0.0..=255.0).contains(&v) {
-        return Err(format!("{what} {v} is outside 0–255"));
+        return Err(format!("{what} {v} is outside 0–255").into());
     }
     Ok(v.round() as u8)
 }
 
 /// gdaldem colour-relief text: `value R G B [A]` per line (separators: space, tab, comma, colon),
 /// `value` a height, `P%` of the range, or `nv` for no data; or `value name` with a colour name.
-fn parse_gdaldem(text: &str, range_m: (f64, f64), nodata: [u8; 4]) -> Result<Ramp, String> {
+fn parse_gdaldem(text: &str, range_m: (f64, f64), nodata: [u8; 4]) -> Result<Ramp, Problem> {
     let mut stops = Vec::new();
     let mut nodata = nodata;
     for (number, line) in text.lines().enumerate() {
@@ -182,11 +246,11 @@ fn parse_gdaldem(text: &str, range_m: (f64, f64), nodata: [u8; 4]) -> Result<Ram
         if line.is_empty() || line.starts_with('#') {
             continue;
         }
-        let at = |e: String| format!("line {}: {e}", number + 1);
+        let at = |e: Problem| Problem { line: Some(number + 1), what: e.what };
         let fields: Vec<&str> =
             line.split(|c: char| c.is_whitespace() || c == ',' || c == ':').filter(|f| !f.is_empty()).collect();
         let rgba = match fields.len() {
-            2 => named_colour(fields[1]).ok_or_else(|| at(format!("unknown colour name '{}'", fields[1])))?,
+            2 => named_colour(fields[1]).ok_or_else(|| at(format!("unknown colour name '{}'", fields[1]).into()))?,
             4 | 5 => {
                 let mut c = [255u8; 4];
                 for (k, f) in fields[1..].iter().enumerate() {
@@ -194,7 +258,7 @@ fn parse_gdaldem(text: &str, range_m: (f64, f64), nodata: [u8; 4]) -> Result<Ram
                 }
                 c
             }
-            n => return Err(at(format!("expected 'value R G B [A]', found {n} fields"))),
+            n => return Err(at(format!("expected 'value R G B [A]', found {n} fields").into())),
         };
         let value = fields[0];
         if value.eq_ignore_ascii_case("nv") {
@@ -202,17 +266,17 @@ fn parse_gdaldem(text: &str, range_m: (f64, f64), nodata: [u8; 4]) -> Result<Ram
             continue;
         }
         let value_m = if let Some(p) = value.strip_suffix('%') {
-            let p: f64 = p.parse().map_err(|_| at(format!("'{value}' is not a percentage")))?;
+            let p: f64 = p.parse().map_err(|_| at(format!("'{value}' is not a percentage").into()))?;
             range_m.0 + p / 100.0 * (range_m.1 - range_m.0)
         } else {
-            value.parse::<f64>().map_err(|_| at(format!("'{value}' is not a height")))?
+            value.parse::<f64>().map_err(|_| at(format!("'{value}' is not a height").into()))?
         };
         stops.push(Stop { value_m, rgba });
     }
     finish(stops, nodata)
 }
 
-fn finish(mut stops: Vec<Stop>, nodata: [u8; 4]) -> Result<Ramp, String> {
+fn finish(mut stops: Vec<Stop>, nodata: [u8; 4]) -> Result<Ramp, Problem> {
     if stops.is_empty() {
         return Err("no colour entries".into());
     }
@@ -225,43 +289,45 @@ fn finish(mut stops: Vec<Stop>, nodata: [u8; 4]) -> Result<Ramp, String> {
 }
 
 /// A GMT colour: `r g b` (three fields), `r/g/b`, `#rrggbb`, a name, or a grey level.
-fn cpt_colour(fields: &[&str]) -> Result<[u8; 4], String> {
+fn cpt_colour(fields: &[&str]) -> Result<[u8; 4], Problem> {
     match fields {
         [r, g, b] => Ok([byte(r, "red")?, byte(g, "green")?, byte(b, "blue")?, 255]),
         [one] if one.contains('/') => {
             let parts: Vec<&str> = one.split('/').collect();
             if parts.len() != 3 {
-                return Err(format!("colour '{one}' is not r/g/b"));
+                return Err(format!("colour '{one}' is not r/g/b").into());
             }
             cpt_colour(&parts)
         }
         [one] if one.starts_with('#') && one.len() == 7 => {
-            let h =
-                |k: usize| u8::from_str_radix(&one[k..k + 2], 16).map_err(|_| format!("colour '{one}' is not #rrggbb"));
+            let h = |k: usize| {
+                u8::from_str_radix(&one[k..k + 2], 16)
+                    .map_err(|_| Problem::from(format!("colour '{one}' is not #rrggbb")))
+            };
             Ok([h(1)?, h(3)?, h(5)?, 255])
         }
         [one] if one.contains('-') && !one.starts_with('-') => {
-            Err(format!("colour '{one}' is HSV (h-s-v); convert the palette to RGB with gmt makecpt -M"))
+            Err(format!("colour '{one}' is HSV (h-s-v); convert the palette to RGB with gmt makecpt -M").into())
         }
         [one] => match one.parse::<f64>() {
             Ok(_) => {
                 let g = byte(one, "grey")?;
                 Ok([g, g, g, 255])
             }
-            Err(_) => named_colour(one).ok_or_else(|| format!("unknown colour '{one}'")),
+            Err(_) => named_colour(one).ok_or_else(|| format!("unknown colour '{one}'").into()),
         },
-        _ => Err(format!("cannot read a colour from '{}'", fields.join(" "))),
+        _ => Err(format!("cannot read a colour from '{}'", fields.join(" ")).into()),
     }
 }
 
 /// GMT `.cpt`: slices `z0 colour0 z1 colour1 [L|U|B]`, and `B`, `F`, `N` lines for the colours
 /// below, above and at no data. RGB only (an HSV palette is refused with how to convert it).
-fn parse_cpt(text: &str, nodata: [u8; 4]) -> Result<Ramp, String> {
+fn parse_cpt(text: &str, nodata: [u8; 4]) -> Result<Ramp, Problem> {
     let mut stops = Vec::new();
     let (mut below, mut above, mut nodata) = (None, None, nodata);
     for (number, line) in text.lines().enumerate() {
         let line = line.trim();
-        let at = |e: String| format!("line {}: {e}", number + 1);
+        let at = |e: Problem| Problem { line: Some(number + 1), what: e.what };
         if let Some(comment) = line.strip_prefix('#') {
             if comment.replace(' ', "").eq_ignore_ascii_case("COLOR_MODEL=HSV") {
                 return Err(at("the palette is HSV; convert it to RGB (gmt makecpt -M -Fr)".into()));
@@ -293,12 +359,12 @@ fn parse_cpt(text: &str, nodata: [u8; 4]) -> Result<Ramp, String> {
         let (z0, c0, z1, c1) = match fields.len() {
             4 => (fields[0], &fields[1..2], fields[2], &fields[3..4]),
             8 => (fields[0], &fields[1..4], fields[4], &fields[5..8]),
-            n => return Err(at(format!("expected 'z0 colour z1 colour', found {n} fields"))),
+            n => return Err(at(format!("expected 'z0 colour z1 colour', found {n} fields").into())),
         };
-        let z = |t: &str| t.parse::<f64>().map_err(|_| at(format!("'{t}' is not a height")));
+        let z = |t: &str| t.parse::<f64>().map_err(|_| at(format!("'{t}' is not a height").into()));
         let (z0, z1) = (z(z0)?, z(z1)?);
         if z1 < z0 {
-            return Err(at(format!("slice {z0} to {z1} runs backwards")));
+            return Err(at(format!("slice {z0} to {z1} runs backwards").into()));
         }
         stops.push(Stop { value_m: z0, rgba: cpt_colour(c0).map_err(at)? });
         stops.push(Stop { value_m: z1, rgba: cpt_colour(c1).map_err(at)? });
@@ -367,7 +433,7 @@ mod tests {
             assert_eq!(r.stops.len(), stops.len());
             assert!(stops.windows(2).all(|w| w[0].0 < w[1].0), "{name}");
         }
-        assert!(Ramp::preset("jet", (0.0, 1.0), [0; 4]).unwrap_err().contains("hypsometric"));
+        assert!(Ramp::preset("jet", (0.0, 1.0), [0; 4]).unwrap_err().to_string().contains("hypsometric"));
     }
 
     #[test]
@@ -387,7 +453,7 @@ mod tests {
             ("# nothing\n", "no colour entries"),
         ] {
             let e = parse_gdaldem(bad, (0.0, 1.0), [0; 4]).unwrap_err();
-            assert!(e.contains(expected), "{bad:?}: {e}");
+            assert!(e.to_string().contains(expected), "{bad:?}: {e}");
         }
     }
 
@@ -403,9 +469,9 @@ mod tests {
         assert_eq!(r.colour_at(-200.0), [0.0, 0.0, 0.0, 255.0]);
         assert_eq!(r.colour_at(2000.0), [255.0; 4]);
         assert_eq!(r.nodata, [128, 128, 128, 255]);
-        assert!(parse_cpt("# COLOR_MODEL = HSV\n0 0-1-1 1 0-1-1\n", [0; 4]).unwrap_err().contains("HSV"));
-        assert!(parse_cpt("0 1 2\n", [0; 4]).unwrap_err().contains("line 1"));
-        assert!(parse_cpt("5 red 1 blue\n", [0; 4]).unwrap_err().contains("backwards"));
+        assert!(parse_cpt("# COLOR_MODEL = HSV\n0 0-1-1 1 0-1-1\n", [0; 4]).unwrap_err().to_string().contains("HSV"));
+        assert!(parse_cpt("0 1 2\n", [0; 4]).unwrap_err().to_string().contains("line 1"));
+        assert!(parse_cpt("5 red 1 blue\n", [0; 4]).unwrap_err().to_string().contains("backwards"));
     }
 
     #[test]

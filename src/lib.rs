@@ -14,6 +14,7 @@ pub mod compare;
 pub mod ecm;
 pub mod edit;
 pub mod erosion;
+pub mod errors;
 pub mod files;
 pub mod geodesy;
 pub mod gpu;
@@ -23,3 +24,5 @@ pub mod project;
 pub mod replay;
 pub mod slurm;
 pub mod store;
+
+pub use errors::Invalid;

@@ -52,11 +52,11 @@ fn workstation(opts: &terrafuse::gui::ViewOptions) -> Result<()> {
         );
     }
     note_recovery(&opts.project);
-    let opened = terrafuse::gui::open(opts).map_err(anyhow::Error::msg)?;
+    let opened = terrafuse::gui::open(opts)?;
     for line in opened.imported() {
         eprintln!("{line}");
     }
-    let report = terrafuse::gui::run(opts, opened).map_err(anyhow::Error::msg)?;
+    let report = terrafuse::gui::run(opts, opened)?;
     print!("{report}");
     Ok(())
 }
@@ -867,11 +867,11 @@ fn import_options(a: &ImportArgs) -> Result<terrafuse::store::ImportOptions> {
         store: a.store.clone().or_else(|| a.plan.clone()).unwrap_or_default(),
         body: a.body.as_deref().unwrap_or_default().parse()?,
         name: a.name.clone(),
-        level: a.max_level.parse().map_err(anyhow::Error::msg)?,
-        resampling: a.resampling.parse().map_err(anyhow::Error::msg)?,
-        transform: a.transform.parse().map_err(anyhow::Error::msg)?,
-        vertical: a.vertical_datum.parse().map_err(anyhow::Error::msg)?,
-        memory_budget: cli::parse_bytes(&a.memory_budget).map_err(anyhow::Error::msg)?,
+        level: a.max_level.parse()?,
+        resampling: a.resampling.parse()?,
+        transform: a.transform.parse()?,
+        vertical: a.vertical_datum.parse()?,
+        memory_budget: cli::parse_bytes(&a.memory_budget)?,
         threads: a.threads,
         progress: !a.quiet,
         finest_only: false,
@@ -929,7 +929,7 @@ fn main() -> ExitCode {
     match run(Args::parse()) {
         Ok(code) => code,
         Err(error) => {
-            eprintln!("terrafuse: {error:#}");
+            eprintln!("terrafuse: {}", terrafuse::errors::chain(&*error));
             ExitCode::FAILURE
         }
     }
@@ -1010,17 +1010,16 @@ fn run(args: Args) -> Result<ExitCode> {
                 camera: look.camera.as_deref(),
                 lod_threshold: look.lod_threshold,
                 swipe: swipe.as_deref(),
-            })
-            .map_err(anyhow::Error::msg)?;
+            })?;
             print!("{report}");
         }
         Command::Profile { project, from, to, line, samples, level, csv } => {
             let request = cli::ProfileRequest { project, from, to, line, samples, level, csv };
-            print!("{}", cli::profile_command(&request).map_err(anyhow::Error::msg)?);
+            print!("{}", cli::profile_command(&request)?);
         }
         Command::Compare { project, a, b, level, region, unweighted, json, samples } => {
             let request = cli::CompareRequest { project, a, b, level, region, unweighted, json, samples };
-            print!("{}", cli::compare_command(&request).map_err(anyhow::Error::msg)?);
+            print!("{}", cli::compare_command(&request)?);
         }
         Command::Brush {
             project,
@@ -1054,12 +1053,12 @@ fn run(args: Args) -> Result<ExitCode> {
                 undo,
                 redo,
             };
-            print!("{}", cli::brush_command(&request).map_err(anyhow::Error::msg)?);
+            print!("{}", cli::brush_command(&request)?);
         }
         Command::Replay { project, check, record, gpu, cpu: _, json } => {
             note_recovery(&project);
             let request = cli::ReplayRequest { project, check, record, gpu, json };
-            let outcome = cli::replay_command(&request).map_err(anyhow::Error::msg)?;
+            let outcome = cli::replay_command(&request)?;
             print!("{}", outcome.report);
             if !outcome.passed {
                 eprintln!("terrafuse: replay: a check failed (see above)");
@@ -1068,10 +1067,10 @@ fn run(args: Args) -> Result<ExitCode> {
         }
         Command::Project { command } => match command {
             ProjectCommand::Check { project } => {
-                print!("{}", cli::project_check(&project).map_err(anyhow::Error::msg)?)
+                print!("{}", cli::project_check(&project)?)
             }
             ProjectCommand::Upgrade { project, out } => {
-                print!("{}", cli::project_upgrade(&project, out.as_deref()).map_err(anyhow::Error::msg)?)
+                print!("{}", cli::project_upgrade(&project, out.as_deref())?)
             }
             ProjectCommand::Schema { markdown: false } => print!("{}", terrafuse::project::Project::schema()),
             ProjectCommand::Schema { markdown: true } => print!("{}", terrafuse::project::reference::markdown()),
@@ -1084,11 +1083,11 @@ fn run(args: Args) -> Result<ExitCode> {
             };
             let request =
                 cli::ErodeRequest { project, layer, region, level, steps, preset, set, seed, on, json, undo, redo };
-            print!("{}", cli::erode_command(&request).map_err(anyhow::Error::msg)?);
+            print!("{}", cli::erode_command(&request)?);
         }
         Command::Coregister { project, a, b, level, region, apply, json } => {
             let request = cli::CoregRequest { project, a, b, level, region, apply, json };
-            print!("{}", cli::coregister_command(&request).map_err(anyhow::Error::msg)?);
+            print!("{}", cli::coregister_command(&request)?);
         }
         Command::Export { project, out, raster, level, compose, difference } => {
             let (crs, bounds, resolution) = raster.parse()?;
@@ -1107,7 +1106,7 @@ fn run(args: Args) -> Result<ExitCode> {
                 compose_on: if compose == "cpu" { cli::ComposeOn::Cpu } else { cli::ComposeOn::Gpu },
                 difference,
             };
-            let report = cli::export_composed(&opts).map_err(anyhow::Error::msg)?;
+            let report = cli::export_composed(&opts)?;
             println!(
                 "wrote {} ({}×{} pixels, level {}, {} quads composed on the {}, {} pixels with data)",
                 opts.out.display(),
@@ -1151,7 +1150,7 @@ fn run(args: Args) -> Result<ExitCode> {
                     store: store.clone(),
                     work_dir: import.work_dir.clone(),
                     threads: import.threads,
-                    memory_budget: cli::parse_bytes(&import.memory_budget).map_err(anyhow::Error::msg)?,
+                    memory_budget: cli::parse_bytes(&import.memory_budget)?,
                     progress: !import.quiet,
                     watch: None,
                 };
@@ -1233,17 +1232,17 @@ fn run(args: Args) -> Result<ExitCode> {
                 print!("{part}");
                 let _ = std::io::Write::flush(&mut std::io::stdout());
             };
-            cli::bench_replay(&settings, &mut show).map_err(anyhow::Error::msg)?;
+            cli::bench_replay(&settings, &mut show)?;
         }
         Command::Bench { bench: Bench::Erosion { sizes, steps, cpu_max, gpu, bandwidth_gbs } } => {
             let settings = cli::ErosionBenchSettings { sizes, steps, cpu_max, gpu, bandwidth_gbs };
-            print!("{}", cli::bench_erosion(&settings).map_err(anyhow::Error::msg)?);
+            print!("{}", cli::bench_erosion(&settings)?);
         }
         Command::Bench { bench: Bench::BrushLatency { project, rounds, width, height } } => {
-            print!("{}", cli::bench_brush_latency(&project, rounds, width, height).map_err(anyhow::Error::msg)?);
+            print!("{}", cli::bench_brush_latency(&project, rounds, width, height)?);
         }
         Command::Bench { bench: Bench::Brush { strokes, level, gpu } } => {
-            print!("{}", cli::bench_brush(strokes, level, gpu).map_err(anyhow::Error::msg)?);
+            print!("{}", cli::bench_brush(strokes, level, gpu)?);
         }
         Command::Bench { bench: Bench::Compare { project, size, out } } => {
             anyhow::ensure!((64..=16384).contains(&size), "--size {size} must lie within 64–16384 pixels");
@@ -1255,21 +1254,21 @@ fn run(args: Args) -> Result<ExitCode> {
                 python: root.join(".venv-ref/bin/python"),
                 reference_dir: root.join("tests/reference"),
             };
-            print!("{}", cli::bench_compare(&settings).map_err(anyhow::Error::msg)?);
+            print!("{}", cli::bench_compare(&settings)?);
         }
         Command::Bench { bench: Bench::Compose { project, quads, repeats, out } } => {
             anyhow::ensure!(quads > 0 && repeats > 0, "--quads and --repeats must be at least 1");
             let settings = cli::ComposeBenchSettings { project, quads, repeats, out: out.clone() };
-            let (_, report) = cli::bench_compose(&settings).map_err(anyhow::Error::msg)?;
+            let (_, report) = cli::bench_compose(&settings)?;
             print!("{report}");
             println!("wrote {}", out.join("compose.csv").display());
         }
         Command::Bench { bench: Bench::Render { projects, thresholds, width, height, frames, out } } => {
             anyhow::ensure!(thresholds.iter().all(|t| t.is_finite() && *t > 0.0), "--thresholds must be positive");
             let settings = cli::RenderBenchSettings { projects, thresholds, width, height, frames, out: out.clone() };
-            let (rows, report) = cli::bench_render(&settings).map_err(anyhow::Error::msg)?;
+            let (rows, report) = cli::bench_render(&settings)?;
             print!("{report}");
-            let (csv, png) = cli::write_render_bench(&out, &rows).map_err(anyhow::Error::msg)?;
+            let (csv, png) = cli::write_render_bench(&out, &rows)?;
             println!("wrote {} and {}", csv.display(), png.display());
         }
         Command::Bench {
@@ -1303,7 +1302,7 @@ fn run(args: Args) -> Result<ExitCode> {
                 store: work.join("bench-store.gpkg"),
                 body: import.body.parse()?,
                 name: Some("bench".into()),
-                level: import.level.parse().map_err(anyhow::Error::msg)?,
+                level: import.level.parse()?,
                 resampling: terrafuse::store::Resampling::Bilinear,
                 transform: terrafuse::store::lattice::Transform::Lattice,
                 vertical: terrafuse::store::VerticalDatum::Unspecified,
@@ -1350,7 +1349,7 @@ fn run(args: Args) -> Result<ExitCode> {
             let bench = cli::AccuracyBench { bodies: bodies.clone(), settings, tolerance_m, limit_fraction };
             let (report, rows) = cli::accuracy_bench(&bench);
             print!("{report}");
-            cli::write_accuracy_outputs(&bench, &rows, &csv, Some(&plot)).map_err(anyhow::Error::msg)?;
+            cli::write_accuracy_outputs(&bench, &rows, &csv, Some(&plot))?;
             println!("\nwrote {} and {}", csv.display(), plot.display());
             if !no_timing {
                 print!("{}", cli::timing_report(&bodies[0], samples));

@@ -102,7 +102,7 @@ fn the_brushed_corner_seen_straight_down_has_no_crack_and_the_session_rebuilds_b
     }
     let index = p.layers.iter().position(|l| l.kind() == LayerKind::Edit).unwrap();
     let below = r.scene().below(index).unwrap();
-    let below = |q| below.heights_cpu(q);
+    let below = |q| Ok(below.heights_cpu(q)?);
     let once = EditRaster::build(Ellipsoid::MOON, edit.applied_strokes(), &below).unwrap();
     let again = rayon::ThreadPoolBuilder::new()
         .num_threads(1)
@@ -249,7 +249,7 @@ fn the_gpu_rasteriser_agrees_with_the_cpu_reference_for_every_tool_across_a_face
     use terrafuse::layers::stack::sample_point;
     let e = Ellipsoid::MOON;
     let height = |p: glam::DVec3| 0.03 * p.dot(glam::DVec3::new(0.0, 0.6, 0.8)) + 50.0 * (p.x / 700.0).sin();
-    let below = |q: QuadId| -> Result<Vec<f32>, String> {
+    let below = |q: QuadId| -> Result<Vec<f32>, terrafuse::errors::Failure> {
         Ok((0..257 * 257)
             .map(|k| height(sample_point(&e, q, 257, (k % 257) as u32, (k / 257) as u32).0) as f32)
             .collect())

@@ -99,3 +99,28 @@ fn tissot_table_reproduces_the_paper() {
     assert_eq!(rows[4].1[0], "degen.");
     assert!(num(4, 6) > 10.0 * num(0, 6), "{text}");
 }
+
+#[test]
+fn an_error_prints_its_cause_chain() {
+    // A project whose layer names a store that is a file but not a database: the message names
+    // the project, the layer and the store, then what SQLite said.
+    let dir = common::scratch("cause-chain");
+    let store = dir.join("broken.gpkg");
+    let mut bytes = b"SQLite format 3\0".to_vec();
+    bytes.extend([0xff; 4000]);
+    std::fs::write(&store, bytes).unwrap();
+    let project = dir.join("p.json");
+    let text = r#"{"format": "terrafuse-project", "version": 4, "body": "moon",
+        "layers": [{"name": "dem", "kind": "dataset", "store": "broken.gpkg"},
+                   {"name": "other", "kind": "dataset", "store": "broken.gpkg"}]}"#;
+    std::fs::write(&project, text).unwrap();
+    let out = terrafuse(&["compare", project.to_str().unwrap(), "dem", "other", "--json"], "");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(err.contains("layer 'dem'") && err.contains("broken.gpkg"), "{err}");
+    assert!(err.contains("is not a Terrafuse store") && err.contains("file is not a database"), "{err}");
+    // A project that is a folder: the file system's words come after the file's name.
+    let out = terrafuse(&["render", dir.to_str().unwrap(), "--out", dir.join("x.png").to_str().unwrap()], "");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("cannot read") && err.contains("os error"), "{err}");
+}

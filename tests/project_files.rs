@@ -268,7 +268,7 @@ fn loads_or_refuses(text: &str) -> Result<(), TestCaseError> {
                 .map_err(|e| TestCaseError::fail(format!("saved, it does not load again: {e}")))?;
             prop_assert_eq!(again, p);
         }
-        Err(e) => prop_assert!(!e.is_empty()),
+        Err(e) => prop_assert!(!e.to_string().is_empty()),
     }
     Ok(())
 }

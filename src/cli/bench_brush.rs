@@ -3,6 +3,7 @@
 //! scripted session of every rasterised tool scattered over a 4° patch of the Moon across the
 //! front/right face edge. Deterministic: the strokes come from a fixed PCG sequence.
 
+use super::CliError;
 use std::fmt::Write as _;
 use std::time::Instant;
 
@@ -45,7 +46,7 @@ pub fn scripted_strokes(n: usize, level: u8) -> Vec<Stroke> {
 
 /// The terrain under the scripted session's edit layer: waves of 300 m over 5 km (a function of
 /// the position, so that smooth, flatten and ramp have something to read).
-fn waves_below(q: QuadId) -> Result<Vec<f32>, String> {
+fn waves_below(q: QuadId) -> Result<Vec<f32>, crate::errors::Failure> {
     let e = Ellipsoid::MOON;
     Ok((0..GRID * GRID)
         .map(|k| {
@@ -56,25 +57,25 @@ fn waves_below(q: QuadId) -> Result<Vec<f32>, String> {
 }
 
 /// Runs the benchmark (`gpu`: the rebuild on the GPU rasteriser as well); returns the report.
-pub fn bench_brush(strokes: usize, level: u8, gpu: bool) -> Result<String, String> {
+pub fn bench_brush(strokes: usize, level: u8, gpu: bool) -> Result<String, CliError> {
     let e = Ellipsoid::MOON;
     let session = scripted_strokes(strokes, level);
     let t = Instant::now();
-    let mut raster = EditRaster::build(e, &session, &waves_below).map_err(|e| e.to_string())?;
+    let mut raster = EditRaster::build(e, &session, &waves_below)?;
     let build_s = t.elapsed().as_secs_f64();
     let extra = scripted_strokes(strokes + 1, level).pop().ok_or("no stroke")?;
     let t = Instant::now();
-    let touched = raster.apply(strokes, &extra, &waves_below).map_err(|e| e.to_string())?;
+    let touched = raster.apply(strokes, &extra, &waves_below)?;
     let stroke_ms = t.elapsed().as_secs_f64() * 1e3;
     let mut all = session.clone();
     all.push(extra);
     let mut without_history = raster.clone();
     without_history.clear_history();
     let t = Instant::now();
-    raster.undo_to(&all, strokes, &waves_below).map_err(|e| e.to_string())?;
+    raster.undo_to(&all, strokes, &waves_below)?;
     let undo_ms = t.elapsed().as_secs_f64() * 1e3;
     let t = Instant::now();
-    without_history.undo_to(&all, strokes, &waves_below).map_err(|e| e.to_string())?;
+    without_history.undo_to(&all, strokes, &waves_below)?;
     let recompute_ms = t.elapsed().as_secs_f64() * 1e3;
     if without_history != raster {
         return Err("the two undo paths disagree".into());
@@ -92,13 +93,13 @@ pub fn bench_brush(strokes: usize, level: u8, gpu: bool) -> Result<String, Strin
         touched.len()
     );
     if gpu {
-        let ctx = crate::gpu::GpuContext::headless().map_err(|e| e.to_string())?;
-        let kernel = crate::gpu::brush::StrokeKernel::new(&ctx.device).map_err(|e| e.to_string())?;
+        let ctx = crate::gpu::GpuContext::headless()?;
+        let kernel = crate::gpu::brush::StrokeKernel::new(&ctx.device)?;
         let rasteriser = kernel.on_context(&ctx);
         let t = Instant::now();
         let mut on_gpu = EditRaster::new(e, level);
         for (k, stroke) in session.iter().enumerate() {
-            on_gpu.apply_with(k, stroke, &waves_below, &rasteriser).map_err(|e| e.to_string())?;
+            on_gpu.apply_with(k, stroke, &waves_below, &rasteriser)?;
         }
         let gpu_s = t.elapsed().as_secs_f64();
         let mut worst = 0f64;

@@ -4,6 +4,7 @@
 //! seen from its `sculpt` view. One stroke of each tool in turn, each undone after it is timed
 //! (so that every stroke starts from the same session); the undo's latency too.
 
+use super::CliError;
 use std::fmt::Write as _;
 use std::path::Path;
 use std::time::{Duration, Instant};
@@ -13,19 +14,20 @@ use crate::gpu::{DrawMode, GpuContext, IMAGE_FORMAT, Renderer, Scene};
 use crate::project::Project;
 
 /// Runs the benchmark on `project` (its edit layer `sculpt`, view `sculpt`); returns the report.
-pub fn bench_brush_latency(project: &Path, rounds: usize, width: u32, height: u32) -> Result<String, String> {
-    let p = Project::load(project).map_err(|e| e.to_string())?;
-    let camera = p.view(Some("sculpt")).map_err(|e| e.to_string())?;
+pub fn bench_brush_latency(project: &Path, rounds: usize, width: u32, height: u32) -> Result<String, CliError> {
+    let p = Project::load(project)?;
+    let camera = p.view(Some("sculpt"))?;
     let (scene, _) = Scene::open(&p)?;
-    let ctx = GpuContext::headless().map_err(|e| e.to_string())?;
-    let mut r = Renderer::new(&ctx, scene, IMAGE_FORMAT).map_err(|e| e.to_string())?;
+    let ctx = GpuContext::headless()?;
+    let mut r = Renderer::new(&ctx, scene, IMAGE_FORMAT)?;
     let index = r.scene().stack.index_of("sculpt").ok_or("the project has no edit layer 'sculpt'")?;
-    let settle = |r: &mut Renderer| -> Result<(), String> {
+    let settle = |r: &mut Renderer| -> Result<(), CliError> {
         let stats = r.settle(&camera, width, height, Duration::from_secs(120));
         if stats.pending > 0 {
-            return Err(format!("the view did not settle ({} quads pending)", stats.pending));
+            return Err(format!("the view did not settle ({} quads pending)", stats.pending).into());
         }
-        r.render_image(DrawMode::Colour).map(|_| ()).map_err(|e| e.to_string())
+        r.render_image(DrawMode::Colour)?;
+        Ok(())
     };
     settle(&mut r)?;
     // The same frame with nothing changed: what drawing and reading back cost alone.
@@ -63,7 +65,7 @@ pub fn bench_brush_latency(project: &Path, rounds: usize, width: u32, height: u3
                 height_m: None,
             };
             let t = Instant::now();
-            r.apply_stroke(index, stroke).map_err(|e| e.to_string())?;
+            r.apply_stroke(index, stroke)?;
             let rasterised = t.elapsed();
             settle(&mut r)?;
             let done = t.elapsed();
@@ -71,7 +73,7 @@ pub fn bench_brush_latency(project: &Path, rounds: usize, width: u32, height: u3
             rest.push((done - rasterised).as_secs_f64() * 1e3);
             total.push(done.as_secs_f64() * 1e3);
             let t = Instant::now();
-            r.set_applied(index, applied).map_err(|e| e.to_string())?;
+            r.set_applied(index, applied)?;
             settle(&mut r)?;
             undo.push(t.elapsed().as_secs_f64() * 1e3);
         }

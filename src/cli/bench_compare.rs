@@ -3,6 +3,7 @@
 //! the same data in the same run (its rasters warped to a transverse Mercator centred on the area,
 //! as the tests do), and both tools' co-registration error against the known shift.
 
+use super::CliError;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -33,7 +34,7 @@ fn seconds(t: Instant) -> f64 {
 }
 
 /// Warps a raster to the transverse Mercator centred at (lat, lon), 90 m, bilinear.
-fn warp_tm(from: &Path, to: &Path, lat: f64, lon: f64) -> Result<(), String> {
+fn warp_tm(from: &Path, to: &Path, lat: f64, lon: f64) -> Result<(), CliError> {
     let tm = format!("+proj=tmerc +lon_0={lon} +lat_0={lat} +k=1 +ellps=WGS84 +units=m");
     let status = std::process::Command::new("gdalwarp")
         .args(["-q", "-overwrite", "-t_srs", &tm, "-tr", "90", "90", "-r", "bilinear", "-dstnodata", "-9999"])
@@ -41,25 +42,25 @@ fn warp_tm(from: &Path, to: &Path, lat: f64, lon: f64) -> Result<(), String> {
         .arg(from)
         .arg(to)
         .status()
-        .map_err(|e| format!("gdalwarp: {e} (install gdal-bin: scripts/install-deps)"))?;
-    if status.success() { Ok(()) } else { Err(format!("gdalwarp {} failed", from.display())) }
+        .map_err(|e| format!("gdalwarp: {} (install gdal-bin: scripts/install-deps)", crate::errors::chain(&e)))?;
+    if status.success() { Ok(()) } else { Err(format!("gdalwarp {} failed", from.display()).into()) }
 }
 
 /// xDEM's statistics and Nuth & Kääb on two rasters, or why not.
-fn xdem(settings: &CompareBenchSettings, reference: &Path, moved: &Path) -> Result<serde_json::Value, String> {
+fn xdem(settings: &CompareBenchSettings, reference: &Path, moved: &Path) -> Result<serde_json::Value, CliError> {
     if !settings.python.exists() {
-        return Err(format!("{} is missing (scripts/install-deps makes it)", settings.python.display()));
+        return Err(format!("{} is missing (scripts/install-deps makes it)", settings.python.display()).into());
     }
     let out = std::process::Command::new(&settings.python)
         .arg(settings.reference_dir.join("xdem_bench.py"))
         .arg(reference)
         .arg(moved)
         .output()
-        .map_err(|e| e.to_string())?;
+        .map_err(CliError::file(&settings.python, "cannot run"))?;
     if !out.status.success() {
-        return Err(String::from_utf8_lossy(&out.stderr).into_owned());
+        return Err(String::from_utf8_lossy(&out.stderr).into_owned().into());
     }
-    serde_json::from_slice(&out.stdout).map_err(|e| e.to_string())
+    Ok(serde_json::from_slice(&out.stdout)?)
 }
 
 /// The east and north metres of (dlon, dlat) degrees at a latitude on WGS84.
@@ -73,7 +74,7 @@ fn metres_of_degrees(dlon: f64, dlat: f64, lat_deg: f64) -> (f64, f64) {
 
 /// Writes a synthetic DEM (fBm of the position on the ellipsoid, 3″ pixels from 40°E 40°N) and
 /// the same moved by (dlon, dlat) degrees.
-fn synthetic_pair(dir: &Path, size: usize, dlon: f64, dlat: f64) -> Result<(PathBuf, PathBuf), String> {
+fn synthetic_pair(dir: &Path, size: usize, dlon: f64, dlat: f64) -> Result<(PathBuf, PathBuf), CliError> {
     let e = Ellipsoid::WGS84;
     let pixel = 1.0 / 1200.0;
     let terrain = NoiseSpec {
@@ -107,20 +108,18 @@ fn synthetic_pair(dir: &Path, size: usize, dlon: f64, dlat: f64) -> Result<(Path
             [40.0 + dx, 40.0 - extent + dy, 40.0 + extent + dx, 40.0 + dy],
             (pixel, pixel),
             &path,
-        )
-        .map_err(|e| e.to_string())?;
-        spec.write(&path, &[("TERRAFUSE_SYNTHETIC", "fBm, 600 m, 40 km, 10 octaves".into())], data.clone())
-            .map_err(|e| e.to_string())?;
+        )?;
+        spec.write(&path, &[("TERRAFUSE_SYNTHETIC", "fBm, 600 m, 40 km, 10 octaves".into())], data.clone())?;
         paths.push(path);
     }
     Ok((paths[0].clone(), paths[1].clone()))
 }
 
 /// Runs the benchmark; returns the report (also written to OUT/compare.txt).
-pub fn bench_compare(settings: &CompareBenchSettings) -> Result<String, String> {
-    std::fs::create_dir_all(&settings.out).map_err(|e| format!("{}: {e}", settings.out.display()))?;
+pub fn bench_compare(settings: &CompareBenchSettings) -> Result<String, CliError> {
+    std::fs::create_dir_all(&settings.out).map_err(CliError::file(&settings.out, "cannot create"))?;
     // Absolute, since the synthetic project names its rasters from its own folder.
-    let out_dir = std::fs::canonicalize(&settings.out).map_err(|e| format!("{}: {e}", settings.out.display()))?;
+    let out_dir = std::fs::canonicalize(&settings.out).map_err(CliError::file(&settings.out, "cannot resolve"))?;
     let settings = &CompareBenchSettings { out: out_dir, ..settings.clone() };
     let mut report = String::new();
     let _ = writeln!(
@@ -134,12 +133,12 @@ pub fn bench_compare(settings: &CompareBenchSettings) -> Result<String, String> 
         "pair", "samples", "stats s", "coreg s", "east m", "north m", "error m", "NMAD m"
     );
     // 1. The bundled Erzurum pair.
-    let project = Project::load(&settings.project).map_err(|e| e.to_string())?;
+    let project = Project::load(&settings.project)?;
     let t = Instant::now();
-    let c = compare(&project, "blurred", "srtm", &CompareOptions::default()).map_err(|e| e.to_string())?;
+    let c = compare(&project, "blurred", "srtm", &CompareOptions::default())?;
     let stats_s = seconds(t);
     let t = Instant::now();
-    let r = coregister(&project, "blurred", "srtm", &CoregOptions::default()).map_err(|e| e.to_string())?;
+    let r = coregister(&project, "blurred", "srtm", &CoregOptions::default())?;
     let coreg_s = seconds(t);
     let _ = writeln!(
         report,
@@ -166,7 +165,7 @@ pub fn bench_compare(settings: &CompareBenchSettings) -> Result<String, String> 
             );
         }
         Err(e) => {
-            let _ = writeln!(report, "Erzurum, xDEM: not run: {e}");
+            let _ = writeln!(report, "Erzurum, xDEM: not run: {}", crate::errors::chain(&e));
         }
     }
     // 2. The synthetic pair with a known shift.
@@ -187,17 +186,18 @@ pub fn bench_compare(settings: &CompareBenchSettings) -> Result<String, String> 
         let _ = std::fs::remove_file(settings.out.join(store)); // time a fresh import
     }
     let synthetic_path = settings.out.join("synthetic.json");
-    crate::files::write_atomic(&synthetic_path, synthetic.as_bytes()).map_err(|e| e.to_string())?;
+    crate::files::write_atomic(&synthetic_path, synthetic.as_bytes())
+        .map_err(CliError::file(&synthetic_path, "cannot write"))?;
     let t = Instant::now();
-    let project = Project::load(&synthetic_path).map_err(|e| e.to_string())?;
+    let project = Project::load(&synthetic_path)?;
     crate::gpu::Scene::open(&project)?; // imports both rasters
     let import_s = seconds(t);
     let t = Instant::now();
-    let c = compare(&project, "moved", "ref", &CompareOptions::default()).map_err(|e| e.to_string())?;
+    let c = compare(&project, "moved", "ref", &CompareOptions::default())?;
     let stats_s = seconds(t);
     let t = Instant::now();
     let opts = CoregOptions { level: Some(c.level), ..CoregOptions::default() };
-    let r = coregister(&project, "moved", "ref", &opts).map_err(|e| e.to_string())?;
+    let r = coregister(&project, "moved", "ref", &opts)?;
     let coreg_s = seconds(t);
     let (e, n) = metres_of_degrees(-dlon, -dlat, lat_c);
     let label = format!("synthetic {0}², Terrafuse (L{1})", settings.size, c.level);
@@ -232,7 +232,7 @@ pub fn bench_compare(settings: &CompareBenchSettings) -> Result<String, String> 
             );
         }
         Err(err) => {
-            let _ = writeln!(report, "synthetic, xDEM: not run: {err}");
+            let _ = writeln!(report, "synthetic, xDEM: not run: {}", crate::errors::chain(&err));
         }
     }
     let _ = writeln!(
@@ -241,6 +241,6 @@ pub fn bench_compare(settings: &CompareBenchSettings) -> Result<String, String> 
          stats: the whole overlap, cell-area weighted; coreg: Nuth & Kääb to 0.001 px (Terrafuse at the statistics' level here)"
     );
     let path = settings.out.join("compare.txt");
-    crate::files::write_atomic(&path, report.as_bytes()).map_err(|e| format!("{}: {e}", path.display()))?;
+    crate::files::write_atomic(&path, report.as_bytes()).map_err(CliError::file(path, "cannot write"))?;
     Ok(report)
 }

@@ -5,6 +5,7 @@
 //! and the error skipping costs against every octave); and the cost of recomposing after a
 //! one-layer change in a settled view against recomposing every drawn quad.
 
+use super::CliError;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
@@ -99,21 +100,21 @@ fn measure(
     quads: &[QuadId],
     repeats: usize,
     octave_skipping: bool,
-) -> Result<Measured, String> {
+) -> Result<Measured, CliError> {
     let mut p = base.clone();
     p.layers = layers;
     let (mut scene, _) = Scene::open(&p)?;
     scene.octave_skipping = octave_skipping;
-    let mut renderer = Renderer::new(ctx, scene.clone(), IMAGE_FORMAT).map_err(|e| e.to_string())?;
+    let mut renderer = Renderer::new(ctx, scene.clone(), IMAGE_FORMAT)?;
     // The first run uploads maps and source tiles; the timed runs recompose what is resident.
-    renderer.compose_now(quads).map_err(|e| e.to_string())?;
-    renderer.read_heights(quads[0]).map_err(|e| e.to_string())?;
+    renderer.compose_now(quads)?;
+    renderer.read_heights(quads[0])?;
     let mut gpu = Vec::new();
     for _ in 0..repeats {
         renderer.invalidate_composed();
         let t = Instant::now();
-        renderer.compose_now(quads).map_err(|e| e.to_string())?;
-        renderer.read_heights(quads[0]).map_err(|e| e.to_string())?; // waits for the GPU
+        renderer.compose_now(quads)?;
+        renderer.read_heights(quads[0])?; // waits for the GPU
         gpu.push(t.elapsed().as_secs_f64() * 1e3);
     }
     let mut cpu = Vec::new();
@@ -126,7 +127,7 @@ fn measure(
     let mut worst = 0f64;
     let mut grids = Vec::new();
     for q in quads {
-        let g = renderer.read_heights(*q).map_err(|e| e.to_string())?.unwrap_or_default();
+        let g = renderer.read_heights(*q)?.unwrap_or_default();
         let c = &cpu_grids[q];
         for (a, b) in g.iter().zip(c) {
             if a.is_nan() != b.is_nan() {
@@ -141,15 +142,15 @@ fn measure(
 }
 
 /// Runs the benchmark; returns the rows and a report.
-pub fn bench_compose(settings: &ComposeBenchSettings) -> Result<(Vec<ComposeBenchRow>, String), String> {
-    let base = Project::load(&settings.project).map_err(|e| e.to_string())?;
+pub fn bench_compose(settings: &ComposeBenchSettings) -> Result<(Vec<ComposeBenchRow>, String), CliError> {
+    let base = Project::load(&settings.project)?;
     let srtm = base
         .layers
         .iter()
         .find(|l| l.is_data())
         .cloned()
         .ok_or_else(|| format!("{}: the benchmark needs a dataset layer", settings.project.display()))?;
-    let ctx = GpuContext::headless().map_err(|e| e.to_string())?;
+    let ctx = GpuContext::headless()?;
     let e = base.ellipsoid()?;
     // Level-9 quads (SRTM's finest, 70 m samples) over the tile, row by row.
     let mut quads = Vec::new();
@@ -157,7 +158,7 @@ pub fn bench_compose(settings: &ComposeBenchSettings) -> Result<(Vec<ComposeBenc
         for c in 0..8 {
             let (lat, lon) = (39.2 + 0.1 * f64::from(r), 40.05 + 0.1 * f64::from(c));
             let p = CubeProjection::Qsc.face_point_from_geodetic(&e, lat.to_radians(), lon.to_radians());
-            let q = QuadId::containing(p, 9).map_err(|e| e.to_string())?;
+            let q = QuadId::containing(p, 9)?;
             if !quads.contains(&q) {
                 quads.push(q);
             }
@@ -170,7 +171,7 @@ pub fn bench_compose(settings: &ComposeBenchSettings) -> Result<(Vec<ComposeBenc
     let pool = layer_pool(&srtm);
     let repeats = settings.repeats.max(1);
     let mut rows = Vec::new();
-    let mut row = |case: String, layers: Vec<LayerSpec>, skipping: bool| -> Result<Vec<Vec<f32>>, String> {
+    let mut row = |case: String, layers: Vec<LayerSpec>, skipping: bool| -> Result<Vec<Vec<f32>>, CliError> {
         let n = layers.len();
         let (gpu_ms, cpu_ms, max_diff_m, grids) = measure(&ctx, &base, layers, &quads, repeats, skipping)?;
         rows.push(ComposeBenchRow { case, layers: n, samples, gpu_ms, cpu_ms, max_diff_m, skip_error_m: None });
@@ -271,23 +272,23 @@ fn difference_cost(
     layers: &[LayerSpec],
     quads: &[QuadId],
     repeats: usize,
-) -> Result<String, String> {
+) -> Result<String, CliError> {
     let names: Vec<String> = layers.iter().map(|l| l.name.clone()).collect();
     let dataset = layers.iter().find(|l| l.is_data()).ok_or("the stack has no dataset")?.name.clone();
     let mut with = layers.to_vec();
     with.push(LayerSpec::difference("dh", Operand::Layer(dataset), Operand::Group(names)));
-    let time = |layers: Vec<LayerSpec>| -> Result<(f64, Renderer, Scene), String> {
+    let time = |layers: Vec<LayerSpec>| -> Result<(f64, Renderer, Scene), CliError> {
         let mut p = base.clone();
         p.layers = layers;
         let (scene, _) = Scene::open(&p)?;
-        let mut renderer = Renderer::new(ctx, scene.clone(), IMAGE_FORMAT).map_err(|e| e.to_string())?;
-        renderer.compose_now(quads).map_err(|e| e.to_string())?;
+        let mut renderer = Renderer::new(ctx, scene.clone(), IMAGE_FORMAT)?;
+        renderer.compose_now(quads)?;
         let mut gpu = Vec::new();
         for _ in 0..repeats {
             renderer.invalidate_composed();
             let t = Instant::now();
-            renderer.compose_now(quads).map_err(|e| e.to_string())?;
-            renderer.read_heights(quads[0]).map_err(|e| e.to_string())?;
+            renderer.compose_now(quads)?;
+            renderer.read_heights(quads[0])?;
             gpu.push(t.elapsed().as_secs_f64() * 1e3);
         }
         Ok((median(gpu), renderer, scene))
@@ -297,7 +298,7 @@ fn difference_cost(
     let cpu = scene.compose_cpu_with_difference(quads)?;
     let mut worst = 0f64;
     for q in quads {
-        let gpu = renderer.read_difference(*q).map_err(|e| e.to_string())?.unwrap_or_default();
+        let gpu = renderer.read_difference(*q)?.unwrap_or_default();
         let Some(Some(c)) = cpu.get(q).map(|(_, d)| d.as_ref()) else { continue };
         for (a, b) in gpu.iter().zip(c) {
             if a.is_nan() != b.is_nan() {
@@ -315,7 +316,7 @@ fn difference_cost(
 
 /// What the loader spends on no-data edge distances: one field per level-9 quad (the edge
 /// level of a 5 km feather on Earth), each over the quad's 3 × 3 neighbourhood.
-fn edge_field_cost(base: &Project, faded: LayerSpec, quads: &[QuadId]) -> Result<String, String> {
+fn edge_field_cost(base: &Project, faded: LayerSpec, quads: &[QuadId]) -> Result<String, CliError> {
     let mut p = base.clone();
     p.layers = vec![faded];
     let (scene, _) = Scene::open(&p)?;
@@ -336,7 +337,7 @@ fn edge_field_cost(base: &Project, faded: LayerSpec, quads: &[QuadId]) -> Result
 /// A settled 30 km view of Erzurum with the four first layers and a small feathered patch: the
 /// frame after editing the patch (a few quads), after editing the fBm hills (every drawn quad),
 /// and after every drawn quad is invalidated.
-fn recompose_cost(ctx: &GpuContext, base: &Project, layers: &[LayerSpec]) -> Result<String, String> {
+fn recompose_cost(ctx: &GpuContext, base: &Project, layers: &[LayerSpec]) -> Result<String, CliError> {
     let mut p = base.clone();
     p.layers = layers.to_vec();
     p.layers.push(LayerSpec {
@@ -347,22 +348,22 @@ fn recompose_cost(ctx: &GpuContext, base: &Project, layers: &[LayerSpec]) -> Res
     });
     let (patch, hills) = (p.layers.len() - 1, 2);
     let (scene, _) = Scene::open(&p)?;
-    let mut r = Renderer::new(ctx, scene, IMAGE_FORMAT).map_err(|e| e.to_string())?;
+    let mut r = Renderer::new(ctx, scene, IMAGE_FORMAT)?;
     let camera = CameraSpec { lat: 39.3, lon: 40.42, alt: 30_000.0, heading: 0.0, pitch: -45.0, fov: 50.0 };
     let settled = r.settle(&camera, 640, 480, Duration::from_secs(300));
     let drawn = settled.selection.quads.len();
-    let frame = |r: &mut Renderer| -> Result<(f64, usize, usize), String> {
+    let frame = |r: &mut Renderer| -> Result<(f64, usize, usize), CliError> {
         let t = Instant::now();
         let s = r.prepare(&camera, 640, 480);
-        r.wait_idle().map_err(|e| e.to_string())?;
+        r.wait_idle()?;
         Ok((t.elapsed().as_secs_f64() * 1e3, s.composed.len(), s.layers_read))
     };
-    let edit = |r: &mut Renderer, index: usize| -> Result<Vec<(f64, usize, usize)>, String> {
+    let edit = |r: &mut Renderer, index: usize| -> Result<Vec<(f64, usize, usize)>, CliError> {
         let mut spec = p.layers[index].clone();
         (0..5)
             .map(|k| {
                 spec.opacity = 0.8 + 0.04 * f64::from(k);
-                r.update_layer(index, spec.clone()).map_err(|e| e.to_string())?;
+                r.update_layer(index, spec.clone())?;
                 frame(r)
             })
             .collect()
@@ -390,14 +391,14 @@ fn recompose_cost(ctx: &GpuContext, base: &Project, layers: &[LayerSpec]) -> Res
     Ok(out)
 }
 
-fn write_csv(dir: &Path, rows: &[ComposeBenchRow]) -> Result<(), String> {
+fn write_csv(dir: &Path, rows: &[ComposeBenchRow]) -> Result<(), CliError> {
     let mut csv = String::from("case,layers,samples,gpu_ms,cpu_ms,max_diff_m,skip_max_m,skip_rms_m\n");
     for r in rows {
         let (a, b) = r.skip_error_m.map_or((String::new(), String::new()), |(a, b)| (a.to_string(), b.to_string()));
         let _ =
             writeln!(csv, "{},{},{},{},{},{},{a},{b}", r.case, r.layers, r.samples, r.gpu_ms, r.cpu_ms, r.max_diff_m);
     }
-    std::fs::create_dir_all(dir).map_err(|e| format!("{}: cannot create: {e}", dir.display()))?;
+    std::fs::create_dir_all(dir).map_err(CliError::file(dir, "cannot create"))?;
     let path = dir.join("compose.csv");
-    crate::files::write_atomic(&path, csv.as_bytes()).map_err(|e| format!("{}: {e}", path.display()))
+    crate::files::write_atomic(&path, csv.as_bytes()).map_err(CliError::file(&path, "cannot write"))
 }

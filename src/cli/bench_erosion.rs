@@ -3,6 +3,7 @@
 //! against the step size (the same simulated time with Δt, Δt/2 and Δt/4: the largest difference
 //! of the final terrain from the Δt/4 run) beside the time each took.
 
+use super::CliError;
 use std::fmt::Write as _;
 use std::time::Instant;
 
@@ -35,18 +36,18 @@ pub struct ErosionBenchSettings {
     pub bandwidth_gbs: Option<f64>,
 }
 
-fn wet_run(n: usize) -> Result<Run, String> {
+fn wet_run(n: usize) -> Result<Run, CliError> {
     let grid = Grid::flat_patch(n, n, 10.0, terrain(n, 10.0));
     let params = Params { border: Border::Open, ..Params::preset("rain", EARTH_G).ok_or("no preset")? };
-    Run::new(grid, params).map_err(|e| e.to_string())
+    Ok(Run::new(grid, params)?)
 }
 
 /// Runs the benchmark; returns the report.
-pub fn bench_erosion(settings: &ErosionBenchSettings) -> Result<String, String> {
+pub fn bench_erosion(settings: &ErosionBenchSettings) -> Result<String, CliError> {
     let mut out = String::new();
     let threads = rayon::current_num_threads();
     let steps = settings.steps;
-    let gpu = if settings.gpu { Some(crate::gpu::GpuContext::headless().map_err(|e| e.to_string())?) } else { None };
+    let gpu = if settings.gpu { Some(crate::gpu::GpuContext::headless()?) } else { None };
     let _ = writeln!(
         out,
         "terrafuse bench erosion: preset rain on 10 m cells, open borders, {steps} steps per grid after 20 to wet it; CPU reference ({threads} threads){}",
@@ -62,9 +63,7 @@ pub fn bench_erosion(settings: &ErosionBenchSettings) -> Result<String, String> 
         "grid      device   cell-steps/s   ns per cell-step   bytes per cell-step   GB/s moved   share of the bandwidth"
     );
     let kernel = match &gpu {
-        Some(g) => {
-            Some(std::sync::Arc::new(crate::gpu::erosion::ErosionKernel::new(&g.device).map_err(|e| e.to_string())?))
-        }
+        Some(g) => Some(std::sync::Arc::new(crate::gpu::erosion::ErosionKernel::new(&g.device)?)),
         None => None,
     };
     for &n in &settings.sizes {
@@ -95,15 +94,15 @@ pub fn bench_erosion(settings: &ErosionBenchSettings) -> Result<String, String> 
             let mut gr = match crate::gpu::erosion::GpuRun::new(&g.device, &g.queue, k.clone(), &run) {
                 Ok(r) => r,
                 Err(e) => {
-                    let _ = writeln!(out, "{n:>5}²   gpu      not run: {e}");
+                    let _ = writeln!(out, "{n:>5}²   gpu      not run: {}", crate::errors::chain(&e));
                     continue;
                 }
             };
-            gr.step(20).map_err(|e| e.to_string())?;
-            gr.wait().map_err(|e| e.to_string())?;
+            gr.step(20)?;
+            gr.wait()?;
             let t = Instant::now();
-            gr.step(steps as u32).map_err(|e| e.to_string())?;
-            gr.wait().map_err(|e| e.to_string())?;
+            gr.step(steps as u32)?;
+            gr.wait()?;
             row(&mut out, "gpu", t.elapsed().as_secs_f64(), gpu_bytes);
         }
     }
@@ -114,7 +113,7 @@ pub fn bench_erosion(settings: &ErosionBenchSettings) -> Result<String, String> 
     for dt in [0.2, 0.1, 0.05] {
         let grid = Grid::flat_patch(n, n, 10.0, terrain(n, 10.0));
         let params = Params { dt_s: dt, border: Border::Open, ..Params::preset("rain", EARTH_G).ok_or("no preset")? };
-        let mut run = Run::new(grid, params).map_err(|e| e.to_string())?;
+        let mut run = Run::new(grid, params)?;
         let t = Instant::now();
         while run.simulated_s < 60.0 - 1e-9 {
             run.step();
@@ -134,7 +133,7 @@ pub fn bench_erosion(settings: &ErosionBenchSettings) -> Result<String, String> 
 /// 20, 10 and 5 m cells, 120 s of the `rain` preset: each finer run's change of height,
 /// averaged over the 20 m cells, against the 20 m run's (correlation, RMS difference over the
 /// 20 m run's RMS), and the volumes eroded and deposited.
-fn resolution_rows(out: &mut String) -> Result<(), String> {
+fn resolution_rows(out: &mut String) -> Result<(), CliError> {
     let _ = writeln!(
         out,
         "resolution (1280 m square, 120 s of rain): cells, grid, steps, seconds, eroded m³, deposited m³, vs 20 m: correlation, RMS diff / RMS"
@@ -150,7 +149,7 @@ fn resolution_rows(out: &mut String) -> Result<(), String> {
             })
             .collect();
         let params = Params { dt_s: 0.1, border: Border::Open, ..Params::preset("rain", EARTH_G).ok_or("no preset")? };
-        let mut run = Run::new(Grid::flat_patch(n, n, cell, base), params).map_err(|e| e.to_string())?;
+        let mut run = Run::new(Grid::flat_patch(n, n, cell, base), params)?;
         let t = Instant::now();
         while run.simulated_s < 120.0 - 1e-9 {
             run.step();

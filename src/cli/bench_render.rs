@@ -5,6 +5,7 @@
 //! compared with it: height difference at each pixel (metres) and the difference of the rendered
 //! surface positions, seen from the camera (pixels), over the pixels both draw terrain in.
 
+use super::CliError;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
@@ -91,7 +92,7 @@ fn compare(reference: &RenderedImage, image: &RenderedImage, focal_px: f64) -> (
 }
 
 /// Runs the benchmark; returns the rows and a report (device, table).
-pub fn bench_render(settings: &RenderBenchSettings) -> Result<(Vec<RenderBenchRow>, String), String> {
+pub fn bench_render(settings: &RenderBenchSettings) -> Result<(Vec<RenderBenchRow>, String), CliError> {
     let mut rows = Vec::new();
     let mut report = String::new();
     let finest = settings.thresholds.iter().copied().fold(f64::INFINITY, f64::min);
@@ -104,19 +105,19 @@ pub fn bench_render(settings: &RenderBenchSettings) -> Result<(Vec<RenderBenchRo
         for (view, camera) in &project.views {
             renderer.set_threshold(finest);
             renderer.settle(camera, settings.width, settings.height, Duration::from_secs(600));
-            let reference = renderer.render_image(DrawMode::Probe).map_err(|e| e.to_string())?;
+            let reference = renderer.render_image(DrawMode::Probe)?;
             let focal = renderer.last_camera().map_or(1.0, |c| c.focal_px(settings.height));
             for &t in &settings.thresholds {
                 renderer.set_threshold(t);
                 let settled = renderer.settle(camera, settings.width, settings.height, Duration::from_secs(600));
-                let probe = renderer.render_image(DrawMode::Probe).map_err(|e| e.to_string())?;
+                let probe = renderer.render_image(DrawMode::Probe)?;
                 let (height_error_m, position_error_px, coverage_mismatch) = compare(&reference, &probe, focal);
                 let (mut cpu, mut select, mut gpu, mut wall) = (0.0, 0.0, 0.0, 0.0);
                 let frames = settings.frames.max(1);
                 for _ in 0..frames {
                     let start = Instant::now();
                     let stats = renderer.prepare(camera, settings.width, settings.height);
-                    let image = renderer.render_image(DrawMode::Colour).map_err(|e| e.to_string())?;
+                    let image = renderer.render_image(DrawMode::Colour)?;
                     wall += start.elapsed().as_secs_f64() * 1e3;
                     cpu += stats.prepare_ms;
                     select += stats.select_ms;
@@ -211,7 +212,7 @@ pub fn render_bench_csv(rows: &[RenderBenchRow]) -> String {
 }
 
 /// Plot: GPU pass time and triangles (top) and mean errors (bottom) against t, one line per view.
-pub fn render_bench_plot(rows: &[RenderBenchRow]) -> Result<Vec<u8>, String> {
+pub fn render_bench_plot(rows: &[RenderBenchRow]) -> Result<Vec<u8>, CliError> {
     use plotters::prelude::*;
     super::geometry::register_font();
     let (w, h) = (1100u32, 900u32);
@@ -280,11 +281,11 @@ pub fn render_bench_plot(rows: &[RenderBenchRow]) -> Result<Vec<u8>, String> {
 }
 
 /// Writes `render.csv` and `render.png` into `dir` atomically; returns their paths.
-pub fn write_render_bench(dir: &Path, rows: &[RenderBenchRow]) -> Result<(PathBuf, PathBuf), String> {
-    std::fs::create_dir_all(dir).map_err(|e| format!("{}: cannot create: {e}", dir.display()))?;
+pub fn write_render_bench(dir: &Path, rows: &[RenderBenchRow]) -> Result<(PathBuf, PathBuf), CliError> {
+    std::fs::create_dir_all(dir).map_err(CliError::file(dir, "cannot create"))?;
     let (csv, png) = (dir.join("render.csv"), dir.join("render.png"));
     crate::files::write_atomic(&csv, render_bench_csv(rows).as_bytes())
-        .map_err(|e| format!("{}: {e}", csv.display()))?;
-    crate::files::write_atomic(&png, &render_bench_plot(rows)?).map_err(|e| format!("{}: {e}", png.display()))?;
+        .map_err(CliError::file(&csv, "cannot write"))?;
+    crate::files::write_atomic(&png, &render_bench_plot(rows)?).map_err(CliError::file(&png, "cannot write"))?;
     Ok((csv, png))
 }

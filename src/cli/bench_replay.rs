@@ -5,6 +5,7 @@
 //! with `--gpu`, compared with the CPU); then a log of 10⁵ strokes is saved and loaded, with
 //! the file's size and the process's peak memory.
 
+use super::{CliError, Within};
 use std::fmt::Write as _;
 use std::path::PathBuf;
 use std::time::Instant;
@@ -65,7 +66,7 @@ pub fn session_strokes(n: usize) -> Vec<crate::edit::Stroke> {
 
 /// The synthetic session: Moon, fBm terrain, `strokes` strokes ([`session_strokes`]) and one
 /// run of `steps` steps (the `rain` preset) on 128² cells of level 12 near 0.5°N 45.2°E.
-pub fn synthetic_session(strokes: usize, steps: u64) -> Result<Project, String> {
+pub fn synthetic_session(strokes: usize, steps: u64) -> Result<Project, CliError> {
     let mut p = Project::new("moon");
     let noise = NoiseSpec {
         noise_type: Default::default(),
@@ -82,7 +83,7 @@ pub fn synthetic_session(strokes: usize, steps: u64) -> Result<Project, String> 
     p.layers.push(base);
     let mut edit = LayerSpec::edit("sculpt");
     for stroke in session_strokes(strokes) {
-        edit.record_stroke(stroke).map_err(|e| e.to_string())?;
+        edit.record_stroke(stroke)?;
     }
     p.layers.push(edit);
     let e = p.ellipsoid()?;
@@ -92,8 +93,7 @@ pub fn synthetic_session(strokes: usize, steps: u64) -> Result<Project, String> 
     let half = 0.5 * side.to_degrees();
     let params = Params::preset("rain", gravity_of_body(&p.body)).ok_or("no rain preset")?;
     let run = Operation {
-        region: crate::geodesy::GeoBox::new(lon - half, lat - half, lon + half, lat + half)
-            .map_err(|e| e.to_string())?,
+        region: crate::geodesy::GeoBox::new(lon - half, lat - half, lon + half, lat + half)?,
         level: 12,
         steps,
         seed: 1,
@@ -103,7 +103,7 @@ pub fn synthetic_session(strokes: usize, steps: u64) -> Result<Project, String> 
         device: Default::default(),
     };
     let mut erosion = LayerSpec::erosion("erosion");
-    erosion.record_run(run).map_err(|e| e.to_string())?;
+    erosion.record_run(run)?;
     p.layers.push(erosion);
     p.check()?;
     Ok(p)
@@ -111,16 +111,16 @@ pub fn synthetic_session(strokes: usize, steps: u64) -> Result<Project, String> 
 
 /// Runs the benchmark; returns the table (also written to `out/replay-bench.md`), handing each
 /// part to `progress` as it is measured (a long run shows where it is).
-pub fn bench_replay(s: &ReplayBenchSettings, progress: &mut dyn FnMut(&str)) -> Result<String, String> {
-    std::fs::create_dir_all(&s.out).map_err(|e| format!("{}: {e}", s.out.display()))?;
+pub fn bench_replay(s: &ReplayBenchSettings, progress: &mut dyn FnMut(&str)) -> Result<String, CliError> {
+    std::fs::create_dir_all(&s.out).map_err(CliError::file(&s.out, "cannot create"))?;
     let mut out = String::new();
     let p = synthetic_session(s.strokes, s.steps)?;
     let path = s.out.join("replay-bench.json");
     let t = Instant::now();
-    p.save(&path).map_err(|e| e.to_string())?;
+    p.save(&path)?;
     let save_s = t.elapsed().as_secs_f64();
     let t = Instant::now();
-    let loaded = Project::load(&path).map_err(|e| e.to_string())?;
+    let loaded = Project::load(&path)?;
     let load_s = t.elapsed().as_secs_f64();
     let bytes = std::fs::metadata(&path).map_or(0, |m| m.len());
     let _ = writeln!(
@@ -133,15 +133,15 @@ pub fn bench_replay(s: &ReplayBenchSettings, progress: &mut dyn FnMut(&str)) -> 
     let _ = writeln!(out, "| engine | layer | operations | tiles | seconds | GPU − CPU (m) |");
     let _ = writeln!(out, "|---|---|---:|---:|---:|---:|");
     progress(&out);
-    let cpu = replay::replay(&loaded, Engine::Cpu).map_err(|e| e.to_string())?;
+    let cpu = replay::replay(&loaded, Engine::Cpu)?;
     for l in &cpu.layers {
         let row = format!("| cpu | {} | {} | {} | {:.2} | |\n", l.name, l.operations, l.digests.tiles.len(), l.seconds);
         progress(&row);
         out += &row;
     }
     if s.gpu {
-        let ctx = GpuContext::headless().map_err(|e| format!("--gpu: {e}"))?;
-        let gpu = replay::replay(&loaded, Engine::Gpu(&ctx)).map_err(|e| e.to_string())?;
+        let ctx = GpuContext::headless().within("--gpu")?;
+        let gpu = replay::replay(&loaded, Engine::Gpu(&ctx))?;
         for l in &gpu.layers {
             let uid = gpu.scene.stack.layers[l.index].uid;
             let difference = match (gpu.scene.edits.get(&uid), cpu.scene.edits.get(&uid)) {
@@ -164,16 +164,16 @@ pub fn bench_replay(s: &ReplayBenchSettings, progress: &mut dyn FnMut(&str)) -> 
     let mut log = Project::new("moon");
     let mut edit = LayerSpec::edit("sculpt");
     for stroke in super::scripted_strokes(s.log_strokes, 9) {
-        edit.record_stroke(stroke).map_err(|e| e.to_string())?;
+        edit.record_stroke(stroke)?;
     }
     log.layers.push(edit);
     let log_path = s.out.join("log-bench.json");
     let t = Instant::now();
-    log.save(&log_path).map_err(|e| e.to_string())?;
+    log.save(&log_path)?;
     let save_s = t.elapsed().as_secs_f64();
     let before = crate::store::import::peak_rss_bytes();
     let t = Instant::now();
-    let again = Project::load(&log_path).map_err(|e| e.to_string())?;
+    let again = Project::load(&log_path)?;
     let load_s = t.elapsed().as_secs_f64();
     let peak = crate::store::import::peak_rss_bytes();
     if again.layers != log.layers {
@@ -190,6 +190,6 @@ pub fn bench_replay(s: &ReplayBenchSettings, progress: &mut dyn FnMut(&str)) -> 
     );
     progress(&out[out.rfind("\nlog of").unwrap_or(0)..]);
     let table = s.out.join("replay-bench.md");
-    crate::files::write_atomic(&table, out.as_bytes()).map_err(|e| format!("{}: {e}", table.display()))?;
+    crate::files::write_atomic(&table, out.as_bytes()).map_err(CliError::file(table, "cannot write"))?;
     Ok(out)
 }

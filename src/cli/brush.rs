@@ -2,6 +2,7 @@
 //! and saves the project atomically, so brushing sessions can be scripted and checked. The stroke
 //! is checked and rasterised before anything is written: a refused stroke leaves the file as it was.
 
+use super::{CliError, Within};
 use std::fmt::Write as _;
 use std::path::PathBuf;
 
@@ -44,7 +45,7 @@ pub struct BrushRequest {
     pub redo: Option<usize>,
 }
 
-fn parse_path(text: &str) -> Result<Vec<[f64; 2]>, String> {
+fn parse_path(text: &str) -> Result<Vec<[f64; 2]>, CliError> {
     text.split(';')
         .filter(|p| !p.trim().is_empty())
         .enumerate()
@@ -56,22 +57,22 @@ fn parse_path(text: &str) -> Result<Vec<[f64; 2]>, String> {
                 .map_err(|_| format!("--path: point {k} '{p}' is not LAT,LON in degrees"))?;
             match v.as_slice() {
                 [lat, lon] => Ok([*lat, *lon]),
-                _ => Err(format!("--path: point {k} '{p}' is not LAT,LON in degrees")),
+                _ => Err(format!("--path: point {k} '{p}' is not LAT,LON in degrees").into()),
             }
         })
         .collect()
 }
 
-fn named<T: Copy>(what: &str, name: &str, all: &[T], name_of: fn(T) -> &'static str) -> Result<T, String> {
+fn named<T: Copy>(what: &str, name: &str, all: &[T], name_of: fn(T) -> &'static str) -> Result<T, CliError> {
     all.iter().copied().find(|t| name_of(*t) == name).ok_or_else(|| {
-        format!("--{what} {name}: not one of {}", all.iter().map(|t| name_of(*t)).collect::<Vec<_>>().join(", "))
+        format!("--{what} {name}: not one of {}", all.iter().map(|t| name_of(*t)).collect::<Vec<_>>().join(", ")).into()
     })
 }
 
 /// Runs the command; returns the report.
-pub fn brush_command(request: &BrushRequest) -> Result<String, String> {
+pub fn brush_command(request: &BrushRequest) -> Result<String, CliError> {
     let path = &request.project;
-    let mut project = Project::load(path).map_err(|e| e.to_string())?;
+    let mut project = Project::load(path)?;
     let ellipsoid = project.ellipsoid()?;
     let mut out = String::new();
     let index = match project.layers.iter().position(|l| l.name == request.layer) {
@@ -81,7 +82,8 @@ pub fn brush_command(request: &BrushRequest) -> Result<String, String> {
                 "--layer {}: a {} layer, not an edit layer",
                 request.layer,
                 project.layers[i].kind().name()
-            ));
+            )
+            .into());
         }
         None => {
             project.layers.push(LayerSpec::edit(&request.layer));
@@ -98,8 +100,8 @@ pub fn brush_command(request: &BrushRequest) -> Result<String, String> {
         }
         (None, None, Some(tool)) => {
             let stroke = stroke_of(request, tool, ellipsoid.a_m(), &ellipsoid)?;
-            let dabs = crate::edit::dabs::dab_centres(&ellipsoid, &stroke).map_err(|e| format!("--path: {e}"))?;
-            let dropped = spec.record_stroke(stroke.clone()).map_err(|e| e.to_string())?;
+            let dabs = crate::edit::dabs::dab_centres(&ellipsoid, &stroke).within("--path")?;
+            let dropped = spec.record_stroke(stroke.clone())?;
             let _ = writeln!(
                 out,
                 "layer '{}': stroke {} ({}, radius {} m, strength {}, {} falloff, {} dabs, level {}){}",
@@ -119,7 +121,7 @@ pub fn brush_command(request: &BrushRequest) -> Result<String, String> {
     // Rasterised before saving, with the project's layers (smooth, flatten and ramp read the
     // terrain below): a stroke that cannot be is refused and nothing is written.
     let t = std::time::Instant::now();
-    let (scene, report) = Scene::open(&project).map_err(|e| format!("layer '{}': {e}", request.layer))?;
+    let (scene, report) = Scene::open(&project).within(format_args!("layer '{}'", request.layer))?;
     for line in report.imported.iter().chain(&report.edits) {
         let _ = writeln!(out, "{line}");
     }
@@ -134,7 +136,7 @@ pub fn brush_command(request: &BrushRequest) -> Result<String, String> {
         raster.tiles.len(),
         raster.level
     );
-    project.save(path).map_err(|e| e.to_string())?;
+    project.save(path)?;
     let _ = writeln!(out, "saved {}", path.display());
     Ok(out)
 }
@@ -144,7 +146,7 @@ fn stroke_of(
     tool: &str,
     body_radius_m: f64,
     ellipsoid: &crate::geodesy::Ellipsoid,
-) -> Result<Stroke, String> {
+) -> Result<Stroke, CliError> {
     let tool = named("tool", tool, &Tool::ALL, Tool::name)?;
     let falloff = match &request.falloff {
         Some(f) => named("falloff", f, &Falloff::ALL, Falloff::name)?,
@@ -153,8 +155,10 @@ fn stroke_of(
     let radius_m = request.radius_m.ok_or("--radius-m: a stroke needs its radius in metres")?;
     let strength = match (tool.strength_in_metres(), request.strength_m, request.strength) {
         (true, Some(s), None) | (false, None, Some(s)) => s,
-        (true, _, _) => return Err(format!("--strength-m: {} takes its strength in metres per dab", tool.name())),
-        (false, _, _) => return Err(format!("--strength: {} takes its strength as a fraction 0–1", tool.name())),
+        (true, _, _) => {
+            return Err(format!("--strength-m: {} takes its strength in metres per dab", tool.name()).into());
+        }
+        (false, _, _) => return Err(format!("--strength: {} takes its strength as a fraction 0–1", tool.name()).into()),
     };
     let path = parse_path(request.path.as_deref().ok_or("--path: a stroke needs its path LAT,LON;LAT,LON;…")?)?;
     let level = match request.level {

@@ -2,6 +2,7 @@
 //! [`crate::compare`]), as a table for people or JSON with stable field names for scripts, and
 //! optionally every sample as CSV.
 
+use super::{CliError, Within};
 use std::fmt::Write as _;
 use std::path::PathBuf;
 
@@ -32,14 +33,14 @@ pub struct CompareRequest {
 }
 
 /// Parses `--region WEST,SOUTH,EAST,NORTH`.
-fn parse_region(region: Option<&str>) -> Result<Option<GeoBox>, String> {
+fn parse_region(region: Option<&str>) -> Result<Option<GeoBox>, CliError> {
     region.map(super::geo::parse_box).transpose()
 }
 
 /// Runs the comparison; returns what to print.
-pub fn compare_command(request: &CompareRequest) -> Result<String, String> {
+pub fn compare_command(request: &CompareRequest) -> Result<String, CliError> {
     let region = parse_region(request.region.as_deref())?;
-    let project = Project::load(&request.project).map_err(|e| e.to_string())?;
+    let project = Project::load(&request.project)?;
     let opts = CompareOptions {
         level: request.level,
         region,
@@ -47,17 +48,16 @@ pub fn compare_command(request: &CompareRequest) -> Result<String, String> {
         keep_samples: request.samples.is_some(),
         ..CompareOptions::default()
     };
-    let c =
-        compare(&project, &request.a, &request.b, &opts).map_err(|e| format!("{}: {e}", request.project.display()))?;
+    let c = compare(&project, &request.a, &request.b, &opts).within(request.project.display())?;
     if let Some(path) = &request.samples {
         let mut csv = String::from("lon_deg,lat_deg,dh_m,area_m2,slope_deg\n");
         for s in &c.samples {
             let _ = writeln!(csv, "{:.8},{:.8},{},{},{}", s.lon_deg, s.lat_deg, s.dh_m, s.area_m2, s.slope_deg);
         }
-        crate::files::write_atomic(path, csv.as_bytes()).map_err(|e| format!("{}: {e}", path.display()))?;
+        crate::files::write_atomic(path, csv.as_bytes()).map_err(CliError::file(path, "cannot write"))?;
     }
     if request.json {
-        return serde_json::to_string_pretty(&c).map(|s| s + "\n").map_err(|e| e.to_string());
+        return Ok(serde_json::to_string_pretty(&c)? + "\n");
     }
     Ok(table(&c))
 }
@@ -135,20 +135,19 @@ pub struct CoregRequest {
 }
 
 /// Runs the co-registration (and applies it); returns what to print.
-pub fn coregister_command(request: &CoregRequest) -> Result<String, String> {
+pub fn coregister_command(request: &CoregRequest) -> Result<String, CliError> {
     let region = parse_region(request.region.as_deref())?;
-    let mut project = Project::load(&request.project).map_err(|e| e.to_string())?;
+    let mut project = Project::load(&request.project)?;
     let opts = CoregOptions { level: request.level, region, ..CoregOptions::default() };
-    let c = coregister(&project, &request.a, &request.b, &opts)
-        .map_err(|e| format!("{}: {e}", request.project.display()))?;
+    let c = coregister(&project, &request.a, &request.b, &opts).within(request.project.display())?;
     if request.apply {
         let layer = project.layers.iter_mut().find(|l| l.name == request.a).ok_or("the layer vanished")?;
-        layer.shift_by(c.east_m, c.north_m).map_err(|e| e.to_string())?;
+        layer.shift_by(c.east_m, c.north_m)?;
         layer.offset_m += c.up_m;
-        project.save(&request.project).map_err(|e| e.to_string())?;
+        project.save(&request.project)?;
     }
     if request.json {
-        return serde_json::to_string_pretty(&c).map(|s| s + "\n").map_err(|e| e.to_string());
+        return Ok(serde_json::to_string_pretty(&c)? + "\n");
     }
     Ok(coreg_table(&c, request.apply))
 }

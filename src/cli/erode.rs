@@ -3,6 +3,7 @@
 //! moves its undo position, caches the layer's change of height beside the project and saves the
 //! project atomically. A run that cannot be made leaves the file as it was.
 
+use super::{CliError, Within};
 use std::fmt::Write as _;
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -58,16 +59,16 @@ pub struct ErodeRequest {
 }
 
 /// The preset `name` on the project's body with `set` overrides applied (`FIELD=VALUE`).
-pub fn params_of(preset: &str, body: &str, set: &[String]) -> Result<Params, String> {
+pub fn params_of(preset: &str, body: &str, set: &[String]) -> Result<Params, CliError> {
     let params = Params::preset(preset, gravity_of_body(body))
         .ok_or_else(|| format!("--preset {preset}: not one of {}", Params::PRESETS.join(", ")))?;
-    let mut value = serde_json::to_value(&params).map_err(|e| e.to_string())?;
+    let mut value = serde_json::to_value(&params)?;
     for item in set {
         let (field, text) = item.split_once('=').ok_or_else(|| format!("--set '{item}': not FIELD=VALUE"))?;
         let object = value.as_object_mut().ok_or("parameters are not an object")?;
         if !object.contains_key(field) {
             let fields: Vec<&String> = object.keys().collect();
-            return Err(format!("--set {field}: no such parameter (one of {fields:?})"));
+            return Err(format!("--set {field}: no such parameter (one of {fields:?})").into());
         }
         let v = text
             .parse::<f64>()
@@ -76,15 +77,15 @@ pub fn params_of(preset: &str, body: &str, set: &[String]) -> Result<Params, Str
             .map_or_else(|| serde_json::Value::String(text.to_string()), serde_json::Value::Number);
         object.insert(field.to_string(), v);
     }
-    let params: Params = serde_json::from_value(value).map_err(|e| format!("--set: {e}"))?;
+    let params: Params = serde_json::from_value(value).within("--set")?;
     params.check().map_err(|e| format!("--set {}: {} is outside {}", e.field, e.value, e.range))?;
     Ok(params)
 }
 
 /// Runs the command; returns the report (text or JSON).
-pub fn erode_command(request: &ErodeRequest) -> Result<String, String> {
+pub fn erode_command(request: &ErodeRequest) -> Result<String, CliError> {
     let path = &request.project;
-    let mut project = Project::load(path).map_err(|e| e.to_string())?;
+    let mut project = Project::load(path)?;
     let mut out = String::new();
     let index = match project.layers.iter().position(|l| l.name == request.layer) {
         Some(i) if project.layers[i].as_erosion().is_some() => i,
@@ -93,7 +94,8 @@ pub fn erode_command(request: &ErodeRequest) -> Result<String, String> {
                 "--layer {}: a {} layer, not an erosion layer",
                 request.layer,
                 project.layers[i].kind().name()
-            ));
+            )
+            .into());
         }
         None => {
             project.layers.push(LayerSpec::erosion(&request.layer));
@@ -121,17 +123,17 @@ pub fn erode_command(request: &ErodeRequest) -> Result<String, String> {
     let params = params_of(&preset, &project.body, &request.set)?;
     // The layer as it stands (its runs in effect), opened and built or read from its cache.
     project.layers[index].drop_undone();
-    let (mut scene, report) = Scene::open(&project).map_err(|e| format!("layer '{}': {e}", request.layer))?;
+    let (mut scene, report) = Scene::open(&project).within(format_args!("layer '{}'", request.layer))?;
     for line in report.imported.iter().chain(&report.edits) {
         let _ = writeln!(out, "{line}");
     }
     let gpu = match request.on {
         ErodeOn::Cpu => None,
-        ErodeOn::Gpu => Some(GpuContext::headless().map_err(|e| format!("--gpu: {e}"))?),
+        ErodeOn::Gpu => Some(GpuContext::headless().within("--gpu")?),
         ErodeOn::Auto => GpuContext::headless().ok().filter(|c| c.info.device_type != wgpu::DeviceType::Cpu),
     };
     let kernel = match &gpu {
-        Some(c) => Some(Arc::new(ErosionKernel::new(&c.device).map_err(|e| e.to_string())?)),
+        Some(c) => Some(Arc::new(ErosionKernel::new(&c.device)?)),
         None => None,
     };
     let stepper: Box<dyn Stepper> = match (&gpu, &kernel) {
@@ -151,22 +153,23 @@ pub fn erode_command(request: &ErodeRequest) -> Result<String, String> {
     let uid = scene.stack.layers[index].uid;
     let mut raster = scene.edits.get(&uid).map(|r| (**r).clone()).ok_or("the erosion layer was not built")?;
     let below = scene.below(index)?;
-    let outcome = crate::erosion::layer::apply(&mut raster, applied, &op, &|q| below.heights_cpu(q), stepper.as_ref())
-        .map_err(|e| {
-            let flag = match e.field.as_str() {
-                "region" => "--region".to_string(),
-                "level" => "--level".to_string(),
-                "steps" => "--steps".to_string(),
-                f if f.starts_with("params.") => format!("--set {}", &f[7..]),
-                f => f.to_string(),
-            };
-            format!("{flag}: {}", e.problem)
-        })?;
-    project.layers[index].record_run(op).map_err(|e| e.to_string())?;
-    scene.stack.set(index, project.layers[index].clone()).map_err(|e| e.to_string())?;
+    let outcome =
+        crate::erosion::layer::apply(&mut raster, applied, &op, &|q| Ok(below.heights_cpu(q)?), stepper.as_ref())
+            .map_err(|e| {
+                let flag = match e.field.as_str() {
+                    "region" => "--region".to_string(),
+                    "level" => "--level".to_string(),
+                    "steps" => "--steps".to_string(),
+                    f if f.starts_with("params.") => format!("--set {}", &f[7..]),
+                    f => f.to_string(),
+                };
+                format!("{flag}: {}", e.problem)
+            })?;
+    project.layers[index].record_run(op)?;
+    scene.stack.set(index, project.layers[index].clone())?;
     scene.set_edit(index, raster);
     let cached = scene.save_edit_cache(index)?;
-    project.save(path).map_err(|e| e.to_string())?;
+    project.save(path)?;
     let device =
         if gpu.is_some() { gpu.as_ref().map(GpuContext::describe).unwrap_or_default() } else { "CPU reference".into() };
     if request.json {
@@ -246,13 +249,13 @@ fn json_of(o: &Outcome, device: &str, cached: Option<&std::path::Path>, path: &s
 }
 
 /// After an undo or redo: the layer rebuilt or read from its cache, the project saved.
-fn finish(project: &Project, path: &std::path::Path, index: usize, mut out: String) -> Result<String, String> {
-    let (scene, report) = Scene::open(project).map_err(|e| e.to_string())?;
+fn finish(project: &Project, path: &std::path::Path, index: usize, mut out: String) -> Result<String, CliError> {
+    let (scene, report) = Scene::open(project)?;
     for line in report.imported.iter().chain(&report.edits) {
         let _ = writeln!(out, "{line}");
     }
     scene.save_edit_cache(index)?;
-    project.save(path).map_err(|e| e.to_string())?;
+    project.save(path)?;
     let _ = writeln!(out, "saved {}", path.display());
     Ok(out)
 }

@@ -4,6 +4,7 @@
 //! from the composed grid of the quad that holds it (as `store export` does for one dataset).
 //! The quads are composed on the GPU (the renderer's pass) or with the CPU reference.
 
+use super::{CliError, Within};
 use std::collections::{BTreeSet, HashMap};
 use std::path::PathBuf;
 
@@ -67,24 +68,24 @@ type Cell = (QuadId, usize, usize, f64, f64);
 const GPU_BATCH: usize = 16;
 
 /// Exports the composed elevation of a project. Errors name the file and the problem.
-pub fn export_composed(opts: &ComposedExport) -> Result<ComposedReport, String> {
-    let project = Project::load(&opts.project).map_err(|e| e.to_string())?;
-    let raster = RasterSpec::new(&opts.crs, opts.bounds, opts.resolution, &opts.out).map_err(|e| e.to_string())?;
+pub fn export_composed(opts: &ComposedExport) -> Result<ComposedReport, CliError> {
+    let project = Project::load(&opts.project)?;
+    let raster = RasterSpec::new(&opts.crs, opts.bounds, opts.resolution, &opts.out)?;
     if let Some(l) = opts.level
         && l > crate::ecm::MAX_LEVEL
     {
-        return Err(format!("--level {l}: levels run 0–{}", crate::ecm::MAX_LEVEL));
+        return Err(format!("--level {l}: levels run 0–{}", crate::ecm::MAX_LEVEL).into());
     }
-    let (scene, _) = Scene::open(&project).map_err(|e| format!("{}: {e}", opts.project.display()))?;
+    let (scene, _) = Scene::open(&project).within(opts.project.display())?;
     let body = scene.ellipsoid;
     let level = match opts.level {
         Some(l) => l,
         None => {
-            let r = raster.pixel_ground_m(&opts.crs, &body, &opts.out).map_err(|e| e.to_string())?;
+            let r = raster.pixel_ground_m(&opts.crs, &body, &opts.out)?;
             crate::layers::default_level(level_for_resolution(&body, r), scene.detail_level())
         }
     };
-    let points = raster.pixel_lat_lon(&opts.crs, &body, &opts.out).map_err(|e| e.to_string())?;
+    let points = raster.pixel_lat_lon(&opts.crs, &body, &opts.out)?;
 
     // Where each pixel falls: the quad, and the sample cell inside it.
     let m = intervals_per_face_edge(level);
@@ -108,8 +109,7 @@ pub fn export_composed(opts: &ComposedExport) -> Result<ComposedReport, String> 
         Some((a, b)) => {
             let alone = |name: &str| {
                 let operand = crate::layers::Operand::Layer(name.into());
-                crate::compare::sample::operand_scene(&scene, &project, &operand)
-                    .map_err(|e| format!("{}: {e}", opts.project.display()))
+                crate::compare::sample::operand_scene(&scene, &project, &operand).within(opts.project.display())
             };
             let (mut grids, composer) = compose_grids(alone(a)?, &quads, opts.compose_on)?;
             let (minus, _) = compose_grids(alone(b)?, &quads, opts.compose_on)?;
@@ -149,7 +149,7 @@ pub fn export_composed(opts: &ComposedExport) -> Result<ComposedReport, String> 
         ("TERRAFUSE_LEVEL", level.to_string()),
         ("TERRAFUSE_COMPOSED_ON", composer.clone()),
     ];
-    raster.write(&opts.out, &metadata, data).map_err(|e| e.to_string())?;
+    raster.write(&opts.out, &metadata, data)?;
     Ok(ComposedReport { size: raster.size, level, quads: quads.len(), valid, composer })
 }
 
@@ -159,18 +159,18 @@ fn compose_grids(
     scene: Scene,
     quads: &[QuadId],
     compose_on: ComposeOn,
-) -> Result<(HashMap<QuadId, Vec<f32>>, String), String> {
+) -> Result<(HashMap<QuadId, Vec<f32>>, String), CliError> {
     match compose_on {
         ComposeOn::Cpu => Ok((scene.compose_cpu(quads)?, "CPU reference".to_string())),
         ComposeOn::Gpu => {
-            let ctx = GpuContext::headless().map_err(|e| e.to_string())?;
+            let ctx = GpuContext::headless()?;
             let name = ctx.describe();
-            let mut renderer = Renderer::new(&ctx, scene, IMAGE_FORMAT).map_err(|e| e.to_string())?;
+            let mut renderer = Renderer::new(&ctx, scene, IMAGE_FORMAT)?;
             let mut grids = HashMap::new();
             for batch in quads.chunks(GPU_BATCH) {
-                renderer.compose_now(batch).map_err(|e| e.to_string())?;
+                renderer.compose_now(batch)?;
                 for &q in batch {
-                    let grid = renderer.read_heights(q).map_err(|e| e.to_string())?;
+                    let grid = renderer.read_heights(q)?;
                     grids.insert(q, grid.unwrap_or_else(|| vec![f32::NAN; 257 * 257]));
                 }
             }

@@ -1,5 +1,6 @@
 //! `terrafuse geo …`: line-by-line conversions between geodetic, ECEF and cube-face coordinates.
 
+use super::{CliError, Within};
 use std::io::{self, BufRead, Write};
 
 use glam::DVec3;
@@ -79,23 +80,23 @@ pub fn run_batch(
     Ok(report)
 }
 
-fn numbers<const N: usize>(fields: &[&str]) -> Result<[f64; N], String> {
+fn numbers<const N: usize>(fields: &[&str]) -> Result<[f64; N], CliError> {
     if fields.len() < N {
-        return Err(format!("{} field(s), need {N}", fields.len()));
+        return Err(format!("{} field(s), need {N}", fields.len()).into());
     }
     let mut out = [0.0; N];
     for (slot, field) in out.iter_mut().zip(fields) {
         *slot = field.parse::<f64>().map_err(|_| format!("'{field}' is not a number"))?;
         if !slot.is_finite() {
-            return Err(format!("'{field}' is not a finite number"));
+            return Err(format!("'{field}' is not a finite number").into());
         }
     }
     Ok(out)
 }
 
-fn check_lat(lat_deg: f64) -> Result<(), String> {
+fn check_lat(lat_deg: f64) -> Result<(), CliError> {
     if lat_deg.abs() > 90.0 {
-        return Err(format!("latitude {lat_deg} is outside [-90, 90]"));
+        return Err(format!("latitude {lat_deg} is outside [-90, 90]").into());
     }
     Ok(())
 }
@@ -105,7 +106,7 @@ fn convert(
     ellipsoid: &Ellipsoid,
     projection: CubeProjection,
     line: &str,
-) -> Result<Vec<String>, String> {
+) -> Result<Vec<String>, CliError> {
     let fields: Vec<&str> = line.split_whitespace().collect();
     match operation {
         GeoOperation::ToFace => {
@@ -118,8 +119,7 @@ fn convert(
             let face: Face =
                 fields.first().ok_or("empty line")?.parse().map_err(|e: crate::ecm::EcmError| e.to_string())?;
             let [x, y] = numbers::<2>(&fields[1..])?;
-            let (lat, lon) =
-                projection.geodetic_from_face_point(ellipsoid, FacePoint { face, x, y }).map_err(|e| e.to_string())?;
+            let (lat, lon) = projection.geodetic_from_face_point(ellipsoid, FacePoint { face, x, y })?;
             Ok(vec![format_f64(lat.to_degrees()), format_f64(lon.to_degrees())])
         }
         GeoOperation::ToEcef => {
@@ -138,8 +138,8 @@ fn convert(
 
 /// A `--region` box as every command takes it: `WEST,SOUTH,EAST,NORTH` in degrees (west > east
 /// crosses the antimeridian); the error names the flag.
-pub fn parse_box(text: &str) -> Result<crate::geodesy::GeoBox, String> {
-    text.parse().map_err(|e| format!("--region: {e}"))
+pub fn parse_box(text: &str) -> Result<crate::geodesy::GeoBox, CliError> {
+    text.parse::<crate::geodesy::GeoBox>().within("--region")
 }
 
 #[cfg(test)]

@@ -1,6 +1,7 @@
 //! Reports on the ECM quad geometry: the flat-rule table (`terrafuse analyze cutoff`) and the
 //! accuracy benchmark (`terrafuse bench accuracy`) with its CSV, plot and timings.
 
+use super::CliError;
 use std::fmt::Write as _;
 use std::hint::black_box;
 use std::path::Path;
@@ -274,7 +275,7 @@ pub fn accuracy_plot(
     rows: &[AccuracyRow],
     bodies: &[Ellipsoid],
     settings: &AccuracySettings,
-) -> Result<Vec<u8>, String> {
+) -> Result<Vec<u8>, CliError> {
     use plotters::prelude::*;
     register_font();
     let (w, h) = (560 * bodies.len().max(1) as u32, 1000u32);
@@ -374,10 +375,12 @@ pub fn accuracy_plot(
 }
 
 /// A plot's RGB buffer as PNG bytes.
-pub(crate) fn plot_png(w: u32, h: u32, buffer: Vec<u8>) -> Result<Vec<u8>, String> {
+pub(crate) fn plot_png(w: u32, h: u32, buffer: Vec<u8>) -> Result<Vec<u8>, CliError> {
     let image = image::RgbImage::from_raw(w, h, buffer).ok_or("plot buffer has the wrong size")?;
     let mut png = Vec::new();
-    image.write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png).map_err(|e| e.to_string())?;
+    image
+        .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
+        .map_err(|e| CliError::Failed(e.into()))?;
     Ok(png)
 }
 
@@ -387,18 +390,17 @@ pub fn write_accuracy_outputs(
     rows: &[AccuracyRow],
     csv: &Path,
     plot: Option<&Path>,
-) -> Result<(), String> {
+) -> Result<(), CliError> {
     for path in std::iter::once(csv).chain(plot) {
         if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
-            std::fs::create_dir_all(dir).map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+            std::fs::create_dir_all(dir).map_err(CliError::file(path, "cannot write"))?;
         }
     }
-    crate::files::write_atomic(csv, accuracy_csv(rows).as_bytes())
-        .map_err(|e| format!("cannot write {}: {e}", csv.display()))?;
+    crate::files::write_atomic(csv, accuracy_csv(rows).as_bytes()).map_err(CliError::file(csv, "cannot write"))?;
     if let Some(plot) = plot {
         let png = accuracy_plot(rows, &bench.bodies, &bench.settings)
             .map_err(|e| format!("cannot draw {}: {e}", plot.display()))?;
-        crate::files::write_atomic(plot, &png).map_err(|e| format!("cannot write {}: {e}", plot.display()))?;
+        crate::files::write_atomic(plot, &png).map_err(CliError::file(plot, "cannot write"))?;
     }
     Ok(())
 }

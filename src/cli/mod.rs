@@ -12,6 +12,7 @@ mod bench_shards;
 mod brush;
 mod compare;
 mod erode;
+mod error;
 mod export;
 mod geo;
 mod geometry;
@@ -35,6 +36,7 @@ pub use bench_shards::{SRTM_SAMPLES, ShardBenchSettings, bench_shards};
 pub use brush::{BrushRequest, brush_command};
 pub use compare::{CompareRequest, CoregRequest, compare_command, coregister_command, table as compare_table};
 pub use erode::{ErodeOn, ErodeRequest, erode_command, params_of};
+pub use error::{CliError, Within};
 pub use export::{ComposeOn, ComposedExport, ComposedReport, export_composed};
 pub use geo::{BatchReport, GeoOperation, run_batch};
 pub use geometry::{

@@ -1,6 +1,7 @@
 //! `terrafuse profile PROJECT --from LAT,LON --to LAT,LON`: every visible layer's elevation and
 //! the composed stack's along the geodesic, as a summary table and optionally CSV.
 
+use super::{CliError, Within};
 use std::fmt::Write as _;
 use std::path::PathBuf;
 
@@ -26,21 +27,21 @@ pub struct ProfileRequest {
     pub csv: Option<PathBuf>,
 }
 
-fn parse_point(option: &str, text: &str) -> Result<[f64; 2], String> {
+fn parse_point(option: &str, text: &str) -> Result<[f64; 2], CliError> {
     let v: Vec<f64> = text
         .split(',')
         .map(|s| s.trim().parse::<f64>())
         .collect::<Result<_, _>>()
-        .map_err(|e| format!("{option} {text}: {e} (give LAT,LON in degrees)"))?;
+        .map_err(|e| format!("{option} {text}: {} (give LAT,LON in degrees)", crate::errors::chain(&e)))?;
     match v[..] {
         [lat, lon] => Ok([lat, lon]),
-        _ => Err(format!("{option} {text}: give LAT,LON in degrees")),
+        _ => Err(format!("{option} {text}: give LAT,LON in degrees").into()),
     }
 }
 
 /// Samples the profile, writes the CSV if asked; returns what to print.
-pub fn profile_command(request: &ProfileRequest) -> Result<String, String> {
-    let project = Project::load(&request.project).map_err(|e| e.to_string())?;
+pub fn profile_command(request: &ProfileRequest) -> Result<String, CliError> {
+    let project = Project::load(&request.project)?;
     let (from, to) = match (&request.line, &request.from, &request.to) {
         (Some(name), None, None) => {
             let line = project.comparison.profiles.get(name).ok_or_else(|| {
@@ -53,9 +54,9 @@ pub fn profile_command(request: &ProfileRequest) -> Result<String, String> {
         _ => return Err("give --from LAT,LON and --to LAT,LON, or --line NAME (a line saved in the project)".into()),
     };
     let opts = ProfileOptions { from, to, samples: request.samples, level: request.level };
-    let p = profile(&project, &opts).map_err(|e| format!("{}: {e}", request.project.display()))?;
+    let p = profile(&project, &opts).within(request.project.display())?;
     if let Some(path) = &request.csv {
-        crate::files::write_atomic(path, p.csv().as_bytes()).map_err(|e| format!("{}: {e}", path.display()))?;
+        crate::files::write_atomic(path, p.csv().as_bytes()).map_err(CliError::file(path, "cannot write"))?;
     }
     let mut out = String::new();
     let _ = writeln!(

@@ -1,6 +1,8 @@
 //! `terrafuse project check|upgrade`: a project file checked the way opening it would, without
 //! opening a window or importing anything; and rewritten in the current version.
 
+use super::{CliError, Within};
+use crate::gpu::scene::SceneError;
 use std::fmt::Write as _;
 use std::path::Path;
 
@@ -9,9 +11,9 @@ use crate::project::{Project, recovery};
 
 /// `terrafuse project check`: every field, the files it names (a store there, or the sources to
 /// import it from; a store on the project's body), and a recovery file left by the workstation.
-pub fn project_check(path: &Path) -> Result<String, String> {
-    let project = Project::load(path).map_err(|e| e.to_string())?;
-    let text = std::fs::read_to_string(path).map_err(|e| format!("{}: cannot read: {e}", path.display()))?;
+pub fn project_check(path: &Path) -> Result<String, CliError> {
+    let project = Project::load(path)?;
+    let text = std::fs::read_to_string(path).map_err(CliError::file(path, "cannot read"))?;
     let version = crate::project::migrate::header(&text).unwrap_or(crate::project::VERSION);
     let mut out = String::new();
     let _ = writeln!(out, "{}: a Terrafuse project, version {version}, body {}", path.display(), project.body);
@@ -36,8 +38,8 @@ pub fn project_check(path: &Path) -> Result<String, String> {
                     match crate::gpu::scene::open_dataset(&project, layer) {
                         Ok(_) => {}
                         // An incomplete dataset is imported again from its sources.
-                        Err(e) if data.source.is_some() && !e.contains("holds tiles on") => {}
-                        Err(e) => return Err(format!("{}: {e}", field("store"))),
+                        Err(e) if data.source.is_some() && !matches!(e, SceneError::OtherBody { .. }) => {}
+                        Err(e) => return Err(format!("{}: {}", field("store"), crate::errors::chain(&e)).into()),
                     }
                     let _ = write!(line, ": store {}", store.display());
                 } else {
@@ -51,7 +53,8 @@ pub fn project_check(path: &Path) -> Result<String, String> {
                                 "{}: {} does not exist",
                                 field(&format!("source.files[{j}]")),
                                 file.display()
-                            ));
+                            )
+                            .into());
                         }
                     }
                     let _ = write!(
@@ -76,7 +79,7 @@ pub fn project_check(path: &Path) -> Result<String, String> {
     if let Some(file) = &project.visuals.colour_map.file {
         let f = project.resolve(file);
         if !f.is_file() {
-            return Err(format!("{}: visuals.colour_map.file: {} does not exist", path.display(), f.display()));
+            return Err(format!("{}: visuals.colour_map.file: {} does not exist", path.display(), f.display()).into());
         }
     }
     let _ = writeln!(
@@ -94,15 +97,15 @@ pub fn project_check(path: &Path) -> Result<String, String> {
 
 /// `terrafuse project upgrade`: the project rewritten in the current version, over itself or at
 /// `out` (relative paths rewritten to reach the same files from there).
-pub fn project_upgrade(path: &Path, out: Option<&Path>) -> Result<String, String> {
-    let text = std::fs::read_to_string(path).map_err(|e| format!("{}: cannot read: {e}", path.display()))?;
-    let from = crate::project::migrate::header(&text).map_err(|e| format!("{}: {e}", path.display()))?;
-    let mut project = Project::load(path).map_err(|e| e.to_string())?;
+pub fn project_upgrade(path: &Path, out: Option<&Path>) -> Result<String, CliError> {
+    let text = std::fs::read_to_string(path).map_err(CliError::file(path, "cannot read"))?;
+    let from = crate::project::migrate::header(&text).within(path.display())?;
+    let mut project = Project::load(path)?;
     let target = out.unwrap_or(path);
     if let Some(out) = out {
         let dir = crate::files::folder_of(out);
         project.rebase(dir);
     }
-    project.save(target).map_err(|e| e.to_string())?;
+    project.save(target)?;
     Ok(format!("{}: version {from} → {}, written to {}\n", path.display(), crate::project::VERSION, target.display()))
 }

@@ -1,5 +1,6 @@
 //! `terrafuse render`: one frame of a project to a PNG, with what it drew and what it cost.
 
+use super::{CliError, Within};
 use std::fmt::Write as _;
 use std::path::Path;
 use std::time::Duration;
@@ -36,24 +37,27 @@ struct Swipe {
     position: f64,
 }
 
-fn parse_swipe(text: &str, project: &Project) -> Result<Swipe, String> {
+fn parse_swipe(text: &str, project: &Project) -> Result<Swipe, CliError> {
     if let Some(saved) = project.comparison.swipes.get(text) {
         return Ok(Swipe { a: saved.a.clone(), b: saved.b.clone(), position: saved.position });
     }
     let parts: Vec<&str> = text.split(',').map(str::trim).collect();
     let (a, b, position) = match parts[..] {
         [a, b] => (a, b, 0.5),
-        [a, b, p] => (a, b, p.parse::<f64>().map_err(|e| format!("--swipe {text}: position {p}: {e}"))?),
+        [a, b, p] => {
+            (a, b, p.parse::<f64>().map_err(|e| format!("--swipe {text}: position {p}: {}", crate::errors::chain(&e)))?)
+        }
         _ => {
             let saved: Vec<&str> = project.comparison.swipes.keys().map(String::as_str).collect();
             return Err(format!(
                 "--swipe {text}: give A,B or A,B,POSITION (layer names, position 0–1) or a saved swipe ({})",
                 if saved.is_empty() { "the project saves none".to_string() } else { saved.join(", ") }
-            ));
+            )
+            .into());
         }
     };
     if !(0.0..=1.0).contains(&position) {
-        return Err(format!("--swipe {text}: position {position} must lie within 0–1 of the width"));
+        return Err(format!("--swipe {text}: position {position} must lie within 0–1 of the width").into());
     }
     for name in [a, b] {
         if !project.layers.iter().any(|l| l.name == name) {
@@ -61,11 +65,12 @@ fn parse_swipe(text: &str, project: &Project) -> Result<Swipe, String> {
             return Err(format!(
                 "--swipe {text}: layer '{name}' is not in the project (its layers: {})",
                 known.join(", ")
-            ));
+            )
+            .into());
         }
     }
     if a == b {
-        return Err(format!("--swipe {text}: A and B are the same layer"));
+        return Err(format!("--swipe {text}: A and B are the same layer").into());
     }
     Ok(Swipe { a: a.into(), b: b.into(), position })
 }
@@ -107,14 +112,14 @@ fn composite(left: &RenderedImage, right: &RenderedImage, position: f64) -> Rend
 
 /// Opens a project for rendering: the project, its scene (importing missing datasets), the
 /// device and the renderer; the lines say what was imported and on what device.
-pub fn open_renderer(project_path: &Path) -> Result<(Project, Renderer, Vec<String>), String> {
-    let project = Project::load(project_path).map_err(|e| e.to_string())?;
-    let (scene, report) = Scene::open(&project).map_err(|e| format!("{}: {e}", project_path.display()))?;
-    let ctx = GpuContext::headless().map_err(|e| e.to_string())?;
+pub fn open_renderer(project_path: &Path) -> Result<(Project, Renderer, Vec<String>), CliError> {
+    let project = Project::load(project_path)?;
+    let (scene, report) = Scene::open(&project).within(project_path.display())?;
+    let ctx = GpuContext::headless()?;
     let mut lines = report.imported;
     lines.extend(report.edits);
     lines.push(format!("device: {}", ctx.describe()));
-    let mut renderer = Renderer::new(&ctx, scene, IMAGE_FORMAT).map_err(|e| e.to_string())?;
+    let mut renderer = Renderer::new(&ctx, scene, IMAGE_FORMAT)?;
     if let Some(line) = resolve_difference_range(&project, &mut renderer)? {
         lines.push(line);
     }
@@ -123,13 +128,13 @@ pub fn open_renderer(project_path: &Path) -> Result<(Project, Renderer, Vec<Stri
 
 /// Gives the renderer the drawn difference layer's range: its `range_m`, or the percentile of
 /// |dh| computed here; the line says which.
-pub fn resolve_difference_range(project: &Project, renderer: &mut Renderer) -> Result<Option<String>, String> {
+pub fn resolve_difference_range(project: &Project, renderer: &mut Renderer) -> Result<Option<String>, CliError> {
     let Some(d) = renderer.scene().stack.drawn_difference() else { return Ok(None) };
     let spec = renderer.scene().stack.layers[d].spec.clone();
     let style = spec.difference_style();
     if style.range_m.is_none() {
         let range = crate::compare::difference_range(project, &spec)
-            .map_err(|e| format!("difference layer '{}': {e}", spec.name))?;
+            .within(format_args!("difference layer '{}'", spec.name))?;
         renderer.set_difference_range(range);
     }
     let how = match style.range_m {
@@ -145,22 +150,22 @@ pub fn resolve_difference_range(project: &Project, renderer: &mut Renderer) -> R
 }
 
 /// The camera of a request: `--camera`, else `--view`, else the project's default view.
-pub fn request_camera(project: &Project, view: Option<&str>, camera: Option<&str>) -> Result<CameraSpec, String> {
-    project.camera(view, camera)
+pub fn request_camera(project: &Project, view: Option<&str>, camera: Option<&str>) -> Result<CameraSpec, CliError> {
+    Ok(project.camera(view, camera)?)
 }
 
 /// Writes an image as PNG, atomically.
-pub fn write_png(path: &Path, image: &RenderedImage) -> Result<(), String> {
-    image.write_png(path)
+pub fn write_png(path: &Path, image: &RenderedImage) -> Result<(), CliError> {
+    Ok(image.write_png(path)?)
 }
 
 /// Renders one frame and writes it; returns the report.
-pub fn render(request: &RenderRequest) -> Result<String, String> {
+pub fn render(request: &RenderRequest) -> Result<String, CliError> {
     if request.width == 0 || request.height == 0 || request.width > 16384 || request.height > 16384 {
-        return Err(format!("image size {}x{} must lie within 1–16384 pixels", request.width, request.height));
+        return Err(format!("image size {}x{} must lie within 1–16384 pixels", request.width, request.height).into());
     }
     // Check the request before importing anything or opening the GPU.
-    let project = Project::load(request.project).map_err(|e| e.to_string())?;
+    let project = Project::load(request.project)?;
     let swipe = request.swipe.map(|s| parse_swipe(s, &project)).transpose()?;
     // A saved swipe brings its view, unless the command names one.
     let saved_view = request.swipe.and_then(|s| project.comparison.swipes.get(s)).and_then(|s| s.view.as_deref());
@@ -168,7 +173,7 @@ pub fn render(request: &RenderRequest) -> Result<String, String> {
     if let Some(t) = request.lod_threshold
         && !(t.is_finite() && t > 0.0)
     {
-        return Err(format!("--lod-threshold {t} must be a positive number of pixels"));
+        return Err(format!("--lod-threshold {t} must be a positive number of pixels").into());
     }
     let (_, mut renderer, lines) = open_renderer(request.project)?;
     if let Some(t) = request.lod_threshold {
@@ -179,8 +184,7 @@ pub fn render(request: &RenderRequest) -> Result<String, String> {
         // difference layer shown on it with its colour range).
         let side = show_only(&project, &s.a, &s.b);
         let (scene, _) = Scene::open(&side)?;
-        renderer = Renderer::new(&GpuContext::headless().map_err(|e| e.to_string())?, scene, IMAGE_FORMAT)
-            .map_err(|e| e.to_string())?;
+        renderer = Renderer::new(&GpuContext::headless()?, scene, IMAGE_FORMAT)?;
         resolve_difference_range(&side, &mut renderer)?;
         if let Some(t) = request.lod_threshold {
             renderer.set_threshold(t);
@@ -210,20 +214,18 @@ pub fn render(request: &RenderRequest) -> Result<String, String> {
             );
         }
     });
-    let mut image = renderer.render_image(DrawMode::Colour).map_err(|e| e.to_string())?;
+    let mut image = renderer.render_image(DrawMode::Colour)?;
     let mut swiped = String::new();
     if let Some(s) = &swipe {
         let side = show_only(&project, &s.b, &s.a);
         let (scene, _) = Scene::open(&side)?;
-        let mut right_renderer =
-            Renderer::new(&GpuContext::headless().map_err(|e| e.to_string())?, scene, IMAGE_FORMAT)
-                .map_err(|e| e.to_string())?;
+        let mut right_renderer = Renderer::new(&GpuContext::headless()?, scene, IMAGE_FORMAT)?;
         resolve_difference_range(&side, &mut right_renderer)?;
         if let Some(t) = request.lod_threshold {
             right_renderer.set_threshold(t);
         }
         let right_stats = right_renderer.settle(&camera, request.width, request.height, Duration::from_secs(300));
-        let right = right_renderer.render_image(DrawMode::Colour).map_err(|e| e.to_string())?;
+        let right = right_renderer.render_image(DrawMode::Colour)?;
         image = composite(&image, &right, s.position);
         swiped = format!(
             "swipe: '{}' left of {:.0} % of the width, '{}' right of it ({} quads drawn right)\n",

@@ -4,6 +4,7 @@
 //! `--gpu` rebuilds on the GPU and, with `--check`, compares each layer with the CPU reference
 //! within its stated tolerance (the digests are checked on the CPU replay: they are bit for bit).
 
+use super::{CliError, Within};
 use std::fmt::Write as _;
 use std::path::PathBuf;
 use std::time::Instant;
@@ -36,16 +37,17 @@ pub struct ReplayOutcome {
 }
 
 /// Runs `terrafuse replay`.
-pub fn replay_command(request: &ReplayRequest) -> Result<ReplayOutcome, String> {
+pub fn replay_command(request: &ReplayRequest) -> Result<ReplayOutcome, CliError> {
     let t = Instant::now();
     let path = &request.project;
-    let mut project = Project::load(path).map_err(|e| e.to_string())?;
+    let mut project = Project::load(path)?;
     if request.record && request.gpu {
         return Err("--record: digests are recorded from the CPU reference (bit for bit); drop --gpu".into());
     }
-    let ctx = if request.gpu { Some(GpuContext::headless().map_err(|e| format!("--gpu: {e}"))?) } else { None };
+    let ctx = if request.gpu { Some(GpuContext::headless().within("--gpu")?) } else { None };
     let engine = ctx.as_ref().map_or(Engine::Cpu, Engine::Gpu);
-    let fail = |e: replay::ReplayError| format!("{}: {e}", path.display());
+    let fail =
+        |e: replay::ReplayError| CliError::Within { context: path.display().to_string(), source: Box::new(e.into()) };
     let replayed = replay::replay(&project, engine).map_err(fail)?;
     // The CPU reference, when the GPU replayed and something is to be checked against it.
     let cpu =
@@ -73,8 +75,7 @@ pub fn replay_command(request: &ReplayRequest) -> Result<ReplayOutcome, String> 
     let mut checks = Vec::new();
     let mut recorded = 0;
     for (name, check) in project.checks.clone() {
-        let got = replay::evaluate(&reference.scene, &project, &name, &check)
-            .map_err(|e| format!("{}: {e}", path.display()))?;
+        let got = replay::evaluate(&reference.scene, &project, &name, &check).within(path.display())?;
         let mut row = serde_json::json!({
             "name": name, "layer": check.layer, "digest": digest::hex(got.total), "tiles": got.tiles.len(),
         });
@@ -100,7 +101,7 @@ pub fn replay_command(request: &ReplayRequest) -> Result<ReplayOutcome, String> 
         checks.push(row);
     }
     if request.record && recorded > 0 {
-        project.save(path).map_err(|e| e.to_string())?;
+        project.save(path)?;
     }
     let seconds = t.elapsed().as_secs_f64();
     let report = if request.json {
@@ -111,7 +112,7 @@ pub fn replay_command(request: &ReplayRequest) -> Result<ReplayOutcome, String> 
         if request.record {
             j["recorded"] = serde_json::json!(recorded);
         }
-        format!("{}\n", serde_json::to_string_pretty(&j).map_err(|e| e.to_string())?)
+        format!("{}\n", serde_json::to_string_pretty(&j)?)
     } else {
         text_report(path, &engine, &replayed, &layers, &checks, request, recorded, seconds)
     };

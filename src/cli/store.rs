@@ -1,5 +1,6 @@
 //! `terrafuse import`, `terrafuse store info|sample|export` and `terrafuse bench import`.
 
+use super::CliError;
 use std::fmt::Write as _;
 use std::io::{BufRead, Write};
 use std::path::{Path, PathBuf};
@@ -14,7 +15,7 @@ use crate::store::lattice::Transform;
 use crate::store::{GridReader, ImportOptions, ImportReport, StoreError, import};
 
 /// Parses a memory size: `2GiB`, `512MiB`, `64KiB` or bytes.
-pub fn parse_bytes(text: &str) -> Result<u64, String> {
+pub fn parse_bytes(text: &str) -> Result<u64, CliError> {
     let t = text.trim();
     let (num, unit) = t.split_at(t.find(|c: char| c.is_ascii_alphabetic()).unwrap_or(t.len()));
     let scale = match unit.to_ascii_lowercase().as_str() {
@@ -22,11 +23,11 @@ pub fn parse_bytes(text: &str) -> Result<u64, String> {
         "k" | "kb" | "kib" => 1 << 10,
         "m" | "mb" | "mib" => 1 << 20,
         "g" | "gb" | "gib" => 1 << 30,
-        _ => return Err(format!("unknown size unit in '{text}': use B, KiB, MiB or GiB")),
+        _ => return Err(format!("unknown size unit in '{text}': use B, KiB, MiB or GiB").into()),
     };
     let v: f64 = num.trim().parse().map_err(|_| format!("'{text}' is not a size such as 2GiB"))?;
     if !(v.is_finite() && v > 0.0) {
-        return Err(format!("'{text}' is not a positive size"));
+        return Err(format!("'{text}' is not a positive size").into());
     }
     Ok((v * scale as f64) as u64)
 }
@@ -165,7 +166,7 @@ pub fn sample_lines(
 ) -> Result<(u64, u64), StoreError> {
     let (mut n, mut refused) = (0, 0);
     let path = reader.store().path().to_owned();
-    let io = |e: std::io::Error| StoreError::new(&path, format!("cannot write output: {e}"));
+    let io = |e: std::io::Error| StoreError::caused(&path, "cannot write output", e);
     for (k, line) in input.lines().enumerate() {
         let line = line.map_err(|e| StoreError::new(Path::new("<stdin>"), e.to_string()))?;
         let t = line.trim();
@@ -392,9 +393,12 @@ pub fn warp_comparison(
         }
         cmd.args(sources).arg(&out);
         let start = Instant::now();
-        let status = cmd
-            .status()
-            .map_err(|e| StoreError::new(Path::new("gdalwarp"), format!("cannot run: {e} (install gdal-bin)")))?;
+        let status = cmd.status().map_err(|e| {
+            StoreError::new(
+                Path::new("gdalwarp"),
+                format!("cannot run: {} (install gdal-bin)", crate::errors::chain(&e)),
+            )
+        })?;
         seconds += start.elapsed().as_secs_f64();
         if !status.success() {
             return Err(StoreError::new(Path::new("gdalwarp"), format!("failed on face {face}")));

@@ -115,7 +115,7 @@ pub fn coregister(project: &Project, a: &str, b: &str, opts: &CoregOptions) -> R
             problem: format!("'{a}' co-registered onto itself"),
         });
     }
-    let (scene, _) = Scene::open(project).map_err(CompareError::Open)?;
+    let (scene, _) = Scene::open(project)?;
     let alone = |name: &str| operand_scene(&scene, project, &Operand::Layer(name.into()));
     let (scene_a, scene_b) = (alone(a)?, alone(b)?);
     let (finest, _) = overlap_quads(&scene_a, &scene_b, None, opts.region).map(|(l, q)| (l, q.len()))?;
@@ -194,7 +194,7 @@ fn reference_samples(
     let e = scene_b.ellipsoid;
     let mut out = Vec::new();
     for chunk in quads.chunks(16) {
-        let grids = scene_b.compose_cpu(chunk).map_err(CompareError::Open)?;
+        let grids = scene_b.compose_cpu(chunk)?;
         for q in chunk {
             let h = &grids[q];
             let points = quad_points(&e, *q);

@@ -22,7 +22,7 @@ pub use sample::{
 pub use stats::{Diff, Histogram, SlopeClass, Stats};
 
 /// A comparison that cannot be made, in words that name the layer, option or file.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[derive(Debug, thiserror::Error)]
 pub enum CompareError {
     /// A layer named on the command line is not in the project.
     #[error("layer '{name}' is not in the project (its layers: {known})")]
@@ -41,6 +41,9 @@ pub enum CompareError {
         problem: String,
     },
     /// Opening or reading the layers failed.
-    #[error("{0}")]
-    Open(String),
+    #[error(transparent)]
+    Open(#[from] crate::gpu::scene::SceneError),
+    /// A project value (its body) breaks a rule.
+    #[error(transparent)]
+    Invalid(#[from] crate::Invalid),
 }

@@ -53,7 +53,7 @@ impl Mosaic {
     pub(crate) fn prefetch_quads(&mut self, quads: &[QuadId]) -> Result<(), CompareError> {
         let wanted: Vec<QuadId> = quads.iter().copied().filter(|q| !self.grids.contains_key(q)).collect();
         for chunk in wanted.chunks(16) {
-            self.grids.extend(self.scene.compose_cpu(chunk).map_err(CompareError::Open)?);
+            self.grids.extend(self.scene.compose_cpu(chunk)?);
         }
         Ok(())
     }

@@ -77,14 +77,14 @@ pub fn profile(project: &Project, opts: &ProfileOptions) -> Result<Profile, Comp
             return Err(bad(name, format!("{lat},{lon} is not a latitude, longitude in degrees")));
         }
     }
-    let e = project.ellipsoid().map_err(CompareError::Open)?;
+    let e = project.ellipsoid()?;
     let r = f64::to_radians;
     let (length, azimuth, _) = inverse(&e, r(opts.from[0]), r(opts.from[1]), r(opts.to[0]), r(opts.to[1]))
         .map_err(|err| bad("--to", err.to_string()))?;
     if length == 0.0 {
         return Err(bad("--to", "the line has no length (--from and --to are the same point)".into()));
     }
-    let (stack, _) = Scene::open(project).map_err(CompareError::Open)?;
+    let (stack, _) = Scene::open(project)?;
     // Layers with heights (a difference layer has none).
     let visible: Vec<String> =
         project.layers.iter().filter(|l| l.visible && l.gives_heights()).map(|l| l.name.clone()).collect();

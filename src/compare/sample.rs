@@ -159,7 +159,7 @@ pub fn operand(project: &Project, text: &str) -> Operand {
 ///
 /// The whole project is opened and the other layers hidden (see [`operand_scene`]).
 pub fn open_operand(project: &Project, operand: &Operand) -> Result<Scene, CompareError> {
-    let (scene, _) = Scene::open(project).map_err(CompareError::Open)?;
+    let (scene, _) = Scene::open(project)?;
     operand_scene(&scene, project, operand)
 }
 
@@ -185,12 +185,12 @@ pub fn operand_scene(scene: &Scene, project: &Project, operand: &Operand) -> Res
                 spec.blend = BlendMode::Over;
             }
         }
-        scene.stack.set(k, spec).map_err(|e| CompareError::Open(e.to_string()))?;
+        scene.stack.set(k, spec).map_err(|e| CompareError::Open(e.into()))?;
     }
     if deltas_alone {
         let used = |n: &str| scene.stack.index_of(n).is_some();
         let zero = (0..).map(|k| format!("zero plane {k}")).find(|n| !used(n)).unwrap_or_default();
-        scene.stack.insert(0, LayerSpec::constant(&zero, 0.0)).map_err(|e| CompareError::Open(e.to_string()))?;
+        scene.stack.insert(0, LayerSpec::constant(&zero, 0.0)).map_err(|e| CompareError::Open(e.into()))?;
     }
     Ok(scene)
 }
@@ -211,7 +211,7 @@ pub fn compare_operands(
     if a == b {
         return Err(CompareError::Option { option: "B".into(), problem: format!("'{a}' compared with itself") });
     }
-    let (scene, _) = Scene::open(project).map_err(CompareError::Open)?;
+    let (scene, _) = Scene::open(project)?;
     let (scene_a, scene_b) = (operand_scene(&scene, project, a)?, operand_scene(&scene, project, b)?);
     let (level, quads) = overlap_quads(&scene_a, &scene_b, opts.level, opts.region)?;
     let ellipsoid = scene_a.ellipsoid;
@@ -220,8 +220,8 @@ pub fn compare_operands(
     let mut nodata = 0u64;
     let (mut area_lo, mut area_hi) = (f64::INFINITY, 0f64);
     for chunk in quads.chunks(CHUNK) {
-        let grids_a = scene_a.compose_cpu(chunk).map_err(CompareError::Open)?;
-        let grids_b = scene_b.compose_cpu(chunk).map_err(CompareError::Open)?;
+        let grids_a = scene_a.compose_cpu(chunk)?;
+        let grids_b = scene_b.compose_cpu(chunk)?;
         for q in chunk {
             let rows = quad_samples(&ellipsoid, *q, &grids_a[q], &grids_b[q], opts.region);
             for row in rows {
@@ -459,7 +459,7 @@ pub fn difference_range(project: &Project, spec: &LayerSpec) -> Result<Option<f6
     let Some([a, b]) = spec.as_difference().map(|d| &d.of) else {
         return Err(CompareError::Option { option: spec.name.clone(), problem: "is not a difference layer".into() });
     };
-    let (scene, _) = Scene::open(project).map_err(CompareError::Open)?;
+    let (scene, _) = Scene::open(project)?;
     let (scene_a, scene_b) = (operand_scene(&scene, project, a)?, operand_scene(&scene, project, b)?);
     let (finest, _) = overlap_quads(&scene_a, &scene_b, None, None)?;
     let mut level = finest.saturating_sub(1);

@@ -10,7 +10,7 @@ use crate::geodesy::{Ellipsoid, Geodetic, ecef_from_geodetic, geodesic};
 
 /// The dab centres of a stroke on the ellipsoid (ECEF metres), in order; an error names the path
 /// segment whose geodesic cannot be computed (nearly antipodal points) or too many dabs.
-pub fn dab_centres(ellipsoid: &Ellipsoid, stroke: &Stroke) -> Result<Vec<DVec3>, String> {
+pub fn dab_centres(ellipsoid: &Ellipsoid, stroke: &Stroke) -> Result<Vec<DVec3>, crate::Invalid> {
     let at = |lat: f64, lon: f64| ecef_from_geodetic(ellipsoid, Geodetic { lat_rad: lat, lon_rad: lon, height_m: 0.0 });
     let step = stroke.spacing * stroke.radius_m;
     let points: Vec<(f64, f64)> = stroke.path.iter().map(|[lat, lon]| (lat.to_radians(), lon.to_radians())).collect();
@@ -26,7 +26,7 @@ pub fn dab_centres(ellipsoid: &Ellipsoid, stroke: &Stroke) -> Result<Vec<DVec3>,
             let (lat, lon) = geodesic::direct(ellipsoid, lat1, lon1, azimuth, next - walked);
             dabs.push(at(lat, lon));
             if dabs.len() > MAX_DABS {
-                return Err(format!("more than {MAX_DABS} dabs: raise the spacing or shorten the path"));
+                return Err(format!("more than {MAX_DABS} dabs: raise the spacing or shorten the path").into());
             }
             next += step;
         }

@@ -8,6 +8,7 @@ use rayon::prelude::*;
 use super::stroke::{Stroke, Tool};
 use super::terrain::{Snapshot, Target};
 use crate::ecm::{CubeProjection, FacePoint, QuadId};
+use crate::errors::Failure;
 use crate::geodesy::{Ellipsoid, geodetic_from_ecef};
 use crate::layers::noise;
 use crate::layers::stack::sample_point;
@@ -142,7 +143,7 @@ pub struct StrokeJob<'a> {
 /// ([`CpuRasteriser`]) or the GPU's (`gpu::brush`).
 pub trait Rasteriser: Sync {
     /// Applies `job` to every tile; an error is the rasteriser's (a GPU that failed).
-    fn rasterise(&self, job: &StrokeJob, tiles: &mut [(QuadId, Vec<f32>)]) -> Result<(), String>;
+    fn rasterise(&self, job: &StrokeJob, tiles: &mut [(QuadId, Vec<f32>)]) -> Result<(), Failure>;
 }
 
 /// The CPU reference: [`apply_to_tile`] per tile, tiles in parallel (each tile's result does
@@ -150,7 +151,7 @@ pub trait Rasteriser: Sync {
 pub struct CpuRasteriser;
 
 impl Rasteriser for CpuRasteriser {
-    fn rasterise(&self, job: &StrokeJob, tiles: &mut [(QuadId, Vec<f32>)]) -> Result<(), String> {
+    fn rasterise(&self, job: &StrokeJob, tiles: &mut [(QuadId, Vec<f32>)]) -> Result<(), Failure> {
         tiles.par_iter_mut().for_each(|(q, tile)| {
             apply_to_tile(job.ellipsoid, *q, tile, job.stroke, job.dabs, job.target, job.snapshot);
         });

@@ -23,6 +23,7 @@ use super::pyramid::Pyramid;
 use super::stroke::Stroke;
 use super::terrain::{Below, KeptBelow, Snapshot, Target, smooth_ring_m};
 use crate::ecm::{Face, QuadId};
+use crate::errors::SharedFailure;
 use crate::geodesy::Ellipsoid;
 use crate::layers::stack::quad_ball;
 use crate::store::grid::GRID;
@@ -30,7 +31,7 @@ use crate::store::grid::GRID;
 const N: usize = GRID as usize;
 
 /// A stroke that cannot be rasterised: its index, the field and the problem.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[derive(Debug, Clone, thiserror::Error)]
 #[error("strokes[{index}]: {field}: {problem}")]
 pub struct StrokeError {
     /// The stroke's index in the layer.
@@ -39,6 +40,9 @@ pub struct StrokeError {
     pub field: String,
     /// What is wrong.
     pub problem: String,
+    /// What failed under it (reading the terrain below, the rasteriser), if anything did.
+    #[source]
+    pub cause: Option<SharedFailure>,
 }
 
 /// The raster. Two rasters are equal when their tiles are, bit for bit (not their generations).
@@ -133,7 +137,12 @@ impl EditRaster {
     ) -> Result<EditRaster, StrokeError> {
         // Every stroke checked before any is rasterised (a bad level must not set the raster's).
         for (index, stroke) in strokes.iter().enumerate() {
-            stroke.check(ellipsoid.a_m()).map_err(|(f, p)| StrokeError { index, field: f.into(), problem: p })?;
+            stroke.check(ellipsoid.a_m()).map_err(|(f, p)| StrokeError {
+                index,
+                field: f.into(),
+                problem: p,
+                cause: None,
+            })?;
         }
         let level = strokes.iter().map(|s| s.level).max().unwrap_or(0);
         let mut raster = EditRaster::new(ellipsoid, level);
@@ -165,10 +174,11 @@ impl EditRaster {
         let mut tiles: Vec<(QuadId, Vec<f32>)> =
             quads.iter().map(|q| (*q, self.tiles.get(q).cloned().unwrap_or_else(|| vec![0.0; N * N]))).collect();
         let job = StrokeJob { ellipsoid: &self.ellipsoid, stroke, dabs: &dabs, target, snapshot: snapshot.as_ref() };
-        rasteriser.rasterise(&job, &mut tiles).map_err(|problem| StrokeError {
+        rasteriser.rasterise(&job, &mut tiles).map_err(|e| StrokeError {
             index,
             field: "rasteriser".into(),
-            problem,
+            problem: "failed".into(),
+            cause: Some(e.into()),
         })?;
         self.apply_tiles(index, tiles);
         Ok(quads)
@@ -314,12 +324,12 @@ impl EditRaster {
 
     /// A stroke's dabs and the quads of the raster's level within reach of one of them.
     fn footprint(&self, index: usize, stroke: &Stroke) -> Result<(Vec<Dab>, BTreeSet<QuadId>), StrokeError> {
-        let err = |field: &str, problem: String| StrokeError { index, field: field.into(), problem };
+        let err = |field: &str, problem: String| StrokeError { index, field: field.into(), problem, cause: None };
         stroke.check(self.ellipsoid.a_m()).map_err(|(f, p)| err(f, p))?;
         if stroke.level > self.level {
             return Err(err("level", format!("{} is finer than the raster's level {}", stroke.level, self.level)));
         }
-        let centres = dab_centres(&self.ellipsoid, stroke).map_err(|p| err("path", p))?;
+        let centres = dab_centres(&self.ellipsoid, stroke).map_err(|p| err("path", p.0))?;
         let dabs: Vec<Dab> = centres.into_iter().map(|centre| Dab::new(&self.ellipsoid, centre)).collect();
         let quads = self.within(&dabs, stroke.radius_m);
         Ok((dabs, quads))
@@ -356,10 +366,11 @@ impl EditRaster {
         // A target point's quad and, when it lies on a quad's edge, its neighbour's (1 m reach).
         quads.extend(self.within(&points, 1.0));
         let delta = |q: QuadId| self.tiles.get(&q).cloned();
-        let snapshot = Snapshot::take(self.ellipsoid, self.level, &quads, &delta, below).map_err(|p| StrokeError {
+        let snapshot = Snapshot::take(self.ellipsoid, self.level, &quads, &delta, below).map_err(|e| StrokeError {
             index,
             field: "terrain below".into(),
-            problem: p,
+            problem: "cannot be read".into(),
+            cause: Some(e.into()),
         })?;
         Ok((Target::of(&self.ellipsoid, stroke, self.level, Some(&snapshot)), Some(snapshot)))
     }

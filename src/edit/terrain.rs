@@ -15,6 +15,7 @@ use rayon::prelude::*;
 
 use super::stroke::{Stroke, Tool};
 use crate::ecm::{CubeProjection, FacePoint, QuadId};
+use crate::errors::Failure;
 use crate::geodesy::{Ellipsoid, Geodetic, ecef_from_geodetic, geodetic_from_ecef};
 use crate::store::grid::{GRID, spacing_m};
 
@@ -23,7 +24,7 @@ const N: usize = GRID as usize;
 /// The heights of the stack below an edit layer at a quad of the raster's level: 257² row by
 /// row from the south, NaN where no layer below has data. Errors are the caller's (a store that
 /// cannot be read), passed through.
-pub type Below<'a> = dyn Fn(QuadId) -> Result<Vec<f32>, String> + Sync + 'a;
+pub type Below<'a> = dyn Fn(QuadId) -> Result<Vec<f32>, Failure> + Sync + 'a;
 
 /// A [`Below`] that keeps what it read (the terrain below does not change while a layer's strokes
 /// are replayed, and terrain-reading strokes read the same quads again and again).
@@ -39,7 +40,7 @@ impl<'a> KeptBelow<'a> {
     }
 
     /// The terrain below `quad`, read once.
-    pub fn get(&self, quad: QuadId) -> Result<Vec<f32>, String> {
+    pub fn get(&self, quad: QuadId) -> Result<Vec<f32>, Failure> {
         if let Some(t) = self.kept.lock().expect("not poisoned").get(&quad) {
             return Ok(t.to_vec());
         }
@@ -50,7 +51,7 @@ impl<'a> KeptBelow<'a> {
 }
 
 /// A [`Below`] for layers with nothing under them: the ellipsoid (B = 0 everywhere).
-pub fn ellipsoid_below(_quad: QuadId) -> Result<Vec<f32>, String> {
+pub fn ellipsoid_below(_quad: QuadId) -> Result<Vec<f32>, Failure> {
     Ok(vec![0.0; N * N])
 }
 
@@ -78,13 +79,13 @@ impl Snapshot {
         quads: &BTreeSet<QuadId>,
         delta: &(dyn Fn(QuadId) -> Option<Vec<f32>> + Sync),
         below: &Below,
-    ) -> Result<Snapshot, String> {
+    ) -> Result<Snapshot, Failure> {
         let tiles = quads
             .par_iter()
             .map(|&q| {
                 let b = below(q)?;
                 if b.len() != N * N {
-                    return Err(format!("the terrain below {q} has {} samples, not {}", b.len(), N * N));
+                    return Err(format!("the terrain below {q} has {} samples, not {}", b.len(), N * N).into());
                 }
                 let mut h: Vec<f64> = b.into_iter().map(f64::from).collect();
                 if let Some(d) = delta(q) {
@@ -94,7 +95,7 @@ impl Snapshot {
                 }
                 Ok((q, h))
             })
-            .collect::<Result<HashMap<_, _>, String>>()?;
+            .collect::<Result<HashMap<_, _>, Failure>>()?;
         Ok(Snapshot { ellipsoid, level, tiles })
     }
 

@@ -174,7 +174,7 @@ fn the_same_strokes_give_the_same_tiles_whatever_the_threads_and_undo_and_redo_r
 
 /// Terrain under the edit layer for the tests: a tilt of 5 cm per metre along a fixed direction
 /// plus waves of 100 m amplitude and about 1.9 km wavelength (`rough_at`), at every sample.
-fn rough_below(q: QuadId) -> Result<Vec<f32>, String> {
+fn rough_below(q: QuadId) -> Result<Vec<f32>, crate::errors::Failure> {
     terrain_below(q, rough_at)
 }
 
@@ -186,7 +186,7 @@ fn tilt_at(p: DVec3) -> f64 {
     0.05 * p.dot(DVec3::new(0.0, 0.6, 0.8))
 }
 
-fn terrain_below(q: QuadId, height: fn(DVec3) -> f64) -> Result<Vec<f32>, String> {
+fn terrain_below(q: QuadId, height: fn(DVec3) -> f64) -> Result<Vec<f32>, crate::errors::Failure> {
     let e = Ellipsoid::MOON;
     Ok((0..N * N).map(|k| height(sample_point(&e, q, GRID, (k % N) as u32, (k / N) as u32).0) as f32).collect())
 }

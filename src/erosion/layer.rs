@@ -16,6 +16,7 @@ use super::sim::Run;
 use crate::ecm::{Face, QuadId};
 use crate::edit::EditRaster;
 use crate::edit::terrain::{Below, KeptBelow};
+use crate::errors::{Failure, SharedFailure};
 use crate::geodesy::{Ellipsoid, Geodetic, ecef_from_geodetic};
 use crate::layers::extent::{segment_distance_m, smoothstep};
 use crate::layers::stack::sample_point;
@@ -28,7 +29,7 @@ pub trait Stepper {
     /// `cpu` or `gpu`.
     fn device(&self) -> super::operation::Device;
     /// The run after `steps` more steps.
-    fn run(&self, run: Run, steps: u64) -> Result<Run, String>;
+    fn run(&self, run: Run, steps: u64) -> Result<Run, Failure>;
 }
 
 /// The CPU reference.
@@ -39,7 +40,7 @@ impl Stepper for CpuStepper {
         super::operation::Device::Cpu
     }
 
-    fn run(&self, mut run: Run, steps: u64) -> Result<Run, String> {
+    fn run(&self, mut run: Run, steps: u64) -> Result<Run, Failure> {
         for _ in 0..steps {
             run.step();
         }
@@ -48,7 +49,7 @@ impl Stepper for CpuStepper {
 }
 
 /// An operation that cannot be run: its index, the field and the problem.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[derive(Debug, Clone, thiserror::Error)]
 #[error("runs[{index}]: {field}: {problem}")]
 pub struct OperationError {
     /// The operation's index in the layer.
@@ -57,6 +58,9 @@ pub struct OperationError {
     pub field: String,
     /// What is wrong.
     pub problem: String,
+    /// What failed under it (reading the terrain below, the device), if anything did.
+    #[source]
+    pub cause: Option<SharedFailure>,
 }
 
 /// What a run did.
@@ -129,7 +133,12 @@ pub fn apply(
 ) -> Result<Outcome, OperationError> {
     let (region, run) = prepare(raster, index, op, below)?;
     let t = Instant::now();
-    let run = stepper.run(run, op.steps).map_err(|p| OperationError { index, field: "device".into(), problem: p })?;
+    let run = stepper.run(run, op.steps).map_err(|e| OperationError {
+        index,
+        field: "device".into(),
+        problem: "the run failed".into(),
+        cause: Some(e.into()),
+    })?;
     Ok(finish(raster, index, region, &run, t.elapsed().as_secs_f64()))
 }
 
@@ -142,7 +151,7 @@ pub fn prepare(
     op: &Operation,
     below: &Below,
 ) -> Result<(Region, Run), OperationError> {
-    let err = |field: &str, problem: String| OperationError { index, field: field.into(), problem };
+    let err = |field: &str, problem: String| OperationError { index, field: field.into(), problem, cause: None };
     op.check().map_err(|(f, p)| err(&f, p))?;
     if raster.level != op.level && !raster.tiles.is_empty() {
         return Err(err(
@@ -156,9 +165,9 @@ pub fn prepare(
         *raster = fresh;
     }
     let e = raster.ellipsoid;
-    let region = Region::from_box(&e, op.region, op.level).map_err(|p| err("region", p))?;
+    let region = Region::from_box(&e, op.region, op.level).map_err(|p| err("region", p.0))?;
     // The terrain as the run finds it: below the layer, plus the runs before.
-    let heights = |q: QuadId| -> Result<Vec<f32>, String> {
+    let heights = |q: QuadId| -> Result<Vec<f32>, Failure> {
         let mut h = below(q)?;
         if let Some(d) = raster.tile(q) {
             for (h, d) in h.iter_mut().zip(d) {
@@ -167,7 +176,12 @@ pub fn prepare(
         }
         Ok(h)
     };
-    let mut grid = region.grid(&e, &heights).map_err(|p| err("terrain below", p))?;
+    let mut grid = region.grid(&e, &heights).map_err(|e| OperationError {
+        index,
+        field: "terrain below".into(),
+        problem: "cannot be read".into(),
+        cause: Some(e.into()),
+    })?;
     // A box where the stack has no data (often one given in the wrong order) changes nothing.
     if grid.base_m.iter().all(|h| h.is_nan()) {
         return Err(err(

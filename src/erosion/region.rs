@@ -11,6 +11,7 @@ use glam::DVec3;
 
 use super::grid::Grid;
 use crate::ecm::{Face, QuadId};
+use crate::errors::{Failure, Invalid};
 use crate::geodesy::{Ellipsoid, GeoBox};
 use crate::layers::stack::sample_point;
 use crate::store::grid::{GRID, TILE, fold_sample, quad_of_sample, spacing_m};
@@ -91,11 +92,11 @@ impl Region {
     /// quads on adjacent faces are placed there by inverting the store's fold (exact, integer),
     /// so a box across a face edge or a cube corner is one contiguous grid. Errors name the
     /// problem.
-    pub fn from_box(ellipsoid: &Ellipsoid, bounds: GeoBox, level: u8) -> Result<Region, String> {
+    pub fn from_box(ellipsoid: &Ellipsoid, bounds: GeoBox, level: u8) -> Result<Region, Invalid> {
         let (lat0, lon0, lat1, lon1) =
             (bounds.south_deg, bounds.west_deg, bounds.north_deg, bounds.east_unwrapped_deg());
         if level > crate::ecm::MAX_LEVEL {
-            return Err(format!("level {level} is past the finest, {}", crate::ecm::MAX_LEVEL));
+            return Err(format!("level {level} is past the finest, {}", crate::ecm::MAX_LEVEL).into());
         }
         let projection = crate::ecm::CubeProjection::Qsc;
         let m = crate::store::grid::intervals_per_face_edge(level);
@@ -137,7 +138,7 @@ impl Region {
         if width > MAX_SIDE || height > MAX_SIDE {
             return Err(format!(
                 "{bounds:?} at level {level} is {width} × {height} cells; a region has at most {MAX_SIDE} a side (choose a smaller box or a coarser level)"
-            ));
+            ).into());
         }
         Ok(Region { face, level, i0: qx0 * tile, j0: qy0 * tile, width, height })
     }
@@ -204,13 +205,13 @@ impl Region {
     pub fn grid(
         &self,
         ellipsoid: &Ellipsoid,
-        heights: &dyn Fn(QuadId) -> Result<Vec<f32>, String>,
-    ) -> Result<Grid, String> {
+        heights: &dyn Fn(QuadId) -> Result<Vec<f32>, Failure>,
+    ) -> Result<Grid, Failure> {
         let mut tiles: HashMap<QuadId, Vec<f32>> = HashMap::new();
         for q in self.quads() {
             let t = heights(q)?;
             if t.len() != (GRID * GRID) as usize {
-                return Err(format!("the heights of {q} have {} samples, not {}", t.len(), GRID * GRID));
+                return Err(format!("the heights of {q} have {} samples, not {}", t.len(), GRID * GRID).into());
             }
             tiles.insert(q, t);
         }

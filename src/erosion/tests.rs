@@ -195,7 +195,7 @@ fn a_region_across_a_face_edge_is_one_grid_and_erodes_without_a_seam() {
         let region = Region { i0, j0, width: 97, height: 64, ..Region::around(quad, 1) };
         let c = region.cell(48, 32).unwrap();
         let centre = crate::layers::stack::sample_point(&e, c.quad, 257, c.i, c.j).0;
-        let cone = |q: QuadId| -> Result<Vec<f32>, String> {
+        let cone = |q: QuadId| -> Result<Vec<f32>, crate::errors::Failure> {
             Ok((0..257 * 257)
                 .map(|k| {
                     let p = crate::layers::stack::sample_point(&e, q, 257, (k % 257) as u32, (k / 257) as u32).0;
@@ -295,7 +295,7 @@ fn regions_on_the_moon_and_the_earth_from_level_8_to_22_stay_finite_and_balanced
             let quad = QuadId::new(Face::Top, level, n / 3, n / 5).unwrap();
             let region = Region { width: 16, height: 16, ..Region::around(quad, 0) };
             let spacing = crate::store::grid::spacing_m(&e, level);
-            let hills = |q: QuadId| -> Result<Vec<f32>, String> {
+            let hills = |q: QuadId| -> Result<Vec<f32>, crate::errors::Failure> {
                 Ok((0..257 * 257)
                     .map(|k| {
                         let p = crate::layers::stack::sample_point(&e, q, 257, (k % 257) as u32, (k / 257) as u32).0;
@@ -340,8 +340,8 @@ fn a_box_across_a_face_edge_becomes_one_region_whose_cells_fold_back_onto_the_bo
         assert!(quads.contains(&q), "({lat}, {lon}) in {q} is outside the region's quads");
     }
     assert!(crate::geodesy::GeoBox::new(44.7, 0.2, 45.4, -0.2).unwrap_err().to_string().contains("south < north"));
-    assert!(Region::from_box(&e, b(0.0, 0.0, 10.0, 10.0), 10).unwrap_err().contains("at most 4096"));
-    assert!(Region::from_box(&e, b(-170.0, -10.0, 170.0, 10.0), 2).unwrap_err().contains("opposite"));
+    assert!(Region::from_box(&e, b(0.0, 0.0, 10.0, 10.0), 10).unwrap_err().to_string().contains("at most 4096"));
+    assert!(Region::from_box(&e, b(-170.0, -10.0, 170.0, 10.0), 2).unwrap_err().to_string().contains("opposite"));
     // A box across the antimeridian (west > east) is one region on the back face, 1° wide.
     let across = Region::from_box(&e, b(179.5, -0.2, -179.5, 0.2), 8).unwrap();
     assert_eq!(across.face, Face::Back);

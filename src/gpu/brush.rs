@@ -19,6 +19,7 @@ use crate::ecm::QuadId;
 use crate::edit::kernel::{CpuRasteriser, Rasteriser, StrokeJob, window};
 use crate::edit::terrain::Target;
 use crate::edit::{Falloff, Tool};
+use crate::errors::Failure;
 use crate::layers::noise;
 use crate::layers::stack::sample_point;
 use crate::store::grid::GRID;
@@ -300,7 +301,7 @@ impl GpuRasteriser<'_> {
 }
 
 impl Rasteriser for GpuRasteriser<'_> {
-    fn rasterise(&self, job: &StrokeJob, tiles: &mut [(QuadId, Vec<f32>)]) -> Result<(), String> {
+    fn rasterise(&self, job: &StrokeJob, tiles: &mut [(QuadId, Vec<f32>)]) -> Result<(), Failure> {
         let nothing = match job.target {
             Target::Flatten { height_m } => !height_m.is_finite(),
             Target::Ramp { height_a_m, height_b_m, .. } => !(height_a_m.is_finite() && height_b_m.is_finite()),
@@ -330,7 +331,7 @@ impl Rasteriser for GpuRasteriser<'_> {
             let mut gpu_tiles: Vec<(QuadId, Vec<f32>)> = gpu.iter_mut().map(|(q, t)| (*q, std::mem::take(t))).collect();
             // Smooth's extended grids are large: fewer tiles per dispatch.
             for chunk in gpu_tiles.chunks_mut(32) {
-                self.dispatch(job, chunk).map_err(|e| e.to_string())?;
+                self.dispatch(job, chunk)?;
             }
             for ((_, t), (_, done)) in gpu.iter_mut().zip(gpu_tiles) {
                 *t = done;
@@ -338,7 +339,7 @@ impl Rasteriser for GpuRasteriser<'_> {
             return Ok(());
         }
         for chunk in tiles.chunks_mut(TILES_PER_DISPATCH) {
-            self.dispatch(job, chunk).map_err(|e| e.to_string())?;
+            self.dispatch(job, chunk)?;
         }
         Ok(())
     }

@@ -8,7 +8,7 @@ use super::context::GpuError;
 
 /// The composed WGSL file `name` (see [`super::shaders::composed`]) as a module.
 pub(crate) fn shader_module(device: &wgpu::Device, name: &str) -> Result<wgpu::ShaderModule, GpuError> {
-    let source = super::shaders::composed(name).map_err(GpuError::Shader)?;
+    let source = super::shaders::composed(name)?;
     Ok(device.create_shader_module(wgpu::ShaderModuleDescriptor {
         label: Some(name),
         source: wgpu::ShaderSource::Wgsl(source.into()),

@@ -24,6 +24,27 @@ pub enum GpuError {
     /// A job larger than the device's limits allow (named with the limit).
     #[error("device limit: {0}")]
     Limit(String),
+    /// An image could not be encoded as PNG.
+    #[error("{}: cannot encode PNG", path.display())]
+    Png {
+        /// The file.
+        path: std::path::PathBuf,
+        /// Why.
+        #[source]
+        source: image::ImageError,
+    },
+    /// An image could not be written.
+    #[error("{}: cannot write", path.display())]
+    Write {
+        /// The file.
+        path: std::path::PathBuf,
+        /// Why.
+        #[source]
+        source: std::io::Error,
+    },
+    /// The scene could not give what the GPU was to draw (a store, a layer).
+    #[error(transparent)]
+    Scene(#[from] super::scene::SceneError),
     /// A layer stack that the GPU cannot compose (too many layers, segments or octaves).
     #[error("layer stack: {0}")]
     Stack(String),

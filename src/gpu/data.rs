@@ -15,8 +15,8 @@ use std::sync::{Arc, Condvar, Mutex};
 use crate::ecm::geometry::{MapCache, StaticMaps};
 use crate::ecm::{CubeProjection, QuadId};
 use crate::geodesy::Ellipsoid;
-use crate::store::Store;
 use crate::store::grid::GRID;
+use crate::store::{Store, StoreError};
 
 /// Samples along a quad edge, in the store and on the GPU.
 pub const SAMPLES: u32 = GRID;
@@ -84,14 +84,12 @@ pub struct DatasetInfo {
 
 impl DatasetInfo {
     /// Reads what a store's dataset covers.
-    pub fn open(store_path: &std::path::Path, dataset: &str) -> Result<DatasetInfo, String> {
-        let store = Store::open_read_only(store_path).map_err(|e| e.to_string())?;
-        let record = store.resolve_dataset(Some(dataset)).map_err(|e| e.to_string())?;
+    pub fn open(store_path: &std::path::Path, dataset: &str) -> Result<DatasetInfo, StoreError> {
+        let store = Store::open_read_only(store_path)?;
+        let record = store.resolve_dataset(Some(dataset))?;
         let finest = record.settings.finest_level;
-        let present = (0..=finest)
-            .map(|l| store.data_quads(&record.name, l).map_err(|e| e.to_string()))
-            .collect::<Result<Vec<_>, _>>()?;
-        let range_m = store.height_range(&record.name, finest).map_err(|e| e.to_string())?.unwrap_or((0.0, 0.0));
+        let present = (0..=finest).map(|l| store.data_quads(&record.name, l)).collect::<Result<Vec<_>, _>>()?;
+        let range_m = store.height_range(&record.name, finest)?.unwrap_or((0.0, 0.0));
         Ok(DatasetInfo {
             store: store_path.to_path_buf(),
             dataset: record.name,
@@ -160,10 +158,21 @@ impl DataKey {
     }
 }
 
+/// A tile the loader could not give.
+#[derive(Debug, thiserror::Error)]
+pub enum LoadError {
+    /// The store could not be read.
+    #[error(transparent)]
+    Store(#[from] StoreError),
+    /// A key whose data are made by the scene, not read from a store (static maps, edit deltas).
+    #[error("{0} is made by the scene, not read from a store")]
+    NotStored(DataKey),
+}
+
 /// What the loader sends back.
 pub enum Loaded {
     /// A source or edge tile (or a read error, named).
-    Tile(DataKey, Result<Arc<QuadHeights>, String>),
+    Tile(DataKey, Result<Arc<QuadHeights>, LoadError>),
     /// Static maps.
     Maps(QuadId, Arc<StaticMaps>),
 }
@@ -294,33 +303,32 @@ pub fn read_tile(
     datasets: &[DatasetInfo],
     stores: &mut [Option<Store>],
     fields: &EdgeFields,
-) -> Result<QuadHeights, String> {
+) -> Result<QuadHeights, LoadError> {
     match key {
-        DataKey::Source(d, quad) => read_source(quad, &datasets[d as usize], &mut stores[d as usize]),
+        DataKey::Source(d, quad) => Ok(read_source(quad, &datasets[d as usize], &mut stores[d as usize])?),
         DataKey::Edge(d, quad, level) => {
-            read_edge(quad, level, &datasets[d as usize], &mut stores[d as usize], fields, d)
+            Ok(read_edge(quad, level, &datasets[d as usize], &mut stores[d as usize], fields, d)?)
         }
-        DataKey::Maps(quad) => Err(format!("the static maps of {quad} are not a tile")),
-        DataKey::Edit(_, quad, _) => Err(format!("the edit deltas at {quad} are made by the scene, not read")),
+        DataKey::Maps(_) | DataKey::Edit(..) => Err(LoadError::NotStored(key)),
     }
 }
 
 /// A dataset's raw heights at `quad`: its tile there, or below its finest level its tile at the
 /// finest level upsampled; all no data where it has no tile.
-pub fn read_source(quad: QuadId, dataset: &DatasetInfo, store: &mut Option<Store>) -> Result<QuadHeights, String> {
+pub fn read_source(quad: QuadId, dataset: &DatasetInfo, store: &mut Option<Store>) -> Result<QuadHeights, StoreError> {
     let n = (SAMPLES * SAMPLES) as usize;
     if !dataset.covers(quad) {
         return Ok(QuadHeights::new(vec![f32::NAN; n]));
     }
     if store.is_none() {
-        *store = Some(Store::open_read_only(&dataset.store).map_err(|e| e.to_string())?);
+        *store = Some(Store::open_read_only(&dataset.store)?);
     }
     let s = store.as_ref().expect("opened above");
     if dataset.shift_m != [0.0, 0.0] {
         return Ok(QuadHeights::new(super::shifted::shifted_grid(dataset, s, quad)?));
     }
     let source = dataset.source_quad(quad);
-    let grid = match s.read_grid(&dataset.dataset, source).map_err(|e| e.to_string())? {
+    let grid = match s.read_grid(&dataset.dataset, source)? {
         Some(tile) if source == quad => tile.values,
         Some(tile) => upsample(&tile.values, source, quad),
         None => vec![f32::NAN; n],
@@ -366,7 +374,7 @@ pub fn read_edge(
     store: &mut Option<Store>,
     fields: &EdgeFields,
     tag: u32,
-) -> Result<QuadHeights, String> {
+) -> Result<QuadHeights, StoreError> {
     let level = crate::layers::edge::field_level(quad.level, edge_level, dataset.finest_level);
     let mut at = quad;
     while at.level > level {
@@ -376,18 +384,18 @@ pub fn read_edge(
         Some(f) => f,
         None => {
             if store.is_none() {
-                *store = Some(Store::open_read_only(&dataset.store).map_err(|e| e.to_string())?);
+                *store = Some(Store::open_read_only(&dataset.store)?);
             }
             let s = store.as_ref().expect("opened above");
             let cap = crate::layers::edge::quad_width_m(dataset.body.a_m(), edge_level);
-            let tile = |q: QuadId| -> Result<Option<Arc<Vec<f32>>>, String> {
+            let tile = |q: QuadId| -> Result<Option<Arc<Vec<f32>>>, StoreError> {
                 if !dataset.has(q) {
                     return Ok(None);
                 }
                 if dataset.shift_m != [0.0, 0.0] {
                     return Ok(Some(Arc::new(super::shifted::shifted_grid(dataset, s, q)?)));
                 }
-                Ok(s.read_grid(&dataset.dataset, q).map_err(|e| e.to_string())?.map(|t| Arc::new(t.values)))
+                Ok(s.read_grid(&dataset.dataset, q)?.map(|t| Arc::new(t.values)))
             };
             let f = Arc::new(crate::layers::edge::distance_field(&dataset.body, at, cap, tile)?);
             fields.put((tag, at, edge_level), f.clone());

@@ -23,6 +23,7 @@ use crate::erosion::layer::Stepper;
 use crate::erosion::operation::Device;
 use crate::erosion::params::Border;
 use crate::erosion::sim::{Budget, Run};
+use crate::errors::Failure;
 
 /// After a hundred steps from the same state, the GPU's terrain change and water depth agree with
 /// the CPU reference's within this, metres: f32 against f64 flips a floored unit (10 µm) here
@@ -520,15 +521,15 @@ impl Stepper for GpuStepper<'_> {
         Device::Gpu
     }
 
-    fn run(&self, run: Run, steps: u64) -> Result<Run, String> {
-        let mut gpu = GpuRun::new(self.device, self.queue, self.kernel.clone(), &run).map_err(|e| e.to_string())?;
+    fn run(&self, run: Run, steps: u64) -> Result<Run, Failure> {
+        let mut gpu = GpuRun::new(self.device, self.queue, self.kernel.clone(), &run)?;
         let mut left = steps;
         while left > 0 {
             let now = left.min(u64::from(LOG_STEPS)) as u32;
-            gpu.step(now).map_err(|e| e.to_string())?;
+            gpu.step(now)?;
             left -= u64::from(now);
         }
-        gpu.download().map_err(|e| e.to_string())?;
+        gpu.download()?;
         Ok(gpu.host)
     }
 }

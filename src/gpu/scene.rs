@@ -13,7 +13,87 @@ use crate::geodesy::Ellipsoid;
 use crate::layers::{LayerSpec, LayerTiles, QuadPlan, Stack, compose_difference, compose_quad};
 use crate::project::{ColourMapSpec, DetailSpec, Project, Visuals};
 use crate::store::grid::GRID;
-use crate::store::{ImportOptions, LevelChoice, Resampling, Store, VerticalDatum};
+use crate::store::{ImportOptions, LevelChoice, Resampling, Store, StoreError, VerticalDatum};
+use crate::{Invalid, colour::ColourError, edit::StrokeError, erosion::layer::OperationError, layers::LayerError};
+
+/// What can stop a scene from opening, reading or rebuilding a layer.
+#[derive(Debug, thiserror::Error)]
+pub enum SceneError {
+    /// A project value (its body) or a request that breaks a rule.
+    #[error(transparent)]
+    Invalid(#[from] Invalid),
+    /// The layer stack refuses a layer.
+    #[error(transparent)]
+    Layer(#[from] LayerError),
+    /// A store could not be read or a dataset imported.
+    #[error(transparent)]
+    Store(#[from] StoreError),
+    /// A tile could not be read.
+    #[error(transparent)]
+    Load(#[from] super::data::LoadError),
+    /// The colour map.
+    #[error(transparent)]
+    Colour(#[from] ColourError),
+    /// A dataset layer's store or dataset cannot serve it.
+    #[error("layer '{layer}': {problem}")]
+    Dataset {
+        /// The layer.
+        layer: String,
+        /// What is wrong.
+        problem: String,
+    },
+    /// A dataset layer's store holds tiles on another body than the project's.
+    #[error("layer '{layer}': store: {} holds tiles on {store_body}, but the project's body is {project_body}", store.display())]
+    OtherBody {
+        /// The layer.
+        layer: String,
+        /// The store.
+        store: std::path::PathBuf,
+        /// The store's body.
+        store_body: String,
+        /// The project's body.
+        project_body: String,
+    },
+    /// A dataset layer's store could not be read.
+    #[error("layer '{layer}'")]
+    DatasetStore {
+        /// The layer.
+        layer: String,
+        /// Why.
+        #[source]
+        source: StoreError,
+    },
+    /// An edit layer's strokes could not be applied.
+    #[error("layer '{layer}'")]
+    Strokes {
+        /// The layer.
+        layer: String,
+        /// Why.
+        #[source]
+        source: StrokeError,
+    },
+    /// An erosion layer's runs could not be replayed.
+    #[error("layer '{layer}'")]
+    Runs {
+        /// The layer.
+        layer: String,
+        /// Why.
+        #[source]
+        source: OperationError,
+    },
+    /// An edit layer's cache could not be written.
+    #[error(transparent)]
+    Cache(#[from] crate::edit::cache::CacheError),
+    /// A folder could not be made.
+    #[error("{}: cannot create", path.display())]
+    Folder {
+        /// The folder.
+        path: std::path::PathBuf,
+        /// Why.
+        #[source]
+        source: std::io::Error,
+    },
+}
 
 /// A quad's 257² values.
 type Grid = Vec<f32>;
@@ -137,15 +217,15 @@ impl Scene {
 
     /// Opens a project's layers, importing datasets whose store lacks them and that list sources;
     /// edit and erosion layers are read from their caches or rebuilt.
-    pub fn open(project: &Project) -> Result<(Scene, OpenReport), String> {
+    pub fn open(project: &Project) -> Result<(Scene, OpenReport), SceneError> {
         Scene::open_with(project, Edits::Cached)
     }
 
     /// [`Scene::open`], with the edit and erosion layers' rasters as `edits` says.
-    pub fn open_with(project: &Project, edits: Edits) -> Result<(Scene, OpenReport), String> {
+    pub fn open_with(project: &Project, edits: Edits) -> Result<(Scene, OpenReport), SceneError> {
         let ellipsoid = project.ellipsoid()?;
         let mut report = OpenReport::default();
-        let stack = Stack::new(ellipsoid, &project.layers).map_err(|e| e.to_string())?;
+        let stack = Stack::new(ellipsoid, &project.layers)?;
         let range_m = stack_range(&stack);
         let visuals = project.visuals.clone();
         let ramp = resolve_ramp(project, &visuals.colour_map, range_m)?;
@@ -174,7 +254,7 @@ impl Scene {
                 continue;
             }
             if let Some(opts) = import_needed(project, d)? {
-                let r = crate::store::import(&opts).map_err(|e| e.to_string())?;
+                let r = crate::store::import(&opts)?;
                 report.imported.push(format!(
                     "imported {} into {} (levels 0–{}, {:.1} s)",
                     opts.sources.iter().map(|f| f.display().to_string()).collect::<Vec<_>>().join(", "),
@@ -193,17 +273,17 @@ impl Scene {
 
     /// Composes quads with the CPU reference, reading their source and edge tiles here (on the
     /// caller's thread): for export, comparison, benchmarks and tests.
-    pub fn compose_cpu(&self, quads: &[QuadId]) -> Result<HashMap<QuadId, Vec<f32>>, String> {
+    pub fn compose_cpu(&self, quads: &[QuadId]) -> Result<HashMap<QuadId, Vec<f32>>, SceneError> {
         Ok(self.compose_cpu_of(quads, false)?.into_iter().map(|(q, (h, _))| (q, h)).collect())
     }
 
     /// [`Scene::compose_cpu`], with the drawn difference layer's A − B where the quad's plan has
     /// one (the CPU reference of the overlay pool).
-    pub fn compose_cpu_with_difference(&self, quads: &[QuadId]) -> Result<HashMap<QuadId, Composed>, String> {
+    pub fn compose_cpu_with_difference(&self, quads: &[QuadId]) -> Result<HashMap<QuadId, Composed>, SceneError> {
         self.compose_cpu_of(quads, true)
     }
 
-    fn compose_cpu_of(&self, quads: &[QuadId], difference: bool) -> Result<HashMap<QuadId, Composed>, String> {
+    fn compose_cpu_of(&self, quads: &[QuadId], difference: bool) -> Result<HashMap<QuadId, Composed>, SceneError> {
         let mut stores: Vec<Option<Store>> = self.datasets.iter().map(|_| None).collect();
         let fields = EdgeFields::default();
         let mut grids = HashMap::new();
@@ -238,7 +318,7 @@ impl Scene {
         key: DataKey,
         stores: &mut [Option<Store>],
         fields: &EdgeFields,
-    ) -> Result<QuadHeights, String> {
+    ) -> Result<QuadHeights, SceneError> {
         if let DataKey::Edit(uid, quad, _) = key {
             let raster = self
                 .stack
@@ -246,16 +326,16 @@ impl Scene {
                 .iter()
                 .find(|l| l.uid as u32 == uid)
                 .and_then(|l| self.edits.get(&l.uid))
-                .ok_or_else(|| format!("no edit layer reads {key}"))?;
+                .ok_or_else(|| Invalid(format!("no edit layer reads {key}")))?;
             return Ok(QuadHeights::new(raster.grid(quad).unwrap_or_else(|| vec![0.0; (GRID * GRID) as usize])));
         }
-        read_tile(key, &self.datasets, stores, fields)
+        Ok(read_tile(key, &self.datasets, stores, fields)?)
     }
 
     /// Gives edit layer `index` its raster: read from its cache when the cache is current, else
     /// built from its strokes in effect (and cached); records its range. Returns a line saying
     /// which.
-    pub fn attach_edit(&mut self, index: usize) -> Result<String, String> {
+    pub fn attach_edit(&mut self, index: usize) -> Result<String, SceneError> {
         let t = std::time::Instant::now();
         let spec = &self.stack.layers[index].spec;
         let name = spec.name.clone();
@@ -274,18 +354,18 @@ impl Scene {
         let below = self.below(index)?;
         let layer = &self.stack.layers[index];
         let raster = if erosion {
-            crate::erosion::layer::build(self.ellipsoid, layer.spec.applied_runs(), &|q| below.heights_cpu(q))
-                .map_err(|e| format!("layer '{}': {e}", layer.spec.name))?
+            crate::erosion::layer::build(self.ellipsoid, layer.spec.applied_runs(), &|q| Ok(below.heights_cpu(q)?))
+                .map_err(|source| SceneError::Runs { layer: layer.spec.name.clone(), source })?
         } else {
-            EditRaster::build(self.ellipsoid, layer.spec.applied_strokes(), &|q| below.heights_cpu(q))
-                .map_err(|e| format!("layer '{}': {e}", layer.spec.name))?
+            EditRaster::build(self.ellipsoid, layer.spec.applied_strokes(), &|q| Ok(below.heights_cpu(q)?))
+                .map_err(|source| SceneError::Strokes { layer: layer.spec.name.clone(), source })?
         };
         let mut line =
             format!("{kind} layer '{name}': rebuilt from {count} {what} in {:.2} s", t.elapsed().as_secs_f64());
         if let Some(p) = &path {
             match crate::edit::cache::write(p, &raster) {
                 Ok(()) => line += &format!(", saved to {}", p.display()),
-                Err(e) => line += &format!(" (not cached: {e})"),
+                Err(e) => line += &format!(" (not cached: {})", crate::errors::chain(&e)),
             }
         }
         self.set_edit(index, raster);
@@ -294,7 +374,7 @@ impl Scene {
 
     /// Saves edit layer `index`'s raster in its cache unless the cache is current (after strokes
     /// made in the workstation, when the project is saved). Returns the file written, if any.
-    pub fn save_edit_cache(&self, index: usize) -> Result<Option<std::path::PathBuf>, String> {
+    pub fn save_edit_cache(&self, index: usize) -> Result<Option<std::path::PathBuf>, SceneError> {
         let (Some(path), Some(raster)) = (self.edit_cache_path(index), self.edits.get(&self.stack.layers[index].uid))
         else {
             return Ok(None);
@@ -302,7 +382,7 @@ impl Scene {
         if path.exists() {
             return Ok(None);
         }
-        crate::edit::cache::write(&path, raster).map_err(|e| e.to_string())?;
+        crate::edit::cache::write(&path, raster)?;
         Ok(Some(path))
     }
 
@@ -340,7 +420,7 @@ impl Scene {
 
     /// The scene of the layers below stack layer `index` (it and every layer above hidden): what
     /// an edit layer's smooth, flatten and ramp read, through [`Scene::heights_cpu`].
-    pub fn below(&self, index: usize) -> Result<Scene, String> {
+    pub fn below(&self, index: usize) -> Result<Scene, SceneError> {
         let mut below = self.clone();
         for k in index..below.stack.layers.len() {
             let mut spec = below.stack.layers[k].spec.clone();
@@ -352,14 +432,14 @@ impl Scene {
             if let Some(erosion) = spec.as_erosion_mut() {
                 *erosion = crate::layers::ErosionLayer::default();
             }
-            below.stack.set(k, spec).map_err(|e| e.to_string())?;
+            below.stack.set(k, spec)?;
         }
         Ok(below)
     }
 
     /// One quad's composed heights by the CPU reference (NaN where no layer has data).
-    pub fn heights_cpu(&self, quad: QuadId) -> Result<Vec<f32>, String> {
-        self.compose_cpu(&[quad])?.remove(&quad).ok_or_else(|| format!("{quad} was not composed"))
+    pub fn heights_cpu(&self, quad: QuadId) -> Result<Vec<f32>, SceneError> {
+        self.compose_cpu(&[quad])?.remove(&quad).ok_or_else(|| Invalid(format!("{quad} was not composed")).into())
     }
 
     /// Puts a raster on edit layer `index` (after a stroke, an undo or a redo; its stamps are
@@ -374,18 +454,21 @@ impl Scene {
 
     /// Points dataset layer `index` at its dataset moved by its current `shift_m` (after the
     /// layer's shift changed): the same dataset under another shift is another set of tiles.
-    pub fn reattach_shifted(&mut self, index: usize) -> Result<(), String> {
-        let d = self.dataset_of_layer(index).ok_or("the layer reads no dataset")?;
+    pub fn reattach_shifted(&mut self, index: usize) -> Result<(), SceneError> {
+        let d = self.dataset_of_layer(index).ok_or(Invalid::from("the layer reads no dataset"))?;
         let info = self.datasets[d].clone();
         self.attach(index, info)
     }
 
     /// Inserts a dataset layer at `index` (0: bottom) reading `info` (see [`open_dataset`]).
-    pub fn insert_dataset_layer(&mut self, index: usize, spec: LayerSpec, info: DatasetInfo) -> Result<(), String> {
+    pub fn insert_dataset_layer(&mut self, index: usize, spec: LayerSpec, info: DatasetInfo) -> Result<(), SceneError> {
         if !spec.is_data() {
-            return Err(format!("layer '{}': kind: {} is not a dataset", spec.name, spec.kind().name()));
+            return Err(SceneError::Dataset {
+                layer: spec.name.clone(),
+                problem: format!("kind: {} is not a dataset", spec.kind().name()),
+            });
         }
-        self.stack.insert(index, spec).map_err(|e| e.to_string())?;
+        self.stack.insert(index, spec)?;
         if let Err(e) = self.attach(index, info) {
             // Just inserted: no difference reads it yet.
             let _ = self.stack.remove(index);
@@ -397,17 +480,20 @@ impl Scene {
     /// Attaches an opened dataset to dataset layer `index`: checks its body against the
     /// project's, records its value range and spacing, and shares it with the layers that read
     /// the same store and dataset.
-    fn attach(&mut self, index: usize, mut info: DatasetInfo) -> Result<(), String> {
+    fn attach(&mut self, index: usize, mut info: DatasetInfo) -> Result<(), SceneError> {
         let name = &self.stack.layers[index].spec.name;
         info.shift_m = self.stack.layers[index].spec.shift_m();
         let store_body = info.body;
         if store_body.a_m() != self.ellipsoid.a_m() || store_body.b_m() != self.ellipsoid.b_m() {
-            return Err(format!(
-                "dataset '{name}': {} is on {}, the project on {}",
-                info.store.display(),
-                store_body.name(),
-                self.ellipsoid.name()
-            ));
+            return Err(SceneError::Dataset {
+                layer: name.clone(),
+                problem: format!(
+                    "{} is on {}, the project on {}",
+                    info.store.display(),
+                    store_body.name(),
+                    self.ellipsoid.name()
+                ),
+            });
         }
         self.stack.set_dataset_info(index, info.range_m, Some(info.finest_level));
         let same = |o: &DatasetInfo| o.store == info.store && o.dataset == info.dataset && o.shift_m == info.shift_m;
@@ -430,25 +516,29 @@ fn to_json<T: serde::Serialize + ?Sized>(value: &T) -> String {
 
 /// What importing a dataset layer's sources into its store takes, when the store lacks a
 /// complete copy of it (None: nothing to import). Errors name the layer and the store.
-pub fn import_needed(project: &Project, d: &LayerSpec) -> Result<Option<ImportOptions>, String> {
+pub fn import_needed(project: &Project, d: &LayerSpec) -> Result<Option<ImportOptions>, SceneError> {
     let Some(data) = d.as_dataset() else {
-        return Err(format!("layer '{}': kind: {} is not a dataset", d.name, d.kind().name()));
+        return Err(SceneError::Dataset {
+            layer: d.name.clone(),
+            problem: format!("kind: {} is not a dataset", d.kind().name()),
+        });
     };
     let store = &data.store;
     let store_path = project.resolve(store);
     let name = d.store_dataset();
     let has = if store_path.exists() {
-        let store = Store::open_read_only(&store_path).map_err(|e| format!("layer '{}': store: {e}", d.name))?;
+        let store = Store::open_read_only(&store_path)
+            .map_err(|source| SceneError::DatasetStore { layer: d.name.clone(), source })?;
         let body = project.ellipsoid()?;
         if (store.body().a_m(), store.body().b_m()) != (body.a_m(), body.b_m()) {
-            return Err(format!(
-                "layer '{}': store: {} holds tiles on {}, but the project's body is {body}",
-                d.name,
-                store_path.display(),
-                store.body()
-            ));
+            return Err(SceneError::OtherBody {
+                layer: d.name.clone(),
+                store: store_path,
+                store_body: store.body().to_string(),
+                project_body: body.to_string(),
+            });
         }
-        store.dataset(name).map_err(|e| e.to_string())?.is_some_and(|r| r.completed.is_some())
+        store.dataset(name)?.is_some_and(|r| r.completed.is_some())
     } else {
         false
     };
@@ -456,17 +546,21 @@ pub fn import_needed(project: &Project, d: &LayerSpec) -> Result<Option<ImportOp
         return Ok(None);
     }
     let Some(source) = &data.source else {
-        return Err(format!(
-            "dataset '{}': {} has no complete dataset '{name}' and the project lists no source to import it from",
-            d.name,
-            store_path.display()
-        ));
+        return Err(SceneError::Dataset {
+            layer: d.name.clone(),
+            problem: format!(
+                "{} has no complete dataset '{name}' and the project lists no source to import it from",
+                store_path.display()
+            ),
+        });
     };
     if let Some(dir) = store_path.parent() {
-        std::fs::create_dir_all(dir).map_err(|e| format!("{}: cannot create: {e}", dir.display()))?;
+        std::fs::create_dir_all(dir).map_err(|source| SceneError::Folder { path: dir.to_path_buf(), source })?;
     }
     let vertical = match &source.vertical_datum {
-        Some(v) => v.parse::<VerticalDatum>().map_err(|e| format!("dataset '{}': {e}", d.name))?,
+        Some(v) => {
+            v.parse::<VerticalDatum>().map_err(|e| SceneError::Dataset { layer: d.name.clone(), problem: e.0 })?
+        }
         None => VerticalDatum::Ellipsoidal,
     };
     Ok(Some(ImportOptions {
@@ -487,19 +581,25 @@ pub fn import_needed(project: &Project, d: &LayerSpec) -> Result<Option<ImportOp
 }
 
 /// Opens what a dataset layer reads (its store must hold the dataset complete).
-pub fn open_dataset(project: &Project, d: &LayerSpec) -> Result<DatasetInfo, String> {
-    let store =
-        &d.as_dataset().ok_or_else(|| format!("layer '{}': kind: {} is not a dataset", d.name, d.kind().name()))?.store;
+pub fn open_dataset(project: &Project, d: &LayerSpec) -> Result<DatasetInfo, SceneError> {
+    let store = &d
+        .as_dataset()
+        .ok_or_else(|| SceneError::Dataset {
+            layer: d.name.clone(),
+            problem: format!("kind: {} is not a dataset", d.kind().name()),
+        })?
+        .store;
     let path = project.resolve(store);
-    let info = DatasetInfo::open(&path, d.store_dataset()).map_err(|e| format!("dataset '{}': {e}", d.name))?;
+    let info = DatasetInfo::open(&path, d.store_dataset())
+        .map_err(|source| SceneError::DatasetStore { layer: d.name.clone(), source })?;
     let body = project.ellipsoid()?;
     if (info.body.a_m(), info.body.b_m()) != (body.a_m(), body.b_m()) {
-        return Err(format!(
-            "layer '{}': store: {} holds tiles on {}, but the project's body is {body}",
-            d.name,
-            path.display(),
-            info.body
-        ));
+        return Err(SceneError::OtherBody {
+            layer: d.name.clone(),
+            store: path,
+            store_body: info.body.to_string(),
+            project_body: body.to_string(),
+        });
     }
     Ok(info)
 }
@@ -525,11 +625,11 @@ pub fn stack_range(stack: &Stack) -> (f64, f64) {
 
 /// The colour ramp a colour-map setting names: a user's file (relative to the project) or a
 /// preset, over its range or, without one, the data's height range.
-pub fn resolve_ramp(project: &Project, cm: &ColourMapSpec, data_range_m: (f64, f64)) -> Result<Ramp, String> {
+pub fn resolve_ramp(project: &Project, cm: &ColourMapSpec, data_range_m: (f64, f64)) -> Result<Ramp, SceneError> {
     let range = if data_range_m.1 > data_range_m.0 { data_range_m } else { (0.0, 1.0) };
     let range = cm.range_m.map_or(range, |[a, b]| (a, b));
-    match &cm.file {
-        Some(file) => Ramp::from_file(&project.resolve(file), range, cm.nodata_colour),
-        None => Ramp::preset(&cm.preset, range, cm.nodata_colour),
-    }
+    Ok(match &cm.file {
+        Some(file) => Ramp::from_file(&project.resolve(file), range, cm.nodata_colour)?,
+        None => Ramp::preset(&cm.preset, range, cm.nodata_colour)?,
+    })
 }

@@ -1,6 +1,8 @@
 //! The WGSL sources, embedded at build time, and their composition: a line
 //! `//!include shared/NAME.wgsl` is replaced by that file (once; no nesting needed yet).
 
+use super::context::GpuError;
+
 /// Every WGSL file in `shaders/`, by path relative to it.
 pub const FILES: &[(&str, &str)] = &[
     ("terrain.wgsl", include_str!("../../shaders/terrain.wgsl")),
@@ -14,7 +16,7 @@ pub const FILES: &[(&str, &str)] = &[
 
 /// A shader with its includes expanded; an error names a file or include that is not one of
 /// [`FILES`] (the naga test expands every shipped file).
-pub fn composed(name: &str) -> Result<String, String> {
+pub fn composed(name: &str) -> Result<String, GpuError> {
     let source = file(name)?;
     let mut out = String::with_capacity(source.len() * 2);
     for line in source.lines() {
@@ -32,17 +34,22 @@ pub fn composed(name: &str) -> Result<String, String> {
     Ok(out)
 }
 
-fn file(name: &str) -> Result<&'static str, String> {
-    FILES.iter().find(|(n, _)| *n == name).map(|(_, s)| *s).ok_or_else(|| format!("no shader file '{name}'"))
+fn file(name: &str) -> Result<&'static str, GpuError> {
+    FILES
+        .iter()
+        .find(|(n, _)| *n == name)
+        .map(|(_, s)| *s)
+        .ok_or_else(|| GpuError::Shader(format!("no shader file '{name}'")))
 }
 
 /// Parses and validates WGSL with naga (all capabilities the renderer may use), returning the
 /// module's entry points or the error, formatted with the source.
-pub fn validate(name: &str, source: &str) -> Result<Vec<String>, String> {
-    let module = naga::front::wgsl::parse_str(source).map_err(|e| e.emit_to_string_with_path(source, name))?;
+pub fn validate(name: &str, source: &str) -> Result<Vec<String>, GpuError> {
+    let module =
+        naga::front::wgsl::parse_str(source).map_err(|e| GpuError::Shader(e.emit_to_string_with_path(source, name)))?;
     let mut validator =
         naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::all());
-    validator.validate(&module).map_err(|e| e.emit_to_string_with_path(source, name))?;
+    validator.validate(&module).map_err(|e| GpuError::Shader(e.emit_to_string_with_path(source, name)))?;
     Ok(module.entry_points.iter().map(|e| e.name.clone()).collect())
 }
 

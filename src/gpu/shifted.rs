@@ -14,8 +14,8 @@ use super::data::{DatasetInfo, bilinear};
 use crate::ecm::{CubeProjection, QuadId};
 use crate::geodesy::{Ellipsoid, geodetic_from_ecef};
 use crate::layers::stack::sample_point;
-use crate::store::Store;
 use crate::store::grid::GRID;
+use crate::store::{Store, StoreError};
 
 const N: usize = GRID as usize;
 
@@ -39,7 +39,7 @@ pub fn locate(ellipsoid: &Ellipsoid, level: u8, p: DVec3) -> Option<(QuadId, f64
 }
 
 /// The shifted dataset's 257² grid at `quad` (sampled at the level min(quad's, finest)).
-pub fn shifted_grid(dataset: &DatasetInfo, store: &Store, quad: QuadId) -> Result<Vec<f32>, String> {
+pub fn shifted_grid(dataset: &DatasetInfo, store: &Store, quad: QuadId) -> Result<Vec<f32>, StoreError> {
     let level = quad.level.min(dataset.finest_level);
     let [east_m, north_m] = dataset.shift_m;
     let body = dataset.body;
@@ -55,11 +55,9 @@ pub fn shifted_grid(dataset: &DatasetInfo, store: &Store, quad: QuadId) -> Resul
         };
         let tile = match tiles.entry(q) {
             std::collections::hash_map::Entry::Occupied(e) => e.into_mut(),
-            std::collections::hash_map::Entry::Vacant(e) => e.insert(if dataset.has(q) {
-                store.read_grid(&dataset.dataset, q).map_err(|e| e.to_string())?.map(|t| t.values)
-            } else {
-                None
-            }),
+            std::collections::hash_map::Entry::Vacant(e) => {
+                e.insert(if dataset.has(q) { store.read_grid(&dataset.dataset, q)?.map(|t| t.values) } else { None })
+            }
         };
         out.push(tile.as_deref().map_or(f32::NAN, |g| bilinear(g, u, v) as f32));
     }

@@ -33,13 +33,13 @@ pub struct RenderedImage {
 
 impl RenderedImage {
     /// Writes the image as PNG, atomically (beside, then renamed).
-    pub fn write_png(&self, path: &std::path::Path) -> Result<(), String> {
+    pub fn write_png(&self, path: &std::path::Path) -> Result<(), GpuError> {
         use image::ImageEncoder as _;
         let mut bytes = Vec::new();
         image::codecs::png::PngEncoder::new(&mut bytes)
             .write_image(&self.rgba, self.width, self.height, image::ExtendedColorType::Rgba8)
-            .map_err(|e| format!("{}: cannot encode PNG: {e}", path.display()))?;
-        crate::files::write_atomic(path, &bytes).map_err(|e| format!("{}: cannot write: {e}", path.display()))
+            .map_err(|source| GpuError::Png { path: path.into(), source })?;
+        crate::files::write_atomic(path, &bytes).map_err(|source| GpuError::Write { path: path.into(), source })
     }
 }
 

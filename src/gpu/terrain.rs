@@ -59,7 +59,7 @@ pub(crate) struct TerrainPass {
 impl TerrainPass {
     /// The pipelines drawing into targets of `format` (the window's, or [`IMAGE_FORMAT`]).
     pub(crate) fn new(device: &wgpu::Device, format: wgpu::TextureFormat) -> Result<TerrainPass, GpuError> {
-        let source = super::shaders::composed("terrain.wgsl").map_err(GpuError::Shader)?;
+        let source = super::shaders::composed("terrain.wgsl")?;
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("terrain.wgsl"),
             source: wgpu::ShaderSource::Wgsl(source.into()),

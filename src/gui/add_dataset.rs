@@ -4,6 +4,7 @@
 //! opens the same way from the command line; a cancelled import leaves a valid store that the
 //! next attempt resumes.
 
+use crate::gui::GuiError;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::thread::JoinHandle;
@@ -32,7 +33,7 @@ pub struct AddDataset {
 struct Job {
     name: String,
     watch: Arc<ImportWatch>,
-    handle: JoinHandle<Result<Ready, String>>,
+    handle: JoinHandle<Result<Ready, GuiError>>,
 }
 
 impl AddDataset {
@@ -42,7 +43,7 @@ impl AddDataset {
     }
 
     /// Starts adding: checks the form, then imports (if needed) and opens on a thread.
-    pub fn start(&mut self, project: &Project) -> Result<(), String> {
+    pub fn start(&mut self, project: &Project) -> Result<(), GuiError> {
         if self.job.is_some() {
             return Err("a dataset is being added already".into());
         }
@@ -55,11 +56,11 @@ impl AddDataset {
             .spawn(move || {
                 if let Some(mut opts) = import_needed(&project, &spec)? {
                     opts.watch = Some(thread_watch);
-                    crate::store::import(&opts).map_err(|e| e.to_string())?;
+                    crate::store::import(&opts)?;
                 }
                 Ok((spec.clone(), open_dataset(&project, &spec)?))
             })
-            .map_err(|e| format!("cannot start the import: {e}"))?;
+            .map_err(|e| format!("cannot start the import: {}", crate::errors::chain(&e)))?;
         self.job = Some(Job { name, watch, handle });
         Ok(())
     }
@@ -72,27 +73,27 @@ impl AddDataset {
     }
 
     /// The finished job's result, once (None while it runs or when there is none).
-    pub fn poll(&mut self) -> Option<Result<Ready, String>> {
+    pub fn poll(&mut self) -> Option<Result<Ready, GuiError>> {
         if !self.job.as_ref()?.handle.is_finished() {
             return None;
         }
         let job = self.job.take()?;
-        Some(job.handle.join().unwrap_or_else(|_| Err(format!("adding '{}' failed unexpectedly", job.name))))
+        Some(job.handle.join().unwrap_or_else(|_| Err(format!("adding '{}' failed unexpectedly", job.name).into())))
     }
 
     /// The layer the form describes: a store's dataset, or a raster's import into
     /// `stores/<name>.gpkg` beside the project. Paths inside the project's folder are kept
     /// relative to it.
-    fn layer_spec(&self, project: &Project) -> Result<LayerSpec, String> {
+    fn layer_spec(&self, project: &Project) -> Result<LayerSpec, GuiError> {
         let typed = self.path.trim();
         if typed.is_empty() {
             return Err("path: give a raster (GeoTIFF, …) or a store (.gpkg)".into());
         }
-        let path = std::fs::canonicalize(typed).map_err(|e| format!("{typed}: {e}"))?;
+        let path = std::fs::canonicalize(typed).map_err(|e| format!("{typed}: {}", crate::errors::chain(&e)))?;
         let stem = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
         let name = if self.name.trim().is_empty() { stem } else { self.name.trim().to_string() };
         if project.layers.iter().any(|l| l.name == name) {
-            return Err(format!("name: '{name}' is used by another layer"));
+            return Err(format!("name: '{name}' is used by another layer").into());
         }
         let base = project.resolve(Path::new("."));
         let relative = |p: &Path| -> PathBuf {
@@ -101,7 +102,7 @@ impl AddDataset {
         };
         let is_store = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("gpkg"));
         if !is_store {
-            crate::store::gpkg::check_dataset_name(&name).map_err(|e| format!("name: {e}"))?;
+            crate::store::gpkg::check_dataset_name(&name).map_err(|e| format!("name: {}", crate::errors::chain(&e)))?;
         }
         let spec = if is_store {
             // The dataset's name in the store is the layer's, the default.
@@ -118,12 +119,12 @@ impl AddDataset {
             }
             spec
         };
-        spec.check(project.ellipsoid()?.a_m()).map_err(|e| e.to_string())?;
+        spec.check(project.ellipsoid()?.a_m())?;
         Ok(spec)
     }
 
     /// The form, or the import's progress and its cancel button. Returns a finished result.
-    pub fn ui(&mut self, ui: &mut egui::Ui, project: &Project) -> Option<Result<Ready, String>> {
+    pub fn ui(&mut self, ui: &mut egui::Ui, project: &Project) -> Option<Result<Ready, GuiError>> {
         if let Some(job) = &self.job {
             let p = job.watch.progress();
             let fraction = if p.total > 0 { p.done as f32 / p.total as f32 } else { 0.0 };

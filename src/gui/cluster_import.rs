@@ -4,6 +4,7 @@
 //! cluster (Slurm or any array scheduler, `docs/sharded-import.md`), not in the window; a merge
 //! of some shards is valid and a later one adds the rest.
 
+use crate::gui::GuiError;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::thread::JoinHandle;
@@ -60,7 +61,7 @@ enum Kind {
 struct Job {
     kind: Kind,
     watch: Arc<ImportWatch>,
-    handle: JoinHandle<Result<String, String>>,
+    handle: JoinHandle<Result<String, GuiError>>,
 }
 
 impl ClusterImport {
@@ -81,7 +82,7 @@ impl ClusterImport {
 
     /// Starts writing a plan of the source's import on the project's body (a thread: it scans
     /// the source's footprint).
-    pub fn start_plan(&mut self, project: &Project) -> Result<(), String> {
+    pub fn start_plan(&mut self, project: &Project) -> Result<(), GuiError> {
         if self.job.is_some() {
             return Err("a plan or a merge is running already".into());
         }
@@ -89,7 +90,8 @@ impl ClusterImport {
         if source.is_empty() {
             return Err("source: give the raster to import".into());
         }
-        let source = std::fs::canonicalize(source).map_err(|e| format!("source: {source}: {e}"))?;
+        let source =
+            std::fs::canonicalize(source).map_err(|e| format!("source: {source}: {}", crate::errors::chain(&e)))?;
         let shards: usize = self
             .shards
             .trim()
@@ -121,7 +123,7 @@ impl ClusterImport {
         let handle = std::thread::Builder::new()
             .name("terrafuse-plan".into())
             .spawn(move || {
-                let r = plan(&opts, &manifest, shards).map_err(|e| e.to_string())?;
+                let r = plan(&opts, &manifest, shards)?;
                 Ok(format!(
                     "wrote plan {}: {} shards of dataset {} at level {}",
                     &r.manifest.hash[..12],
@@ -130,16 +132,16 @@ impl ClusterImport {
                     r.manifest.import.level
                 ))
             })
-            .map_err(|e| format!("cannot start the plan: {e}"))?;
+            .map_err(|e| format!("cannot start the plan: {}", crate::errors::chain(&e)))?;
         self.job = Some(Job { kind: Kind::Plan, watch: Arc::new(ImportWatch::default()), handle });
         Ok(())
     }
 
     /// Reads the plan named in the form, fills in the parts folder and the store beside it
     /// where they are empty, and looks which shards are done.
-    pub fn open_plan(&mut self) -> Result<(), String> {
+    pub fn open_plan(&mut self) -> Result<(), GuiError> {
         let path = PathBuf::from(self.manifest.trim());
-        let m = Manifest::load(&path).map_err(|e| e.to_string())?;
+        let m = Manifest::load(&path)?;
         let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
         if self.parts.trim().is_empty() {
             self.parts = dir.join("parts").display().to_string();
@@ -186,7 +188,7 @@ impl ClusterImport {
 
     /// Starts merging the parts that are done into the store (a thread, with progress and
     /// cancel).
-    pub fn start_merge(&mut self) -> Result<(), String> {
+    pub fn start_merge(&mut self) -> Result<(), GuiError> {
         if self.job.is_some() {
             return Err("a plan or a merge is running already".into());
         }
@@ -194,7 +196,7 @@ impl ClusterImport {
         let parts: Vec<PathBuf> =
             self.done.iter().enumerate().filter(|(_, d)| **d).map(|(i, _)| part_path(&parts_dir, i)).collect();
         if parts.is_empty() {
-            return Err(format!("parts: no finished shard in {}", parts_dir.display()));
+            return Err(format!("parts: no finished shard in {}", parts_dir.display()).into());
         }
         let store = PathBuf::from(self.store.trim());
         if store.as_os_str().is_empty() {
@@ -205,7 +207,7 @@ impl ClusterImport {
         let handle = std::thread::Builder::new()
             .name("terrafuse-merge".into())
             .spawn(move || {
-                let r = merge(&opts).map_err(|e| e.to_string())?;
+                let r = merge(&opts)?;
                 let merged: u64 = r.merged.iter().map(|(_, t)| t).sum();
                 Ok(if r.complete {
                     format!(
@@ -224,13 +226,13 @@ impl ClusterImport {
                     )
                 })
             })
-            .map_err(|e| format!("cannot start the merge: {e}"))?;
+            .map_err(|e| format!("cannot start the merge: {}", crate::errors::chain(&e)))?;
         self.job = Some(Job { kind: Kind::Merge, watch, handle });
         Ok(())
     }
 
     /// The finished job's outcome, once; a finished plan is opened.
-    pub fn poll(&mut self) -> Option<Result<String, String>> {
+    pub fn poll(&mut self) -> Option<Result<String, GuiError>> {
         if !self.job.as_ref()?.handle.is_finished() {
             return None;
         }
@@ -245,7 +247,8 @@ impl ClusterImport {
             (_, r) => r,
         };
         self.message = match &result {
-            Ok(m) | Err(m) => m.clone(),
+            Ok(m) => m.clone(),
+            Err(e) => e.to_string(),
         };
         Some(result)
     }
@@ -293,12 +296,12 @@ impl ClusterImport {
                 if ui.button("write plan").on_hover_text("check the source and cut its quads into shards").clicked()
                     && let Err(e) = self.start_plan(project)
                 {
-                    self.message = e;
+                    self.message = e.to_string();
                 }
                 if ui.button("open plan").on_hover_text("read the plan file and look at its shards").clicked()
                     && let Err(e) = self.open_plan()
                 {
-                    self.message = e;
+                    self.message = e.to_string();
                 }
             });
             field(ui, "parts", &mut self.parts, "folder of part-NNNN.gpkg");
@@ -331,7 +334,7 @@ impl ClusterImport {
                         .clicked()
                         && let Err(e) = self.start_merge()
                     {
-                        self.message = e;
+                        self.message = e.to_string();
                     }
                 });
                 if let Some((store, dataset)) = &self.merged

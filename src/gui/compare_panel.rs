@@ -2,6 +2,7 @@
 //! the histogram, the slope classes) and Nuth & Kääb co-registration of A onto B with an *apply*
 //! button, each computed on a thread while the view keeps drawing.
 
+use crate::gui::GuiError;
 use std::thread::JoinHandle;
 
 use crate::compare::{CompareOptions, Comparison, CoregOptions, Coregistration, compare, coregister};
@@ -34,10 +35,10 @@ pub enum CompareAction {
 pub struct ComparePanel {
     a: String,
     b: String,
-    comparing: Option<JoinHandle<Result<Comparison, String>>>,
-    coregistering: Option<JoinHandle<Result<Coregistration, String>>>,
-    comparison: Option<Result<Comparison, String>>,
-    coregistration: Option<Result<Coregistration, String>>,
+    comparing: Option<JoinHandle<Result<Comparison, GuiError>>>,
+    coregistering: Option<JoinHandle<Result<Coregistration, GuiError>>>,
+    comparison: Option<Result<Comparison, GuiError>>,
+    coregistration: Option<Result<Coregistration, GuiError>>,
 }
 
 impl ComparePanel {
@@ -104,16 +105,13 @@ impl ComparePanel {
             let idle = !self.busy() && self.a != self.b;
             if ui.add_enabled(idle, egui::Button::new("compare")).clicked() {
                 let (p, a, b) = (project.clone(), self.a.clone(), self.b.clone());
-                self.comparing = Some(std::thread::spawn(move || {
-                    compare(&p, &a, &b, &CompareOptions::default()).map_err(|e| e.to_string())
-                }));
+                self.comparing = Some(std::thread::spawn(move || Ok(compare(&p, &a, &b, &CompareOptions::default())?)));
             }
             if ui.add_enabled(idle, egui::Button::new("co-register")).on_hover_text("Nuth & Kääb: A onto B").clicked()
             {
                 let (p, a, b) = (project.clone(), self.a.clone(), self.b.clone());
-                self.coregistering = Some(std::thread::spawn(move || {
-                    coregister(&p, &a, &b, &CoregOptions::default()).map_err(|e| e.to_string())
-                }));
+                self.coregistering =
+                    Some(std::thread::spawn(move || Ok(coregister(&p, &a, &b, &CoregOptions::default())?)));
             }
             if ui
                 .add_enabled(self.a != self.b, egui::Button::new("show difference"))
@@ -130,7 +128,7 @@ impl ComparePanel {
         match &self.comparison {
             Some(Ok(c)) => comparison_ui(ui, c),
             Some(Err(e)) => {
-                ui.colored_label(egui::Color32::LIGHT_RED, e);
+                ui.colored_label(egui::Color32::LIGHT_RED, e.to_string());
             }
             None => {}
         }
@@ -159,7 +157,7 @@ impl ComparePanel {
                 }
             }
             Some(Err(e)) => {
-                ui.colored_label(egui::Color32::LIGHT_RED, e);
+                ui.colored_label(egui::Color32::LIGHT_RED, e.to_string());
             }
             None => {}
         }

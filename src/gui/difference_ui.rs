@@ -2,6 +2,7 @@
 //! opacity), the colour bar, and the range from a percentile of |dh|, computed on a thread
 //! whenever what it depends on changes.
 
+use crate::gui::GuiError;
 use std::thread::JoinHandle;
 
 use crate::gpu::Renderer;
@@ -99,7 +100,7 @@ pub fn new_layer(project: &Project, a: &str, b: &str) -> LayerSpec {
 }
 
 /// A range computed on a thread (None: the operands do not overlap).
-type RangeJob = JoinHandle<Result<Option<f64>, String>>;
+type RangeJob = JoinHandle<Result<Option<f64>, GuiError>>;
 
 /// The drawn difference layer's range from its percentile: recomputed on a thread when the layer,
 /// its operands' settings or its percentile change, and handed to the renderer.
@@ -124,7 +125,7 @@ impl AutoRange {
                     renderer.set_difference_range(range);
                     self.error = None;
                 }
-                Err(e) => self.error = Some(e),
+                Err(e) => self.error = Some(e.to_string()),
             }
             self.key = Some(key);
             changed = true;
@@ -149,7 +150,7 @@ impl AutoRange {
             return changed;
         }
         let (p, s) = (project.clone(), spec.clone());
-        let handle = std::thread::spawn(move || crate::compare::difference_range(&p, &s).map_err(|e| e.to_string()));
+        let handle = std::thread::spawn(move || Ok(crate::compare::difference_range(&p, &s)?));
         self.job = Some((key, handle));
         changed
     }

@@ -6,11 +6,13 @@ pub mod app;
 pub mod cluster_import;
 pub mod compare_panel;
 pub mod difference_ui;
+mod error;
 pub mod layers_panel;
 pub mod navigate;
 pub mod recent;
 pub mod viewport;
 
+pub use error::GuiError;
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
@@ -74,11 +76,11 @@ impl Opened {
 }
 
 /// Checks the request and opens the project: everything that can fail before a window opens.
-pub fn open(opts: &ViewOptions) -> Result<Opened, String> {
+pub fn open(opts: &ViewOptions) -> Result<Opened, GuiError> {
     if opts.width < 200 || opts.height < 150 || opts.width > 16384 || opts.height > 16384 {
-        return Err(format!("window size {}x{} must lie within 200x150 … 16384x16384", opts.width, opts.height));
+        return Err(format!("window size {}x{} must lie within 200x150 … 16384x16384", opts.width, opts.height).into());
     }
-    let project = Project::load(&opts.project).map_err(|e| e.to_string())?;
+    let project = Project::load(&opts.project)?;
     let camera = if opts.view.is_none() && opts.camera.is_none() {
         app::file::opening_camera(&project)
     } else {
@@ -87,12 +89,13 @@ pub fn open(opts: &ViewOptions) -> Result<Opened, String> {
     if let Some(t) = opts.lod_threshold
         && !(t.is_finite() && t > 0.0)
     {
-        return Err(format!("--lod-threshold {t} must be a positive number of pixels"));
+        return Err(format!("--lod-threshold {t} must be a positive number of pixels").into());
     }
     if let Some(path) = &opts.screenshot {
         check_writable(path)?;
     }
-    let (mut scene, report) = Scene::open(&project).map_err(|e| format!("{}: {e}", opts.project.display()))?;
+    let (mut scene, report) =
+        Scene::open(&project).map_err(|e| format!("{}: {}", opts.project.display(), crate::errors::chain(&e)))?;
     if let Some(t) = opts.lod_threshold {
         scene.detail.lod_threshold_px = t;
     }
@@ -128,11 +131,11 @@ pub fn wgpu_setup() -> egui_wgpu::WgpuSetup {
 }
 
 /// The workstation on the device eframe created (the renderer shares it).
-pub fn build_app(cc: &eframe::CreationContext<'_>, opened: Opened) -> Result<app::App, String> {
+pub fn build_app(cc: &eframe::CreationContext<'_>, opened: Opened) -> Result<app::App, GuiError> {
     let rs = cc.wgpu_render_state.as_ref().ok_or("eframe started without its wgpu renderer")?;
     let ctx = context_of(rs);
     let device = format!("device: {}", ctx.describe());
-    let renderer = Renderer::new(&ctx, opened.scene, IMAGE_FORMAT).map_err(|e| e.to_string())?;
+    let renderer = Renderer::new(&ctx, opened.scene, IMAGE_FORMAT)?;
     Ok(app::App::new(
         opened.project,
         opened.project_path,
@@ -157,7 +160,7 @@ pub fn context_of(rs: &egui_wgpu::RenderState) -> GpuContext {
 
 /// Opens the workstation on a project; returns the screenshot run's report (empty when the
 /// user closed the window).
-pub fn run(opts: &ViewOptions, opened: Opened) -> Result<String, String> {
+pub fn run(opts: &ViewOptions, opened: Opened) -> Result<String, GuiError> {
     let outcome = opened.outcome.clone();
     let name = opts.project.file_stem().map_or("project".into(), |s| s.to_string_lossy().into_owned());
     let native = eframe::NativeOptions {
@@ -168,7 +171,7 @@ pub fn run(opts: &ViewOptions, opened: Opened) -> Result<String, String> {
         wgpu_options: egui_wgpu::WgpuConfiguration { wgpu_setup: wgpu_setup(), ..Default::default() },
         ..Default::default()
     };
-    let failed: Arc<Mutex<Option<String>>> = Arc::new(Mutex::new(None));
+    let failed: Arc<Mutex<Option<GuiError>>> = Arc::new(Mutex::new(None));
     let failed_in = failed.clone();
     let result = eframe::run_native(
         "terrafuse",
@@ -176,17 +179,18 @@ pub fn run(opts: &ViewOptions, opened: Opened) -> Result<String, String> {
         Box::new(move |cc| match build_app(cc, opened) {
             Ok(app) => Ok(Box::new(app)),
             Err(e) => {
+                let text = e.to_string();
                 if let Ok(mut f) = failed_in.lock() {
-                    *f = Some(e.clone());
+                    *f = Some(e);
                 }
-                Err(e.into())
+                Err(text.into())
             }
         }),
     );
     if let Some(e) = failed.lock().ok().and_then(|mut f| f.take()) {
         return Err(e);
     }
-    result.map_err(|e| format!("the window could not be opened: {e}"))?;
+    result.map_err(|e| format!("the window could not be opened: {}", crate::errors::chain(&e)))?;
     let outcome = outcome.lock().ok().and_then(|mut o| o.take());
     match outcome {
         Some(result) => result,
@@ -196,10 +200,10 @@ pub fn run(opts: &ViewOptions, opened: Opened) -> Result<String, String> {
 }
 
 /// Fails early, naming the file, when a screenshot could not be written.
-fn check_writable(path: &Path) -> Result<(), String> {
+fn check_writable(path: &Path) -> Result<(), GuiError> {
     let dir = crate::files::folder_of(path);
     if !dir.is_dir() {
-        return Err(format!("{}: the folder {} does not exist", path.display(), dir.display()));
+        return Err(format!("{}: the folder {} does not exist", path.display(), dir.display()).into());
     }
     Ok(())
 }

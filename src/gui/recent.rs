@@ -1,6 +1,7 @@
 //! The recent projects: a short list, most recent first, kept as JSON in the workstation's
 //! configuration folder (the caller says where; `terrafuse` uses `$XDG_CONFIG_HOME/terrafuse`).
 
+use crate::gui::GuiError;
 use std::path::{Path, PathBuf};
 
 /// Projects kept in the list.
@@ -34,7 +35,7 @@ impl Recent {
 
     /// Puts `project` first and writes the list (atomically). An error says why it was not
     /// kept; the list in memory is updated regardless.
-    pub fn add(&mut self, project: &Path) -> Result<(), String> {
+    pub fn add(&mut self, project: &Path) -> Result<(), GuiError> {
         let project = std::path::absolute(project).unwrap_or_else(|_| project.to_path_buf());
         self.projects.retain(|p| *p != project);
         self.projects.insert(0, project);
@@ -43,10 +44,11 @@ impl Recent {
             return Ok(());
         };
         if let Some(dir) = file.parent() {
-            std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+            std::fs::create_dir_all(dir).map_err(GuiError::file(dir, "cannot create"))?;
         }
-        let text = serde_json::to_string_pretty(&self.projects).map_err(|e| e.to_string())?;
-        crate::files::write_atomic(file, text.as_bytes()).map_err(|e| format!("{}: {e}", file.display()))
+        let text = serde_json::to_string_pretty(&self.projects)
+            .map_err(|e| format!("recent projects: {}", crate::errors::chain(&e)))?;
+        crate::files::write_atomic(file, text.as_bytes()).map_err(GuiError::file(file, "cannot write"))
     }
 }
 

@@ -3,6 +3,7 @@
 //! egui-wgpu native texture, and a few probe pixels (under the cursor, at the centre) and the
 //! pass's GPU time come back asynchronously, never stalling the frame.
 
+use crate::gui::GuiError;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU8, Ordering};
 
@@ -167,13 +168,11 @@ impl Viewport {
         rs: &egui_wgpu::RenderState,
         renderer: &Renderer,
         pixels: [(u32, u32); 2],
-    ) -> Result<(), String> {
+    ) -> Result<(), GuiError> {
         let mut encoder = rs.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("viewport") });
         let timed = self.timing.as_ref().is_some_and(|t| t.2.idle());
         let timing = self.timing.as_ref().filter(|_| timed);
-        renderer
-            .encode(&mut encoder, &self.targets, DrawMode::Probe, timing.map(|t| &t.0))
-            .map_err(|e| e.to_string())?;
+        renderer.encode(&mut encoder, &self.targets, DrawMode::Probe, timing.map(|t| &t.0))?;
         if let Some((set, resolve, read)) = timing {
             encoder.resolve_query_set(set, 0..2, resolve, 0);
             encoder.copy_buffer_to_buffer(resolve, 0, &read.buffer, 0, 16);

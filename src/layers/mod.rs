@@ -30,7 +30,7 @@ pub use spec::{
 pub use stack::{DifferencePlan, Layer, MaskPlan, PlannedLayer, QuadPlan, Stack};
 
 /// A layer that cannot be used, naming the layer, the field and the problem.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[derive(Debug, Clone, thiserror::Error)]
 #[error("layer '{layer}': {field}: {problem}")]
 pub struct LayerError {
     /// The layer's name.
@@ -39,12 +39,35 @@ pub struct LayerError {
     pub field: String,
     /// What is wrong.
     pub problem: String,
+    /// What failed under it (a store, the terrain below, a stroke), if anything did.
+    #[source]
+    pub cause: Option<crate::errors::SharedFailure>,
 }
 
 impl LayerError {
     /// An error about one field of one layer.
     pub fn field(layer: &str, field: &str, problem: String) -> LayerError {
-        LayerError { layer: layer.into(), field: field.into(), problem }
+        LayerError { layer: layer.into(), field: field.into(), problem, cause: None }
+    }
+
+    /// A failure under one field of one layer: `problem` says what could not be done, `cause`
+    /// why.
+    pub fn caused(layer: &str, field: &str, problem: &str, cause: impl Into<crate::errors::Failure>) -> LayerError {
+        LayerError {
+            layer: layer.into(),
+            field: field.into(),
+            problem: problem.into(),
+            cause: Some(cause.into().into()),
+        }
+    }
+}
+
+/// Two errors are equal when they name the same layer, field and problem, and both have a cause
+/// or neither has.
+impl PartialEq for LayerError {
+    fn eq(&self, other: &LayerError) -> bool {
+        (&self.layer, &self.field, &self.problem, self.cause.is_some())
+            == (&other.layer, &other.field, &other.problem, other.cause.is_some())
     }
 }
 

@@ -247,8 +247,8 @@ fn with_dataset(change: impl FnOnce(&mut super::DatasetLayer)) -> LayerSpec {
 }
 
 /// A layer read from a file's JSON (what a project's `layers` holds).
-fn read_layer(json: &str) -> Result<LayerSpec, String> {
-    serde_json::from_str::<LayerSpec>(json).map_err(|e| e.to_string())
+fn read_layer(json: &str) -> Result<LayerSpec, serde_json::Error> {
+    serde_json::from_str::<LayerSpec>(json)
 }
 
 #[test]
@@ -291,7 +291,7 @@ fn a_file_that_gives_a_layer_another_kinds_field_is_refused_by_name() {
     ];
     for (json, expected) in cases {
         let e = read_layer(json).unwrap_err();
-        assert!(e.contains(expected), "{json}: {e}\n  expected: {expected}");
+        assert!(e.to_string().contains(expected), "{json}: {e}\n  expected: {expected}");
     }
     // What older files wrote for every kind (a zero shift, no edge feather, the identity
     // transform on a difference) still reads.

@@ -2,6 +2,8 @@
 
 use serde::{Deserialize, Serialize};
 
+use super::Invalid;
+
 /// A camera in geodetic terms, all f64: where it is and where it looks.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
@@ -33,13 +35,13 @@ fn default_fov() -> f64 {
 
 impl CameraSpec {
     /// Parses `lat,lon,alt,heading,pitch[,fov]` (degrees and metres).
-    pub fn parse(text: &str) -> Result<CameraSpec, String> {
+    pub fn parse(text: &str) -> Result<CameraSpec, Invalid> {
         let values: Vec<f64> = text
             .split(',')
             .map(|v| v.trim().parse::<f64>().map_err(|_| format!("'{}' is not a number", v.trim())))
             .collect::<Result<_, _>>()?;
         if !(5..=6).contains(&values.len()) {
-            return Err(format!("a camera is lat,lon,alt,heading,pitch[,fov]; got {} values", values.len()));
+            return Err(format!("a camera is lat,lon,alt,heading,pitch[,fov]; got {} values", values.len()).into());
         }
         let camera = CameraSpec {
             lat: values[0],
@@ -55,19 +57,19 @@ impl CameraSpec {
 
     /// Checks the ranges: latitude within ±90°, pitch within [−90°, 90°], field of view in
     /// (0°, 170°), everything finite.
-    pub fn check(&self) -> Result<(), String> {
+    pub fn check(&self) -> Result<(), Invalid> {
         let all = [self.lat, self.lon, self.alt, self.heading, self.pitch, self.fov];
         if all.iter().any(|v| !v.is_finite()) {
             return Err("camera values must be finite numbers".into());
         }
         if self.lat.abs() > 90.0 {
-            return Err(format!("camera latitude {} is outside [-90, 90]", self.lat));
+            return Err(format!("camera latitude {} is outside [-90, 90]", self.lat).into());
         }
         if self.pitch.abs() > 90.0 {
-            return Err(format!("camera pitch {} is outside [-90, 90] (-90 looks straight down)", self.pitch));
+            return Err(format!("camera pitch {} is outside [-90, 90] (-90 looks straight down)", self.pitch).into());
         }
         if !(self.fov > 0.0 && self.fov < 170.0) {
-            return Err(format!("camera field of view {} must lie between 0 and 170 degrees", self.fov));
+            return Err(format!("camera field of view {} must lie between 0 and 170 degrees", self.fov).into());
         }
         Ok(())
     }

@@ -17,6 +17,8 @@ use std::collections::BTreeMap;
 
 use serde::{Deserialize, Serialize};
 
+use super::Invalid;
+
 /// Most tiles one check may hash (each is 257² samples composed on the CPU).
 pub const MAX_CHECK_TILES: usize = 256;
 
@@ -74,18 +76,18 @@ pub enum CheckTarget<'a> {
 impl CheckSpec {
     /// What the check hashes; the error names the field. `holds_deltas(name)` says whether a
     /// layer is an edit or erosion layer (None: no such layer).
-    pub fn target(&self, holds_deltas: &dyn Fn(&str) -> Option<bool>) -> Result<CheckTarget<'_>, String> {
+    pub fn target(&self, holds_deltas: &dyn Fn(&str) -> Option<bool>) -> Result<CheckTarget<'_>, Invalid> {
         let layer = self.layer.as_deref();
         if let Some(name) = layer
             && holds_deltas(name).is_none()
         {
-            return Err(format!("layer: '{name}' is not a layer of the project"));
+            return Err(format!("layer: '{name}' is not a layer of the project").into());
         }
         if let Some(d) = &self.digest {
             check_hex("digest", d)?;
         }
         if self.tiles.len() > MAX_CHECK_TILES {
-            return Err(format!("tiles: {} tiles; a check hashes at most {MAX_CHECK_TILES}", self.tiles.len()));
+            return Err(format!("tiles: {} tiles; a check hashes at most {MAX_CHECK_TILES}", self.tiles.len()).into());
         }
         for (quad, d) in &self.tiles {
             check_hex(&format!("tiles.{quad}"), d)?;
@@ -95,13 +97,13 @@ impl CheckSpec {
                 Some(name) if holds_deltas(name) == Some(true) => Ok(CheckTarget::LayerTiles(name)),
                 Some(name) => Err(format!(
                     "level: layer '{name}' holds no tiles of its own (not an edit or erosion layer): give a level and a region or view"
-                )),
+                ).into()),
                 None => Err("level: a check of the stack needs a level and a region or a view".into()),
             },
             (None, _, _) => Err("level: a region or a view is composed at a level: give one".into()),
             (Some(level), region, view) => {
                 if level > crate::edit::stroke::MAX_LEVEL {
-                    return Err(format!("level: {level} must be at most {}", crate::edit::stroke::MAX_LEVEL));
+                    return Err(format!("level: {level} must be at most {}", crate::edit::stroke::MAX_LEVEL).into());
                 }
                 match (region, view) {
                     (Some(region), None) => {
@@ -117,17 +119,17 @@ impl CheckSpec {
     }
 }
 
-fn check_hex(field: &str, text: &str) -> Result<(), String> {
+fn check_hex(field: &str, text: &str) -> Result<(), Invalid> {
     if text.len() == 16 && text.bytes().all(|b| b.is_ascii_hexdigit()) {
         Ok(())
     } else {
-        Err(format!("{field}: '{text}' is not a digest of 16 hex digits"))
+        Err(format!("{field}: '{text}' is not a digest of 16 hex digits").into())
     }
 }
 
 /// A `[west, south, east, north]` box in degrees ([`crate::geodesy::GeoBox`]'s rules).
-pub fn check_region([w, s, e, n]: [f64; 4]) -> Result<(), String> {
-    crate::geodesy::GeoBox::new(w, s, e, n).map(|_| ()).map_err(|e| format!("region: {e}"))
+pub fn check_region([w, s, e, n]: [f64; 4]) -> Result<(), Invalid> {
+    crate::geodesy::GeoBox::new(w, s, e, n).map(|_| ()).map_err(|e| Invalid(format!("region: {e}")))
 }
 
 #[cfg(test)]
@@ -159,7 +161,7 @@ mod tests {
         ];
         for (check, expected) in cases {
             let e = check.target(&kinds).unwrap_err();
-            assert!(e.contains(expected), "{check:?}: {e}");
+            assert!(e.to_string().contains(expected), "{check:?}: {e}");
         }
     }
 }

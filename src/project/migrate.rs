@@ -7,7 +7,7 @@ use std::path::PathBuf;
 
 use serde::{Deserialize, Serialize};
 
-use super::{FORMAT, VERSION};
+use super::{FORMAT, Invalid, VERSION};
 use crate::layers::{LayerSpec, SourceSpec};
 
 /// One dataset of a version-1 project (read for migration only).
@@ -41,7 +41,7 @@ impl DatasetSpec {
 pub const STEPS: [Step; 3] = [v1_to_v2, v2_to_v3, v3_to_v4];
 
 /// One migration step: a file's top-level object, changed in place.
-pub type Step = fn(&mut serde_json::Map<String, serde_json::Value>) -> Result<(), String>;
+pub type Step = fn(&mut serde_json::Map<String, serde_json::Value>) -> Result<(), Invalid>;
 
 /// The format and version fields, read without building the rest.
 #[derive(Deserialize)]
@@ -53,10 +53,10 @@ struct Header {
 }
 
 /// Checks the format and returns the file's version (1 to [`VERSION`]).
-pub fn header(text: &str) -> Result<u32, String> {
+pub fn header(text: &str) -> Result<u32, Invalid> {
     if !text.trim_start().starts_with('{') {
         let what = if text.trim().is_empty() { "the file is empty" } else { "it does not start with '{'" };
-        return Err(format!("not valid JSON for a project: a project file is a JSON object and {what}"));
+        return Err(format!("not valid JSON for a project: a project file is a JSON object and {what}").into());
     }
     let header: Header = serde_json::from_str(text).map_err(|e| {
         // Where in the project the text stops being JSON: the field, from the typed parse.
@@ -68,16 +68,17 @@ pub fn header(text: &str) -> Result<u32, String> {
     })?;
     match header.format.as_ref().map(|f| f.as_str()) {
         Some(Some(FORMAT)) => {}
-        Some(Some(other)) => return Err(format!("format: '{other}' is not '{FORMAT}'")),
-        Some(None) => return Err(format!("format: must be the string \"{FORMAT}\"")),
-        None => return Err(format!("format: no \"format\": \"{FORMAT}\" field: not a Terrafuse project")),
+        Some(Some(other)) => return Err(format!("format: '{other}' is not '{FORMAT}'").into()),
+        Some(None) => return Err(format!("format: must be the string \"{FORMAT}\"").into()),
+        None => return Err(format!("format: no \"format\": \"{FORMAT}\" field: not a Terrafuse project").into()),
     }
     let version = header.version.ok_or("version: no \"version\" field")?;
     let version = version.as_u64().ok_or_else(|| format!("version: {version} is not a whole number"))?;
     if version > u64::from(VERSION) || version == 0 {
         return Err(format!(
             "version: {version} is not supported: this build reads versions 1 to {VERSION}; a newer Terrafuse wrote it?"
-        ));
+        )
+        .into());
     }
     Ok(version as u32)
 }
@@ -135,7 +136,7 @@ impl<'de> serde::de::Visitor<'de> for UniqueKeysVisitor {
 }
 
 /// An older file brought to [`VERSION`], one step at a time.
-pub fn to_current(text: &str, version: u32) -> Result<serde_json::Value, String> {
+pub fn to_current(text: &str, version: u32) -> Result<serde_json::Value, Invalid> {
     let mut de = serde_json::Deserializer::from_str(text);
     serde_path_to_error::deserialize::<_, UniqueKeys>(&mut de).map_err(|e| {
         let path = e.path().to_string();
@@ -151,7 +152,7 @@ pub fn to_current(text: &str, version: u32) -> Result<serde_json::Value, String>
 }
 
 /// Version 1 → 2: `datasets` (first listed wins) become `over` dataset layers, bottom to top.
-fn v1_to_v2(object: &mut serde_json::Map<String, serde_json::Value>) -> Result<(), String> {
+fn v1_to_v2(object: &mut serde_json::Map<String, serde_json::Value>) -> Result<(), Invalid> {
     if object.contains_key("layers") {
         return Err("layers: a version-1 project has \"datasets\", not \"layers\" (layers are version 2)".into());
     }
@@ -167,7 +168,7 @@ fn v1_to_v2(object: &mut serde_json::Map<String, serde_json::Value>) -> Result<(
 /// Version 3 → 4: one order for every box. An erosion run's `region` was
 /// `[lat_min, lon_min, lat_max, lon_max]`; it becomes `[west, south, east, north]` like
 /// `comparison` boxes, check regions and extents (GDAL's `-te` order).
-fn v3_to_v4(object: &mut serde_json::Map<String, serde_json::Value>) -> Result<(), String> {
+fn v3_to_v4(object: &mut serde_json::Map<String, serde_json::Value>) -> Result<(), Invalid> {
     let Some(layers) = object.get_mut("layers").and_then(|l| l.as_array_mut()) else { return Ok(()) };
     for (k, layer) in layers.iter_mut().enumerate() {
         let Some(runs) = layer.get_mut("runs").and_then(|r| r.as_array_mut()) else { continue };
@@ -175,7 +176,7 @@ fn v3_to_v4(object: &mut serde_json::Map<String, serde_json::Value>) -> Result<(
             let Some(region) = run.get_mut("region") else { continue };
             let values: Option<Vec<f64>> = region.as_array().map(|a| a.iter().filter_map(|v| v.as_f64()).collect());
             let [lat0, lon0, lat1, lon1] = values.as_deref().unwrap_or_default() else {
-                return Err(format!("layers[{k}].runs[{r}].region: {region} is not four numbers"));
+                return Err(format!("layers[{k}].runs[{r}].region: {region} is not four numbers").into());
             };
             *region = serde_json::json!([lon0, lat0, lon1, lat1]);
         }
@@ -185,7 +186,7 @@ fn v3_to_v4(object: &mut serde_json::Map<String, serde_json::Value>) -> Result<(
 
 /// Version 2 → 3: `checks` (expected digests) are new and optional; nothing else changed, so
 /// the step only refuses a version-2 file that already has them.
-fn v2_to_v3(object: &mut serde_json::Map<String, serde_json::Value>) -> Result<(), String> {
+fn v2_to_v3(object: &mut serde_json::Map<String, serde_json::Value>) -> Result<(), Invalid> {
     if object.contains_key("checks") {
         return Err("checks: a version-2 project has no checks (they are version 3)".into());
     }

@@ -96,20 +96,62 @@ fn relative_to(target: &Path, dir: &Path) -> PathBuf {
     out
 }
 
-/// A project file that could not be used, naming the file and the problem.
-#[derive(Debug, thiserror::Error)]
-#[error("{path}: {problem}")]
-pub struct ProjectError {
-    /// The file.
-    pub path: PathBuf,
-    /// What is wrong with it.
-    pub problem: String,
-}
+pub use crate::errors::Invalid;
 
-impl ProjectError {
-    fn new(path: &Path, problem: impl Into<String>) -> ProjectError {
-        ProjectError { path: path.to_path_buf(), problem: problem.into() }
-    }
+/// A project file that could not be read or written, naming the file and the problem.
+#[derive(Debug, thiserror::Error)]
+pub enum ProjectError {
+    /// The file could not be read.
+    #[error("{}: cannot read", path.display())]
+    Read {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        #[source]
+        source: std::io::Error,
+    },
+    /// The file is too large to be a project.
+    #[error("{}: {size} bytes: a project file is at most {MAX_FILE_BYTES} bytes (is it a project?)", path.display())]
+    TooLarge {
+        /// The file.
+        path: PathBuf,
+        /// Its size in bytes.
+        size: u64,
+    },
+    /// The file's text or values are not a valid project.
+    #[error("{}: {problem}", path.display())]
+    Invalid {
+        /// The file.
+        path: PathBuf,
+        /// The field and the problem.
+        problem: Invalid,
+    },
+    /// The project in memory is not valid, so it was not written (it would not load again).
+    #[error("{}: not saved: {problem}", path.display())]
+    NotSaved {
+        /// The file.
+        path: PathBuf,
+        /// The field and the problem.
+        problem: Invalid,
+    },
+    /// The project could not be encoded as JSON.
+    #[error("{}: cannot encode the project", path.display())]
+    Encode {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        #[source]
+        source: serde_json::Error,
+    },
+    /// The file could not be written.
+    #[error("{}: cannot write", path.display())]
+    Write {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        #[source]
+        source: std::io::Error,
+    },
 }
 
 /// The project: what `terrafuse render` and the workstation open.
@@ -168,15 +210,14 @@ impl Project {
 
     /// Reads and checks a project file (bounded: see the module's documentation).
     pub fn load(path: &Path) -> Result<Project, ProjectError> {
-        let size = std::fs::metadata(path).map_err(|e| ProjectError::new(path, format!("cannot read: {e}")))?.len();
+        let read = |source| ProjectError::Read { path: path.into(), source };
+        let size = std::fs::metadata(path).map_err(read)?.len();
         if size > MAX_FILE_BYTES {
-            return Err(ProjectError::new(
-                path,
-                format!("{size} bytes: a project file is at most {MAX_FILE_BYTES} bytes (is it a project?)"),
-            ));
+            return Err(ProjectError::TooLarge { path: path.into(), size });
         }
-        let text = std::fs::read_to_string(path).map_err(|e| ProjectError::new(path, format!("cannot read: {e}")))?;
-        let mut project = Project::parse(&text).map_err(|problem| ProjectError::new(path, problem))?;
+        let text = std::fs::read_to_string(path).map_err(read)?;
+        let mut project =
+            Project::parse(&text).map_err(|problem| ProjectError::Invalid { path: path.into(), problem })?;
         project.base_dir = path.parent().map_or_else(|| PathBuf::from("."), Path::to_path_buf);
         if project.base_dir.as_os_str().is_empty() {
             project.base_dir = PathBuf::from(".");
@@ -186,7 +227,7 @@ impl Project {
 
     /// Parses and checks a project from JSON text (paths stay relative); an older version is
     /// migrated to [`VERSION`]. Errors name the field by its path.
-    pub fn parse(text: &str) -> Result<Project, String> {
+    pub fn parse(text: &str) -> Result<Project, Invalid> {
         let version = migrate::header(text)?;
         let project: Project = if version == VERSION {
             let mut de = serde_json::Deserializer::from_str(text);
@@ -202,13 +243,14 @@ impl Project {
     }
 
     /// The checks serde cannot express.
-    pub fn check(&self) -> Result<(), String> {
+    pub fn check(&self) -> Result<(), Invalid> {
         let a = self.ellipsoid()?.a_m();
         if !(BODY_RADIUS_M[0]..=BODY_RADIUS_M[1]).contains(&a) {
             return Err(format!(
                 "body: a semi-major axis of {a:?} m is outside {:?} … {:?} m (a body this tool can draw)",
                 BODY_RADIUS_M[0], BODY_RADIUS_M[1]
-            ));
+            )
+            .into());
         }
         for (name, view) in &self.views {
             view.check().map_err(|e| format!("view '{name}': {e}"))?;
@@ -216,13 +258,13 @@ impl Project {
         if let Some(v) = &self.default_view
             && !self.views.contains_key(v)
         {
-            return Err(format!("default_view '{v}' is not one of the views"));
+            return Err(format!("default_view '{v}' is not one of the views").into());
         }
         let mut names = std::collections::HashSet::new();
         let radius_m = self.ellipsoid()?.a_m();
         for (k, layer) in self.layers.iter().enumerate() {
             if !names.insert(&layer.name) {
-                return Err(format!("layers[{k}]: layer '{}' is listed twice", layer.name));
+                return Err(format!("layers[{k}]: layer '{}' is listed twice", layer.name).into());
             }
             layer.check(radius_m).map_err(|e| format!("layers[{k}]: {e}"))?;
         }
@@ -235,19 +277,19 @@ impl Project {
             let at = format!("comparison.swipes.{name}");
             for layer in [&s.a, &s.b] {
                 if !names.contains(layer) {
-                    return Err(format!("{at}: layer '{layer}' is not in the project"));
+                    return Err(format!("{at}: layer '{layer}' is not in the project").into());
                 }
             }
             if s.a == s.b {
-                return Err(format!("{at}: a and b are the same layer"));
+                return Err(format!("{at}: a and b are the same layer").into());
             }
             if !(0.0..=1.0).contains(&s.position) {
-                return Err(format!("{at}.position: {} must lie within 0–1 of the width", s.position));
+                return Err(format!("{at}.position: {} must lie within 0–1 of the width", s.position).into());
             }
             if let Some(v) = &s.view
                 && !self.views.contains_key(v)
             {
-                return Err(format!("{at}.view: '{v}' is not one of the views"));
+                return Err(format!("{at}.view: '{v}' is not one of the views").into());
             }
         }
         for (name, line) in &self.comparison.profiles {
@@ -255,7 +297,8 @@ impl Project {
                 if !(lat.abs() <= 90.0 && lon.abs() <= 180.0) {
                     return Err(format!(
                         "comparison.profiles.{name}.{end}: [{lat}, {lon}] is not [lat, lon] in degrees"
-                    ));
+                    )
+                    .into());
                 }
             }
         }
@@ -265,16 +308,16 @@ impl Project {
             if let checks::CheckTarget::View { view, .. } = target
                 && !self.views.contains_key(view)
             {
-                return Err(format!("checks.{name}.view: '{view}' is not one of the views"));
+                return Err(format!("checks.{name}.view: '{view}' is not one of the views").into());
             }
         }
         let v = &self.visuals;
         if !(v.exaggeration.is_finite() && v.exaggeration > 0.0) {
-            return Err(format!("visuals.exaggeration {} must be a positive number", v.exaggeration));
+            return Err(format!("visuals.exaggeration {} must be a positive number", v.exaggeration).into());
         }
         let iso = &v.isolines;
         if !(iso.interval_m.is_finite() && iso.interval_m > 0.0) {
-            return Err(format!("visuals.isolines.interval_m {} must be positive", iso.interval_m));
+            return Err(format!("visuals.isolines.interval_m {} must be positive", iso.interval_m).into());
         }
         for (field, px) in
             [("width_px", iso.width_px), ("major_width_px", iso.major_width_px), ("min_width_px", iso.min_width_px)]
@@ -282,35 +325,39 @@ impl Project {
             // An f32 read from a JSON number beyond 3.4·10³⁸ is infinite: refused here, or the
             // project would save as `null` and never load again.
             if !(0.0..=MAX_LINE_WIDTH_PX).contains(&px) {
-                return Err(format!("visuals.isolines.{field} {px} must lie within 0 … {MAX_LINE_WIDTH_PX} pixels"));
+                return Err(
+                    format!("visuals.isolines.{field} {px} must lie within 0 … {MAX_LINE_WIDTH_PX} pixels").into()
+                );
             }
         }
         if let Some([lo, hi]) = v.colour_map.range_m
             && !(lo.is_finite() && hi.is_finite() && lo < hi)
         {
-            return Err(format!("visuals.colour_map.range_m [{lo}, {hi}] must be increasing"));
+            return Err(format!("visuals.colour_map.range_m [{lo}, {hi}] must be increasing").into());
         }
         if !(v.lighting.strength >= 0.0 && v.lighting.strength <= 1.0) {
-            return Err(format!("visuals.lighting.strength {} must lie in [0, 1]", v.lighting.strength));
+            return Err(format!("visuals.lighting.strength {} must lie in [0, 1]", v.lighting.strength).into());
         }
         let d = &self.detail;
         if !(d.lod_threshold_px.is_finite() && d.lod_threshold_px > 0.0) {
-            return Err(format!("detail.lod_threshold_px {} must be positive", d.lod_threshold_px));
+            return Err(format!("detail.lod_threshold_px {} must be positive", d.lod_threshold_px).into());
         }
         if !(6..=MAX_QUADS).contains(&d.max_quads) {
-            return Err(format!("detail.max_quads {} must lie within 6 (the cube's faces) … {MAX_QUADS}", d.max_quads));
+            return Err(
+                format!("detail.max_quads {} must lie within 6 (the cube's faces) … {MAX_QUADS}", d.max_quads).into()
+            );
         }
         for (field, mib) in [("cpu_cache_mib", d.cpu_cache_mib), ("gpu_cache_mib", d.gpu_cache_mib)] {
             if mib > MAX_CACHE_MIB {
-                return Err(format!("detail.{field} {mib} must be at most {MAX_CACHE_MIB} (1 TiB)"));
+                return Err(format!("detail.{field} {mib} must be at most {MAX_CACHE_MIB} (1 TiB)").into());
             }
         }
         Ok(())
     }
 
     /// The body's ellipsoid.
-    pub fn ellipsoid(&self) -> Result<Ellipsoid, String> {
-        self.body.parse::<Ellipsoid>().map_err(|e| format!("body: {e}"))
+    pub fn ellipsoid(&self) -> Result<Ellipsoid, Invalid> {
+        self.body.parse::<Ellipsoid>().map_err(|e| Invalid(format!("body: {e}")))
     }
 
     /// The dataset layers, bottom to top.
@@ -325,15 +372,15 @@ impl Project {
 
     /// The camera a command asks for: an explicit `lat,lon,alt,heading,pitch[,fov]` (`--camera`),
     /// else a named view, else the default view.
-    pub fn camera(&self, view: Option<&str>, camera: Option<&str>) -> Result<CameraSpec, String> {
+    pub fn camera(&self, view: Option<&str>, camera: Option<&str>) -> Result<CameraSpec, Invalid> {
         match camera {
-            Some(c) => CameraSpec::parse(c).map_err(|e| format!("--camera: {e}")),
+            Some(c) => CameraSpec::parse(c).map_err(|e| e.at("--camera")),
             None => self.view(view),
         }
     }
 
     /// A named view, or the default view when `name` is `None`.
-    pub fn view(&self, name: Option<&str>) -> Result<CameraSpec, String> {
+    pub fn view(&self, name: Option<&str>) -> Result<CameraSpec, Invalid> {
         let name = match name {
             Some(n) => n.to_string(),
             None => match (&self.default_view, self.views.keys().next()) {
@@ -344,7 +391,7 @@ impl Project {
         };
         self.views.get(&name).copied().ok_or_else(|| {
             let known: Vec<&str> = self.views.keys().map(String::as_str).collect();
-            format!("no view '{name}'; the project has: {}", known.join(", "))
+            Invalid(format!("no view '{name}'; the project has: {}", known.join(", ")))
         })
     }
 
@@ -380,11 +427,12 @@ impl Project {
     /// Writes the project atomically (paths as they are, relative ones stay relative).
     pub fn save(&self, path: &Path) -> Result<(), ProjectError> {
         // Never write a file that would not load again.
-        self.check().map_err(|e| ProjectError::new(path, format!("not saved: {e}")))?;
-        let mut text = serde_json::to_string_pretty(self).map_err(|e| ProjectError::new(path, e.to_string()))?;
+        self.check().map_err(|problem| ProjectError::NotSaved { path: path.into(), problem })?;
+        let mut text =
+            serde_json::to_string_pretty(self).map_err(|source| ProjectError::Encode { path: path.into(), source })?;
         text.push('\n');
         crate::files::write_atomic(path, text.as_bytes())
-            .map_err(|e| ProjectError::new(path, format!("cannot write: {e}")))
+            .map_err(|source| ProjectError::Write { path: path.into(), source })
     }
 }
 
@@ -400,7 +448,7 @@ mod tests {
         assert_eq!(p.body, "moon");
         assert_eq!(p.detail.lod_threshold_px, 1.5);
         assert!(p.visuals.lighting.enabled);
-        assert!(p.view(None).unwrap_err().contains("no views"));
+        assert!(p.view(None).unwrap_err().to_string().contains("no views"));
     }
 
     #[test]
@@ -441,7 +489,7 @@ mod tests {
         ];
         for (text, expected) in cases {
             let e = Project::parse(text).unwrap_err();
-            assert!(e.contains(expected), "{text}: {e}");
+            assert!(e.to_string().contains(expected), "{text}: {e}");
         }
         let e = Project::load(Path::new("/nonexistent/p.json")).unwrap_err().to_string();
         assert!(e.starts_with("/nonexistent/p.json: cannot read"), "{e}");
@@ -467,7 +515,7 @@ mod tests {
         );
         // A version-2 file with datasets is refused (the field is gone), naming it.
         let e = Project::parse(r#"{"format": "terrafuse-project", "version": 2, "body": "moon", "datasets": []}"#);
-        assert!(e.unwrap_err().contains("unknown field `datasets`"));
+        assert!(e.unwrap_err().to_string().contains("unknown field `datasets`"));
     }
 
     #[test]
@@ -504,7 +552,7 @@ mod tests {
         assert_eq!(old.layers, now.layers);
         let v2 = r#"{"format": "terrafuse-project", "version": 2, "body": "moon", "checks": {}}"#;
         let e = Project::parse(v2).unwrap_err();
-        assert!(e.contains("migrating version 2 to 3: checks: a version-2 project has no checks"), "{e}");
+        assert!(e.to_string().contains("migrating version 2 to 3: checks: a version-2 project has no checks"), "{e}");
     }
 
     #[test]
@@ -568,7 +616,7 @@ mod tests {
         ];
         for (text, expected) in cases {
             let e = Project::parse(text).unwrap_err();
-            assert!(e.contains(expected), "{text}: {e}");
+            assert!(e.to_string().contains(expected), "{text}: {e}");
         }
     }
 
@@ -594,18 +642,21 @@ mod tests {
             "layers": [{"name": "sea", "kind": "constant", "height_m": 0},
                        {"name": "n", "kind": "procedural", "noise": {"amplitude_m": 5, "wavelength_m": -1}}]}"#;
         let e = Project::parse(bad).unwrap_err();
-        assert!(e.contains("layers[1]: layer 'n': noise.wavelength_m: -1 must be a positive length"), "{e}");
+        assert!(
+            e.to_string().contains("layers[1]: layer 'n': noise.wavelength_m: -1 must be a positive length"),
+            "{e}"
+        );
         let bad = r#"{"format": "terrafuse-project", "version": 2, "body": "moon",
             "layers": [{"name": "sea", "kind": "constant", "height_m": 0, "blend": "screen"}]}"#;
-        assert!(Project::parse(bad).unwrap_err().contains("unknown variant `screen`"));
+        assert!(Project::parse(bad).unwrap_err().to_string().contains("unknown variant `screen`"));
     }
 
     #[test]
     fn cameras_parse_from_the_command_line() {
         let c = CameraSpec::parse("39.9, 41.27, 30000, 45, -30").unwrap();
         assert_eq!((c.lat, c.lon, c.alt, c.heading, c.pitch, c.fov), (39.9, 41.27, 30000.0, 45.0, -30.0, 45.0));
-        assert!(CameraSpec::parse("1,2,3").unwrap_err().contains("got 3 values"));
-        assert!(CameraSpec::parse("1,2,x,4,5").unwrap_err().contains("'x' is not a number"));
-        assert!(CameraSpec::parse("0,0,100,0,-100").unwrap_err().contains("pitch"));
+        assert!(CameraSpec::parse("1,2,3").unwrap_err().to_string().contains("got 3 values"));
+        assert!(CameraSpec::parse("1,2,x,4,5").unwrap_err().to_string().contains("'x' is not a number"));
+        assert!(CameraSpec::parse("0,0,100,0,-100").unwrap_err().to_string().contains("pitch"));
     }
 }

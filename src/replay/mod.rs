@@ -47,15 +47,16 @@ impl Engine<'_> {
 #[derive(Debug, thiserror::Error)]
 pub enum ReplayError {
     /// The project's layers could not be opened (a store, an import).
-    #[error("{0}")]
-    Open(String),
+    #[error(transparent)]
+    Open(#[from] crate::gpu::scene::SceneError),
     /// A layer's operations could not be replayed.
-    #[error("layer '{layer}': {problem}")]
+    #[error("layer '{layer}'")]
     Layer {
         /// The layer.
         layer: String,
-        /// What failed.
-        problem: String,
+        /// What failed: the terrain below, a stroke or a run.
+        #[source]
+        source: crate::errors::Failure,
     },
     /// A check could not be evaluated.
     #[error("checks.{check}: {problem}")]
@@ -65,8 +66,17 @@ pub enum ReplayError {
         /// What failed.
         problem: String,
     },
+    /// A check's scene could not be composed.
+    #[error("checks.{check}")]
+    CheckScene {
+        /// The check.
+        check: String,
+        /// Why.
+        #[source]
+        source: Box<crate::gpu::scene::SceneError>,
+    },
     /// The GPU kernels could not be made.
-    #[error("{0}")]
+    #[error(transparent)]
     Gpu(#[from] crate::gpu::GpuError),
 }
 
@@ -103,7 +113,7 @@ pub struct Replayed {
 /// written).
 pub fn replay(project: &Project, engine: Engine) -> Result<Replayed, ReplayError> {
     let t = Instant::now();
-    let (mut scene, _) = Scene::open_with(project, Edits::Empty).map_err(ReplayError::Open)?;
+    let (mut scene, _) = Scene::open_with(project, Edits::Empty)?;
     let open_seconds = t.elapsed().as_secs_f64();
     let mut kernels: Option<(crate::gpu::brush::StrokeKernel, Arc<crate::gpu::erosion::ErosionKernel>)> = None;
     if let Engine::Gpu(ctx) = engine {
@@ -118,9 +128,9 @@ pub fn replay(project: &Project, engine: Engine) -> Result<Replayed, ReplayError
         if !spec.holds_deltas() {
             continue;
         }
-        let fail = |problem: String| ReplayError::Layer { layer: spec.name.clone(), problem };
-        let below = scene.below(index).map_err(fail)?;
-        let below = |q| below.heights_cpu(q);
+        let fail = |e: crate::errors::Failure| ReplayError::Layer { layer: spec.name.clone(), source: e };
+        let below = scene.below(index).map_err(|e| fail(e.into()))?;
+        let below = |q| Ok(below.heights_cpu(q)?);
         let e = scene.ellipsoid;
         let t = Instant::now();
         // The deltas rebuilt from the operations in effect: runs by the erosion model, strokes
@@ -129,17 +139,16 @@ pub fn replay(project: &Project, engine: Engine) -> Result<Replayed, ReplayError
             (LayerPayload::Erosion(runs), Engine::Gpu(ctx), Some((_, erosion))) => {
                 let stepper =
                     crate::gpu::erosion::GpuStepper { device: &ctx.device, queue: &ctx.queue, kernel: erosion.clone() };
-                crate::erosion::layer::build_with(e, runs.in_effect(), &below, &stepper)
-                    .map_err(|e| fail(e.to_string()))
+                crate::erosion::layer::build_with(e, runs.in_effect(), &below, &stepper).map_err(|e| fail(e.into()))
             }
             (LayerPayload::Erosion(runs), ..) => {
-                crate::erosion::layer::build(e, runs.in_effect(), &below).map_err(|e| fail(e.to_string()))
+                crate::erosion::layer::build(e, runs.in_effect(), &below).map_err(|e| fail(e.into()))
             }
             (_, Engine::Gpu(ctx), Some((strokes, _))) => {
                 EditRaster::build_with(e, spec.applied_strokes(), &below, &strokes.on_context(ctx))
-                    .map_err(|e| fail(e.to_string()))
+                    .map_err(|e| fail(e.into()))
             }
-            _ => EditRaster::build(e, spec.applied_strokes(), &below).map_err(|e| fail(e.to_string())),
+            _ => EditRaster::build(e, spec.applied_strokes(), &below).map_err(|e| fail(e.into())),
         }?;
         let seconds = t.elapsed().as_secs_f64();
         layers.push(LayerReplay {
@@ -163,16 +172,23 @@ fn applied(spec: &LayerSpec) -> usize {
 
 /// Evaluates check `name` on a replayed scene: the digests of what it hashes.
 pub fn evaluate(scene: &Scene, project: &Project, name: &str, check: &CheckSpec) -> Result<Digests, ReplayError> {
-    let fail = |problem: String| ReplayError::Check { check: name.to_string(), problem };
+    let fail = |problem: crate::Invalid| ReplayError::Check { check: name.to_string(), problem: problem.0 };
+    let failed = |source| ReplayError::CheckScene { check: name.to_string(), source: Box::new(source) };
     let kinds = |layer: &str| project.layers.iter().find(|l| l.name == layer).map(|l| l.holds_deltas());
     let index_of = |layer: &str| {
-        scene.stack.layers.iter().position(|l| l.spec.name == layer).ok_or_else(|| fail(format!("no layer '{layer}'")))
+        scene
+            .stack
+            .layers
+            .iter()
+            .position(|l| l.spec.name == layer)
+            .ok_or_else(|| fail(format!("no layer '{layer}'").into()))
     };
     let e = scene.ellipsoid;
     let (layer, quads) = match check.target(&kinds).map_err(fail)? {
         CheckTarget::LayerTiles(layer) => {
             let uid = scene.stack.layers[index_of(layer)?].uid;
-            let raster = scene.edits.get(&uid).ok_or_else(|| fail(format!("layer '{layer}' was not rebuilt")))?;
+            let raster =
+                scene.edits.get(&uid).ok_or_else(|| fail(format!("layer '{layer}' was not rebuilt").into()))?;
             return Ok(digest::of_tiles(raster.tiles.iter().map(|(q, t)| (*q, t.as_slice()))));
         }
         CheckTarget::Region { layer, level, region } => (layer, place::region_quads(&e, region, level).map_err(fail)?),
@@ -184,22 +200,22 @@ pub fn evaluate(scene: &Scene, project: &Project, name: &str, check: &CheckSpec)
     let alone;
     let scene = match layer {
         Some(layer) => {
-            alone = scene_of_layer(scene, index_of(layer)?).map_err(fail)?;
+            alone = scene_of_layer(scene, index_of(layer)?).map_err(|e| failed(e.into()))?;
             &alone
         }
         None => scene,
     };
-    let composed = scene.compose_cpu(&quads).map_err(fail)?;
+    let composed = scene.compose_cpu(&quads).map_err(failed)?;
     Ok(digest::of_tiles(composed.iter().map(|(q, h)| (*q, h.as_slice()))))
 }
 
 /// The scene with only layer `index` visible (composed alone).
-fn scene_of_layer(scene: &Scene, index: usize) -> Result<Scene, String> {
+fn scene_of_layer(scene: &Scene, index: usize) -> Result<Scene, crate::layers::LayerError> {
     let mut alone = scene.clone();
     for k in 0..alone.stack.layers.len() {
         let mut spec = alone.stack.layers[k].spec.clone();
         spec.visible = k == index;
-        alone.stack.set(k, spec).map_err(|e| e.to_string())?;
+        alone.stack.set(k, spec)?;
     }
     Ok(alone)
 }

@@ -2,6 +2,7 @@
 
 use glam::DVec3;
 
+use crate::Invalid;
 use crate::ecm::{CubeProjection, QuadId};
 use crate::geodesy::{self, Ellipsoid};
 use crate::gpu::Camera;
@@ -11,7 +12,7 @@ use crate::project::checks::MAX_CHECK_TILES;
 /// The quads at `level` that a `[west, south, east, north]` region (degrees; east < west crosses
 /// ±180°) touches, in quad order: every quad holding a point of a lattice a quarter of a quad
 /// apart over the region, its edges included. More than [`MAX_CHECK_TILES`] is an error.
-pub fn region_quads(ellipsoid: &Ellipsoid, [w, s, e, n]: [f64; 4], level: u8) -> Result<Vec<QuadId>, String> {
+pub fn region_quads(ellipsoid: &Ellipsoid, [w, s, e, n]: [f64; 4], level: u8) -> Result<Vec<QuadId>, Invalid> {
     let span_lon = if e > w { e - w } else { e - w + 360.0 };
     // A face spans 90°; a quad of `level` about 90° / 2^level (less near the face's edges).
     let step = 90.0 / f64::from(1u32 << level.min(24)) / 4.0;
@@ -23,7 +24,7 @@ pub fn region_quads(ellipsoid: &Ellipsoid, [w, s, e, n]: [f64; 4], level: u8) ->
     };
     // Each quad holds about 16 lattice points; 64 per allowed tile leaves room for distortion.
     if rows * cols > 64.0 * MAX_CHECK_TILES as f64 {
-        return Err(too_many());
+        return Err(too_many().into());
     }
     let (rows, cols) = (rows.ceil() as usize, cols.ceil() as usize);
     let mut quads = std::collections::BTreeSet::new();
@@ -34,7 +35,7 @@ pub fn region_quads(ellipsoid: &Ellipsoid, [w, s, e, n]: [f64; 4], level: u8) ->
             quads.insert(quad_at(ellipsoid, lat, lon, level)?);
         }
         if quads.len() > MAX_CHECK_TILES {
-            return Err(too_many());
+            return Err(too_many().into());
         }
     }
     Ok(quads.into_iter().collect())
@@ -43,7 +44,7 @@ pub fn region_quads(ellipsoid: &Ellipsoid, [w, s, e, n]: [f64; 4], level: u8) ->
 /// The 3 × 3 quads at `level` around the point a view's centre looks at (where its centre ray
 /// meets the ellipsoid, or the point below the camera when it looks past the body), those on
 /// the same face as that point.
-pub fn view_quads(ellipsoid: &Ellipsoid, view: CameraSpec, level: u8) -> Result<Vec<QuadId>, String> {
+pub fn view_quads(ellipsoid: &Ellipsoid, view: CameraSpec, level: u8) -> Result<Vec<QuadId>, Invalid> {
     let camera = Camera::new(ellipsoid, view, 1.0);
     let (lat, lon) = match ray_hit(ellipsoid, camera.position, camera.forward) {
         Some(p) => {
@@ -67,9 +68,9 @@ pub fn view_quads(ellipsoid: &Ellipsoid, view: CameraSpec, level: u8) -> Result<
     Ok(quads)
 }
 
-fn quad_at(ellipsoid: &Ellipsoid, lat: f64, lon: f64, level: u8) -> Result<QuadId, String> {
+fn quad_at(ellipsoid: &Ellipsoid, lat: f64, lon: f64, level: u8) -> Result<QuadId, Invalid> {
     let p = CubeProjection::Qsc.face_point_from_geodetic(ellipsoid, lat.to_radians(), lon.to_radians());
-    QuadId::containing(p, level).map_err(|e| format!("level: {e}"))
+    QuadId::containing(p, level).map_err(|e| Invalid(format!("level: {e}")))
 }
 
 /// Where a ray first meets the ellipsoid's surface (h = 0), if it does: the ray scaled so that
@@ -101,7 +102,7 @@ mod tests {
         let across = region_quads(&e, [179.5, -0.5, -179.5, 0.5], 6).unwrap();
         assert!(across.iter().any(|q| q.face != across[0].face) || across.len() >= 2);
         let e2 = region_quads(&e, [-180.0, -90.0, 180.0, 90.0], 10).unwrap_err();
-        assert!(e2.contains("more than 256 quads at level 10"), "{e2}");
+        assert!(e2.to_string().contains("more than 256 quads at level 10"), "{e2}");
         // Straight down: the block around the nadir's quad.
         let down = CameraSpec { lat: 39.9, lon: 41.3, alt: 5000.0, heading: 0.0, pitch: -90.0, fov: 45.0 };
         let block = view_quads(&e, down, 10).unwrap();

@@ -31,7 +31,7 @@ impl BackgroundCheckpoints {
     /// off meanwhile ([`crate::store::Store::set_auto_checkpoints`]).
     pub fn start(path: &Path) -> Result<BackgroundCheckpoints, StoreError> {
         let conn = Connection::open(path)
-            .map_err(|e| StoreError::new(path, format!("cannot open a checkpointing connection: {e}")))?;
+            .map_err(|e| StoreError::caused(path, "cannot open a checkpointing connection", e))?;
         let stop = Arc::new((Mutex::new(false), Condvar::new()));
         let signal = stop.clone();
         let thread = std::thread::Builder::new()
@@ -50,7 +50,7 @@ impl BackgroundCheckpoints {
                     }
                 }
             })
-            .map_err(|e| StoreError::new(path, format!("cannot start the checkpointing thread: {e}")))?;
+            .map_err(|e| StoreError::caused(path, "cannot start the checkpointing thread", e))?;
         Ok(BackgroundCheckpoints { stop, thread: Some(thread) })
     }
 }

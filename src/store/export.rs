@@ -60,7 +60,8 @@ impl RasterSpec {
     /// Checks a CRS, bounds (xmin, ymin, xmax, ymax) and pixel size; errors name `out`.
     pub fn new(crs: &str, bounds: [f64; 4], resolution: (f64, f64), out: &Path) -> Result<RasterSpec, StoreError> {
         let out_err = |m: String| StoreError::new(out, m);
-        let mut srs = SpatialRef::from_definition(crs).map_err(|e| out_err(format!("unknown CRS '{crs}': {e}")))?;
+        let mut srs =
+            SpatialRef::from_definition(crs).map_err(|e| StoreError::caused(out, format!("unknown CRS '{crs}'"), e))?;
         srs.set_axis_mapping_strategy(AxisMappingStrategy::TraditionalGisOrder);
         let [x0, y0, x1, y1] = bounds;
         let (rx, ry) = resolution;
@@ -78,16 +79,15 @@ impl RasterSpec {
 
     /// The ground size of a pixel at the raster's centre on a body, metres (through PROJ).
     pub fn pixel_ground_m(&self, crs: &str, body: &crate::geodesy::Ellipsoid, out: &Path) -> Result<f64, StoreError> {
-        let out_err = |m: String| StoreError::new(out, m);
-        let geo = body_geographic(body).map_err(|e| out_err(e.to_string()))?;
+        let geo = body_geographic(body).map_err(|e| StoreError::caused(out, "the body's geographic CRS", e))?;
         let to_geo = CoordTransform::new(&self.srs, &geo)
-            .map_err(|e| out_err(format!("PROJ cannot go from {crs} to the body: {e}")))?;
+            .map_err(|e| StoreError::caused(out, format!("PROJ cannot go from {crs} to the body"), e))?;
         let [x0, rx, _, y1, _, ry] = self.geotransform;
         let (cx, cy) = (x0 + rx * self.size.0 as f64 / 2.0, y1 + ry * self.size.1 as f64 / 2.0);
         let (mut xs, mut ys) = (vec![cx, cx + rx, cx], vec![cy, cy, cy - ry]);
         to_geo
             .transform_coords(&mut xs, &mut ys, &mut [])
-            .map_err(|e| out_err(format!("the bounds' centre is not on the body: {e}")))?;
+            .map_err(|e| StoreError::caused(out, "the bounds' centre is not on the body", e))?;
         let p = |k: usize| geodesy::ecef_from_geodetic(body, Geodetic::from_degrees(ys[k], xs[k], 0.0));
         Ok(((p(1) - p(0)).length() * (p(2) - p(0)).length()).sqrt())
     }
@@ -100,20 +100,25 @@ impl RasterSpec {
         body: &crate::geodesy::Ellipsoid,
         out: &Path,
     ) -> Result<Vec<(f64, f64)>, StoreError> {
-        let out_err = |m: String| StoreError::new(out, m);
         let (w, h) = self.size;
         let [x0, rx, _, y1, _, ry] = self.geotransform;
         let rows: Vec<Vec<(f64, f64)>> = (0..h)
             .into_par_iter()
             .map_init(
-                || -> Result<CoordTransform, StoreError> {
-                    let mut srs = SpatialRef::from_definition(crs).map_err(|e| out_err(e.to_string()))?;
-                    srs.set_axis_mapping_strategy(AxisMappingStrategy::TraditionalGisOrder);
-                    let geo = body_geographic(body).map_err(|e| out_err(e.to_string()))?;
-                    CoordTransform::new(&srs, &geo).map_err(|e| out_err(e.to_string()))
+                || {
+                    let make = || -> Result<CoordTransform, StoreError> {
+                        let mut srs = SpatialRef::from_definition(crs)
+                            .map_err(|e| StoreError::caused(out, format!("unknown CRS '{crs}'"), e))?;
+                        srs.set_axis_mapping_strategy(AxisMappingStrategy::TraditionalGisOrder);
+                        let geo = body_geographic(body)
+                            .map_err(|e| StoreError::caused(out, "the body's geographic CRS", e))?;
+                        CoordTransform::new(&srs, &geo)
+                            .map_err(|e| StoreError::caused(out, format!("PROJ cannot go from {crs} to the body"), e))
+                    };
+                    make().map_err(std::sync::Arc::new)
                 },
                 |t, r| -> Result<Vec<(f64, f64)>, StoreError> {
-                    let t = t.as_mut().map_err(|e| e.clone())?;
+                    let t = t.as_mut().map_err(|e| StoreError::caused(out, "a worker could not start", e.clone()))?;
                     let y = y1 + (r as f64 + 0.5) * ry;
                     let mut xs: Vec<f64> = (0..w).map(|c| x0 + (c as f64 + 0.5) * rx).collect();
                     let mut ys = vec![y; w];
@@ -145,24 +150,29 @@ impl RasterSpec {
         let name = out.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
         let tmp = dir.join(format!(".{name}.tmp-{}.tif", std::process::id()));
         let result = (|| -> Result<(), StoreError> {
-            let driver = DriverManager::get_driver_by_name("GTiff").map_err(|e| out_err(e.to_string()))?;
+            let driver = DriverManager::get_driver_by_name("GTiff")
+                .map_err(|e| StoreError::caused(out, "cannot write the GeoTIFF", e))?;
             let options = RasterCreationOptions::from_iter(["COMPRESS=DEFLATE", "TILED=YES", "BIGTIFF=IF_SAFER"]);
             let mut ds = driver
                 .create_with_band_type_with_options::<f32, _>(&tmp, w, h, 1, &options)
-                .map_err(|e| out_err(format!("cannot create the GeoTIFF: {e}")))?;
-            ds.set_geo_transform(&self.geotransform).map_err(|e| out_err(e.to_string()))?;
-            ds.set_spatial_ref(&self.srs).map_err(|e| out_err(e.to_string()))?;
+                .map_err(|e| StoreError::caused(out, "cannot create the GeoTIFF", e))?;
+            ds.set_geo_transform(&self.geotransform)
+                .map_err(|e| StoreError::caused(out, "cannot write the GeoTIFF", e))?;
+            ds.set_spatial_ref(&self.srs).map_err(|e| StoreError::caused(out, "cannot write the GeoTIFF", e))?;
             for (k, v) in metadata {
-                ds.set_metadata_item(k, v, "").map_err(|e| out_err(e.to_string()))?;
+                ds.set_metadata_item(k, v, "").map_err(|e| StoreError::caused(out, "cannot write the GeoTIFF", e))?;
             }
-            let mut band = ds.rasterband(1).map_err(|e| out_err(e.to_string()))?;
-            band.set_no_data_value(Some(f64::NAN)).map_err(|e| out_err(e.to_string()))?;
+            let mut band = ds.rasterband(1).map_err(|e| StoreError::caused(out, "cannot write the GeoTIFF", e))?;
+            band.set_no_data_value(Some(f64::NAN))
+                .map_err(|e| StoreError::caused(out, "cannot write the GeoTIFF", e))?;
             let mut buffer = Buffer::new((w, h), std::mem::take(&mut data));
-            band.write((0, 0), (w, h), &mut buffer).map_err(|e| out_err(format!("cannot write pixels: {e}")))?;
-            ds.flush_cache().map_err(|e| out_err(e.to_string()))?;
+            band.write((0, 0), (w, h), &mut buffer).map_err(|e| StoreError::caused(out, "cannot write pixels", e))?;
+            ds.flush_cache().map_err(|e| StoreError::caused(out, "cannot write the GeoTIFF", e))?;
             drop(ds);
-            std::fs::File::open(&tmp).and_then(|f| f.sync_all()).map_err(|e| out_err(e.to_string()))?;
-            std::fs::rename(&tmp, out).map_err(|e| out_err(format!("cannot move the export into place: {e}")))
+            std::fs::File::open(&tmp)
+                .and_then(|f| f.sync_all())
+                .map_err(|e| StoreError::caused(out, "cannot write the GeoTIFF", e))?;
+            std::fs::rename(&tmp, out).map_err(|e| StoreError::caused(out, "cannot move the export into place", e))
         })();
         if result.is_err() {
             let _ = std::fs::remove_file(&tmp);
@@ -197,9 +207,14 @@ pub fn export(opts: &ExportOptions) -> Result<ExportReport, StoreError> {
         points
             .par_chunks(w)
             .map_init(
-                || GridReader::new(Store::open_read_only(&opts.store)?, &record.name),
+                || {
+                    let open = || GridReader::new(Store::open_read_only(&opts.store)?, &record.name);
+                    open().map_err(std::sync::Arc::new)
+                },
                 |reader, row| -> Result<Vec<f32>, StoreError> {
-                    let reader = reader.as_mut().map_err(|e| e.clone())?;
+                    let reader = reader
+                        .as_mut()
+                        .map_err(|e| StoreError::caused(&opts.store, "a worker could not start", e.clone()))?;
                     row.iter()
                         .map(|&(lat, lon)| {
                             if lat.is_nan() {

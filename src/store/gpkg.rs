@@ -124,7 +124,7 @@ pub struct Store {
 
 fn sql_err(path: &Path, what: &str) -> impl Fn(rusqlite::Error) -> StoreError + use<> {
     let (path, what) = (path.to_owned(), what.to_owned());
-    move |e| StoreError::new(&path, format!("{what}: {e}"))
+    move |e| StoreError::caused(&path, what.as_str(), e)
 }
 
 /// The face table of a dataset: `<dataset>_<face>`.
@@ -133,7 +133,7 @@ pub fn face_table(dataset: &str, face: Face) -> String {
 }
 
 /// Checks a dataset name: letters, digits and underscores, starting with a letter, ≤ 48 chars.
-pub fn check_dataset_name(name: &str) -> Result<(), String> {
+pub fn check_dataset_name(name: &str) -> Result<(), crate::Invalid> {
     let ok = !name.is_empty()
         && name.len() <= 48
         && name.starts_with(|c: char| c.is_ascii_alphabetic())
@@ -143,7 +143,7 @@ pub fn check_dataset_name(name: &str) -> Result<(), String> {
     } else {
         Err(format!(
             "dataset name '{name}' is not usable as a table name: use letters, digits and '_', starting with a letter, at most 48 characters"
-        ))
+        ).into())
     }
 }
 
@@ -252,10 +252,11 @@ impl Store {
                 conn.execute("INSERT INTO terrafuse_store VALUES (?1, ?2)", params![k, v])
                     .map_err(sql_err(path, "cannot write the store header"))?;
             }
-            conn.close().map_err(|(_, e)| StoreError::new(path, format!("cannot close the new store: {e}")))?;
-            std::fs::File::open(&tmp).and_then(|f| f.sync_all()).map_err(|e| StoreError::new(path, e.to_string()))?;
-            std::fs::rename(&tmp, path)
-                .map_err(|e| StoreError::new(path, format!("cannot move the new store into place: {e}")))
+            conn.close().map_err(|(_, e)| StoreError::caused(path, "cannot close the new store", e))?;
+            std::fs::File::open(&tmp)
+                .and_then(|f| f.sync_all())
+                .map_err(|e| StoreError::caused(path, "cannot sync the new store", e))?;
+            std::fs::rename(&tmp, path).map_err(|e| StoreError::caused(path, "cannot move the new store into place", e))
         })();
         if result.is_err() {
             let _ = std::fs::remove_file(&tmp);
@@ -285,11 +286,8 @@ impl Store {
         let header = |key: &str| -> Result<Option<String>, rusqlite::Error> {
             conn.query_row("SELECT value FROM terrafuse_store WHERE key = ?1", [key], |r| r.get(0)).optional()
         };
-        let format = header("format").map_err(|_| {
-            StoreError::new(
-                path,
-                "is not a Terrafuse store (no terrafuse_store table: not a GeoPackage made by `terrafuse import`)",
-            )
+        let format = header("format").map_err(|e| {
+            StoreError::caused(path, "is not a Terrafuse store (not a GeoPackage made by `terrafuse import`)", e)
         })?;
         if format.as_deref() != Some(FORMAT) {
             return Err(StoreError::new(path, "is not a Terrafuse store (unknown format)"));
@@ -305,7 +303,7 @@ impl Store {
         let name = header("body").ok().flatten().unwrap_or_default();
         let body = match (axis("a_m"), axis("b_m")) {
             (Some(a), Some(b)) => name.parse::<Ellipsoid>().ok().filter(|e| e.a_m() == a && e.b_m() == b).map_or_else(
-                || Ellipsoid::from_axes(a, b).map_err(|e| StoreError::new(path, format!("store body: {e}"))),
+                || Ellipsoid::from_axes(a, b).map_err(|e| StoreError::caused(path, "store body", e)),
                 Ok,
             )?,
             _ => return Err(StoreError::new(path, "store header has no body axes")),
@@ -375,7 +373,7 @@ impl Store {
         for row in rows {
             let (name, settings, sources, created, completed) = row.map_err(self.err("cannot list datasets"))?;
             let bad =
-                |e: serde_json::Error| StoreError::new(&self.path, format!("dataset {name}: damaged record: {e}"));
+                |e: serde_json::Error| StoreError::caused(&self.path, format!("dataset {name}: damaged record"), e);
             out.push(DatasetRecord {
                 settings: serde_json::from_str(&settings).map_err(bad)?,
                 sources: serde_json::from_str(&sources).map_err(bad)?,
@@ -575,7 +573,7 @@ impl Store {
                 s.query_row(params![dataset, quad.level, quad.face.index() as i64, quad.x, quad.y], |r| r.get(0))
             })
             .map_err(self.err(&format!("tile {quad} has no rim")))?;
-        QuadGrid::decode(&tile, &rim).map(Some).map_err(|m| StoreError::new(&self.path, format!("tile {quad}: {m}")))
+        QuadGrid::decode(&tile, &rim).map(Some).map_err(|e| StoreError::caused(&self.path, format!("tile {quad}"), e))
     }
 
     /// Tiles per level and face.

@@ -49,12 +49,12 @@ impl Transform {
 }
 
 impl std::str::FromStr for Transform {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
+    type Err = crate::Invalid;
+    fn from_str(s: &str) -> Result<Self, crate::Invalid> {
         match s {
             "exact" => Ok(Transform::Exact),
             "lattice" => Ok(Transform::Lattice),
-            _ => Err(format!("unknown transform '{s}': use lattice or exact")),
+            _ => Err(format!("unknown transform '{s}': use lattice or exact").into()),
         }
     }
 }

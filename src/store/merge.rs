@@ -145,7 +145,7 @@ pub fn merge(opts: &MergeOptions) -> Result<MergeReport, StoreError> {
     let path = opts.store.clone();
     let sql = |what: &'static str| {
         let path = path.clone();
-        move |e: rusqlite::Error| StoreError::new(&path, format!("{what}: {e}"))
+        move |e: rusqlite::Error| StoreError::caused(&path, what, e)
     };
     store.connection().execute_batch(MERGES_TABLE).map_err(sql("cannot record merges"))?;
     let recorded = recorded_merges(&mut store, &dataset)?;
@@ -174,7 +174,7 @@ pub fn merge(opts: &MergeOptions) -> Result<MergeReport, StoreError> {
                 .map(|&f| {
                     SpatialRef::from_proj4(&face_proj(&body, f))
                         .and_then(|s| s.to_wkt())
-                        .map_err(|e| StoreError::new(&opts.store, format!("PROJ has no QSC CRS: {e}")))
+                        .map_err(|e| StoreError::caused(&opts.store, "PROJ has no QSC CRS", e))
                 })
                 .collect::<Result<_, _>>()?;
             let wkt: [String; 6] = wkt.try_into().expect("six faces");
@@ -231,7 +231,7 @@ pub fn merge(opts: &MergeOptions) -> Result<MergeReport, StoreError> {
 /// The shards recorded as merged: shard → (plan hash, tiles).
 fn recorded_merges(store: &mut Store, dataset: &str) -> Result<BTreeMap<usize, (String, u64)>, StoreError> {
     let path = store.path().to_owned();
-    let e = |e: rusqlite::Error| StoreError::new(&path, format!("cannot read the merges: {e}"));
+    let e = |e: rusqlite::Error| StoreError::caused(&path, "cannot read the merges", e);
     let conn = store.connection();
     let mut stmt = conn.prepare("SELECT shard, manifest, tiles FROM terrafuse_merges WHERE dataset = ?1").map_err(e)?;
     let rows = stmt
@@ -247,7 +247,7 @@ fn merge_part(store: &mut Store, part: &Part, dataset: &str) -> Result<u64, Stor
     let path = store.path().to_owned();
     let e = |what: &str| {
         let (path, what, part) = (path.clone(), what.to_owned(), part.path.display().to_string());
-        move |err: rusqlite::Error| StoreError::new(&path, format!("merging {part}: {what}: {err}"))
+        move |err: rusqlite::Error| StoreError::caused(&path, format!("merging {part}: {what}"), err)
     };
     let conn = store.connection();
     conn.execute("ATTACH DATABASE ?1 AS part", [part.path.to_string_lossy()]).map_err(e("cannot attach it"))?;
@@ -327,7 +327,7 @@ pub fn merged_shards(
         .connection()
         .query_row("SELECT count(*) FROM sqlite_master WHERE name = 'terrafuse_merges'", [], |r| r.get::<_, i64>(0))
         .map(|n| n > 0)
-        .map_err(|e| StoreError::new(store, format!("cannot read the merges: {e}")))?;
+        .map_err(|e| StoreError::caused(store, "cannot read the merges", e))?;
     if !has_table {
         return Ok(None);
     }
@@ -342,7 +342,7 @@ pub fn merge_record(store: &Path, dataset: &str) -> Result<Option<(String, usize
     let has_table: bool = conn
         .query_row("SELECT count(*) FROM sqlite_master WHERE name = 'terrafuse_merges'", [], |r| r.get::<_, i64>(0))
         .map(|n| n > 0)
-        .map_err(|e| StoreError::new(store, format!("cannot read the merges: {e}")))?;
+        .map_err(|e| StoreError::caused(store, "cannot read the merges", e))?;
     if !has_table {
         return Ok(None);
     }
@@ -352,5 +352,5 @@ pub fn merge_record(store: &Path, dataset: &str) -> Result<Option<(String, usize
         |r| Ok((r.get::<_, String>(0)?, r.get::<_, i64>(1)? as usize, r.get::<_, i64>(2)? as usize)),
     )
     .optional()
-    .map_err(|e| StoreError::new(store, format!("cannot read the merges: {e}")))
+    .map_err(|e| StoreError::caused(store, "cannot read the merges", e))
 }

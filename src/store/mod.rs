@@ -30,7 +30,6 @@ pub mod source;
 pub mod tile;
 pub mod watch;
 
-use std::fmt;
 use std::path::{Path, PathBuf};
 
 pub use gpkg::Store;
@@ -38,26 +37,75 @@ pub use import::{ImportOptions, ImportReport, LevelChoice, Resampling, VerticalD
 pub use read::GridReader;
 pub use watch::{ImportProgress, ImportWatch};
 
-/// A store error: the file concerned and what is wrong, in words.
-#[derive(Debug, Clone, PartialEq)]
-pub struct StoreError {
-    /// The file (a store, a source raster or an output).
-    pub path: PathBuf,
-    /// The problem.
-    pub problem: String,
+/// A store error: the file concerned and what is wrong, in words, with the cause where a library
+/// (SQLite, GDAL, the file system) reported one.
+#[derive(Debug, thiserror::Error)]
+pub enum StoreError {
+    /// The file's content or the request is not what the store needs.
+    #[error("{}: {problem}", path.display())]
+    Invalid {
+        /// The file (a store, a source raster or an output).
+        path: PathBuf,
+        /// The problem.
+        problem: String,
+    },
+    /// SQLite, GDAL, the file system or JSON failed while doing `what`.
+    #[error("{}: {what}", path.display())]
+    Failed {
+        /// The file.
+        path: PathBuf,
+        /// What was being done.
+        what: String,
+        /// The library's error.
+        #[source]
+        cause: Box<Cause>,
+    },
+}
+
+/// What a library reported under a [`StoreError::Failed`].
+#[derive(Debug, thiserror::Error)]
+pub enum Cause {
+    /// SQLite.
+    #[error(transparent)]
+    Sqlite(#[from] rusqlite::Error),
+    /// GDAL or PROJ through GDAL.
+    #[error(transparent)]
+    Gdal(#[from] gdal::errors::GdalError),
+    /// The file system.
+    #[error(transparent)]
+    Io(#[from] std::io::Error),
+    /// A JSON record.
+    #[error(transparent)]
+    Json(#[from] serde_json::Error),
+    /// A body's axes.
+    #[error(transparent)]
+    Geodesy(#[from] crate::geodesy::GeodesyError),
+    /// Worker threads.
+    #[error(transparent)]
+    Threads(#[from] rayon::ThreadPoolBuildError),
+    /// A stored tile that cannot be decoded.
+    #[error(transparent)]
+    Tile(#[from] tile::TileError),
+    /// A store error that several workers share (a worker that could not start).
+    #[error(transparent)]
+    Shared(#[from] std::sync::Arc<StoreError>),
 }
 
 impl StoreError {
     /// An error about a file.
     pub fn new(path: &Path, problem: impl Into<String>) -> StoreError {
-        StoreError { path: path.to_owned(), problem: problem.into() }
+        StoreError::Invalid { path: path.to_owned(), problem: problem.into() }
+    }
+
+    /// A library's failure while doing `what` to a file.
+    pub fn caused(path: &Path, what: impl Into<String>, cause: impl Into<Cause>) -> StoreError {
+        StoreError::Failed { path: path.to_owned(), what: what.into(), cause: Box::new(cause.into()) }
+    }
+
+    /// The file concerned.
+    pub fn path(&self) -> &Path {
+        match self {
+            StoreError::Invalid { path, .. } | StoreError::Failed { path, .. } => path,
+        }
     }
 }
-
-impl fmt::Display for StoreError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "{}: {}", self.path.display(), self.problem)
-    }
-}
-
-impl std::error::Error for StoreError {}

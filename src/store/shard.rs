@@ -22,6 +22,7 @@ use super::import::{
     finest_level, open_dataset, peak_rss_bytes, prepare, same_files, worker_pool,
 };
 use super::watch::ImportWatch;
+use crate::Invalid;
 use crate::ecm::{Face, QuadId};
 use crate::geodesy::Ellipsoid;
 
@@ -192,16 +193,16 @@ impl Manifest {
     }
 
     /// The body.
-    pub fn ellipsoid(&self) -> Result<Ellipsoid, String> {
+    pub fn ellipsoid(&self) -> Result<Ellipsoid, Invalid> {
         let body: Ellipsoid = self.body.parse().map_err(|e| format!("body: {e}"))?;
         if body.a_m() != self.body_axes_m[0] || body.b_m() != self.body_axes_m[1] {
-            return Err(format!("body_axes_m: {:?} are not the axes of {}", self.body_axes_m, self.body));
+            return Err(format!("body_axes_m: {:?} are not the axes of {}", self.body_axes_m, self.body).into());
         }
         Ok(body)
     }
 
     /// The quads of shard `i`.
-    pub fn shard_quads(&self, i: usize) -> Result<HashSet<QuadId>, String> {
+    pub fn shard_quads(&self, i: usize) -> Result<HashSet<QuadId>, Invalid> {
         let shard = self
             .shards
             .get(i)
@@ -212,9 +213,10 @@ impl Manifest {
             .enumerate()
             .map(|(k, &[f, x, y])| {
                 let face = Face::from_index(f as usize)
-                    .ok_or_else(|| format!("shards[{i}].quads[{k}]: face {f} is not 0–5"))?;
-                QuadId::new(face, self.import.level, x, y)
-                    .map_err(|e| format!("shards[{i}].quads[{k}]: [{f}, {x}, {y}] at level {}: {e}", self.import.level))
+                    .ok_or_else(|| Invalid(format!("shards[{i}].quads[{k}]: face {f} is not 0–5")))?;
+                QuadId::new(face, self.import.level, x, y).map_err(|e| {
+                    Invalid(format!("shards[{i}].quads[{k}]: [{f}, {x}, {y}] at level {}: {e}", self.import.level))
+                })
             })
             .collect()
     }
@@ -225,7 +227,7 @@ impl Manifest {
         store: &Path,
         threads: Option<usize>,
         memory_budget: u64,
-    ) -> Result<ImportOptions, String> {
+    ) -> Result<ImportOptions, Invalid> {
         Ok(ImportOptions {
             sources: self.import.sources.iter().map(PathBuf::from).collect(),
             store: store.to_owned(),
@@ -246,18 +248,18 @@ impl Manifest {
     /// Reads and checks a manifest: format, version, hash, body and every shard's quads.
     pub fn load(path: &Path) -> Result<Manifest, StoreError> {
         let err = |m: String| StoreError::new(path, m);
-        let meta = std::fs::metadata(path).map_err(|e| err(format!("cannot read the manifest: {e}")))?;
+        let meta = std::fs::metadata(path).map_err(|e| StoreError::caused(path, "cannot read the manifest", e))?;
         if meta.len() > 4 << 30 {
             return Err(err(format!("is {} bytes: not a manifest (at most 4 GiB)", meta.len())));
         }
-        let text = std::fs::read(path).map_err(|e| err(format!("cannot read the manifest: {e}")))?;
+        let text = std::fs::read(path).map_err(|e| StoreError::caused(path, "cannot read the manifest", e))?;
         let head: serde_json::Value = match serde_json::from_slice::<serde_json::Value>(&text) {
             Ok(serde_json::Value::Object(mut m)) => {
                 m.retain(|k, _| k == "format" || k == "version");
                 serde_json::Value::Object(m)
             }
             Ok(_) => return Err(err("is not a Terrafuse import manifest (not a JSON object)".into())),
-            Err(e) => return Err(err(format!("is not valid JSON: {e}"))),
+            Err(e) => return Err(StoreError::caused(path, "is not valid JSON", e)),
         };
         if head["format"] != MANIFEST_FORMAT {
             return Err(err(format!("format: {} is not {MANIFEST_FORMAT}", head["format"])));
@@ -271,13 +273,13 @@ impl Manifest {
         if m.own_hash() != m.hash {
             return Err(err("hash: does not match the manifest's contents (edited or damaged): plan again".into()));
         }
-        m.ellipsoid().map_err(err)?;
+        m.ellipsoid().map_err(|e| err(e.0))?;
         if m.shards.is_empty() || m.shards.len() > MAX_SHARDS {
             return Err(err(format!("shards: {} shards; a plan has 1 to {MAX_SHARDS}", m.shards.len())));
         }
         let mut seen = HashSet::new();
         for i in 0..m.shards.len() {
-            for q in m.shard_quads(i).map_err(err)? {
+            for q in m.shard_quads(i).map_err(|e| err(e.0))? {
                 if !seen.insert(q) {
                     return Err(err(format!("shards[{i}]: quad {q} is in two shards")));
                 }
@@ -334,7 +336,7 @@ pub fn plan(opts: &ImportOptions, manifest: &Path, shards: usize) -> Result<Plan
     .with_hash();
     let text = serde_json::to_vec(&m).expect("a manifest serialises");
     crate::files::write_atomic(manifest, &text)
-        .map_err(|e| StoreError::new(manifest, format!("cannot write the manifest: {e}")))?;
+        .map_err(|e| StoreError::caused(manifest, "cannot write the manifest", e))?;
     Ok(PlanReport { manifest: m, seconds: start.elapsed().as_secs_f64() })
 }
 
@@ -501,7 +503,7 @@ fn working_file(store: &Path, work_dir: Option<&Path>) -> Result<PathBuf, StoreE
         .into_owned();
     let dir = match work_dir {
         Some(d) => {
-            std::fs::create_dir_all(d).map_err(|e| StoreError::new(d, format!("cannot make the work folder: {e}")))?;
+            std::fs::create_dir_all(d).map_err(|e| StoreError::caused(d, "cannot make the work folder", e))?;
             d.to_owned()
         }
         None => crate::files::folder_of(store).to_owned(),
@@ -521,7 +523,7 @@ fn remove_store_files(path: &Path) {
 /// Moves a finished working file to its place: a rename on the same file system, else a copy
 /// to a temporary beside the target, fsync, and a rename; the folder is synced after.
 fn publish(work: &Path, target: &Path) -> Result<(), StoreError> {
-    let err = |what: &str, e: std::io::Error| StoreError::new(target, format!("{what}: {e}"));
+    let err = |what: &str, e: std::io::Error| StoreError::caused(target, what, e);
     std::fs::File::open(work).and_then(|f| f.sync_all()).map_err(|e| err("cannot sync the shard's store", e))?;
     let dir = crate::files::folder_of(target);
     if std::fs::rename(work, target).is_err() {

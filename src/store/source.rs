@@ -76,7 +76,7 @@ impl SourceInfo {
         if !path.exists() {
             return Err(fail("no such file".into()));
         }
-        let abs = std::fs::canonicalize(path).map_err(|e| fail(e.to_string()))?;
+        let abs = std::fs::canonicalize(path).map_err(|e| StoreError::caused(path, "cannot resolve", e))?;
         let ds = Dataset::open(&abs).map_err(|e| {
             // GDAL often has nothing to add ("Error msg: ''"): say so only when it has.
             let detail = e.to_string();
@@ -96,7 +96,7 @@ impl SourceInfo {
         if (w as u64) * (h as u64) > MAX_PIXELS || w > i32::MAX as usize || h > i32::MAX as usize {
             return Err(fail(format!("absurd raster size {w}×{h} pixels (more than 2^40 pixels)")));
         }
-        let band = ds.rasterband(1).map_err(|e| fail(format!("band 1: {e}")))?;
+        let band = ds.rasterband(1).map_err(|e| StoreError::caused(path, "band 1", e))?;
         let data_type = band.band_type();
         if matches!(data_type, GdalDataType::Unknown) {
             return Err(fail("band 1 has a sample type that is not a real number".into()));
@@ -113,7 +113,7 @@ impl SourceInfo {
         }
         srs.set_axis_mapping_strategy(AxisMappingStrategy::TraditionalGisOrder);
         let crs_proj = srs.to_proj4().unwrap_or_default();
-        let a = srs.semi_major().map_err(|e| fail(format!("its CRS has no ellipsoid ({e})")))?;
+        let a = srs.semi_major().map_err(|e| StoreError::caused(path, "its CRS has no ellipsoid", e))?;
         if ((a - body.a_m()) / body.a_m()).abs() > 0.01 {
             return Err(fail(format!(
                 "its CRS lies on a body of radius {a} m, but the store's body {} has a = {} m: wrong --body?",
@@ -224,15 +224,14 @@ pub struct SourceReader {
 impl SourceReader {
     /// Opens a handle for one worker.
     pub fn new(info: &SourceInfo, body: &Ellipsoid) -> Result<SourceReader, StoreError> {
-        let fail = |m: String| StoreError::new(&info.path, m);
-        let ds = Dataset::open(&info.path).map_err(|e| fail(format!("cannot reopen: {e}")))?;
-        let mut srs = ds.spatial_ref().map_err(|e| fail(format!("CRS: {e}")))?;
+        let ds = Dataset::open(&info.path).map_err(|e| StoreError::caused(&info.path, "cannot reopen", e))?;
+        let mut srs = ds.spatial_ref().map_err(|e| StoreError::caused(&info.path, "CRS", e))?;
         srs.set_axis_mapping_strategy(AxisMappingStrategy::TraditionalGisOrder);
-        let geo = body_geographic(body).map_err(|e| fail(format!("body CRS: {e}")))?;
-        let to_source =
-            CoordTransform::new(&geo, &srs).map_err(|e| fail(format!("PROJ cannot transform to its CRS: {e}")))?;
-        let to_body =
-            CoordTransform::new(&srs, &geo).map_err(|e| fail(format!("PROJ cannot transform from its CRS: {e}")))?;
+        let geo = body_geographic(body).map_err(|e| StoreError::caused(&info.path, "body CRS", e))?;
+        let to_source = CoordTransform::new(&geo, &srs)
+            .map_err(|e| StoreError::caused(&info.path, "PROJ cannot transform to its CRS", e))?;
+        let to_body = CoordTransform::new(&srs, &geo)
+            .map_err(|e| StoreError::caused(&info.path, "PROJ cannot transform from its CRS", e))?;
         let identity = srs == geo;
         Ok(SourceReader { info: info.clone(), ds, to_source, to_body, identity })
     }
@@ -349,11 +348,11 @@ impl SourceReader {
         let (w, h) = (self.info.size.0 as i64, self.info.size.1 as i64);
         let (r0, r1) = (r0.clamp(0, h - 1), r1.clamp(0, h - 1));
         let rows = (r1 - r0 + 1) as usize;
-        let band = self.ds.rasterband(1).map_err(|e| StoreError::new(&self.info.path, e.to_string()))?;
+        let band = self.ds.rasterband(1).map_err(|e| StoreError::caused(&self.info.path, "band 1", e))?;
         let read = |c: i64, cols: i64| -> Result<Vec<f64>, StoreError> {
             band.read_as::<f64>((c as isize, r0 as isize), (cols as usize, rows), (cols as usize, rows), None)
                 .map(|b| b.into_shape_and_vec().1)
-                .map_err(|e| StoreError::new(&self.info.path, format!("read error at column {c}, row {r0}: {e}")))
+                .map_err(|e| StoreError::caused(&self.info.path, format!("read error at column {c}, row {r0}"), e))
         };
         let (c0, width, full_wrap, mut data) = if !self.info.wraps {
             let (a, b) = (c0.clamp(0, w - 1), c1.clamp(0, w - 1));
@@ -391,10 +390,10 @@ impl SourceReader {
     pub fn any_data_coarse(&self) -> Result<bool, StoreError> {
         let (w, h) = self.info.size;
         let (bw, bh) = (w.min(1024), h.min(1024));
-        let band = self.ds.rasterband(1).map_err(|e| StoreError::new(&self.info.path, e.to_string()))?;
+        let band = self.ds.rasterband(1).map_err(|e| StoreError::caused(&self.info.path, "band 1", e))?;
         let b = band
             .read_as::<f64>((0, 0), (w, h), (bw, bh), None)
-            .map_err(|e| StoreError::new(&self.info.path, format!("read error: {e}")))?;
+            .map_err(|e| StoreError::caused(&self.info.path, "read error", e))?;
         Ok(b.data().iter().any(|v| v.is_finite() && Some(*v) != self.info.nodata))
     }
 

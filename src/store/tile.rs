@@ -8,6 +8,17 @@ use tiff::encoder::{Compression, TiffEncoder, colortype::Gray32Float};
 
 use super::grid::{GRID, RIM, TILE};
 
+/// A stored tile that cannot be decoded.
+#[derive(Debug, thiserror::Error)]
+pub enum TileError {
+    /// The tile is not a TIFF the decoder reads.
+    #[error("tile is not a TIFF the decoder reads")]
+    Tiff(#[source] tiff::TiffError),
+    /// The tile or its rim has the wrong size or sample type.
+    #[error("{0}")]
+    Damaged(String),
+}
+
 /// A quad's corner-inclusive grid: 257 × 257 heights, index `j · 257 + i` with i east and j north
 /// (the geometry's `sample_xy(257, i, j)` order); NaN is no data.
 #[derive(Clone)]
@@ -109,18 +120,20 @@ impl QuadGrid {
     }
 
     /// Rebuilds the grid from a stored tile and rim. Errors name what is wrong with them.
-    pub fn decode(tile: &[u8], rim: &[u8]) -> Result<QuadGrid, String> {
-        let mut decoder = Decoder::new(Cursor::new(tile)).map_err(|e| format!("tile is not a TIFF: {e}"))?;
-        let (w, h) = decoder.dimensions().map_err(|e| format!("tile TIFF: {e}"))?;
+    pub fn decode(tile: &[u8], rim: &[u8]) -> Result<QuadGrid, TileError> {
+        let mut decoder = Decoder::new(Cursor::new(tile)).map_err(TileError::Tiff)?;
+        let (w, h) = decoder.dimensions().map_err(TileError::Tiff)?;
         if (w, h) != (TILE, TILE) {
-            return Err(format!("tile is {w}×{h} pixels, not {TILE}×{TILE}"));
+            return Err(TileError::Damaged(format!("tile is {w}×{h} pixels, not {TILE}×{TILE}")));
         }
-        let pixels = match decoder.read_image().map_err(|e| format!("tile TIFF: {e}"))? {
+        let pixels = match decoder.read_image().map_err(TileError::Tiff)? {
             DecodingResult::F32(v) => v,
-            other => return Err(format!("tile holds {} samples, not float32", result_kind(&other))),
+            other => {
+                return Err(TileError::Damaged(format!("tile holds {} samples, not float32", result_kind(&other))));
+            }
         };
         if rim.len() != RIM * 4 {
-            return Err(format!("rim has {} bytes, not {}", rim.len(), RIM * 4));
+            return Err(TileError::Damaged(format!("rim has {} bytes, not {}", rim.len(), RIM * 4)));
         }
         let rim: Vec<f32> = rim.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect();
         let mut grid = QuadGrid::empty();
@@ -184,8 +197,8 @@ mod tests {
         for (a, b) in g.values.iter().zip(&back.values) {
             assert!(a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan()));
         }
-        assert!(QuadGrid::decode(b"not a tiff", &g.encode_rim()).unwrap_err().contains("not a TIFF"));
-        assert!(QuadGrid::decode(&g.encode_tile(), &[0u8; 12]).unwrap_err().contains("rim"));
+        assert!(QuadGrid::decode(b"not a tiff", &g.encode_rim()).unwrap_err().to_string().contains("not a TIFF"));
+        assert!(QuadGrid::decode(&g.encode_tile(), &[0u8; 12]).unwrap_err().to_string().contains("rim"));
         let s = g.tile_stats().unwrap();
         assert!(s.min >= -8_000.0 && s.max <= 8_000.0 && s.valid < 256 * 256);
     }

@@ -51,10 +51,13 @@ impl Renderer {
     /// CPU, and the layer's raster it starts from.
     pub fn prepare_erosion(&self, index: usize, op: &Operation) -> Result<(Region, Run, EditRaster), LayerError> {
         let (spec, mut raster) = self.erosion_layer(index)?;
-        let below = self.scene.below(index).map_err(|e| LayerError::field(&spec.name, "runs", e))?;
+        let below = self
+            .scene
+            .below(index)
+            .map_err(|e| LayerError::caused(&spec.name, "runs", "the layers below cannot be read", e))?;
         let applied = spec.applied_runs().len();
-        let (region, run) = layer::prepare(&mut raster, applied, op, &|q| below.heights_cpu(q))
-            .map_err(|e| LayerError::field(&spec.name, &e.field, e.problem))?;
+        let (region, run) = layer::prepare(&mut raster, applied, op, &|q| Ok(below.heights_cpu(q)?))
+            .map_err(|e| LayerError { layer: spec.name.clone(), field: e.field, problem: e.problem, cause: e.cause })?;
         Ok((region, run, raster))
     }
 
@@ -115,10 +118,16 @@ impl Renderer {
         if applied > runs.len() {
             return Err(LayerError::field(&spec.name, "applied", format!("{applied} is past the {} runs", runs.len())));
         }
-        let below = self.scene.below(index).map_err(|e| LayerError::field(&spec.name, "runs", e))?;
-        let below = |q| below.heights_cpu(q);
-        let fail = |e: layer::OperationError| {
-            LayerError::field(&spec.name, &format!("runs[{}].{}", e.index, e.field), e.problem)
+        let below = self
+            .scene
+            .below(index)
+            .map_err(|e| LayerError::caused(&spec.name, "runs", "the layers below cannot be read", e))?;
+        let below = |q| Ok(below.heights_cpu(q)?);
+        let fail = |e: layer::OperationError| LayerError {
+            layer: spec.name.clone(),
+            field: format!("runs[{}].{}", e.index, e.field),
+            problem: e.problem,
+            cause: e.cause,
         };
         if applied < now {
             layer::undo_to(&mut raster, &runs, now, applied, &below).map_err(fail)?;

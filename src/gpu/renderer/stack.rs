@@ -27,12 +27,14 @@ impl Renderer {
         let name = spec.name.clone();
         self.scene.stack.set(index, spec)?;
         if restroked {
-            self.scene.attach_edit(index).map_err(|e| LayerError::field(&name, "strokes", e))?;
+            self.scene.attach_edit(index).map_err(|e| LayerError::caused(&name, "strokes", "cannot be applied", e))?;
         }
         if shifted {
             // Other tiles: the dataset under its new shift (the loader learns of it).
             let before = self.scene.datasets.len();
-            self.scene.reattach_shifted(index).map_err(|e| LayerError::field("?", "shift_m", e))?;
+            self.scene
+                .reattach_shifted(index)
+                .map_err(|e| LayerError::caused(&name, "shift_m", "cannot be read", e))?;
             if self.scene.datasets.len() != before {
                 self.loader = Loader::start(self.scene.datasets.clone(), self.scene.ellipsoid, loader_threads());
             }
@@ -57,7 +59,7 @@ impl Renderer {
         self.scene.stack.insert(index, spec)?;
         if edit && let Err(e) = self.scene.attach_edit(index) {
             let _ = self.scene.stack.remove(index);
-            return Err(LayerError::field(&name, "strokes", e));
+            return Err(LayerError::caused(&name, "strokes", "cannot be applied", e));
         }
         self.cache.plans.clear();
         Ok(())
@@ -86,8 +88,10 @@ impl Renderer {
         let name = spec.name.clone();
         let fail = |e: crate::edit::StrokeError| LayerError::field(&name, "strokes", e.to_string());
         let all = edit.strokes.iter().chain(std::iter::once(&stroke));
-        let below = self.terrain_below(index, all).map_err(|e| LayerError::field(&name, "strokes", e))?;
-        let below = |q| below.as_ref().map_or_else(|| crate::edit::ellipsoid_below(q), |s| s.heights_cpu(q));
+        let below = self
+            .terrain_below(index, all)
+            .map_err(|e| LayerError::caused(&name, "strokes", "the layers below cannot be read", e))?;
+        let below = |q| below.as_ref().map_or_else(|| crate::edit::ellipsoid_below(q), |s| Ok(s.heights_cpu(q)?));
         let uid = self.scene.stack.layers[index].uid;
         let raster = std::sync::Arc::make_mut(self.scene.edits.get_mut(&uid).expect("checked by edit_spec"));
         if stroke.level > raster.level {
@@ -127,8 +131,10 @@ impl Renderer {
         let name = spec.name.clone();
         let fail = |e: crate::edit::StrokeError| LayerError::field(&name, "strokes", e.to_string());
         let strokes = edit.strokes.clone();
-        let below = self.terrain_below(index, strokes.iter()).map_err(|e| LayerError::field(&name, "strokes", e))?;
-        let below = |q| below.as_ref().map_or_else(|| crate::edit::ellipsoid_below(q), |s| s.heights_cpu(q));
+        let below = self
+            .terrain_below(index, strokes.iter())
+            .map_err(|e| LayerError::caused(&name, "strokes", "the layers below cannot be read", e))?;
+        let below = |q| below.as_ref().map_or_else(|| crate::edit::ellipsoid_below(q), |s| Ok(s.heights_cpu(q)?));
         let raster = self.raster_mut(index);
         if applied < now {
             raster.undo_to(&strokes[..now], applied, &below).map_err(fail)?;
@@ -147,7 +153,7 @@ impl Renderer {
         &self,
         index: usize,
         mut strokes: impl Iterator<Item = &'a crate::edit::Stroke>,
-    ) -> Result<Option<crate::gpu::Scene>, String> {
+    ) -> Result<Option<crate::gpu::Scene>, crate::gpu::scene::SceneError> {
         if strokes.any(|s| s.tool.reads_terrain()) { self.scene.below(index).map(Some) } else { Ok(None) }
     }
 
@@ -203,7 +209,7 @@ impl Renderer {
         info: crate::gpu::data::DatasetInfo,
     ) -> Result<(), GpuError> {
         let before = self.scene.datasets.len();
-        self.scene.insert_dataset_layer(index, spec, info).map_err(GpuError::Stack)?;
+        self.scene.insert_dataset_layer(index, spec, info)?;
         if self.scene.datasets.len() != before {
             self.loader = Loader::start(self.scene.datasets.clone(), self.scene.ellipsoid, loader_threads());
         }
@@ -388,7 +394,7 @@ impl Renderer {
                     if self.sources_pool.touch(key, self.frame).is_some() {
                         continue;
                     }
-                    let tile = self.scene.read_layer_tile(key, &mut stores, &fields).map_err(GpuError::Stack)?;
+                    let tile = self.scene.read_layer_tile(key, &mut stores, &fields)?;
                     if let DataKey::Source(d, q) = key {
                         self.cache.tile_ranges.insert((d, q), (tile.range_m.0, tile.range_m.1, tile.edge_roughness_m));
                     }

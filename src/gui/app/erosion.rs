@@ -17,6 +17,7 @@ use crate::erosion::region::Region;
 use crate::erosion::sim::Run;
 use crate::geodesy::GeoBox;
 use crate::gpu::erosion::GpuRun;
+use crate::gui::GuiError;
 use crate::layers::LayerSpec;
 use crate::store::grid::spacing_m;
 
@@ -113,7 +114,7 @@ impl Session {
     }
 
     /// Takes `n` steps (the GPU's without waiting).
-    fn step(&mut self, n: u32) -> Result<(), String> {
+    fn step(&mut self, n: u32) -> Result<(), GuiError> {
         let t = Instant::now();
         match &mut self.engine {
             Engine::Cpu(run) => {
@@ -122,7 +123,7 @@ impl Session {
                 }
             }
             Engine::Gpu(gpu) => {
-                gpu.step(n).map_err(|e| e.to_string())?;
+                gpu.step(n)?;
                 gpu.request_report();
                 if let Some(r) = gpu.poll_report() {
                     self.live = Some(r);
@@ -134,9 +135,9 @@ impl Session {
     }
 
     /// The run brought up to date (the GPU's downloaded).
-    fn sync(&mut self) -> Result<&Run, String> {
+    fn sync(&mut self) -> Result<&Run, GuiError> {
         if let Engine::Gpu(gpu) = &mut self.engine {
-            gpu.download().map_err(|e| e.to_string())?;
+            gpu.download()?;
         }
         Ok(self.run())
     }
@@ -301,7 +302,7 @@ impl App {
     fn erosion_steps(&mut self, n: u32, show: bool) {
         let Some(s) = &mut self.erosion.session else { return };
         if let Err(e) = s.step(n) {
-            self.message = format!("erosion: {e}");
+            self.message = format!("erosion: {}", crate::errors::chain(&e));
             s.running = false;
             return;
         }
@@ -313,7 +314,7 @@ impl App {
         let run = match s.sync() {
             Ok(run) => run.clone(),
             Err(e) => {
-                self.message = format!("erosion: {e}");
+                self.message = format!("erosion: {}", crate::errors::chain(&e));
                 return;
             }
         };
@@ -327,7 +328,7 @@ impl App {
             (crate::erosion::layer::field_raster(base.ellipsoid, &region, &values), &region, range)
         });
         if let Err(e) = self.renderer.set_erosion_overlay(drape) {
-            self.message = format!("erosion overlay: {e}");
+            self.message = format!("erosion overlay: {}", crate::errors::chain(&e));
         }
         self.dirty = true;
     }
@@ -387,7 +388,7 @@ impl App {
         let region = match region {
             Ok(b) => b,
             Err(e) => {
-                self.message = format!("erosion: {e}");
+                self.message = format!("erosion: {}", crate::errors::chain(&e));
                 return;
             }
         };
@@ -430,7 +431,7 @@ impl App {
         let (region, run, base) = match self.renderer.prepare_erosion(index, &op) {
             Ok(prepared) => prepared,
             Err(e) => {
-                self.message = format!("erosion: {e}");
+                self.message = format!("erosion: {}", crate::errors::chain(&e));
                 return;
             }
         };
@@ -441,7 +442,7 @@ impl App {
                 Engine::Gpu(Box::new(gpu))
             }
             Some(Err(e)) => {
-                self.message = format!("erosion on the GPU: {e}; on the CPU instead");
+                self.message = format!("erosion on the GPU: {}; on the CPU instead", crate::errors::chain(&e));
                 Engine::Cpu(Box::new(run))
             }
             None => Engine::Cpu(Box::new(run)),
@@ -464,12 +465,12 @@ impl App {
     pub(crate) fn keep_erosion(&mut self) {
         let Some(mut s) = self.erosion.session.take() else { return };
         if let Err(e) = self.renderer.set_erosion_overlay(None) {
-            self.message = format!("erosion overlay: {e}");
+            self.message = format!("erosion overlay: {}", crate::errors::chain(&e));
         }
         let run = match s.sync() {
             Ok(run) => run.clone(),
             Err(e) => {
-                self.message = format!("erosion: {e}");
+                self.message = format!("erosion: {}", crate::errors::chain(&e));
                 return;
             }
         };
@@ -559,7 +560,7 @@ impl App {
             if let Some(s) = &mut self.erosion.session
                 && let Err(e) = s.step(n)
             {
-                self.message = format!("erosion: {e}");
+                self.message = format!("erosion: {}", crate::errors::chain(&e));
                 return;
             }
             left -= u64::from(n);

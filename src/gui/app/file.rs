@@ -3,6 +3,7 @@
 //! of unsaved changes to the recovery file ([`crate::project::recovery`]) and, when a project
 //! opens with a recovery file newer than it, the offer to restore it.
 
+use crate::gui::GuiError;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
@@ -43,7 +44,7 @@ pub(super) struct Opening {
 pub(super) struct FileState {
     pub recent: Recent,
     pub dialog: Option<Dialog>,
-    pub opening: Option<std::thread::JoinHandle<Result<Opening, String>>>,
+    pub opening: Option<std::thread::JoinHandle<Result<Opening, GuiError>>>,
     /// A recovery file to offer restoring.
     pub recovery: Option<Recovery>,
     /// Changes made since the window opened, and how many the recovery file holds.
@@ -103,9 +104,10 @@ impl App {
         self.message = format!("opening {}…", path.display());
         self.file.dialog = None;
         self.file.opening = Some(std::thread::spawn(move || {
-            let mut project = Project::load(restored.as_deref().unwrap_or(&path)).map_err(|e| e.to_string())?;
+            let mut project = Project::load(restored.as_deref().unwrap_or(&path))?;
             project.base_dir = crate::files::folder_of(&path).into();
-            let (scene, report) = Scene::open(&project).map_err(|e| format!("{}: {e}", path.display()))?;
+            let (scene, report) =
+                Scene::open(&project).map_err(|e| format!("{}: {}", path.display(), crate::errors::chain(&e)))?;
             let camera = opening_camera(&project);
             Ok(Opening { project, path, scene, camera, restored, imported: report.imported })
         }));
@@ -121,7 +123,7 @@ impl App {
         let opened = match handle.join() {
             Ok(Ok(o)) => o,
             Ok(Err(e)) => {
-                self.message = e;
+                self.message = e.to_string();
                 return;
             }
             Err(_) => {
@@ -136,13 +138,13 @@ impl App {
         let renderer = match Renderer::new(&crate::gui::context_of(rs), opened.scene, IMAGE_FORMAT) {
             Ok(r) => r,
             Err(e) => {
-                self.message = format!("{}: {e}", opened.path.display());
+                self.message = format!("{}: {}", opened.path.display(), crate::errors::chain(&e));
                 return;
             }
         };
         let mut recent = std::mem::take(&mut self.file.recent);
         if let Err(e) = recent.add(&opened.path) {
-            self.message = format!("the recent list was not kept: {e}");
+            self.message = format!("the recent list was not kept: {}", crate::errors::chain(&e));
         }
         let next = App::new(
             opened.project,
@@ -185,7 +187,7 @@ impl App {
         }
         recovery::remove(&old_path);
         if let Err(e) = self.file.recent.add(path) {
-            self.message += &format!(" (the recent list was not kept: {e})");
+            self.message += &format!(" (the recent list was not kept: {})", crate::errors::chain(&e));
         }
     }
 
@@ -203,7 +205,7 @@ impl App {
                 project.views.insert("globe".into(), globe);
             }
             Err(e) => {
-                self.message = e;
+                self.message = e.to_string();
                 return;
             }
         }
@@ -225,7 +227,7 @@ impl App {
         self.sync_project();
         match recovery::write(&self.project, &self.project_path) {
             Ok(_) => self.file.autosaved = self.file.changes,
-            Err(e) => self.message = format!("autosave failed: {e}"),
+            Err(e) => self.message = format!("autosave failed: {}", crate::errors::chain(&e)),
         }
         self.file.last_autosave = Some(Instant::now());
     }

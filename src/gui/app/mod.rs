@@ -1,6 +1,7 @@
 //! The workstation window: the viewport in the middle, the project's views, camera and visual
 //! settings on the left, what is under the cursor and what the frame cost at the bottom.
 
+use crate::gui::GuiError;
 use std::path::PathBuf;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
@@ -30,7 +31,7 @@ pub struct ScreenshotJob {
 }
 
 /// What a screenshot run reports: the report, or why it failed.
-pub type Outcome = Arc<Mutex<Option<Result<String, String>>>>;
+pub type Outcome = Arc<Mutex<Option<Result<String, GuiError>>>>;
 
 /// How a drag moves the camera.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -268,7 +269,7 @@ impl App {
                 self.mark_unsaved();
             }
             Err(e) => {
-                self.message = format!("colour map: {e}");
+                self.message = format!("colour map: {}", crate::errors::chain(&e));
                 self.visuals.colour_map = self.renderer.scene().visuals.colour_map.clone();
             }
         }
@@ -295,8 +296,12 @@ impl App {
                     if layer.spec.holds_deltas()
                         && let Err(e) = scene.save_edit_cache(index)
                     {
-                        self.message +=
-                            &format!("; {} layer '{}' not cached: {e}", layer.spec.kind().name(), layer.spec.name);
+                        self.message += &format!(
+                            "; {} layer '{}' not cached: {}",
+                            layer.spec.kind().name(),
+                            layer.spec.name,
+                            crate::errors::chain(&e)
+                        );
                     }
                 }
             }
@@ -491,7 +496,7 @@ impl App {
             self.stats = stats;
             if changed {
                 if let Err(e) = vp.render(rs, &self.renderer, [cursor, centre]) {
-                    self.message = e;
+                    self.message = e.to_string();
                 }
                 self.frames += 1;
                 self.last_frame_ms = t.elapsed().as_secs_f64() * 1e3;
@@ -563,7 +568,8 @@ impl App {
                 "the view did not settle within {:.0} s ({})",
                 job.timeout.as_secs_f64(),
                 frame_line(&self.stats)
-            )));
+            )
+            .into()));
             ctx.send_viewport_cmd(egui::ViewportCommand::Close);
         }
         ctx.request_repaint_after(Duration::from_millis(20));
@@ -615,7 +621,7 @@ impl App {
 }
 
 /// Writes the window's picture as PNG, atomically.
-fn write_screenshot(path: &std::path::Path, image: &egui::ColorImage) -> Result<(), String> {
+fn write_screenshot(path: &std::path::Path, image: &egui::ColorImage) -> Result<(), GuiError> {
     let rgba: Vec<u8> = image.pixels.iter().flat_map(|c| c.to_srgba_unmultiplied()).collect();
     let picture = crate::gpu::RenderedImage {
         width: image.size[0] as u32,
@@ -625,7 +631,7 @@ fn write_screenshot(path: &std::path::Path, image: &egui::ColorImage) -> Result<
         ids: None,
         gpu_ms: None,
     };
-    picture.write_png(path)
+    Ok(picture.write_png(path)?)
 }
 
 impl eframe::App for App {
@@ -650,7 +656,7 @@ impl eframe::App for App {
             if let (Some((a, b)), Some(rs)) = (self.swipe_request.take(), frame.wgpu_render_state())
                 && let Err(e) = self.start_swipe(rs, &a, &b)
             {
-                self.message = e;
+                self.message = e.to_string();
             }
             self.brush_keys(ui);
             self.erosion_frame(ui.ctx());

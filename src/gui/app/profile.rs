@@ -3,6 +3,7 @@
 //! (`compare::profile`), and the panel draws them, one colour per layer; the line can be saved
 //! into the project (`comparison.profiles`).
 
+use crate::gui::GuiError;
 use std::thread::JoinHandle;
 
 use super::*;
@@ -19,8 +20,8 @@ pub(crate) struct ProfileTool {
     picking: u8,
     from: Option<[f64; 2]>,
     line: Option<ProfileLine>,
-    job: Option<JoinHandle<Result<Profile, String>>>,
-    result: Option<Result<Profile, String>>,
+    job: Option<JoinHandle<Result<Profile, GuiError>>>,
+    result: Option<Result<Profile, GuiError>>,
 }
 
 /// Colours of the columns, in order (the composed stack last, white).
@@ -70,7 +71,7 @@ impl App {
             let project = self.project.clone();
             self.profile.job = Some(std::thread::spawn(move || {
                 let opts = ProfileOptions { from: line.from, to: line.to, samples: Some(SAMPLES), level: None };
-                profile(&project, &opts).map_err(|e| e.to_string())
+                Ok(profile(&project, &opts)?)
             }));
             self.message = format!(
                 "profile from {:.5}°, {:.5}° to {:.5}°, {:.5}°",
@@ -124,14 +125,14 @@ impl App {
                 let path = self.project.resolve(std::path::Path::new("profile.csv"));
                 self.message = match crate::files::write_atomic(&path, p.csv().as_bytes()) {
                     Ok(()) => format!("wrote {}", path.display()),
-                    Err(e) => format!("{}: {e}", path.display()),
+                    Err(e) => format!("{}: cannot write: {e}", path.display()),
                 };
             }
         });
         match &self.profile.result {
             Some(Ok(p)) => profile_chart(ui, p),
             Some(Err(e)) => {
-                ui.colored_label(egui::Color32::LIGHT_RED, e);
+                ui.colored_label(egui::Color32::LIGHT_RED, e.to_string());
             }
             None => {}
         }

@@ -176,10 +176,10 @@ impl App {
                             format!("added dataset layer '{}'", self.project.layers.last().map_or("", |l| &l.name));
                     }
                     if let Some(e) = change.error {
-                        self.message = e;
+                        self.message = e.to_string();
                     }
                 }
-                Some(Err(e)) => self.message = e,
+                Some(Err(e)) => self.message = e.to_string(),
                 None => {}
             }
             if let crate::gui::cluster_import::ClusterAction::AddStore { store, dataset } =
@@ -188,7 +188,7 @@ impl App {
                 self.add_dataset.path = store.display().to_string();
                 self.add_dataset.name = dataset;
                 if let Err(e) = self.add_dataset.start(&self.project) {
-                    self.message = e;
+                    self.message = e.to_string();
                 }
             }
 
@@ -216,7 +216,7 @@ impl App {
                         self.message = format!("drawing {a} - {b} over the terrain (layer on top of the stack)");
                     }
                     if let Some(e) = change.error {
-                        self.message = e;
+                        self.message = e.to_string();
                     }
                 }
                 crate::gui::compare_panel::CompareAction::None => {}

@@ -5,6 +5,7 @@
 
 use super::*;
 use crate::gpu::GpuContext;
+use crate::gui::GuiError;
 use crate::layers::LayerSpec;
 
 /// Within this many points of the line a drag moves the line instead of the camera.
@@ -31,7 +32,7 @@ pub(crate) struct Swipe {
 impl App {
     /// Starts swiping layer `a` (left) against layer `b` (right): A is shown and B hidden in the
     /// window's stack, and a second renderer shows the reverse.
-    pub(super) fn start_swipe(&mut self, rs: &egui_wgpu::RenderState, a: &str, b: &str) -> Result<(), String> {
+    pub(super) fn start_swipe(&mut self, rs: &egui_wgpu::RenderState, a: &str, b: &str) -> Result<(), GuiError> {
         let index = |name: &str| {
             self.project
                 .layers
@@ -51,7 +52,7 @@ impl App {
         let hide: Vec<(usize, bool)> = differences.map(|(i, _)| (i, false)).collect();
         for (i, visible) in [(ia, true), (ib, false)].into_iter().chain(hide) {
             let spec = LayerSpec { visible, ..self.project.layers[i].clone() };
-            self.renderer.update_layer(i, spec.clone()).map_err(|e| e.to_string())?;
+            self.renderer.update_layer(i, spec.clone())?;
             self.project.layers[i] = spec;
         }
         let mut other = self.project.clone();
@@ -64,13 +65,13 @@ impl App {
             info: rs.adapter.get_info(),
             timestamps: rs.device.features().contains(wgpu::Features::TIMESTAMP_QUERY),
         };
-        let mut renderer = Renderer::new(&ctx, scene, crate::gpu::IMAGE_FORMAT).map_err(|e| e.to_string())?;
+        let mut renderer = Renderer::new(&ctx, scene, crate::gpu::IMAGE_FORMAT)?;
         renderer.set_threshold(self.threshold_px);
         // A difference layer shown on the second side, with its colour range like the first's.
         if let Some(d) = renderer.scene().stack.drawn_difference() {
             let spec = renderer.scene().stack.layers[d].spec.clone();
             if spec.difference_style().range_m.is_none() {
-                let range = crate::compare::difference_range(&other, &spec).map_err(|e| e.to_string())?;
+                let range = crate::compare::difference_range(&other, &spec)?;
                 renderer.set_difference_range(range);
             }
         }
@@ -102,7 +103,7 @@ impl App {
             s.stats = s.renderer.prepare(&camera, size.0, size.1);
             let centre = (size.0 / 2, size.1 / 2);
             if let Err(e) = vp.render(rs, &s.renderer, [centre, centre]) {
-                self.message = e;
+                self.message = e.to_string();
             }
         }
     }

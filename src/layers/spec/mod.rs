@@ -674,7 +674,7 @@ impl LayerSpec {
     /// Moves an edit or erosion layer's undo position back by `undo` or forward by `redo` of its
     /// operations (strokes or runs); returns how many are in effect after it. The errors name the
     /// command-line flag.
-    pub fn move_applied(&mut self, undo: Option<usize>, redo: Option<usize>) -> Result<usize, String> {
+    pub fn move_applied(&mut self, undo: Option<usize>, redo: Option<usize>) -> Result<usize, crate::Invalid> {
         let total = self.operations();
         let what = if self.kind() == LayerKind::Erosion { "runs" } else { "strokes" };
         let applied = self.applied().unwrap_or(total).min(total);
@@ -683,7 +683,7 @@ impl LayerSpec {
                 applied.checked_sub(n).ok_or_else(|| format!("--undo {n}: only {applied} {what} are applied"))?
             }
             (None, Some(n)) if applied + n <= total => applied + n,
-            (None, Some(n)) => return Err(format!("--redo {n}: only {} {what} can be redone", total - applied)),
+            (None, Some(n)) => return Err(format!("--redo {n}: only {} {what} can be redone", total - applied).into()),
             _ => return Err("give either --undo N or --redo N".into()),
         };
         let position = (to < total).then_some(to);
@@ -695,7 +695,8 @@ impl LayerSpec {
                     "layer '{}' is a {} layer: only edit and erosion layers undo",
                     self.name,
                     self.kind().name()
-                ));
+                )
+                .into());
             }
         }
         Ok(to)
@@ -795,7 +796,7 @@ impl LayerSpec {
             return bad("feather_m", "feathers the extent's edge, but the layer has no extent".into());
         }
         if let Some(extent) = &self.extent {
-            check_extent(extent).map_err(|p| LayerError::field(&self.name, "extent", p))?;
+            check_extent(extent).map_err(|p| LayerError::field(&self.name, "extent", p.0))?;
         }
         let needs_add = |what: &str| {
             if self.blend == BlendMode::Add {
@@ -918,7 +919,7 @@ fn check_dataset(d: &DatasetLayer, radius_m: f64) -> Result<(), (&'static str, S
     Ok(())
 }
 
-fn check_extent(extent: &ExtentSpec) -> Result<(), String> {
+fn check_extent(extent: &ExtentSpec) -> Result<(), crate::Invalid> {
     let lat_ok = |lat: f64| (-90.0..=90.0).contains(&lat);
     match extent {
         ExtentSpec::Box([w, s, e, n]) => {
@@ -926,20 +927,20 @@ fn check_extent(extent: &ExtentSpec) -> Result<(), String> {
                 return Err("box values must be finite".into());
             }
             if !(lat_ok(*s) && lat_ok(*n) && s < n) {
-                return Err(format!("box south {s} and north {n} must lie in [-90, 90] with south < north"));
+                return Err(format!("box south {s} and north {n} must lie in [-90, 90] with south < north").into());
             }
             if !((-360.0..=360.0).contains(w) && (-360.0..=360.0).contains(e)) || w == e {
-                return Err(format!("box west {w} and east {e} must be distinct longitudes in degrees"));
+                return Err(format!("box west {w} and east {e} must be distinct longitudes in degrees").into());
             }
             Ok(())
         }
         ExtentSpec::Polygon(ring) => {
             if ring.len() < 3 {
-                return Err(format!("a polygon needs at least 3 vertices, not {}", ring.len()));
+                return Err(format!("a polygon needs at least 3 vertices, not {}", ring.len()).into());
             }
             for (k, [lon, lat]) in ring.iter().enumerate() {
                 if !(lon.is_finite() && lat_ok(*lat) && (-540.0..=540.0).contains(lon)) {
-                    return Err(format!("vertex {k} [{lon}, {lat}] is not a [lon, lat] pair in degrees"));
+                    return Err(format!("vertex {k} [{lon}, {lat}] is not a [lon, lat] pair in degrees").into());
                 }
             }
             Ok(())

@@ -100,14 +100,16 @@ impl<'a> LevelWriter<'a> {
             s.spawn(move || {
                 pool.install(|| {
                     todo.par_iter().for_each_init(
-                        || init().map_err(|e| e.to_string()),
+                        || init().map_err(std::sync::Arc::new),
                         |worker, &q| {
                             if stop.load(Ordering::Relaxed) {
                                 return;
                             }
                             let result = match worker {
                                 Ok(w) => compute(w, q).map(|g| (q, g.map(|g| g.encode()))),
-                                Err(m) => Err(StoreError::new(Path::new(dataset), m.clone())),
+                                Err(e) => {
+                                    Err(StoreError::caused(Path::new(dataset), "a worker could not start", e.clone()))
+                                }
                             };
                             if tx.send(result).is_err() {
                                 stop.store(true, Ordering::Relaxed);

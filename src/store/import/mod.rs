@@ -12,6 +12,8 @@
 
 use std::collections::HashSet;
 use std::path::{Path, PathBuf};
+
+use crate::Invalid;
 use std::str::FromStr;
 use std::time::Instant;
 
@@ -55,13 +57,13 @@ impl Resampling {
 }
 
 impl FromStr for Resampling {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
+    type Err = Invalid;
+    fn from_str(s: &str) -> Result<Self, Invalid> {
         match s {
             "bilinear" => Ok(Resampling::Bilinear),
             "cubic" => Ok(Resampling::Cubic),
             "nearest" => Ok(Resampling::Nearest),
-            _ => Err(format!("unknown resampling '{s}': use bilinear, cubic or nearest")),
+            _ => Err(format!("unknown resampling '{s}': use bilinear, cubic or nearest").into()),
         }
     }
 }
@@ -84,8 +86,8 @@ pub enum VerticalDatum {
 }
 
 impl FromStr for VerticalDatum {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
+    type Err = Invalid;
+    fn from_str(s: &str) -> Result<Self, Invalid> {
         match s {
             "unspecified" => Ok(VerticalDatum::Unspecified),
             "ellipsoidal" | "ellipsoid" => Ok(VerticalDatum::Ellipsoidal),
@@ -102,7 +104,8 @@ impl FromStr for VerticalDatum {
                 }
                 _ => Err(format!(
                     "unknown vertical datum '{s}': use ellipsoidal, egm96, egm2008, geoid:GRIDFILE or unspecified"
-                )),
+                )
+                .into()),
             },
         }
     }
@@ -118,14 +121,14 @@ pub enum LevelChoice {
 }
 
 impl FromStr for LevelChoice {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
+    type Err = Invalid;
+    fn from_str(s: &str) -> Result<Self, Invalid> {
         if s == "auto" {
             return Ok(LevelChoice::Auto);
         }
         match s.parse::<u8>() {
             Ok(l) if l <= crate::ecm::MAX_LEVEL => Ok(LevelChoice::Level(l)),
-            _ => Err(format!("level '{s}' is not auto or a level 0–30")),
+            _ => Err(format!("level '{s}' is not auto or a level 0–30").into()),
         }
     }
 }
@@ -214,21 +217,22 @@ pub(super) struct Worker {
     pub(super) geoid: Option<CoordTransform>,
 }
 
-fn geoid_transform(grid: &str) -> Result<CoordTransform, String> {
+fn geoid_transform(grid: &str, source: &Path) -> Result<CoordTransform, StoreError> {
+    let proj = |e| StoreError::caused(source, format!("geoid grid {grid}"), e);
     let from = SpatialRef::from_proj4(&format!("+proj=longlat +datum=WGS84 +geoidgrids={grid} +vunits=m +no_defs"))
-        .map_err(|e| e.to_string())?;
+        .map_err(proj)?;
     // The target must be 3-D (ellipsoidal height): to a 2-D CRS PROJ drops the vertical step.
-    let to = SpatialRef::from_epsg(4979).map_err(|e| e.to_string())?;
+    let to = SpatialRef::from_epsg(4979).map_err(proj)?;
     let mut from = from;
     let mut to = to;
     from.set_axis_mapping_strategy(gdal::spatial_ref::AxisMappingStrategy::TraditionalGisOrder);
     to.set_axis_mapping_strategy(gdal::spatial_ref::AxisMappingStrategy::TraditionalGisOrder);
-    let t = CoordTransform::new(&from, &to).map_err(|e| e.to_string())?;
+    let t = CoordTransform::new(&from, &to).map_err(proj)?;
     // A grid that PROJ cannot find either fails here or leaves heights unchanged.
     let (mut x, mut y, mut z) = ([0.0], [0.0], [0.0]);
-    t.transform_coords(&mut x, &mut y, &mut z).map_err(|e| e.to_string())?;
+    t.transform_coords(&mut x, &mut y, &mut z).map_err(proj)?;
     if !(z[0].is_finite() && z[0] != 0.0) {
-        return Err(format!("PROJ found no geoid grid {grid}"));
+        return Err(StoreError::new(source, format!("PROJ found no geoid grid {grid}")));
     }
     Ok(t)
 }
@@ -316,7 +320,7 @@ pub(in crate::store) fn prepare(opts: &ImportOptions) -> Result<Prepared, StoreE
     let threads = opts.threads.unwrap_or_else(|| std::thread::available_parallelism().map_or(2, |n| n.get())).max(1);
     let budget = opts.memory_budget.max(256 << 20);
     gdal::config::set_config_option("GDAL_CACHEMAX", &format!("{}", ((budget / 8) >> 20).max(32)))
-        .map_err(|e| StoreError::new(&opts.store, format!("cannot set the GDAL cache: {e}")))?;
+        .map_err(|e| StoreError::caused(&opts.store, "cannot set the GDAL cache", e))?;
     let plan = Plan {
         supersample,
         resampling: opts.resampling,
@@ -406,7 +410,7 @@ pub(in crate::store) fn open_dataset(path: &Path, body: &Ellipsoid, p: &Prepared
                 .map(|&f| {
                     SpatialRef::from_proj4(&face_proj(body, f))
                         .and_then(|s| s.to_wkt())
-                        .map_err(|e| StoreError::new(path, format!("PROJ has no QSC CRS: {e}")))
+                        .map_err(|e| StoreError::caused(path, "PROJ has no QSC CRS", e))
                 })
                 .collect::<Result<_, _>>()?;
             let wkt: [String; 6] = wkt.try_into().expect("six faces");
@@ -428,7 +432,7 @@ pub(in crate::store) fn worker_pool(path: &Path, threads: usize) -> Result<rayon
     rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
         .build()
-        .map_err(|e| StoreError::new(path, format!("cannot start worker threads: {e}")))
+        .map_err(|e| StoreError::caused(path, "cannot start worker threads", e))
 }
 
 /// Step 3a: the quads of the finest level the sources may cover (each source's footprint).
@@ -454,7 +458,7 @@ pub(in crate::store) fn finest_level(
         || {
             let readers = p.infos.iter().map(|i| SourceReader::new(i, body)).collect::<Result<Vec<_>, _>>()?;
             let geoid = match &p.plan.geoid_grid {
-                Some(g) => Some(geoid_transform(g).map_err(|m| StoreError::new(&p.infos[0].path, m))?),
+                Some(g) => Some(geoid_transform(g, &p.infos[0].path)?),
                 None => None,
             };
             Ok(Worker { readers, geoid })
@@ -516,12 +520,13 @@ fn vertical_record(
             if body.name() != "wgs84" {
                 return Err(StoreError::new(&infos[0].path, format!("a geoid ({model}) is an Earth datum, but the body is {}", body.name())));
             }
-            match geoid_transform(grid) {
+            match geoid_transform(grid, &infos[0].path) {
                 Ok(_) => (format!("ellipsoidal: converted from {model} geoid heights with PROJ grid {grid}"), Some(grid.clone())),
                 Err(why) => (
                     format!(
                         "{model} geoid heights, NOT converted to ellipsoidal heights: grid {grid} is not available \
-                         ({why}); install proj-data or pass --vertical-datum geoid:FILE"
+                         ({}); install proj-data or pass --vertical-datum geoid:FILE",
+                        crate::errors::chain(&why)
                     ),
                     None,
                 ),
@@ -531,7 +536,7 @@ fn vertical_record(
 }
 
 fn provenance(info: &SourceInfo) -> Result<SourceProvenance, StoreError> {
-    let meta = std::fs::metadata(&info.path).map_err(|e| StoreError::new(&info.path, e.to_string()))?;
+    let meta = std::fs::metadata(&info.path).map_err(|e| StoreError::caused(&info.path, "cannot read", e))?;
     let modified =
         meta.modified().ok().and_then(|t| t.duration_since(std::time::UNIX_EPOCH).ok()).map_or(0, |d| d.as_secs());
     Ok(SourceProvenance {

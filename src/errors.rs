@@ -1,0 +1,78 @@
+//! What every module's errors share. [`Invalid`]: a value or a text that breaks a rule, in words that name the field and the
+//! problem (`layers[2].opacity: 1.5 must lie in [0, 1]`). It is the error of parsers and checks,
+//! which have no deeper cause to keep; errors with a cause (a file, a library) are enums in their
+//! modules that hold the cause as their `source`, and [`chain`] writes an error with its causes
+//! for a person to read.
+
+/// A value or text that breaks a rule: the field and the problem, in words.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("{0}")]
+pub struct Invalid(pub String);
+
+impl Invalid {
+    /// The same problem under a field: `field: problem`.
+    pub fn at(self, field: impl std::fmt::Display) -> Invalid {
+        Invalid(format!("{field}: {}", self.0))
+    }
+}
+
+impl From<String> for Invalid {
+    fn from(problem: String) -> Invalid {
+        Invalid(problem)
+    }
+}
+
+impl From<&str> for Invalid {
+    fn from(problem: &str) -> Invalid {
+        Invalid(problem.into())
+    }
+}
+
+impl From<Invalid> for String {
+    fn from(invalid: Invalid) -> String {
+        invalid.0
+    }
+}
+
+/// The error of a callback or a device that a module calls without knowing its type (the terrain
+/// below an edit, a GPU kernel): the caller's error, kept whole as the cause.
+pub type Failure = Box<dyn std::error::Error + Send + Sync>;
+
+/// A [`Failure`] that can be cloned into several errors.
+pub type SharedFailure = std::sync::Arc<dyn std::error::Error + Send + Sync>;
+
+/// An error and its causes, joined by ": " (what `terrafuse` prints and the workstation shows).
+pub fn chain(error: &dyn std::error::Error) -> String {
+    let mut text = error.to_string();
+    let mut cause = error.source();
+    while let Some(c) = cause {
+        let more = c.to_string();
+        // A cause whose words the error already shows adds nothing.
+        if !text.ends_with(&more) {
+            text.push_str(": ");
+            text.push_str(&more);
+        }
+        cause = c.source();
+    }
+    text
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[derive(Debug, thiserror::Error)]
+    #[error("{path}: cannot read")]
+    struct Outer {
+        path: String,
+        #[source]
+        source: std::io::Error,
+    }
+
+    #[test]
+    fn a_chain_names_every_cause_once() {
+        let e = Outer { path: "a.json".into(), source: std::io::Error::other("disk on fire") };
+        assert_eq!(chain(&e), "a.json: cannot read: disk on fire");
+        assert_eq!(chain(&Invalid::from("x").at("field")), "field: x");
+    }
+}

@@ -1,0 +1,88 @@
+//! [`GuiError`]: what the workstation could not do, shown to the user in the status line or a
+//! dialog. It keeps the library's error whole (a caller can match it) and displays it with its
+//! causes, as the command line prints them: the workstation is where the chain ends.
+
+use crate::errors::chain;
+
+/// What the workstation could not do.
+#[derive(Debug, thiserror::Error)]
+pub enum GuiError {
+    /// A request the workstation itself refuses, in words.
+    #[error("{0}")]
+    Message(String),
+    /// A value that breaks a rule.
+    #[error("{}", chain(.0))]
+    Invalid(crate::Invalid),
+    /// A project file.
+    #[error("{}", chain(.0))]
+    Project(crate::project::ProjectError),
+    /// Opening or composing the layers.
+    #[error("{}", chain(.0))]
+    Scene(crate::gpu::scene::SceneError),
+    /// A store, an import or a plan.
+    #[error("{}", chain(.0))]
+    Store(crate::store::StoreError),
+    /// The GPU.
+    #[error("{}", chain(.0))]
+    Gpu(crate::gpu::GpuError),
+    /// A layer, a stroke or a run.
+    #[error("{}", chain(.0))]
+    Layer(crate::layers::LayerError),
+    /// Erosion parameters.
+    #[error("{}", chain(.0))]
+    Params(crate::erosion::params::ParamError),
+    /// A comparison.
+    #[error("{}", chain(.0))]
+    Compare(crate::compare::CompareError),
+    /// A file the workstation reads or writes.
+    #[error("{}: {what}: {source}", path.display())]
+    File {
+        /// The file.
+        path: std::path::PathBuf,
+        /// What was being done.
+        what: &'static str,
+        /// Why it failed.
+        source: std::io::Error,
+    },
+}
+
+macro_rules! from {
+    ($($variant:ident($type:ty)),* $(,)?) => {
+        $(impl From<$type> for GuiError {
+            fn from(e: $type) -> GuiError {
+                GuiError::$variant(e)
+            }
+        })*
+    };
+}
+
+from!(
+    Invalid(crate::Invalid),
+    Project(crate::project::ProjectError),
+    Scene(crate::gpu::scene::SceneError),
+    Store(crate::store::StoreError),
+    Gpu(crate::gpu::GpuError),
+    Layer(crate::layers::LayerError),
+    Params(crate::erosion::params::ParamError),
+    Compare(crate::compare::CompareError),
+);
+
+impl From<String> for GuiError {
+    fn from(message: String) -> GuiError {
+        GuiError::Message(message)
+    }
+}
+
+impl From<&str> for GuiError {
+    fn from(message: &str) -> GuiError {
+        GuiError::Message(message.into())
+    }
+}
+
+impl GuiError {
+    /// A file that could not be read or written.
+    pub fn file(path: impl Into<std::path::PathBuf>, what: &'static str) -> impl FnOnce(std::io::Error) -> GuiError {
+        let path = path.into();
+        move |source| GuiError::File { path, what, source }
+    }
+}
