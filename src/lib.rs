@@ -2,7 +2,8 @@
 //!
 //! From the maths to the front ends: [`geodesy`] (ellipsoids, boxes, f64) → [`ecm`] (cube faces,
 //! QSC, quads, static geometry) → [`store`] (tile stores) and [`layers`] (the layer stack's CPU
-//! reference, with [`edit`] and [`erosion`]) → [`gpu`] (the renderer and its kernels) →
+//! reference, with [`edit`] and [`erosion`]) → [`scene`] (what is drawn, loaded and selected, on
+//! the CPU) → [`gpu`] (the renderer and its kernels) →
 //! [`compare`], [`project`], [`replay`] → the workstation ([`gui`]) and the command line
 //! ([`cli`]). `ARCHITECTURE.md` draws the module graph and the path data take through it.
 
@@ -20,8 +21,10 @@ pub mod geodesy;
 pub mod gpu;
 pub mod gui;
 pub mod layers;
+pub mod maths;
 pub mod project;
 pub mod replay;
+pub mod scene;
 pub mod slurm;
 pub mod store;
 

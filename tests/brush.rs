@@ -11,9 +11,10 @@ use common::{sample_project, terrafuse};
 use terrafuse::ecm::{CubeProjection, QuadId};
 use terrafuse::edit::EditRaster;
 use terrafuse::geodesy::Ellipsoid;
-use terrafuse::gpu::{DrawMode, GpuContext, IMAGE_FORMAT, Renderer, Scene};
+use terrafuse::gpu::{DrawMode, GpuContext, IMAGE_FORMAT, Renderer};
 use terrafuse::layers::LayerKind;
 use terrafuse::project::Project;
+use terrafuse::scene::Scene;
 
 fn run(args: &[&str]) -> String {
     let out = terrafuse(args, "");
@@ -243,10 +244,10 @@ fn the_gpu_rasteriser_agrees_with_the_cpu_reference_for_every_tool_across_a_face
     // below for flatten and ramp (a tilt of 3 cm per metre plus 50 m waves). The GPU's δ stays
     // within GPU_TOLERANCE × scale × dabs of the CPU's at every sample (scale: the largest of
     // the strengths in metres and the |δ| and |goal| involved), and both touch the same tiles.
+    use terrafuse::ecm::points::sample_point;
     use terrafuse::edit::kernel::CpuRasteriser;
     use terrafuse::edit::{Falloff, Stroke, Tool};
     use terrafuse::gpu::brush::{GPU_TOLERANCE, StrokeKernel};
-    use terrafuse::layers::stack::sample_point;
     let e = Ellipsoid::MOON;
     let height = |p: glam::DVec3| 0.03 * p.dot(glam::DVec3::new(0.0, 0.6, 0.8)) + 50.0 * (p.x / 700.0).sin();
     let below = |q: QuadId| -> Result<Vec<f32>, terrafuse::errors::Failure> {
@@ -337,7 +338,7 @@ fn a_stroke_recomposes_only_the_quads_it_changed_and_undo_restores_their_heights
     assert_eq!(r.compose_counters().quads, n0, "nothing changed, nothing recomposed");
     // 3 km radius at the quad's centre (the quad spans about 170 km).
     let (lat, lon) = {
-        let (p, _, _) = terrafuse::layers::stack::sample_point(&e, target, 257, 128, 128);
+        let (p, _, _) = terrafuse::ecm::points::sample_point(&e, target, 257, 128, 128);
         let g = terrafuse::geodesy::geodetic_from_ecef(&e, p);
         (g.lat_rad.to_degrees(), g.lon_rad.to_degrees())
     };

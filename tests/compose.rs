@@ -11,13 +11,14 @@ use std::time::Duration;
 
 use terrafuse::ecm::{CubeProjection, Edge, QuadId};
 use terrafuse::geodesy::Ellipsoid;
-use terrafuse::gpu::data::{EdgeFields, read_tile};
-use terrafuse::gpu::{DrawMode, GpuContext, IMAGE_FORMAT, Renderer, Scene};
+use terrafuse::gpu::{DrawMode, GpuContext, IMAGE_FORMAT, Renderer};
 use terrafuse::layers::{
     BlendMode, DetailWhere, ExtentSpec, LayerSpec, LayerTiles, NoiseSpec, NoiseType, Operand, compose_difference,
     compose_quad,
 };
 use terrafuse::project::{CameraSpec, Project};
+use terrafuse::scene::Scene;
+use terrafuse::scene::loader::{EdgeFields, read_tile};
 
 fn renderer(project: &Project) -> Renderer {
     let (scene, _) = Scene::open(project).unwrap();
@@ -511,10 +512,10 @@ fn a_dataset_fades_in_from_its_own_no_data_edge_by_the_distance_on_the_surface_w
         if v.is_nan() || v.abs() < 100.0 {
             continue;
         }
-        let (_, lon, lat) = terrafuse::layers::stack::sample_point(&e, a, 257, (k % 257) as u32, (k / 257) as u32);
+        let (_, lon, lat) = terrafuse::ecm::points::sample_point(&e, a, 257, (k % 257) as u32, (k / 257) as u32);
         let n = e.a_m() / (1.0 - e.e2() * lat.sin().powi(2)).sqrt();
         let d = n * lat.cos() * (lon - 40f64.to_radians());
-        let expected = terrafuse::layers::extent::smoothstep(d / feather);
+        let expected = terrafuse::maths::smoothstep(d / feather);
         worst_alpha = worst_alpha.max((h / v - expected).abs());
         in_band += usize::from(d < feather);
     }

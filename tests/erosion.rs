@@ -22,7 +22,7 @@ fn rough(width: usize, height: usize, amplitude_m: f64) -> Vec<f64> {
     (0..width * height)
         .map(|i| {
             let (x, y) = ((i % width) as f64, (i / width) as f64);
-            let jitter = f64::from(terrafuse::erosion::dither::pcg(i as u32) % 1000) / 1000.0;
+            let jitter = f64::from(terrafuse::maths::pcg(i as u32) % 1000) / 1000.0;
             0.5 * x + amplitude_m * ((x / 5.0).sin() + (y / 7.0).cos()) + jitter
         })
         .collect()
@@ -146,9 +146,9 @@ fn erode(args: &[&str]) -> std::process::Output {
 
 #[test]
 fn the_erzurum_session_replays_bit_for_bit_and_reopens_from_its_cache() {
-    use terrafuse::gpu::Scene;
     use terrafuse::layers::LayerKind;
     use terrafuse::project::Project;
+    use terrafuse::scene::Scene;
     let dir = common::out_path("erosion-sample");
     let _ = std::fs::remove_dir_all(&dir);
     // Opening the sample built its erosion layer from its two runs and cached it.

@@ -544,7 +544,7 @@ fn replay_rebuilds_what_the_cache_holds_bit_for_bit() {
         layers.push(layer);
         let path = project(layers, &d.join(format!("{}.json", kind.name())));
         let p = Project::load(&path).unwrap();
-        let (cached, _) = terrafuse::gpu::Scene::open(&p).unwrap();
+        let (cached, _) = terrafuse::scene::Scene::open(&p).unwrap();
         let replayed = terrafuse::replay::replay(&p, terrafuse::replay::Engine::Cpu).unwrap();
         let e = terrafuse::geodesy::Ellipsoid::MOON;
         let point = terrafuse::ecm::CubeProjection::Qsc.face_point_from_geodetic(&e, 0.0, 45f64.to_radians());

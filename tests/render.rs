@@ -10,8 +10,9 @@ use std::time::Duration;
 use common::{repo_path, terrafuse};
 use terrafuse::ecm::geometry::{QuadFrame, sample_st, vertex_f32};
 use terrafuse::ecm::{CubeProjection, Face, QuadId};
-use terrafuse::gpu::{DrawMode, GpuContext, IMAGE_FORMAT, RenderedImage, Renderer, Scene};
+use terrafuse::gpu::{DrawMode, GpuContext, IMAGE_FORMAT, RenderedImage, Renderer};
 use terrafuse::project::{CameraSpec, Project};
+use terrafuse::scene::Scene;
 
 fn out_dir() -> PathBuf {
     let dir = common::out_path("render");
@@ -428,9 +429,10 @@ fn quads_wait_for_their_data_and_the_parent_stands_in() {
 
 #[test]
 fn datasets_fill_each_other_and_show_below_their_finest_level() {
-    use terrafuse::gpu::data::{read_source, upsample};
     use terrafuse::layers::{LayerTiles, compose_quad};
+    use terrafuse::scene::loader::read_source;
     use terrafuse::store::Store;
+    use terrafuse::store::grid::upsample;
     // Both Moon grids: the polar one (levels 0–3) on top of the global one (levels 0–1).
     let mut p = Project::load(&repo_path("projects/moon-lola.json")).unwrap();
     let stores = common::store_dir(&out_dir(), "moon-fusion", &serde_json::to_string(&p.layers).unwrap());
@@ -491,3 +493,4 @@ fn datasets_fill_each_other_and_show_below_their_finest_level() {
     assert!(fused.iter().zip(&expected).all(|(a, b)| a.to_bits() == b.to_bits()));
     assert!(fused.iter().all(|h| h.is_finite()));
 }
+

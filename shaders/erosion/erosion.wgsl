@@ -15,6 +15,8 @@
 // of each and a neighbour sends at most what it holds. No float atomics, no integer atomics: the
 // same inputs give the same result bit for bit on one device.
 
+//!include shared/hash.wgsl
+
 struct Params {
     width: u32,
     height: u32,
@@ -282,12 +284,6 @@ const PIPES = array<vec2<i32>, 8>(
     vec2<i32>(1, 0), vec2<i32>(-1, 0), vec2<i32>(0, 1), vec2<i32>(0, -1),
     vec2<i32>(1, 1), vec2<i32>(-1, -1), vec2<i32>(1, -1), vec2<i32>(-1, 1),
 );
-
-fn pcg(x: u32) -> u32 {
-    let state = x * 747796405u + 2891336453u;
-    let word = ((state >> ((state >> 28u) + 4u)) ^ state) * 277803737u;
-    return (word >> 22u) ^ word;
-}
 
 // u ∈ [0, 1) for (step, cell, stream): src/erosion/dither.rs.
 fn uniform(step: u32, cell: u32, stream: u32) -> f32 {

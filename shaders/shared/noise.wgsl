@@ -1,16 +1,12 @@
-// Gradient noise on the ellipsoid: the GPU twin of terrafuse::layers::noise (keep in sync).
+// Gradient noise on the ellipsoid: the GPU twin of terrafuse::maths::noise and terrafuse::layers::noise (keep in sync).
 // A quad carries per octave the integer lattice cell of its origin O (computed in f64 on the
 // CPU, wrapped to 32 bits) and the fraction frac(O/λ); a sample adds its quad-local offset in
 // f32, so metre wavelengths stay exact at planetary distances.
 
-fn noise_pcg(v: u32) -> u32 {
-    let state = v * 747796405u + 2891336453u;
-    let word = ((state >> ((state >> 28u) + 4u)) ^ state) * 277803737u;
-    return (word >> 22u) ^ word;
-}
+//!include shared/hash.wgsl
 
 fn noise_hash_cell(cell: vec3<u32>, seed: u32) -> u32 {
-    return noise_pcg(noise_pcg(noise_pcg(noise_pcg(seed) ^ cell.x) ^ cell.y) ^ cell.z);
+    return pcg(pcg(pcg(pcg(seed) ^ cell.x) ^ cell.y) ^ cell.z);
 }
 
 fn noise_gradient_dot(hash: u32, d: vec3<f32>) -> f32 {

@@ -8,10 +8,10 @@ use std::fmt::Write as _;
 use std::time::Instant;
 
 use crate::ecm::QuadId;
+use crate::ecm::points::sample_point;
 use crate::edit::{EditRaster, Falloff, Stroke, Tool};
 use crate::geodesy::Ellipsoid;
-use crate::layers::noise::pcg;
-use crate::layers::stack::sample_point;
+use crate::maths::pcg;
 use crate::store::grid::GRID;
 
 /// The session: `n` strokes of 1–4 points, radius 2–8 km, at `level`.

@@ -5,13 +5,15 @@
 //! (so that every stroke starts from the same session); the undo's latency too.
 
 use super::CliError;
+use crate::maths::median;
 use std::fmt::Write as _;
 use std::path::Path;
 use std::time::{Duration, Instant};
 
 use crate::edit::{Falloff, Stroke, Tool};
-use crate::gpu::{DrawMode, GpuContext, IMAGE_FORMAT, Renderer, Scene};
+use crate::gpu::{DrawMode, GpuContext, IMAGE_FORMAT, Renderer};
 use crate::project::Project;
+use crate::scene::Scene;
 
 /// Runs the benchmark on `project` (its edit layer `sculpt`, view `sculpt`); returns the report.
 pub fn bench_brush_latency(project: &Path, rounds: usize, width: u32, height: u32) -> Result<String, CliError> {
@@ -77,20 +79,16 @@ pub fn bench_brush_latency(project: &Path, rounds: usize, width: u32, height: u3
             settle(&mut r)?;
             undo.push(t.elapsed().as_secs_f64() * 1e3);
         }
-        let median = |v: &mut Vec<f64>| {
-            v.sort_by(f64::total_cmp);
-            v[v.len() / 2]
-        };
         let max = total.iter().copied().fold(0.0, f64::max);
         let _ = writeln!(
             out,
             "{:<9} {:>12.1} {:>19.1} {:>12.1} {:>9.1} {:>16.1}",
             tool.name(),
-            median(&mut raster),
-            median(&mut rest),
-            median(&mut total),
+            median(raster),
+            median(rest),
+            median(total.clone()),
             max,
-            median(&mut undo)
+            median(undo)
         );
     }
     Ok(out)

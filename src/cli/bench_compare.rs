@@ -190,7 +190,7 @@ pub fn bench_compare(settings: &CompareBenchSettings) -> Result<String, CliError
         .map_err(CliError::file(&synthetic_path, "cannot write"))?;
     let t = Instant::now();
     let project = Project::load(&synthetic_path)?;
-    crate::gpu::Scene::open(&project)?; // imports both rasters
+    crate::scene::Scene::open(&project)?; // imports both rasters
     let import_s = seconds(t);
     let t = Instant::now();
     let c = compare(&project, "moved", "ref", &CompareOptions::default())?;

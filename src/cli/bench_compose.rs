@@ -6,14 +6,16 @@
 //! one-layer change in a settled view against recomposing every drawn quad.
 
 use super::CliError;
+use crate::maths::median;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use crate::ecm::{CubeProjection, QuadId};
-use crate::gpu::{GpuContext, IMAGE_FORMAT, Renderer, Scene};
+use crate::gpu::{GpuContext, IMAGE_FORMAT, Renderer};
 use crate::layers::{BlendMode, DetailWhere, ExtentSpec, LayerSpec, NoiseSpec, NoiseType, Operand};
 use crate::project::{CameraSpec, Project};
+use crate::scene::Scene;
 
 /// Settings.
 #[derive(Clone, Debug)]
@@ -82,11 +84,6 @@ fn layer_pool(srtm: &LayerSpec) -> Vec<LayerSpec> {
         LayerSpec::procedural("detail", noise(NoiseType::Fbm, 8.0, 1000.0, 8)),
         LayerSpec { blend: BlendMode::Add, opacity: 0.3, ..LayerSpec::constant("lift", 25.0) },
     ]
-}
-
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
 }
 
 /// GPU ms, CPU ms, largest |GPU − CPU| (metres), and the CPU's grids.
@@ -320,12 +317,12 @@ fn edge_field_cost(base: &Project, faded: LayerSpec, quads: &[QuadId]) -> Result
     let mut p = base.clone();
     p.layers = vec![faded];
     let (scene, _) = Scene::open(&p)?;
-    let fields = crate::gpu::data::EdgeFields::default();
+    let fields = crate::scene::loader::EdgeFields::default();
     let mut stores: Vec<_> = scene.datasets.iter().map(|_| None).collect();
     let t = Instant::now();
     for &q in quads {
         if let Some((_, Some(edge))) = scene.layer_tiles(0, q) {
-            crate::gpu::data::read_tile(edge, &scene.datasets, &mut stores, &fields)?;
+            crate::scene::loader::read_tile(edge, &scene.datasets, &mut stores, &fields)?;
         }
     }
     let ms = t.elapsed().as_secs_f64() * 1e3 / quads.len().max(1) as f64;

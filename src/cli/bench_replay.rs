@@ -39,7 +39,7 @@ pub fn session_strokes(n: usize) -> Vec<crate::edit::Stroke> {
     use crate::edit::{Falloff, Stroke, Tool};
     let mut state = 2_024u32;
     let mut next = || {
-        state = crate::erosion::dither::pcg(state);
+        state = crate::maths::pcg(state);
         f64::from(state) / f64::from(u32::MAX)
     };
     (0..n)

@@ -7,9 +7,9 @@ use std::fmt::Write as _;
 use std::path::PathBuf;
 
 use crate::edit::{Falloff, Stroke, Tool};
-use crate::gpu::scene::Scene;
 use crate::layers::LayerSpec;
 use crate::project::Project;
+use crate::scene::Scene;
 use crate::store::grid::spacing_m;
 
 /// What `terrafuse brush` was asked.

@@ -13,9 +13,9 @@ use crate::erosion::operation::Operation;
 use crate::erosion::params::{Params, gravity_of_body};
 use crate::gpu::GpuContext;
 use crate::gpu::erosion::{ErosionKernel, GpuStepper};
-use crate::gpu::scene::Scene;
 use crate::layers::LayerSpec;
 use crate::project::Project;
+use crate::scene::Scene;
 
 /// Where `terrafuse erode` runs.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]

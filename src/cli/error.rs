@@ -21,13 +21,13 @@ pub enum CliError {
     Project(#[from] crate::project::ProjectError),
     /// Opening or composing the layers.
     #[error(transparent)]
-    Scene(#[from] crate::gpu::scene::SceneError),
+    Scene(#[from] crate::scene::SceneError),
     /// A store, an import or an export.
     #[error(transparent)]
     Store(#[from] crate::store::StoreError),
     /// A tile the loader could not give.
     #[error(transparent)]
-    Load(#[from] crate::gpu::data::LoadError),
+    Load(#[from] crate::scene::loader::LoadError),
     /// The GPU.
     #[error(transparent)]
     Gpu(#[from] crate::gpu::GpuError),

@@ -9,8 +9,9 @@ use std::collections::{BTreeSet, HashMap};
 use std::path::PathBuf;
 
 use crate::ecm::{CubeProjection, QuadId};
-use crate::gpu::{GpuContext, IMAGE_FORMAT, Renderer, Scene};
+use crate::gpu::{GpuContext, IMAGE_FORMAT, Renderer};
 use crate::project::Project;
+use crate::scene::Scene;
 use crate::store::export::RasterSpec;
 use crate::store::grid::{intervals_per_face_edge, level_for_resolution};
 

@@ -2,7 +2,7 @@
 //! opening a window or importing anything; and rewritten in the current version.
 
 use super::{CliError, Within};
-use crate::gpu::scene::SceneError;
+use crate::scene::SceneError;
 use std::fmt::Write as _;
 use std::path::Path;
 
@@ -35,7 +35,7 @@ pub fn project_check(path: &Path) -> Result<String, CliError> {
             LayerPayload::Dataset(data) => {
                 let store = project.resolve(&data.store);
                 if store.exists() {
-                    match crate::gpu::scene::open_dataset(&project, layer) {
+                    match crate::scene::open_dataset(&project, layer) {
                         Ok(_) => {}
                         // An incomplete dataset is imported again from its sources.
                         Err(e) if data.source.is_some() && !matches!(e, SceneError::OtherBody { .. }) => {}

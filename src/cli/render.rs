@@ -5,8 +5,9 @@ use std::fmt::Write as _;
 use std::path::Path;
 use std::time::Duration;
 
-use crate::gpu::{DrawMode, FrameStats, GpuContext, IMAGE_FORMAT, RenderedImage, Renderer, Scene};
+use crate::gpu::{DrawMode, FrameStats, GpuContext, IMAGE_FORMAT, RenderedImage, Renderer};
 use crate::project::{CameraSpec, Project};
+use crate::scene::Scene;
 
 /// What to render.
 #[derive(Clone, Debug)]

@@ -129,7 +129,7 @@ fn gpu_against_cpu(project: &Project, gpu: &Replayed, cpu: &Replayed, index: usi
         return (f64::INFINITY, 0.0);
     };
     // The largest |height| the layers below can give (what flatten and ramp aim at).
-    let (lo, hi) = cpu.scene.below(index).map_or((0.0, 0.0), |s| crate::gpu::scene::stack_range(&s.stack));
+    let (lo, hi) = cpu.scene.below(index).map_or((0.0, 0.0), |s| crate::scene::stack_range(&s.stack));
     let spec = &project.layers[index];
     let tolerance = replay::gpu_tolerance_m(&cpu.scene.ellipsoid, spec, cpu_layer, lo.abs().max(hi.abs()));
     (replay::largest_difference_m(a, b), tolerance)

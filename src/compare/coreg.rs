@@ -12,6 +12,7 @@
 //!
 //! The result moves A by (east_m, north_m) and raises it by up_m: A′(p) = A(p − c) + up.
 
+use crate::maths::median;
 use glam::DVec3;
 use rayon::prelude::*;
 use serde::Serialize;
@@ -22,10 +23,10 @@ use super::sample::{gradient, operand_scene, overlap_quads, quad_points};
 use super::stats::{Diff, Stats, stats};
 use crate::ecm::QuadId;
 use crate::geodesy::GeoBox;
-use crate::gpu::Scene;
-use crate::gpu::shifted::{local_axes, locate};
 use crate::layers::Operand;
 use crate::project::Project;
+use crate::scene::Scene;
+use crate::scene::shifted::{local_axes, locate};
 use crate::store::grid::{GRID, spacing_m};
 
 /// Samples along a quad edge.
@@ -287,23 +288,6 @@ fn differences(
         .collect())
 }
 
-/// The median (numpy's), NaN for none.
-fn median(mut v: Vec<f64>) -> f64 {
-    if v.is_empty() {
-        return f64::NAN;
-    }
-    // Selection, not a sort (O(n): the bias is a median of millions of samples each iteration).
-    let n = v.len();
-    let (below, upper, _) = v.select_nth_unstable_by(n / 2, f64::total_cmp);
-    let upper = *upper;
-    if n % 2 == 1 {
-        upper
-    } else {
-        let lower = below.iter().copied().max_by(f64::total_cmp).unwrap_or(upper);
-        0.5 * (lower + upper)
-    }
-}
-
 /// Fits median(bin) = s_n·cos ψ + s_e·sin ψ + c over the aspect bins with enough samples, by
 /// least squares; returns (s_e, s_n), or None with fewer than 3 bins.
 fn fit_cosine(bins: Vec<Vec<f64>>) -> Option<(f64, f64)> {
@@ -370,7 +354,6 @@ mod tests {
             .collect();
         let (e, n) = fit_cosine(bins).unwrap();
         assert!((e - 12.0).abs() < 1e-9 && (n + 7.0).abs() < 1e-9, "{e} {n}");
-        assert_eq!(median(vec![3.0, 1.0, 2.0, 10.0]), 2.5);
         assert!(fit_cosine(vec![Vec::new(); BINS]).is_none());
     }
 }

@@ -42,7 +42,7 @@ pub enum CompareError {
     },
     /// Opening or reading the layers failed.
     #[error(transparent)]
-    Open(#[from] crate::gpu::scene::SceneError),
+    Open(#[from] crate::scene::SceneError),
     /// A project value (its body) breaks a rule.
     #[error(transparent)]
     Invalid(#[from] crate::Invalid),

@@ -8,9 +8,9 @@ use rayon::prelude::*;
 
 use super::CompareError;
 use crate::ecm::QuadId;
-use crate::gpu::Scene;
-use crate::gpu::data::bilinear;
-use crate::gpu::shifted::locate;
+use crate::scene::Scene;
+use crate::scene::shifted::locate;
+use crate::store::grid::bilinear;
 
 /// A scene composed at one level, quads composed when first reached.
 pub(crate) struct Mosaic {

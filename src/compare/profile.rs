@@ -9,9 +9,9 @@ use super::mosaic::Mosaic;
 use super::sample::operand_scene;
 use crate::geodesy::geodesic::{direct, inverse};
 use crate::geodesy::{Geodetic, ecef_from_geodetic};
-use crate::gpu::Scene;
 use crate::layers::Operand;
 use crate::project::Project;
+use crate::scene::Scene;
 use crate::store::grid::spacing_m;
 
 /// Most samples along a profile.

@@ -25,12 +25,12 @@ use serde::Serialize;
 use super::CompareError;
 use super::stats::{Diff, HISTOGRAM_BINS, Histogram, SLOPE_CLASSES_DEG, SlopeClass, Stats, by_slope, histogram, stats};
 use crate::ecm::QuadId;
+use crate::ecm::points::{quad_ball, sample_point};
 use crate::geodesy::GeoBox;
-use crate::gpu::Scene;
-use crate::gpu::data::DatasetInfo;
-use crate::layers::stack::{quad_ball, sample_point};
 use crate::layers::{BlendMode, LayerSpec, Operand};
 use crate::project::Project;
+use crate::scene::Scene;
+use crate::scene::dataset::DatasetInfo;
 use crate::store::grid::{GRID, spacing_m};
 
 /// Samples along a quad edge.

@@ -10,6 +10,7 @@ pub mod accuracy;
 pub mod distortion;
 mod face;
 pub mod geometry;
+pub mod points;
 mod projection;
 mod quad;
 

@@ -73,6 +73,20 @@ impl QuadId {
         (self.level > 0).then(|| QuadId { face: self.face, level: self.level - 1, x: self.x / 2, y: self.y / 2 })
     }
 
+    /// The quad at `level` that contains this one: itself at its own level or a finer `level`.
+    pub fn ancestor_at(self, level: u8) -> QuadId {
+        if level >= self.level {
+            return self;
+        }
+        let k = self.level - level;
+        QuadId { face: self.face, level, x: self.x >> k, y: self.y >> k }
+    }
+
+    /// Its ancestors, the parent first, up to its face's root.
+    pub fn ancestors(self) -> impl Iterator<Item = QuadId> {
+        std::iter::successors(self.parent(), |q| q.parent())
+    }
+
     /// The four children in the order south-west, south-east, north-west, north-east, or `None`
     /// at [`MAX_LEVEL`].
     pub fn children(self) -> Option<[QuadId; 4]> {
@@ -223,6 +237,19 @@ mod tests {
         let e = q.extent();
         assert!(e.x_max > e.x_min && e.y_max > e.y_min);
         assert_eq!(e.x_max - e.x_min, 2.0 / (1u64 << 30) as f64);
+    }
+
+    #[test]
+    fn the_ancestor_at_a_level_is_the_walk_up_through_parents() {
+        let q = QuadId::new(Face::Bottom, 12, 3001, 17).unwrap();
+        let walked: Vec<QuadId> = q.ancestors().collect();
+        assert_eq!(walked.len(), 12);
+        assert_eq!(walked.last().copied(), Some(QuadId::root(Face::Bottom)));
+        for (k, a) in walked.iter().enumerate() {
+            assert_eq!(q.ancestor_at(11 - k as u8), *a);
+        }
+        assert_eq!(q.ancestor_at(12), q);
+        assert_eq!(q.ancestor_at(20), q);
     }
 
     #[test]

@@ -7,11 +7,11 @@ use rayon::prelude::*;
 
 use super::stroke::{Stroke, Tool};
 use super::terrain::{Snapshot, Target};
+use crate::ecm::points::sample_point;
 use crate::ecm::{CubeProjection, FacePoint, QuadId};
 use crate::errors::Failure;
 use crate::geodesy::{Ellipsoid, geodetic_from_ecef};
-use crate::layers::noise;
-use crate::layers::stack::sample_point;
+use crate::maths::noise;
 use crate::store::grid::{GRID, spacing_m};
 
 const N: usize = GRID as usize;

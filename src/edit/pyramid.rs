@@ -56,12 +56,10 @@ impl Pyramid {
     /// Records raster tiles (new ones: their ancestors are above a tile from now on).
     pub fn add(&mut self, tiles: impl IntoIterator<Item = QuadId>) {
         for t in tiles {
-            let mut q = t;
-            while let Some(p) = q.parent() {
+            for p in t.ancestors() {
                 if !self.above.insert(p) {
                     break;
                 }
-                q = p;
             }
         }
     }

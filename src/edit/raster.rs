@@ -22,10 +22,10 @@ use super::kernel::{CpuRasteriser, Dab, Rasteriser, StrokeJob, apply_to_tile};
 use super::pyramid::Pyramid;
 use super::stroke::Stroke;
 use super::terrain::{Below, KeptBelow, Snapshot, Target, smooth_ring_m};
+use crate::ecm::points::quad_ball;
 use crate::ecm::{Face, QuadId};
 use crate::errors::SharedFailure;
 use crate::geodesy::Ellipsoid;
-use crate::layers::stack::quad_ball;
 use crate::store::grid::GRID;
 
 const N: usize = GRID as usize;
@@ -283,11 +283,7 @@ impl EditRaster {
     /// it changed.
     pub fn stamp(&self, quad: QuadId) -> u32 {
         if quad.level >= self.level {
-            let mut q = quad;
-            while q.level > self.level {
-                q = q.parent().expect("a quad below the raster's level has a parent");
-            }
-            return self.stamps.get(&q).copied().unwrap_or(self.floor);
+            return self.stamps.get(&quad.ancestor_at(self.level)).copied().unwrap_or(self.floor);
         }
         self.pyramid.stamp(quad).unwrap_or(self.floor)
     }
@@ -400,11 +396,7 @@ impl EditRaster {
     /// Whether δ may be non-zero somewhere in `quad` (of any level).
     pub fn covers(&self, quad: QuadId) -> bool {
         if quad.level >= self.level {
-            let mut q = quad;
-            while q.level > self.level {
-                q = q.parent().expect("a quad below the raster's level has a parent");
-            }
-            return self.tiles.contains_key(&q);
+            return self.tiles.contains_key(&quad.ancestor_at(self.level));
         }
         self.pyramid.near(quad)
     }
@@ -417,12 +409,9 @@ impl EditRaster {
             return None;
         }
         if quad.level >= self.level {
-            let mut a = quad;
-            while a.level > self.level {
-                a = a.parent().expect("a quad below the raster's level has a parent");
-            }
+            let a = quad.ancestor_at(self.level);
             let tile = self.tiles.get(&a)?;
-            return Some(if a == quad { tile.clone() } else { crate::gpu::data::upsample(tile, a, quad) });
+            return Some(if a == quad { tile.clone() } else { crate::store::grid::upsample(tile, a, quad) });
         }
         let mean = self.pyramid.mean(quad, self.level, &|q| self.tiles.get(&q).map(Vec::as_slice))?;
         Some(mean.to_vec())

@@ -5,8 +5,8 @@ use glam::DVec3;
 use super::dabs::dab_centres;
 use super::{EditRaster, Falloff, Stroke, Tool, ellipsoid_below};
 use crate::ecm::QuadId;
+use crate::ecm::points::sample_point;
 use crate::geodesy::{Ellipsoid, Geodetic, ecef_from_geodetic};
-use crate::layers::stack::sample_point;
 use crate::store::grid::GRID;
 
 const N: usize = GRID as usize;
@@ -347,7 +347,7 @@ fn coarse_levels_are_area_means_that_keep_a_small_edits_volume_and_follow_undo()
     };
     let fine: Vec<(QuadId, usize, f32)> = samples(&r).into_iter().map(|(q, k, _, v)| (q, k, v)).collect();
     let coarse_quads: BTreeSet<QuadId> =
-        r.tiles.keys().map(|q| ancestor(*q, 6)).flat_map(super::pyramid::with_neighbours).collect();
+        r.tiles.keys().map(|q| q.ancestor_at(6)).flat_map(super::pyramid::with_neighbours).collect();
     let mut coarse = Vec::new();
     for q in &coarse_quads {
         if let Some(g) = r.grid(*q) {
@@ -361,7 +361,7 @@ fn coarse_levels_are_area_means_that_keep_a_small_edits_volume_and_follow_undo()
     // The same means whichever order they are asked for in (a fresh raster, coarsest first).
     let fresh = EditRaster::build(e, std::slice::from_ref(&dab), &ellipsoid_below).unwrap();
     for l in (0..12).rev().chain(0..12) {
-        let q = ancestor(*r.tiles.keys().next().unwrap(), l);
+        let q = r.tiles.keys().next().unwrap().ancestor_at(l);
         assert_eq!(fresh.grid(q), r.grid(q), "level {l}");
     }
     // Undone, nothing is left at any level; the means follow the tiles.
@@ -369,11 +369,4 @@ fn coarse_levels_are_area_means_that_keep_a_small_edits_volume_and_follow_undo()
     for q in &coarse_quads {
         assert!(r.grid(*q).is_none(), "{q} after undo");
     }
-}
-
-fn ancestor(mut q: QuadId, level: u8) -> QuadId {
-    while q.level > level {
-        q = q.parent().unwrap();
-    }
-    q
 }

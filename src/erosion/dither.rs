@@ -2,8 +2,10 @@
 //! becomes ⌊x + u⌋ with u ∈ [0, 1) drawn from a hash of (seed, step, cell, stream). Flooring
 //! alone would drop rain, evaporation, dissolving and deposition smaller than a unit per step
 //! (rain of 10⁻⁶ m/s at Δt = 0.5 s is 0.05 units on a 10 µm quantum: never a whole one); the
-//! dither keeps their mean. The hash is PCG's output function (O'Neill 2014) on u32, written the
-//! same way in `shaders/erosion/erosion.wgsl`, so the CPU and the GPU draw the same u.
+//! dither keeps their mean. The hash is [`pcg`] (PCG's output function, O'Neill 2014), which
+//! `shaders/shared/hash.wgsl` writes the same way, so the CPU and the GPU draw the same u.
+
+use crate::maths::pcg;
 
 /// The dither streams, one per rounded quantity.
 pub const DISSOLVE: u32 = 1;
@@ -15,13 +17,6 @@ pub const EVAPORATE: u32 = 3;
 pub const RAIN: u32 = 4;
 /// The water sent through pipe k: stream `PIPE + k`.
 pub const PIPE: u32 = 8;
-
-/// PCG's hash of a u32.
-pub fn pcg(x: u32) -> u32 {
-    let state = x.wrapping_mul(747_796_405).wrapping_add(2_891_336_453);
-    let word = ((state >> ((state >> 28) + 4)) ^ state).wrapping_mul(277_803_737);
-    (word >> 22) ^ word
-}
 
 /// u ∈ [0, 1) for (seed, step, cell, stream), a multiple of 2⁻²⁴ (exact in f32 and f64).
 pub fn uniform(seed: u32, step: u32, cell: u32, stream: u32) -> f64 {

@@ -13,13 +13,13 @@ use glam::DVec3;
 use super::operation::{BrushPath, Operation};
 use super::region::Region;
 use super::sim::Run;
+use crate::ecm::points::sample_point;
 use crate::ecm::{Face, QuadId};
 use crate::edit::EditRaster;
 use crate::edit::terrain::{Below, KeptBelow};
 use crate::errors::{Failure, SharedFailure};
 use crate::geodesy::{Ellipsoid, Geodetic, ecef_from_geodetic};
-use crate::layers::extent::{segment_distance_m, smoothstep};
-use crate::layers::stack::sample_point;
+use crate::maths::{segment_distance_m, smoothstep};
 use crate::store::grid::{GRID, TILE, fold_sample, intervals_per_face_edge};
 
 const N: usize = GRID as usize;

@@ -10,10 +10,10 @@ use std::collections::HashMap;
 use glam::DVec3;
 
 use super::grid::Grid;
+use crate::ecm::points::sample_point;
 use crate::ecm::{Face, QuadId};
 use crate::errors::{Failure, Invalid};
 use crate::geodesy::{Ellipsoid, GeoBox};
-use crate::layers::stack::sample_point;
 use crate::store::grid::{GRID, TILE, fold_sample, quad_of_sample, spacing_m};
 
 /// A box of global sample indices of one face at one level (it may run past the face's edges).

@@ -11,7 +11,7 @@ fn rough(width: usize, height: usize, amplitude_m: f64) -> Vec<f64> {
     let mut state = 7u32;
     (0..width * height)
         .map(|i| {
-            state = crate::layers::noise::pcg(state);
+            state = crate::maths::pcg(state);
             let (x, y) = ((i % width) as f64, (i / width) as f64);
             amplitude_m * ((x / 5.0).sin() + (y / 7.0).cos()) + f64::from(state % 1000) / 1000.0
         })
@@ -194,11 +194,11 @@ fn a_region_across_a_face_edge_is_one_grid_and_erodes_without_a_seam() {
     let erode = |quad: QuadId, i0: i64, j0: i64, check_edge: bool| -> (f64, f64) {
         let region = Region { i0, j0, width: 97, height: 64, ..Region::around(quad, 1) };
         let c = region.cell(48, 32).unwrap();
-        let centre = crate::layers::stack::sample_point(&e, c.quad, 257, c.i, c.j).0;
+        let centre = crate::ecm::points::sample_point(&e, c.quad, 257, c.i, c.j).0;
         let cone = |q: QuadId| -> Result<Vec<f32>, crate::errors::Failure> {
             Ok((0..257 * 257)
                 .map(|k| {
-                    let p = crate::layers::stack::sample_point(&e, q, 257, (k % 257) as u32, (k / 257) as u32).0;
+                    let p = crate::ecm::points::sample_point(&e, q, 257, (k % 257) as u32, (k / 257) as u32).0;
                     (200.0 - 0.1 * (p - centre).length()).max(0.0) as f32
                 })
                 .collect())
@@ -298,7 +298,7 @@ fn regions_on_the_moon_and_the_earth_from_level_8_to_22_stay_finite_and_balanced
             let hills = |q: QuadId| -> Result<Vec<f32>, crate::errors::Failure> {
                 Ok((0..257 * 257)
                     .map(|k| {
-                        let p = crate::layers::stack::sample_point(&e, q, 257, (k % 257) as u32, (k / 257) as u32).0;
+                        let p = crate::ecm::points::sample_point(&e, q, 257, (k % 257) as u32, (k / 257) as u32).0;
                         (0.05 * spacing * 16.0 * ((p.x / (4.0 * spacing)).sin() + (p.y / (5.0 * spacing)).cos())) as f32
                     })
                     .collect())

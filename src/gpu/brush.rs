@@ -16,12 +16,12 @@ use super::compute::{compute_pipeline, shader_module, storage_buffer, storage_la
 use super::context::{GpuContext, GpuError};
 use super::terrain::bind_buffers;
 use crate::ecm::QuadId;
+use crate::ecm::points::sample_point;
 use crate::edit::kernel::{CpuRasteriser, Rasteriser, StrokeJob, window};
 use crate::edit::terrain::Target;
 use crate::edit::{Falloff, Tool};
 use crate::errors::Failure;
 use crate::layers::noise;
-use crate::layers::stack::sample_point;
 use crate::store::grid::GRID;
 
 const N: usize = GRID as usize;

@@ -44,7 +44,7 @@ pub enum GpuError {
     },
     /// The scene could not give what the GPU was to draw (a store, a layer).
     #[error(transparent)]
-    Scene(#[from] super::scene::SceneError),
+    Scene(#[from] crate::scene::SceneError),
     /// A layer stack that the GPU cannot compose (too many layers, segments or octaves).
     #[error("layer stack: {0}")]
     Stack(String),

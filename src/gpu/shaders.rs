@@ -1,5 +1,6 @@
 //! The WGSL sources, embedded at build time, and their composition: a line
-//! `//!include shared/NAME.wgsl` is replaced by that file (once; no nesting needed yet).
+//! `//!include shared/NAME.wgsl` is replaced by that file, whose own includes are expanded in
+//! turn; a file already included is not included again.
 
 use super::context::GpuError;
 
@@ -9,6 +10,7 @@ pub const FILES: &[(&str, &str)] = &[
     ("shared/ecm.wgsl", include_str!("../../shaders/shared/ecm.wgsl")),
     ("shared/shading.wgsl", include_str!("../../shaders/shared/shading.wgsl")),
     ("shared/noise.wgsl", include_str!("../../shaders/shared/noise.wgsl")),
+    ("shared/hash.wgsl", include_str!("../../shaders/shared/hash.wgsl")),
     ("compose/compose.wgsl", include_str!("../../shaders/compose/compose.wgsl")),
     ("edit/stroke.wgsl", include_str!("../../shaders/edit/stroke.wgsl")),
     ("erosion/erosion.wgsl", include_str!("../../shaders/erosion/erosion.wgsl")),
@@ -17,13 +19,21 @@ pub const FILES: &[(&str, &str)] = &[
 /// A shader with its includes expanded; an error names a file or include that is not one of
 /// [`FILES`] (the naga test expands every shipped file).
 pub fn composed(name: &str) -> Result<String, GpuError> {
-    let source = file(name)?;
-    let mut out = String::with_capacity(source.len() * 2);
-    for line in source.lines() {
+    let mut out = String::new();
+    expand(name, &mut vec![name.to_string()], &mut out)?;
+    Ok(out)
+}
+
+/// Appends file `name` to `out` with its includes expanded; `seen` holds the files already in.
+fn expand(name: &str, seen: &mut Vec<String>, out: &mut String) -> Result<(), GpuError> {
+    for line in file(name)?.lines() {
         match line.trim().strip_prefix("//!include ") {
             Some(include) => {
-                out.push_str(file(include.trim())?);
-                out.push('\n');
+                let include = include.trim();
+                if !seen.iter().any(|s| s == include) {
+                    seen.push(include.to_string());
+                    expand(include, seen, out)?;
+                }
             }
             None => {
                 out.push_str(line);
@@ -31,7 +41,7 @@ pub fn composed(name: &str) -> Result<String, GpuError> {
             }
         }
     }
-    Ok(out)
+    Ok(())
 }
 
 fn file(name: &str) -> Result<&'static str, GpuError> {

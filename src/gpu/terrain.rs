@@ -5,9 +5,9 @@
 use wgpu::util::DeviceExt;
 
 use super::context::GpuError;
-use super::data::SAMPLES;
 use super::targets::{DEPTH_FORMAT, ID_FORMAT, IMAGE_FORMAT, SURFACE_FORMAT};
 use super::uniforms::rgba;
+use crate::scene::loader::SAMPLES;
 
 /// Vertices along a quad edge with the skirt ring.
 pub const MESH_EDGE: u32 = SAMPLES + 2;

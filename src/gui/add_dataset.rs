@@ -9,10 +9,10 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::thread::JoinHandle;
 
-use crate::gpu::data::DatasetInfo;
-use crate::gpu::scene::{import_needed, open_dataset};
 use crate::layers::{LayerSpec, SourceSpec};
 use crate::project::Project;
+use crate::scene::dataset::DatasetInfo;
+use crate::scene::{import_needed, open_dataset};
 use crate::store::ImportWatch;
 
 /// A dataset opened and ready to go on the stack.

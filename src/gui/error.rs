@@ -18,7 +18,7 @@ pub enum GuiError {
     Project(crate::project::ProjectError),
     /// Opening or composing the layers.
     #[error("{}", chain(.0))]
-    Scene(crate::gpu::scene::SceneError),
+    Scene(crate::scene::SceneError),
     /// A store, an import or a plan.
     #[error("{}", chain(.0))]
     Store(crate::store::StoreError),
@@ -59,7 +59,7 @@ macro_rules! from {
 from!(
     Invalid(crate::Invalid),
     Project(crate::project::ProjectError),
-    Scene(crate::gpu::scene::SceneError),
+    Scene(crate::scene::SceneError),
     Store(crate::store::StoreError),
     Gpu(crate::gpu::GpuError),
     Layer(crate::layers::LayerError),

@@ -155,7 +155,7 @@ pub fn insert_dataset(
     renderer: &mut Renderer,
     project: &mut Project,
     spec: LayerSpec,
-    info: crate::gpu::data::DatasetInfo,
+    info: crate::scene::dataset::DatasetInfo,
 ) -> LayersChange {
     let mut change = LayersChange::default();
     let top = project.layers.len();

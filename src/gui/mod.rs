@@ -17,8 +17,9 @@ use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
-use crate::gpu::{GpuContext, IMAGE_FORMAT, Renderer, Scene};
+use crate::gpu::{GpuContext, IMAGE_FORMAT, Renderer};
 use crate::project::Project;
+use crate::scene::Scene;
 
 /// What `terrafuse view` opens.
 #[derive(Clone, Debug)]

@@ -7,8 +7,8 @@
 use glam::{DQuat, DVec3};
 
 use crate::geodesy::{self, Ellipsoid};
-use crate::gpu::Camera;
 use crate::project::CameraSpec;
+use crate::scene::Camera;
 
 /// The camera never goes closer than this to the body's centre, in body radii above the
 /// surface, nor farther than `MAX_ALTITUDE_RADII`.

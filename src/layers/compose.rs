@@ -14,8 +14,9 @@ use rayon::prelude::*;
 
 use super::kind::ValueSource;
 use super::spec::BlendMode;
-use super::stack::{DifferencePlan, MaskPlan, QuadPlan, SAMPLES, Stack, sample_point};
+use super::stack::{DifferencePlan, MaskPlan, QuadPlan, SAMPLES, Stack};
 use super::{edge, noise};
+use crate::ecm::points::sample_point;
 
 /// The running state at a sample.
 #[derive(Clone, Copy, Debug, PartialEq)]

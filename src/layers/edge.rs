@@ -54,7 +54,7 @@ pub fn field_level(quad_level: u8, edge_level: u8, finest_level: u8) -> u8 {
 
 /// The edge mask at distance d from the no-data edge: smoothstep(d / F) (1 where F is 0).
 pub fn edge_mask(distance_m: f64, feather_m: f64) -> f64 {
-    if feather_m <= 0.0 { 1.0 } else { super::extent::smoothstep(distance_m / feather_m) }
+    if feather_m <= 0.0 { 1.0 } else { crate::maths::smoothstep(distance_m / feather_m) }
 }
 
 /// The distance field of `quad` (257², row by row from the south), metres, capped at `cap_m`:
@@ -170,8 +170,8 @@ fn dead_reckoning(points: &[DVec3], feature: &[bool], on_surface: impl Iterator<
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::ecm::points::sample_point;
     use crate::ecm::{Edge, Face};
-    use crate::layers::stack::sample_point;
     use std::convert::Infallible;
     use std::sync::Arc;
 

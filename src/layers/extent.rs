@@ -11,6 +11,7 @@
 //! Where the mask matters, between 0 and `feather_m`, both are far below any feather worth
 //! setting. CPU reference of `extent_mask` in `shaders/compose/compose.wgsl` (keep in sync).
 
+use crate::maths::{segment_distance_m, smoothstep};
 use glam::DVec3;
 
 use super::spec::ExtentSpec;
@@ -46,20 +47,6 @@ pub enum Relation {
     /// The edge or its feather crosses the quad: these segments are the only ones within the
     /// feather of any sample.
     Partial(Vec<u32>),
-}
-
-/// The smoothstep of the mask: 0 at 0, 1 at 1, C¹.
-pub fn smoothstep(x: f64) -> f64 {
-    let t = x.clamp(0.0, 1.0);
-    t * t * (3.0 - 2.0 * t)
-}
-
-/// The distance from `p` to the segment [a, b], metres.
-pub fn segment_distance_m(p: DVec3, a: DVec3, b: DVec3) -> f64 {
-    let ab = b - a;
-    let len2 = ab.length_squared();
-    let t = if len2 > 0.0 { ((p - a).dot(ab) / len2).clamp(0.0, 1.0) } else { 0.0 };
-    (p - (a + ab * t)).length()
 }
 
 impl Extent {

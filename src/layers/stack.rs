@@ -4,14 +4,15 @@
 //! so a composed quad is stale exactly when a layer that touches it changed (or one that touches
 //! it was added, removed or moved past another).
 
+use crate::ecm::points::quad_ball;
 use glam::DVec3;
 
 use super::LayerError;
 use super::extent::{Extent, Relation};
 use super::noise;
 use super::spec::{BlendMode, LayerSpec, Operand};
-use crate::ecm::{CubeProjection, FacePoint, QuadId};
-use crate::geodesy::{Ellipsoid, Geodetic, ecef_from_geodetic};
+use crate::ecm::QuadId;
+use crate::geodesy::Ellipsoid;
 use crate::store::grid::{GRID, spacing_m};
 
 /// One layer of a stack.
@@ -151,26 +152,6 @@ pub struct Stack {
     /// Bottom to top.
     pub layers: Vec<Layer>,
     next_uid: u64,
-}
-
-/// A point of a quad's sample grid: ECEF and (lon, lat) radians, exact (f64).
-pub fn sample_point(ellipsoid: &Ellipsoid, quad: QuadId, n: u32, i: u32, j: u32) -> (DVec3, f64, f64) {
-    let (x, y) = quad.sample_xy(n, i, j);
-    let (lat, lon) = CubeProjection::Qsc
-        .geodetic_from_face_point(ellipsoid, FacePoint { face: quad.face, x, y })
-        .unwrap_or((0.0, 0.0));
-    (ecef_from_geodetic(ellipsoid, Geodetic { lat_rad: lat, lon_rad: lon, height_m: 0.0 }), lon, lat)
-}
-
-/// A ball around every sample of a quad: its centre sample and a radius, metres.
-pub fn quad_ball(ellipsoid: &Ellipsoid, quad: QuadId) -> (DVec3, (f64, f64), f64) {
-    let (centre, lon, lat) = sample_point(ellipsoid, quad, 3, 1, 1);
-    let mut radius = 0f64;
-    for (i, j) in [(0, 0), (2, 0), (0, 2), (2, 2), (1, 0), (0, 1), (2, 1), (1, 2)] {
-        radius = radius.max((sample_point(ellipsoid, quad, 3, i, j).0 - centre).length());
-    }
-    // The edges bulge beyond the chord between their samples by less than 2 % at level 0.
-    (centre, (lon, lat), radius * 1.05)
 }
 
 fn mix(stamp: u64, value: u64) -> u64 {

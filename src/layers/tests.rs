@@ -3,7 +3,8 @@
 
 use super::compose::{DataAt, SamplePoint, compose_sample, range_bound};
 use super::spec::{BlendMode, ExtentSpec, LayerSpec, NoiseSpec};
-use super::stack::{Stack, sample_point};
+use super::stack::Stack;
+use crate::ecm::points::sample_point;
 use crate::ecm::{Face, QuadId};
 use crate::geodesy::Ellipsoid;
 
@@ -150,7 +151,7 @@ fn the_feather_follows_the_distance_on_the_ellipsoid_across_a_face_edge() {
             let h = compose_sample(&stack, &plan, &p, &|_| DataAt::raw(f64::NAN));
             let dlon = p.lon_rad + 45.5f64.to_radians();
             let d = r * (dlon.sin() * p.lat_rad.cos()).asin();
-            let expected = if dlon < 0.0 { 0.0 } else { 100.0 * super::extent::smoothstep(d / feather) };
+            let expected = if dlon < 0.0 { 0.0 } else { 100.0 * crate::maths::smoothstep(d / feather) };
             // The chord's sag (0.05° chords on the Moon: 0.17 m) and chord-vs-arc (< 0.01 m at
             // 30 km) move d by < 0.2 m: 100 m × 1.5/30 km × 0.2 m = 0.001 m.
             assert!((h - expected).abs() < 2e-3, "{quad} ({i},{j}): {h} vs {expected} (d {d})");

@@ -16,11 +16,12 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use crate::edit::raster::EditRaster;
-use crate::gpu::scene::Edits;
-use crate::gpu::{GpuContext, Scene};
+use crate::gpu::GpuContext;
 use crate::layers::{LayerKind, LayerPayload, LayerSpec};
 use crate::project::checks::CheckTarget;
 use crate::project::{CheckSpec, Project};
+use crate::scene::Edits;
+use crate::scene::Scene;
 
 pub use digest::{Digests, Mismatch};
 
@@ -48,7 +49,7 @@ impl Engine<'_> {
 pub enum ReplayError {
     /// The project's layers could not be opened (a store, an import).
     #[error(transparent)]
-    Open(#[from] crate::gpu::scene::SceneError),
+    Open(#[from] crate::scene::SceneError),
     /// A layer's operations could not be replayed.
     #[error("layer '{layer}'")]
     Layer {
@@ -73,7 +74,7 @@ pub enum ReplayError {
         check: String,
         /// Why.
         #[source]
-        source: Box<crate::gpu::scene::SceneError>,
+        source: Box<crate::scene::SceneError>,
     },
     /// The GPU kernels could not be made.
     #[error(transparent)]

@@ -5,9 +5,9 @@ use glam::DVec3;
 use crate::Invalid;
 use crate::ecm::{CubeProjection, QuadId};
 use crate::geodesy::{self, Ellipsoid};
-use crate::gpu::Camera;
 use crate::project::CameraSpec;
 use crate::project::checks::MAX_CHECK_TILES;
+use crate::scene::Camera;
 
 /// The quads at `level` that a `[west, south, east, north]` region (degrees; east < west crosses
 /// ±180°) touches, in quad order: every quad holding a point of a lattice a quarter of a quad

@@ -63,6 +63,42 @@ pub fn quad_of_sample(face: Face, level: u8, i: i64, j: i64) -> (QuadId, u32, u3
     (quad, (i - qx * i64::from(TILE)) as u32, (j - qy * i64::from(TILE)) as u32)
 }
 
+/// The heights of `quad` bilinearly interpolated from the grid of its ancestor `source` (both
+/// corner-inclusive 257² grids); NaN where a sample with weight has no data.
+pub fn upsample(grid: &[f32], source: QuadId, quad: QuadId) -> Vec<f32> {
+    let n = GRID as usize;
+    let k = quad.level - source.level;
+    let scale = 1.0 / f64::from(1u32 << k);
+    let (ox, oy) = (f64::from(quad.x - (source.x << k)), f64::from(quad.y - (source.y << k)));
+    let cells = f64::from(GRID - 1);
+    let mut out = Vec::with_capacity(n * n);
+    for j in 0..n {
+        let v = (oy * cells + j as f64) * scale;
+        for i in 0..n {
+            let u = (ox * cells + i as f64) * scale;
+            out.push(bilinear(grid, u, v) as f32);
+        }
+    }
+    out
+}
+
+/// Bilinear interpolation in a 257² grid at grid coordinates (u, v) ∈ [0, 256]² (NaN where a
+/// sample with weight has none; a sample with weight 0 is not read).
+pub fn bilinear(grid: &[f32], u: f64, v: f64) -> f64 {
+    let n = GRID as usize;
+    let (i0, j0) = ((u.floor() as usize).min(n - 2), (v.floor() as usize).min(n - 2));
+    let (fu, fv) = (u - i0 as f64, v - j0 as f64);
+    let mut h = 0.0;
+    for (di, dj, w) in
+        [(0, 0, (1.0 - fu) * (1.0 - fv)), (1, 0, fu * (1.0 - fv)), (0, 1, (1.0 - fu) * fv), (1, 1, fu * fv)]
+    {
+        if w > 0.0 {
+            h += w * f64::from(grid[(j0 + dj) * n + i0 + di]);
+        }
+    }
+    h
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -3,18 +3,70 @@
 //! converted to the ellipsoid), and averaging a coarser quad from the level below.
 
 use std::collections::HashSet;
+use std::str::FromStr;
 
 use gdal::spatial_ref::CoordTransform;
 
 use super::StoreError;
 use super::grid::{self, GRID, TILE, face_xy, spacing_m};
-use super::import::{Plan, Resampling, Worker};
-use super::lattice::{LatticeRow, PixelLattice, QuadPositions, Transform, exact_positions};
+use super::lattice::{LatticeRow, LatticeStats, PixelLattice, QuadPositions, Transform, exact_positions};
 use super::read::GridReader;
 use super::source::{SourceReader, Window};
 use super::tile::QuadGrid;
+use crate::Invalid;
 use crate::ecm::{CubeProjection, Edge, FacePoint, QuadId};
 use crate::geodesy::Ellipsoid;
+
+/// How a sample is interpolated from the source pixels around it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Resampling {
+    /// Bilinear over the 2×2 pixel centres around the point (weights renormalised over pixels
+    /// with data, as gdalwarp does).
+    Bilinear,
+    /// Cubic convolution (Keys, a = −0.5) over 4×4; bilinear where one of them has no data.
+    Cubic,
+    /// The nearest pixel.
+    Nearest,
+}
+
+impl Resampling {
+    /// The name used on the command line and in the store.
+    pub fn name(self) -> &'static str {
+        match self {
+            Resampling::Bilinear => "bilinear",
+            Resampling::Cubic => "cubic",
+            Resampling::Nearest => "nearest",
+        }
+    }
+}
+
+impl FromStr for Resampling {
+    type Err = Invalid;
+    fn from_str(s: &str) -> Result<Self, Invalid> {
+        match s {
+            "bilinear" => Ok(Resampling::Bilinear),
+            "cubic" => Ok(Resampling::Cubic),
+            "nearest" => Ok(Resampling::Nearest),
+            _ => Err(format!("unknown resampling '{s}': use bilinear, cubic or nearest").into()),
+        }
+    }
+}
+
+/// How the finest level is resampled.
+pub(crate) struct Plan {
+    pub(crate) supersample: u32,
+    pub(crate) resampling: Resampling,
+    pub(crate) transform: Transform,
+    pub(crate) lattice: LatticeStats,
+    pub(crate) window_cap_bytes: usize,
+    pub(crate) geoid_grid: Option<String>,
+}
+
+/// One worker's handles: a reader per source, and the geoid transform.
+pub(crate) struct Worker {
+    pub(crate) readers: Vec<SourceReader>,
+    pub(crate) geoid: Option<CoordTransform>,
+}
 
 /// The quads at `level` that a source may cover: under a grid of source points spaced at most
 /// a quarter quad apart (edges included), with their eight neighbours.

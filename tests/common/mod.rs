@@ -115,8 +115,8 @@ pub fn store_dir(dir: &std::path::Path, key: &str, settings: &str) -> PathBuf {
 /// [`store_dir`] there, source paths absolute, only the global Moon grid, small GPU pools; its
 /// datasets are imported here (once per folder, import code and settings).
 pub fn sample_project(name: &str, dir: &std::path::Path) -> PathBuf {
-    use terrafuse::gpu::Scene;
     use terrafuse::project::Project;
+    use terrafuse::scene::Scene;
     static LOCK: std::sync::OnceLock<std::sync::Mutex<()>> = std::sync::OnceLock::new();
     let _guard = LOCK.get_or_init(Default::default).lock().unwrap_or_else(|p| p.into_inner());
     let mut p = Project::load(&repo_path(&format!("projects/{name}.json"))).unwrap();

@@ -11,14 +11,8 @@ use std::time::{Duration, Instant};
 mod erosion;
 mod stack;
 
-use super::camera::Camera;
 use super::compose::{ComposeBatch, ComposePass};
 use super::context::{GpuContext, GpuError};
-use super::data::{CpuCache, DataKey, Loaded, Loader, SAMPLES};
-use super::quads::{QuadCache, Source, exaggerated_range, flat_rule_for};
-use super::scene::Scene;
-use super::select::{self, SelectParams, Selection};
-use super::slots::SlotPool;
 use super::targets::{DrawMode, FrameTargets, RenderedImage};
 use super::terrain::{MESH_EDGE, TRIANGLES_PER_QUAD, TerrainPass, ramp_buffer};
 use super::uniforms::{FrameUniform, NO_SLOT, QuadInstance, rgba, v4};
@@ -26,6 +20,12 @@ use crate::ecm::geometry::{FlatRule, MapSymmetry, QuadFrame, QuadGeometry, Split
 use crate::ecm::{CubeProjection, QuadId};
 use crate::layers::{LayerError, LayerSpec};
 use crate::project::CameraSpec;
+use crate::scene::Camera;
+use crate::scene::Scene;
+use crate::scene::loader::{CpuCache, DataKey, Loaded, Loader, SAMPLES};
+use crate::scene::quads::{QuadCache, Source, exaggerated_range, flat_rule_for};
+use crate::scene::select::{self, SelectParams, Selection};
+use crate::scene::slots::SlotPool;
 use crate::store::grid::spacing_m;
 
 /// Stored for a sample without data (the shader tests `< -1e37`).
@@ -465,12 +465,10 @@ impl Renderer {
         kept.extend(selection.split.iter().copied());
         kept.extend(crate::ecm::Face::ALL.map(QuadId::root));
         for q in &selection.quads {
-            let mut p = q.parent();
-            while let Some(a) = p {
+            for a in q.ancestors() {
                 if !kept.insert(a) {
                     break;
                 }
-                p = a.parent();
             }
         }
         let mut maps_counted = std::collections::HashSet::new();

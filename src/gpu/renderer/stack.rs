@@ -4,7 +4,7 @@
 
 use super::*;
 use crate::gpu::compose::ComposePools;
-use crate::gpu::data::EdgeFields;
+use crate::scene::loader::EdgeFields;
 
 impl Renderer {
     /// Replaces layer `index`'s settings (its identity stays, its revision is bumped): the
@@ -153,7 +153,7 @@ impl Renderer {
         &self,
         index: usize,
         mut strokes: impl Iterator<Item = &'a crate::edit::Stroke>,
-    ) -> Result<Option<crate::gpu::Scene>, crate::gpu::scene::SceneError> {
+    ) -> Result<Option<crate::scene::Scene>, crate::scene::SceneError> {
         if strokes.any(|s| s.tool.reads_terrain()) { self.scene.below(index).map(Some) } else { Ok(None) }
     }
 
@@ -200,13 +200,13 @@ impl Renderer {
     }
 
     /// Inserts a dataset layer at `index` (0: bottom) reading `info` (opened off the frame's
-    /// thread: [`crate::gpu::scene::open_dataset`]); the quads it touches are composed anew, and
+    /// thread: [`crate::scene::open_dataset`]); the quads it touches are composed anew, and
     /// the loader restarts to read a dataset the scene did not have.
     pub fn insert_dataset_layer(
         &mut self,
         index: usize,
         spec: LayerSpec,
-        info: crate::gpu::data::DatasetInfo,
+        info: crate::scene::dataset::DatasetInfo,
     ) -> Result<(), GpuError> {
         let before = self.scene.datasets.len();
         self.scene.insert_dataset_layer(index, spec, info)?;

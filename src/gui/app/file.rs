@@ -8,10 +8,11 @@ use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use super::App;
-use crate::gpu::{IMAGE_FORMAT, Renderer, Scene};
+use crate::gpu::{IMAGE_FORMAT, Renderer};
 use crate::gui::recent::Recent;
 use crate::project::recovery::{self, Recovery};
 use crate::project::{CameraSpec, Project};
+use crate::scene::Scene;
 
 /// Unsaved changes are written to the recovery file at most this often (the first at once).
 pub const AUTOSAVE_INTERVAL: Duration = Duration::from_secs(10);

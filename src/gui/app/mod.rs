@@ -11,9 +11,10 @@ use glam::DVec3;
 use super::navigate;
 use super::viewport::{Viewport, frame_line};
 use crate::geodesy;
-use crate::gpu::scene::resolve_ramp;
-use crate::gpu::{Camera, FrameStats, Renderer};
+use crate::gpu::{FrameStats, Renderer};
 use crate::project::{CameraSpec, Project, Visuals};
+use crate::scene::Camera;
+use crate::scene::resolve_ramp;
 
 mod brush;
 mod erosion;

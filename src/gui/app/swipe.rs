@@ -58,7 +58,7 @@ impl App {
         let mut other = self.project.clone();
         other.layers[ia].visible = false;
         other.layers[ib].visible = true;
-        let (scene, _) = crate::gpu::Scene::open(&other)?;
+        let (scene, _) = crate::scene::Scene::open(&other)?;
         let ctx = GpuContext {
             device: rs.device.clone(),
             queue: rs.queue.clone(),

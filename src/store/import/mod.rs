@@ -27,46 +27,12 @@ use super::gpkg::{DatasetRecord, DatasetSettings, SourceProvenance, Store, check
 use super::grid::{self, GRID, spacing_m};
 use super::lattice::{LatticeStats, Transform};
 use super::read::GridReader;
-use super::resample::{average_quad, footprint, resample_quad};
+pub use super::resample::Resampling;
+use super::resample::{Plan, Worker, average_quad, footprint, resample_quad};
 use super::source::{SourceInfo, SourceReader};
 use super::watch::ImportWatch;
 use crate::ecm::{Face, QuadId};
 use crate::geodesy::Ellipsoid;
-
-/// How a sample is interpolated from the source pixels around it.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Resampling {
-    /// Bilinear over the 2×2 pixel centres around the point (weights renormalised over pixels
-    /// with data, as gdalwarp does).
-    Bilinear,
-    /// Cubic convolution (Keys, a = −0.5) over 4×4; bilinear where one of them has no data.
-    Cubic,
-    /// The nearest pixel.
-    Nearest,
-}
-
-impl Resampling {
-    /// The name used on the command line and in the store.
-    pub fn name(self) -> &'static str {
-        match self {
-            Resampling::Bilinear => "bilinear",
-            Resampling::Cubic => "cubic",
-            Resampling::Nearest => "nearest",
-        }
-    }
-}
-
-impl FromStr for Resampling {
-    type Err = Invalid;
-    fn from_str(s: &str) -> Result<Self, Invalid> {
-        match s {
-            "bilinear" => Ok(Resampling::Bilinear),
-            "cubic" => Ok(Resampling::Cubic),
-            "nearest" => Ok(Resampling::Nearest),
-            _ => Err(format!("unknown resampling '{s}': use bilinear, cubic or nearest").into()),
-        }
-    }
-}
 
 /// The vertical datum of the source heights, and so what the import does with them.
 #[derive(Clone, Debug, PartialEq)]
@@ -199,22 +165,6 @@ pub fn peak_rss_bytes() -> u64 {
             s.lines().find(|l| l.starts_with("VmHWM:")).and_then(|l| l.split_whitespace().nth(1)?.parse::<u64>().ok())
         })
         .map_or(0, |kb| kb * 1024)
-}
-
-/// How the finest level is resampled.
-pub(super) struct Plan {
-    pub(super) supersample: u32,
-    pub(super) resampling: Resampling,
-    pub(super) transform: Transform,
-    pub(super) lattice: LatticeStats,
-    pub(super) window_cap_bytes: usize,
-    pub(super) geoid_grid: Option<String>,
-}
-
-/// One worker's handles: a reader per source, and the geoid transform.
-pub(super) struct Worker {
-    pub(super) readers: Vec<SourceReader>,
-    pub(super) geoid: Option<CoordTransform>,
 }
 
 fn geoid_transform(grid: &str, source: &Path) -> Result<CoordTransform, StoreError> {

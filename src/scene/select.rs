@@ -268,10 +268,8 @@ mod tests {
         // The drawn quads never overlap: no quad is an ancestor of another.
         let set: HashSet<QuadId> = fine.quads.iter().copied().collect();
         for q in &fine.quads {
-            let mut p = q.parent();
-            while let Some(a) = p {
+            for a in q.ancestors() {
                 assert!(!set.contains(&a), "{a} and its descendant {q}");
-                p = a.parent();
             }
         }
     }

@@ -10,11 +10,11 @@ use std::collections::HashMap;
 
 use glam::DVec3;
 
-use super::data::{DatasetInfo, bilinear};
+use super::dataset::DatasetInfo;
+use crate::ecm::points::sample_point;
 use crate::ecm::{CubeProjection, QuadId};
 use crate::geodesy::{Ellipsoid, geodetic_from_ecef};
-use crate::layers::stack::sample_point;
-use crate::store::grid::GRID;
+use crate::store::grid::{GRID, bilinear};
 use crate::store::{Store, StoreError};
 
 const N: usize = GRID as usize;

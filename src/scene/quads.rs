@@ -6,7 +6,7 @@ use std::sync::Arc;
 
 use glam::DVec3;
 
-use super::scene::Scene;
+use super::Scene;
 use super::select::{QuadInfo, QuadSource};
 use super::slots::SlotPool;
 use crate::ecm::geometry::{FlatRule, HeightRange, MapSymmetry, QuadBounds, QuadGeometry};

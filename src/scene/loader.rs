@@ -8,14 +8,14 @@
 //! since the last frame, and draws what it has.
 
 use std::collections::{HashMap, HashSet, VecDeque};
-use std::path::PathBuf;
 use std::sync::mpsc::{Receiver, Sender};
 use std::sync::{Arc, Condvar, Mutex};
 
+use super::dataset::DatasetInfo;
 use crate::ecm::geometry::{MapCache, StaticMaps};
 use crate::ecm::{CubeProjection, QuadId};
 use crate::geodesy::Ellipsoid;
-use crate::store::grid::GRID;
+use crate::store::grid::{GRID, upsample};
 use crate::store::{Store, StoreError};
 
 /// Samples along a quad edge, in the store and on the GPU.
@@ -60,65 +60,6 @@ impl QuadHeights {
 
     fn bytes(&self) -> usize {
         self.grid.len() * 4
-    }
-}
-
-/// One dataset the renderer reads.
-#[derive(Clone, Debug)]
-pub struct DatasetInfo {
-    /// Its store.
-    pub store: PathBuf,
-    /// Its name in the store.
-    pub dataset: String,
-    /// Finest level.
-    pub finest_level: u8,
-    /// Quads with data, per level 0 ..= finest.
-    pub present: Vec<HashSet<QuadId>>,
-    /// Height range over its finest level, metres.
-    pub range_m: (f64, f64),
-    /// The body of its store.
-    pub body: Ellipsoid,
-    /// Moved east and north by this much, metres (see `shifted`; the layer's `shift_m`).
-    pub shift_m: [f64; 2],
-}
-
-impl DatasetInfo {
-    /// Reads what a store's dataset covers.
-    pub fn open(store_path: &std::path::Path, dataset: &str) -> Result<DatasetInfo, StoreError> {
-        let store = Store::open_read_only(store_path)?;
-        let record = store.resolve_dataset(Some(dataset))?;
-        let finest = record.settings.finest_level;
-        let present = (0..=finest).map(|l| store.data_quads(&record.name, l)).collect::<Result<Vec<_>, _>>()?;
-        let range_m = store.height_range(&record.name, finest)?.unwrap_or((0.0, 0.0));
-        Ok(DatasetInfo {
-            store: store_path.to_path_buf(),
-            dataset: record.name,
-            finest_level: finest,
-            present,
-            range_m,
-            body: *store.body(),
-            shift_m: [0.0, 0.0],
-        })
-    }
-
-    /// Whether the dataset has a tile at `quad`.
-    pub fn has(&self, quad: QuadId) -> bool {
-        self.present.get(quad.level as usize).is_some_and(|s| s.contains(&quad))
-    }
-
-    /// The quad whose tile gives this dataset's heights at `quad`: the quad itself up to the
-    /// dataset's finest level, below it the ancestor at the finest level (upsampled).
-    pub fn source_quad(&self, quad: QuadId) -> QuadId {
-        let mut q = quad;
-        while q.level > self.finest_level {
-            q = q.parent().expect("a quad below level 0 has a parent");
-        }
-        q
-    }
-
-    /// Whether the dataset has heights at `quad`, its own or upsampled from the finest level.
-    pub fn covers(&self, quad: QuadId) -> bool {
-        self.has(self.source_quad(quad))
     }
 }
 
@@ -376,10 +317,7 @@ pub fn read_edge(
     tag: u32,
 ) -> Result<QuadHeights, StoreError> {
     let level = crate::layers::edge::field_level(quad.level, edge_level, dataset.finest_level);
-    let mut at = quad;
-    while at.level > level {
-        at = at.parent().expect("a quad below level 0 has a parent");
-    }
+    let at = quad.ancestor_at(level);
     let field = match fields.get((tag, at, edge_level)) {
         Some(f) => f,
         None => {
@@ -404,42 +342,6 @@ pub fn read_edge(
     };
     let grid = if at == quad { field.as_ref().clone() } else { upsample(&field, at, quad) };
     Ok(QuadHeights::new(grid))
-}
-
-/// The heights of `quad` bilinearly interpolated from the grid of its ancestor `source` (both
-/// corner-inclusive 257² grids); NaN where a sample with weight has no data.
-pub fn upsample(grid: &[f32], source: QuadId, quad: QuadId) -> Vec<f32> {
-    let n = SAMPLES as usize;
-    let k = quad.level - source.level;
-    let scale = 1.0 / f64::from(1u32 << k);
-    let (ox, oy) = (f64::from(quad.x - (source.x << k)), f64::from(quad.y - (source.y << k)));
-    let cells = f64::from(SAMPLES - 1);
-    let mut out = Vec::with_capacity(n * n);
-    for j in 0..n {
-        let v = (oy * cells + j as f64) * scale;
-        for i in 0..n {
-            let u = (ox * cells + i as f64) * scale;
-            out.push(bilinear(grid, u, v) as f32);
-        }
-    }
-    out
-}
-
-/// Bilinear interpolation in a 257² grid at grid coordinates (u, v) ∈ [0, 256]² (NaN where a
-/// sample with weight has none; a sample with weight 0 is not read).
-pub fn bilinear(grid: &[f32], u: f64, v: f64) -> f64 {
-    let n = SAMPLES as usize;
-    let (i0, j0) = ((u.floor() as usize).min(n - 2), (v.floor() as usize).min(n - 2));
-    let (fu, fv) = (u - i0 as f64, v - j0 as f64);
-    let mut h = 0.0;
-    for (di, dj, w) in
-        [(0, 0, (1.0 - fu) * (1.0 - fv)), (1, 0, fu * (1.0 - fv)), (0, 1, (1.0 - fu) * fv), (1, 1, fu * fv)]
-    {
-        if w > 0.0 {
-            h += w * f64::from(grid[(j0 + dj) * n + i0 + di]);
-        }
-    }
-    h
 }
 
 /// The CPU cache: heights and maps by key, least recently used dropped past the budget.

@@ -1,11 +1,22 @@
-//! A project opened for rendering: the body, the layer stack with its datasets' coverage
-//! (importing a dataset from its listed sources when its store lacks it), the colour ramp, and
-//! the settings.
+//! The CPU side of what is drawn, with no GPU in it: a project opened for rendering ([`Scene`]:
+//! the body, the layer stack with its datasets' coverage, importing a dataset from its listed
+//! sources when its store lacks it, the colour ramp, the settings), the camera, the quad
+//! selection, the asynchronous tile loader and its cache. The renderer in [`crate::gpu`] draws a
+//! scene; `compare`, `replay` and the command line read one without a device.
+
+pub mod camera;
+pub mod dataset;
+pub mod loader;
+pub(crate) mod quads;
+pub mod select;
+pub mod shifted;
+pub(crate) mod slots;
+
+pub use camera::Camera;
 
 use std::collections::HashMap;
 use std::sync::Arc;
 
-use super::data::{DataKey, DatasetInfo, EdgeFields, QuadHeights, read_tile};
 use crate::colour::Ramp;
 use crate::ecm::QuadId;
 use crate::edit::EditRaster;
@@ -15,6 +26,8 @@ use crate::project::{ColourMapSpec, DetailSpec, Project, Visuals};
 use crate::store::grid::GRID;
 use crate::store::{ImportOptions, LevelChoice, Resampling, Store, StoreError, VerticalDatum};
 use crate::{Invalid, colour::ColourError, edit::StrokeError, erosion::layer::OperationError, layers::LayerError};
+use dataset::DatasetInfo;
+use loader::{DataKey, EdgeFields, QuadHeights, read_tile};
 
 /// What can stop a scene from opening, reading or rebuilding a layer.
 #[derive(Debug, thiserror::Error)]
@@ -30,7 +43,7 @@ pub enum SceneError {
     Store(#[from] StoreError),
     /// A tile could not be read.
     #[error(transparent)]
-    Load(#[from] super::data::LoadError),
+    Load(#[from] loader::LoadError),
     /// The colour map.
     #[error(transparent)]
     Colour(#[from] ColourError),

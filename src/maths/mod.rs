@@ -1,0 +1,58 @@
+//! Small pure helpers that several modules share and that depend on nothing but `glam`: the
+//! PCG hash that the noise, the erosion dither and the benchmarks draw from (written once in
+//! Rust here and once in WGSL, `shaders/shared/hash.wgsl`), the median, the smoothstep and the
+//! distance to a segment.
+
+pub mod noise;
+
+use glam::DVec3;
+
+/// The 32-bit integer hash of PCG's output permutation (O'Neill 2014), the same on the CPU and
+/// the GPU (`pcg` in `shaders/shared/hash.wgsl`).
+pub fn pcg(v: u32) -> u32 {
+    let state = v.wrapping_mul(747_796_405).wrapping_add(2_891_336_453);
+    let word = ((state >> ((state >> 28) + 4)) ^ state).wrapping_mul(277_803_737);
+    (word >> 22) ^ word
+}
+
+/// The median of `values` (the mean of the two middle ones for an even count; NaN when empty),
+/// by selection rather than a sort: O(n).
+pub fn median(mut values: Vec<f64>) -> f64 {
+    if values.is_empty() {
+        return f64::NAN;
+    }
+    let n = values.len();
+    let (below, upper, _) = values.select_nth_unstable_by(n / 2, f64::total_cmp);
+    let upper = *upper;
+    if n % 2 == 1 {
+        return upper;
+    }
+    let lower = below.iter().copied().max_by(f64::total_cmp).expect("an even count of at least 2");
+    0.5 * (lower + upper)
+}
+
+/// The smoothstep of `x`: 0 at or below 0, 1 at or above 1, C¹.
+pub fn smoothstep(x: f64) -> f64 {
+    let t = x.clamp(0.0, 1.0);
+    t * t * (3.0 - 2.0 * t)
+}
+
+/// The distance from `p` to the segment [a, b], in the units of the points.
+pub fn segment_distance_m(p: DVec3, a: DVec3, b: DVec3) -> f64 {
+    let ab = b - a;
+    let len2 = ab.length_squared();
+    let t = if len2 > 0.0 { ((p - a).dot(ab) / len2).clamp(0.0, 1.0) } else { 0.0 };
+    (p - (a + ab * t)).length()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_median_of_odd_even_and_empty_samples() {
+        assert_eq!(median(vec![3.0, 1.0, 2.0]), 2.0);
+        assert_eq!(median(vec![3.0, 1.0, 2.0, 10.0]), 2.5);
+        assert!(median(Vec::new()).is_nan());
+    }
+}
