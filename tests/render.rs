@@ -494,3 +494,94 @@ fn datasets_fill_each_other_and_show_below_their_finest_level() {
     assert!(fused.iter().all(|h| h.is_finite()));
 }
 
+#[test]
+fn hillshade_and_isolines_on_the_gpu_are_their_cpu_twins() {
+    use terrafuse::gpu::shading::{ShadingProbe, hillshade, isoline_coverage, probe};
+    let ctx = GpuContext::headless().unwrap();
+    let mut rng = 0x1234_5678u32;
+    let mut next = || {
+        rng = terrafuse::maths::pcg(rng);
+        (rng >> 8) as f32 / (1u32 << 24) as f32
+    };
+    let mut probes = Vec::new();
+    for _ in 0..4096 {
+        let up = glam::Vec3::new(next() - 0.5, next() - 0.5, next() - 0.5).normalize();
+        let n = (up + 0.6 * glam::Vec3::new(next() - 0.5, next() - 0.5, next() - 0.5)).normalize();
+        probes.push(ShadingProbe {
+            normal: [n.x, n.y, n.z, 0.0],
+            up: [up.x, up.y, up.z, 0.0],
+            sun: [next() * std::f32::consts::TAU, 0.05 + next() * 1.5, next(), 0.0],
+            iso: [next() * 40.0 - 20.0, 0.002 + next() * 0.3, 0.2 + next() * 3.0, 1.0],
+            spacing: [if next() < 0.5 { 1.0 } else { 5.0 }, 0.0, 0.0, 0.0],
+        });
+    }
+    let gpu = probe(&ctx, &probes).unwrap();
+    let (mut worst_shade, mut worst_iso) = (0f32, 0f32);
+    for (p, g) in probes.iter().zip(&gpu) {
+        let v = |a: [f32; 4]| glam::Vec3::new(a[0], a[1], a[2]);
+        let shade = hillshade(v(p.normal), v(p.up), p.sun[0], p.sun[1], p.sun[2]);
+        let iso = isoline_coverage(p.iso[0], p.iso[1], p.iso[2], p.iso[3], p.spacing[0]);
+        // Relative to the value: the GPU's sin, cos and division may differ by a few ulps.
+        worst_shade = worst_shade.max((g[0] - shade).abs() / shade.abs().max(1.0));
+        worst_iso = worst_iso.max((g[1] - iso).abs());
+    }
+    // Tolerances: WGSL's sin/cos on lavapipe and GPUs are accurate to ~2⁻¹⁶ absolute over the
+    // sun's angles; coverage is a clamp of differences of values of order 10³ pixels.
+    assert!(worst_shade < 1e-4, "hillshade: GPU − CPU up to {worst_shade}");
+    assert!(worst_iso < 2e-3, "isoline coverage: GPU − CPU up to {worst_iso}");
+    eprintln!("shading probe: hillshade within {worst_shade:.2e}, isolines within {worst_iso:.2e}");
+}
+
+#[test]
+fn hillshade_of_a_plane_is_gdaldems() {
+    // A tilted plane written as a GeoTIFF in metres (EPSG:32637), shaded by gdaldem: Horn's
+    // gradient is exact on a plane, so the centre pixel is 1 + 254·cos(angle to the sun),
+    // rounded, which is the CPU hillshade at strength 1 times sin(elevation).
+    let dir = common::scratch("hillshade-gdaldem");
+    let (gx, gy) = (0.35f64, -0.2f64); // dz/dx east, dz/dy north
+    let (azimuth_deg, altitude_deg) = (315.0f64, 45.0f64);
+    let mut xyz = String::new();
+    for j in 0..5 {
+        for i in 0..5 {
+            let (x, y) = (500_000.0 + 10.0 * f64::from(i), 4_400_000.0 - 10.0 * f64::from(j));
+            xyz.push_str(&format!("{x} {y} {}\n", 1000.0 + gx * (x - 500_000.0) + gy * (y - 4_400_000.0)));
+        }
+    }
+    let xyz_path = dir.join("plane.xyz");
+    std::fs::write(&xyz_path, xyz).unwrap();
+    let tif = dir.join("plane.tif");
+    let shade = dir.join("shade.tif");
+    common::run_tool(
+        "gdal_translate",
+        &["-q", "-a_srs", "EPSG:32637", xyz_path.to_str().unwrap(), tif.to_str().unwrap()],
+        "",
+    );
+    common::run_tool(
+        "gdaldem",
+        &[
+            "hillshade",
+            "-q",
+            "-az",
+            &azimuth_deg.to_string(),
+            "-alt",
+            &altitude_deg.to_string(),
+            tif.to_str().unwrap(),
+            shade.to_str().unwrap(),
+        ],
+        "",
+    );
+    let out = common::run_tool("gdallocationinfo", &["-valonly", shade.to_str().unwrap(), "2", "2"], "");
+    let gdal: f64 = out.trim().parse().unwrap();
+    // The normal of z = gx·x + gy·y in east-north-up, on the equator at longitude 0 (up = x,
+    // east = y, north = z).
+    let n = glam::DVec3::new(1.0, -gx, -gy).normalize();
+    let factor = terrafuse::gpu::shading::hillshade(
+        n.as_vec3(),
+        glam::Vec3::X,
+        azimuth_deg.to_radians() as f32,
+        altitude_deg.to_radians() as f32,
+        1.0,
+    );
+    let ours = 1.0 + 254.0 * f64::from(factor) * altitude_deg.to_radians().sin();
+    assert!((ours - gdal).abs() <= 1.0, "ours {ours:.2} vs gdaldem {gdal}");
+}

@@ -1,5 +1,6 @@
-// Per-pixel shading helpers: sRGB transfer, isoline coverage, hillshade. Pure functions; the CPU
-// reference of the sRGB transfer is in src/colour.rs (hillshade's CPU twin is still to write).
+// Per-pixel shading helpers: sRGB transfer, isoline coverage, hillshade. Pure functions; CPU
+// twins: the sRGB transfer in src/colour.rs, isoline coverage and hillshade in
+// src/gpu/shading.rs (a test evaluates both here and there through shaders/probe/shading.wgsl).
 
 fn srgb_to_linear(c: vec3<f32>) -> vec3<f32> {
     let low = c / 12.92;

@@ -9,6 +9,7 @@ pub mod context;
 pub mod erosion;
 pub mod renderer;
 pub mod shaders;
+pub mod shading;
 pub mod targets;
 mod terrain;
 mod uniforms;

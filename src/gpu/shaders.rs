@@ -14,6 +14,7 @@ pub const FILES: &[(&str, &str)] = &[
     ("compose/compose.wgsl", include_str!("../../shaders/compose/compose.wgsl")),
     ("edit/stroke.wgsl", include_str!("../../shaders/edit/stroke.wgsl")),
     ("erosion/erosion.wgsl", include_str!("../../shaders/erosion/erosion.wgsl")),
+    ("probe/shading.wgsl", include_str!("../../shaders/probe/shading.wgsl")),
 ];
 
 /// A shader with its includes expanded; an error names a file or include that is not one of
@@ -70,7 +71,7 @@ mod tests {
         // Every file on disk is embedded (none forgotten) ...
         let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("shaders");
         let mut on_disk = Vec::new();
-        for sub in ["", "shared", "compose", "edit", "erosion"] {
+        for sub in ["", "shared", "compose", "edit", "erosion", "probe"] {
             for entry in std::fs::read_dir(dir.join(sub)).unwrap() {
                 let path = entry.unwrap().path();
                 if path.extension().is_some_and(|e| e == "wgsl") {
