@@ -4,12 +4,12 @@
 // the drawn difference layer's dh in a diverging colour map with its own isolines.
 //!include shared/ecm.wgsl
 //!include shared/shading.wgsl
+//!include generated/codes.wgsl
 
 // Samples per quad edge, and with the skirt ring around them.
 const N: u32 = 257u;
 const NV: u32 = 259u;
 // A height slot of no data, and the value a sample without data is stored as.
-const NO_SLOT: u32 = 0xffffffffu;
 const NODATA_BELOW: f32 = -1.0e37;
 
 struct Frame {

@@ -5,9 +5,9 @@
 // composed heights into the height pool the terrain's vertex stage reads.
 //!include shared/ecm.wgsl
 //!include shared/noise.wgsl
+//!include generated/codes.wgsl
 
 const N: u32 = 257u;
-const NO_SLOT: u32 = 0xffffffffu;
 // A sample without data, in the source and height pools (the terrain shader tests < -1e37).
 const NODATA_STORED: f32 = -3.0e37;
 const NODATA_BELOW: f32 = -1.0e37;
@@ -234,16 +234,16 @@ struct Running {
 fn apply(r: Running, blend: u32, v: f32, a: f32, spacing: f32, data_share: f32) -> Running {
     var out = r;
     switch blend {
-        case 1u: {
+        case BLEND_ADD: {
             if r.has {
                 out.h = r.h + a * v;
             }
         }
-        case 2u: {
+        case BLEND_MIN: {
             out.h = select(v, (1.0 - a) * r.h + a * min(r.h, v), r.has);
             out.has = true;
         }
-        case 3u: {
+        case BLEND_MAX: {
             out.h = select(v, (1.0 - a) * r.h + a * max(r.h, v), r.has);
             out.has = true;
         }
@@ -252,7 +252,7 @@ fn apply(r: Running, blend: u32, v: f32, a: f32, spacing: f32, data_share: f32) 
             out.has = true;
         }
     }
-    if !out.has || blend == 1u {
+    if !out.has || blend == BLEND_ADD {
         return out;
     }
     let share = select(1.0, a, r.has);
@@ -277,11 +277,11 @@ fn compose_layers(job: Job, first: u32, count: u32, i: u32, j: u32, local: vec3<
         var valid = true;
         switch l.head.x {
             // A dataset's raw heights, or an edit layer's deltas.
-            case 0u, 3u: {
+            case KIND_STORE_TILE, KIND_DELTAS: {
                 base = sources[l.head.z * N * N + j * N + i];
                 valid = base > NODATA_BELOW;
             }
-            case 1u: {
+            case KIND_NOISE: {
                 base = procedural(l, job, local, r.spacing, r.coverage);
             }
             default: {
@@ -293,14 +293,14 @@ fn compose_layers(job: Job, first: u32, count: u32, i: u32, j: u32, local: vec3<
         var alpha = 0.0;
         if valid {
             alpha = l.value.x * extent_mask(l, job, local, lon, lat);
-            if l.head.x == 0u && l.noise.x != NO_SLOT {
+            if l.head.x == KIND_STORE_TILE && l.noise.x != NO_SLOT {
                 // layers::edge::edge_mask: smoothstep(d / F) of the distance to the no-data edge.
                 alpha *= smoothstep(0.0, 1.0, sources[l.noise.x * N * N + j * N + i] / l.extra.y);
             }
         }
-        let dataset = l.head.x == 0u;
+        let dataset = l.head.x == KIND_STORE_TILE;
         let spacing = select(FAR, l.extra.z, dataset);
-        if l.head.y == 4u {
+        if l.head.y == BLEND_MEAN {
             if alpha > 0.0 {
                 let w = l.value.y * alpha;
                 group_sum += w * v;
@@ -313,11 +313,11 @@ fn compose_layers(job: Job, first: u32, count: u32, i: u32, j: u32, local: vec3<
             }
             var closes = k + 1u == count;
             if !closes {
-                closes = job_layers[first + k + 1u].head.y != 4u;
+                closes = job_layers[first + k + 1u].head.y != BLEND_MEAN;
             }
             if closes {
                 if group_weight > 0.0 {
-                    r = apply(r, 0u, group_sum / group_weight, group_alpha, group_spacing, group_data_weight / group_weight);
+                    r = apply(r, BLEND_OVER, group_sum / group_weight, group_alpha, group_spacing, group_data_weight / group_weight);
                 }
                 group_sum = 0.0;
                 group_weight = 0.0;

@@ -8,6 +8,7 @@
 // geodetic position of each ring point): each ring point's offset in the tangent plane is turned
 // into grid steps by the local Jacobian of the sample positions.
 //!include shared/noise.wgsl
+//!include generated/codes.wgsl
 
 const N: u32 = 257u;
 // No diagonal of the face crosses the tile (Tile.diag).
@@ -129,9 +130,9 @@ fn falloff_weight(falloff: u32, t: f32) -> f32 {
     }
     let u = max(t, 0.0);
     switch falloff {
-        case 0u: { return 1.0 - u * u * (3.0 - 2.0 * u); }
-        case 1u: { return 1.0 - u; }
-        case 2u: { return sqrt(1.0 - u * u); }
+        case FALLOFF_SMOOTH: { return 1.0 - u * u * (3.0 - 2.0 * u); }
+        case FALLOFF_LINEAR: { return 1.0 - u; }
+        case FALLOFF_SPHERICAL: { return sqrt(1.0 - u * u); }
         default: { return (1.0 - u) * (1.0 - u) * (1.0 - u); }
     }
 }
@@ -184,15 +185,16 @@ fn apply_stroke(@builtin(global_invocation_id) id: vec3<u32>) {
     let r = tile.params.x;
     let strength = tile.params.y;
     let tool = tile.head.z;
-    // Flatten, ramp and smooth: the δ that brings the terrain to the target (T − B).
+    // Flatten, ramp and smooth (the codes from TOOL_FLATTEN up, src/gpu/codes.rs): the δ that
+    // brings the terrain to the target (T − B).
     var goal = 0.0;
-    if tool >= 4u {
+    if tool >= TOOL_FLATTEN {
         let b = below[k];
         if b <= NODATA {
             return;
         }
         var aim = tile.params.z;
-        if tool == 6u {
+        if tool == TOOL_SMOOTH {
             // Only where a dab reaches (the ring costs eight reads).
             var reached = false;
             for (var d = 0u; d < tile.head.y; d++) {
@@ -206,7 +208,7 @@ fn apply_stroke(@builtin(global_invocation_id) id: vec3<u32>) {
                 return;
             }
         }
-        if tool == 5u {
+        if tool == TOOL_RAMP {
             let ab = tile.ramp_b.xyz - tile.ramp_a.xyz;
             let t = clamp(dot(p - tile.ramp_a.xyz, ab) / dot(ab, ab), 0.0, 1.0);
             aim = tile.ramp_a.w + (tile.ramp_b.w - tile.ramp_a.w) * t;
@@ -223,10 +225,10 @@ fn apply_stroke(@builtin(global_invocation_id) id: vec3<u32>) {
         touched = true;
         let s = strength * falloff_weight(tile.head.w, dist / r);
         switch tool {
-            case 0u: { value = value + s; }
-            case 1u: { value = value - s; }
-            case 2u: { value = value + s * noise_octave(tile.cell.xyz, tile.frac.xyz, p, tile.frac.w, tile.cell.w); }
-            case 3u: { value = value * (1.0 - s); }
+            case TOOL_RAISE: { value = value + s; }
+            case TOOL_LOWER: { value = value - s; }
+            case TOOL_NOISE: { value = value + s * noise_octave(tile.cell.xyz, tile.frac.xyz, p, tile.frac.w, tile.cell.w); }
+            case TOOL_RESTORE: { value = value * (1.0 - s); }
             default: { value = value + s * (goal - value); }
         }
     }

@@ -9,6 +9,7 @@
 //! cast from f64: the tile's exact points (every 1 to 8 samples, at most [`LATTICE_M`] apart,
 //! every sample at a face's centre), and the stroke's dab centres.
 
+use super::codes;
 use bytemuck::{Pod, Zeroable};
 use glam::DVec3;
 
@@ -45,18 +46,18 @@ pub const GPU_TOLERANCE: f64 = 1e-5;
 /// One tile (`Tile` in stroke.wgsl; keep in sync).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
-struct StrokeTile {
-    window: [u32; 4],
-    head: [u32; 4],
-    cell: [u32; 4],
-    frac: [f32; 4],
-    params: [f32; 4],
-    ramp_a: [f32; 4],
-    ramp_b: [f32; 4],
-    lat: [u32; 4],
-    diag: [i32; 4],
-    origin: [f32; 4],
-    ext_grid: [u32; 4],
+pub(crate) struct StrokeTile {
+    pub(super) window: [u32; 4],
+    pub(super) head: [u32; 4],
+    pub(super) cell: [u32; 4],
+    pub(super) frac: [f32; 4],
+    pub(super) params: [f32; 4],
+    pub(super) ramp_a: [f32; 4],
+    pub(super) ramp_b: [f32; 4],
+    pub(super) lat: [u32; 4],
+    pub(super) diag: [i32; 4],
+    pub(super) origin: [f32; 4],
+    pub(super) ext_grid: [u32; 4],
 }
 
 const _: () = assert!(std::mem::size_of::<StrokeTile>() == 16 * 11);
@@ -166,19 +167,19 @@ impl GpuRasteriser<'_> {
         let e = job.ellipsoid;
         let stroke = job.stroke;
         let tool = match stroke.tool {
-            Tool::Raise => 0,
-            Tool::Lower => 1,
-            Tool::Noise => 2,
-            Tool::Restore => 3,
-            Tool::Flatten => 4,
-            Tool::Ramp => 5,
-            Tool::Smooth => 6,
+            Tool::Raise => codes::tool::RAISE,
+            Tool::Lower => codes::tool::LOWER,
+            Tool::Noise => codes::tool::NOISE,
+            Tool::Restore => codes::tool::RESTORE,
+            Tool::Flatten => codes::tool::FLATTEN,
+            Tool::Ramp => codes::tool::RAMP,
+            Tool::Smooth => codes::tool::SMOOTH,
         };
         let falloff = match stroke.falloff {
-            Falloff::Smooth => 0,
-            Falloff::Linear => 1,
-            Falloff::Spherical => 2,
-            Falloff::Tip => 3,
+            Falloff::Smooth => codes::falloff::SMOOTH,
+            Falloff::Linear => codes::falloff::LINEAR,
+            Falloff::Spherical => codes::falloff::SPHERICAL,
+            Falloff::Tip => codes::falloff::TIP,
         };
         let wavelength = stroke.radius_m / 2.0;
         let (flat, ramp) = match job.target {

@@ -7,6 +7,7 @@
 //! positions a job carries are relative to the quad's origin O, cast from f64: the kernel works
 //! in quad-local f32, and procedural lattices are addressed from per-octave f64 origins.
 
+use super::codes;
 use bytemuck::{Pod, Zeroable};
 use glam::DVec3;
 
@@ -28,32 +29,32 @@ const WORKGROUP: u32 = 16;
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
 pub struct ComposeJob {
-    corners: [[f32; 4]; 4],
-    sym: [[f32; 4]; 3],
-    origin: [f32; 4],
-    slots: [u32; 4],
-    layers: [u32; 4],
-    params: [f32; 4],
+    pub(super) corners: [[f32; 4]; 4],
+    pub(super) sym: [[f32; 4]; 3],
+    pub(super) origin: [f32; 4],
+    pub(super) slots: [u32; 4],
+    pub(super) layers: [u32; 4],
+    pub(super) params: [f32; 4],
 }
 
 /// One planned layer of a job (`JobLayer` in compose.wgsl; keep in sync).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
 pub struct JobLayer {
-    head: [u32; 4],
-    mask: [u32; 4],
-    noise: [u32; 4],
-    value: [f32; 4],
-    range: [f32; 4],
-    extra: [f32; 4],
+    pub(super) head: [u32; 4],
+    pub(super) mask: [u32; 4],
+    pub(super) noise: [u32; 4],
+    pub(super) value: [f32; 4],
+    pub(super) range: [f32; 4],
+    pub(super) extra: [f32; 4],
 }
 
 /// One octave at one quad (`Octave` in compose.wgsl; keep in sync).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
 pub struct OctaveOrigin {
-    cell: [u32; 4],
-    frac: [f32; 4],
+    pub(super) cell: [u32; 4],
+    pub(super) frac: [f32; 4],
 }
 
 const _: () = assert!(std::mem::size_of::<ComposeJob>() == 16 * 11);
@@ -135,20 +136,20 @@ impl ComposeBatch {
     fn push_layer(&mut self, stack: &Stack, planned: &PlannedLayer, origin: DVec3, slots: (u32, u32)) {
         let layer = &stack.layers[planned.index];
         let spec = &layer.spec;
-        // The kernel's value code and the tile it reads (keep in sync with shaders/compose/).
+        // The kernel's value code and the tile it reads.
         let (kind, source) = match spec.value_source() {
-            ValueSource::StoreTile => (0, slots.0),
-            ValueSource::Noise(_) => (1, NO_SLOT),
-            ValueSource::Constant(_) => (2, NO_SLOT),
-            ValueSource::Deltas => (3, slots.0),
+            ValueSource::StoreTile => (codes::kind::STORE_TILE, slots.0),
+            ValueSource::Noise(_) => (codes::kind::NOISE, NO_SLOT),
+            ValueSource::Constant(_) => (codes::kind::CONSTANT, NO_SLOT),
+            ValueSource::Deltas => (codes::kind::DELTAS, slots.0),
             ValueSource::Nothing => unreachable!("a layer without heights is never planned"),
         };
         let blend = match planned.blend {
-            BlendMode::Over => 0,
-            BlendMode::Add => 1,
-            BlendMode::Min => 2,
-            BlendMode::Max => 3,
-            BlendMode::Mean => 4,
+            BlendMode::Over => codes::blend::OVER,
+            BlendMode::Add => codes::blend::ADD,
+            BlendMode::Min => codes::blend::MIN,
+            BlendMode::Max => codes::blend::MAX,
+            BlendMode::Mean => codes::blend::MEAN,
         };
         let mut mask = [0u32; 4];
         let mut lon_min = 0.0f32;

@@ -48,27 +48,51 @@ pub const CHUNKS: usize = 4;
 /// state.
 pub const BYTES_PER_CELL_STEP: u64 = (16 + 16 + 16 + 32 + 32 + 4 + 96) + (96 + 4 + 16 + 16 + 16 + 16);
 
+/// The run's parameters as the shader lays them out (`Params` in erosion.wgsl; the names are the
+/// shader's, and `gpu::layout`'s test checks every offset against it).
 #[repr(C)]
 #[derive(Clone, Copy, Pod, Zeroable)]
-struct GpuParams {
-    ints: [u32; 8],
-    floats: [f32; 16],
-    weights: [f32; 8],
+pub(super) struct GpuParams {
+    pub(super) width: u32,
+    pub(super) height: u32,
+    pub(super) n: u32,
+    pub(super) groups_x: u32,
+    pub(super) seed: u32,
+    pub(super) open_border: u32,
+    pub(super) groups: u32,
+    pub(super) chunk_shift: u32,
+    pub(super) unit_m3: f32,
+    pub(super) g: f32,
+    pub(super) friction: f32,
+    pub(super) tan_talus: f32,
+    pub(super) thermal: f32,
+    pub(super) hardness: f32,
+    pub(super) capacity: f32,
+    pub(super) capacity_depth_m: f32,
+    pub(super) min_slope: f32,
+    pub(super) dissolve: f32,
+    pub(super) deposit: f32,
+    pub(super) evaporation: f32,
+    pub(super) rain_m_s: f32,
+    pub(super) cfl: f32,
+    pub(super) dt_asked: f32,
+    pub(super) weight_sum: f32,
+    pub(super) weights: [[f32; 4]; 2],
 }
 
 /// The control block as the shader lays it out.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
-struct Control {
-    dt: f32,
-    step: u32,
-    batch_step: u32,
-    _pad: u32,
-    totals: [[u32; 2]; 4],
-    bound: f32,
-    max_speed: f32,
-    max_depth: f32,
-    _pad2: f32,
+pub(super) struct Control {
+    pub(super) dt: f32,
+    pub(super) step: u32,
+    pub(super) batch_step: u32,
+    pub(super) _pad: u32,
+    pub(super) totals: [[u32; 2]; 4],
+    pub(super) bound: f32,
+    pub(super) max_speed: f32,
+    pub(super) max_depth: f32,
+    pub(super) _pad2: f32,
 }
 
 /// What the GPU's control block says: steps, the budget, the last bound and maxima.
@@ -234,35 +258,34 @@ impl GpuRun {
         let flux: Vec<f32> = s.flux_m3_s.iter().flat_map(|f| f.iter().map(|v| *v as f32)).collect();
         let weights = grid.pipe_weight.map(|w| w as f32);
         let params = GpuParams {
-            ints: [
-                grid.width as u32,
-                grid.height as u32,
-                n as u32,
-                GROUPS_X,
-                run.seed,
-                u32::from(p.border == Border::Open),
-                groups,
-                shift,
+            width: grid.width as u32,
+            height: grid.height as u32,
+            n: n as u32,
+            groups_x: GROUPS_X,
+            seed: run.seed,
+            open_border: u32::from(p.border == Border::Open),
+            groups,
+            chunk_shift: shift,
+            unit_m3: run.unit_m3() as f32,
+            g: p.gravity_m_s2 as f32,
+            friction: p.friction_per_s as f32,
+            tan_talus: p.talus_deg.to_radians().tan() as f32,
+            thermal: p.thermal_per_s as f32,
+            hardness: p.hardness as f32,
+            capacity: p.capacity as f32,
+            capacity_depth_m: p.capacity_depth_m as f32,
+            min_slope: p.min_slope as f32,
+            dissolve: p.dissolve_per_s as f32,
+            deposit: p.deposit_per_s as f32,
+            evaporation: p.evaporation_per_s as f32,
+            rain_m_s: p.rain_m_s as f32,
+            cfl: p.cfl as f32,
+            dt_asked: p.dt_s as f32,
+            weight_sum: weights.iter().sum(),
+            weights: [
+                [weights[0], weights[1], weights[2], weights[3]],
+                [weights[4], weights[5], weights[6], weights[7]],
             ],
-            floats: [
-                run.unit_m3() as f32,
-                p.gravity_m_s2 as f32,
-                p.friction_per_s as f32,
-                p.talus_deg.to_radians().tan() as f32,
-                p.thermal_per_s as f32,
-                p.hardness as f32,
-                p.capacity as f32,
-                p.capacity_depth_m as f32,
-                p.min_slope as f32,
-                p.dissolve_per_s as f32,
-                p.deposit_per_s as f32,
-                p.evaporation_per_s as f32,
-                p.rain_m_s as f32,
-                p.cfl as f32,
-                p.dt_s as f32,
-                weights.iter().sum(),
-            ],
-            weights,
         };
         let b = &run.budget;
         let control = Control {

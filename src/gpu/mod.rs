@@ -3,10 +3,12 @@
 //! renderer that draws a [`crate::scene::Scene`].
 
 pub mod brush;
+pub mod codes;
 pub mod compose;
 mod compute;
 pub mod context;
 pub mod erosion;
+mod layout;
 pub mod renderer;
 pub mod shaders;
 pub mod shading;

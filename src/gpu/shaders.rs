@@ -17,6 +17,9 @@ pub const FILES: &[(&str, &str)] = &[
     ("probe/shading.wgsl", include_str!("../../shaders/probe/shading.wgsl")),
 ];
 
+/// The include that [`super::codes::wgsl`] generates: the codes shared with the CPU.
+const GENERATED_CODES: &str = "generated/codes.wgsl";
+
 /// A shader with its includes expanded; an error names a file or include that is not one of
 /// [`FILES`] (the naga test expands every shipped file).
 pub fn composed(name: &str) -> Result<String, GpuError> {
@@ -27,6 +30,10 @@ pub fn composed(name: &str) -> Result<String, GpuError> {
 
 /// Appends file `name` to `out` with its includes expanded; `seen` holds the files already in.
 fn expand(name: &str, seen: &mut Vec<String>, out: &mut String) -> Result<(), GpuError> {
+    if name == GENERATED_CODES {
+        out.push_str(&super::codes::wgsl());
+        return Ok(());
+    }
     for line in file(name)?.lines() {
         match line.trim().strip_prefix("//!include ") {
             Some(include) => {

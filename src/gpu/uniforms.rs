@@ -4,8 +4,7 @@
 
 use bytemuck::{Pod, Zeroable};
 
-/// The shader's "no slot".
-pub(crate) const NO_SLOT: u32 = u32::MAX;
+pub(crate) use super::codes::NO_SLOT;
 
 /// Per-frame values (`Frame` in terrain.wgsl; keep in sync).
 #[repr(C)]
