@@ -340,6 +340,8 @@ fn the_compare_section_shows_statistics_and_applies_a_coregistration() {
     let range_before = wait_for_range(&mut h);
     assert!(range_before > 100.0, "a 3 and 5 pixel shift in mountains: {range_before} m");
     // Defaults: the top dataset (blurred) against the one below (srtm).
+    h.get_by_label("Compare").click_accesskit();
+    h.run_steps(2);
     h.get_by_label("compare").click_accesskit();
     h.step();
     assert!(h.state().compare_panel().busy(), "the comparison runs in the background");
@@ -395,6 +397,8 @@ fn swiping_shows_a_left_of_a_line_and_b_right_of_it_and_the_line_drags() {
     let project = sample_project("erzurum-compare", &dir);
     let mut h = harness_of_size(&project, "30km", egui::vec2(900.0, 1700.0));
     settle(&mut h);
+    h.get_by_label("Compare").click_accesskit();
+    h.run_steps(2);
     h.get_by_label("swipe blurred | srtm").click_accesskit();
     h.run_steps(3);
     settle(&mut h);
@@ -459,6 +463,8 @@ fn a_profile_drawn_with_two_clicks_shows_each_visible_layer_and_saves_its_line()
     let project = sample_project("erzurum-compare", &dir);
     let mut h = harness_of_size(&project, "30km", egui::vec2(900.0, 1700.0));
     settle(&mut h);
+    h.get_by_label("Compare").click_accesskit();
+    h.run_steps(2);
     h.get_by_label("draw a profile").click_accesskit();
     h.run_steps(2);
     let r = h.state().viewport_rect_px().unwrap();
@@ -502,6 +508,8 @@ fn a_left_drag_with_the_brush_on_paints_a_stroke_and_ctrl_z_undoes_it() {
         (l.strokes().len(), l.applied_strokes().len())
     };
     let (n, _) = strokes(&h);
+    h.get_by_label("Brush").click_accesskit();
+    h.run_steps(2);
     h.get_by_label("brush (left drag paints)").click_accesskit();
     h.run_steps(2);
     assert!(h.state().brush_state().0, "the brush is on");
@@ -556,6 +564,8 @@ fn the_erosion_section_starts_steps_runs_keeps_undoes_and_brushes_a_run() {
         (l.runs().len(), l.applied_runs().len())
     };
     assert_eq!(runs(&h), (2, 2));
+    h.get_by_label("Erosion").click_accesskit();
+    h.run_steps(2);
     h.state_mut().set_erosion(6, 2000.0);
     h.get_by_label("start").click_accesskit();
     h.run_steps(2);

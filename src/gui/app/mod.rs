@@ -19,6 +19,7 @@ use crate::scene::resolve_ramp;
 mod brush;
 mod erosion;
 pub mod file;
+mod legend;
 mod profile;
 mod side_panel;
 mod swipe;
@@ -64,6 +65,8 @@ pub struct App {
     drag: Option<Drag>,
     hover: Option<(u32, u32)>,
     view_name: String,
+    /// The tab shown below the layers: view settings or a tool.
+    tab: side_panel::Tab,
     message: String,
     unsaved: bool,
     screenshot: Option<ScreenshotJob>,
@@ -71,6 +74,8 @@ pub struct App {
     shot_requested: bool,
     settled_frames: u32,
     viewport_px: Option<egui::Rect>,
+    /// Where the legend was drawn, physical pixels.
+    legend_px: Option<egui::Rect>,
     outcome: Outcome,
     device: String,
     /// Asking whether to save before closing.
@@ -129,6 +134,7 @@ impl App {
             drag: None,
             hover: None,
             view_name: String::new(),
+            tab: side_panel::Tab::View,
             message: String::new(),
             unsaved: false,
             screenshot,
@@ -136,6 +142,7 @@ impl App {
             shot_requested: false,
             settled_frames: 0,
             viewport_px: None,
+            legend_px: None,
             outcome,
             device,
             confirm_close: false,
@@ -519,8 +526,10 @@ impl App {
             let result = write_screenshot(&job.path, &image).map(|()| {
                 let r = self.viewport_px.unwrap_or(egui::Rect::NOTHING);
                 let (w, h) = self.viewport.as_ref().map_or((0, 0), |v| v.size());
+                let l = self.legend_px.unwrap_or(egui::Rect::ZERO);
+                let legend = format!("legend: {} {} {} {} (x y width height, pixels)", l.min.x, l.min.y, l.width(), l.height());
                 format!(
-                    "{}\nwindow: {}x{} pixels, written to {}\nviewport: {} {} {} {} (x y width height, pixels; rendered {w}x{h})\ncamera: {:.6},{:.6},{:.3},{:.4},{:.4},{:.3}\nframe: {}\ngpu: {}\nframes rendered: {}, {:.1} s\n",
+                    "{}\nwindow: {}x{} pixels, written to {}\nviewport: {} {} {} {} (x y width height, pixels; rendered {w}x{h})\n{legend}\ncamera: {:.6},{:.6},{:.3},{:.4},{:.4},{:.3}\nframe: {}\ngpu: {}\nframes rendered: {}, {:.1} s\n",
                     self.device,
                     image.size[0],
                     image.size[1],
@@ -674,6 +683,9 @@ impl eframe::App for App {
             {
                 let uv = egui::Rect::from_min_max(egui::pos2(0.0, 0.0), egui::pos2(1.0, 1.0));
                 ui.painter().image(vp.texture, rect, uv, egui::Color32::WHITE);
+            }
+            if self.viewport.is_some() {
+                self.legend(ui, view);
             }
         });
         if self.stats.pending > 0 || self.stats.uploads > 0 || self.stats.requested > 0 || !self.swipe_settled() {

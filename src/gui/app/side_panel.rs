@@ -1,11 +1,38 @@
-//! The settings panel on the left: views, camera, detail, colour, isolines, lighting, the layer
-//! stack, adding datasets, comparison, saving and the project's facts.
+//! The panel on the left: the project's views and its layer stack, always in sight, then one
+//! click away below them the view settings (camera, detail, colour, isolines, lighting, each
+//! collapsible), the tools (compare, brush, erosion) and the project's facts.
 
 use super::*;
 
+/// What the panel shows below the layers.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Tab {
+    /// The view settings.
+    View,
+    /// Comparison, co-registration, differences, swipes and profiles.
+    Compare,
+    /// Brushing an edit layer.
+    Brush,
+    /// Erosion runs and the erosion brush.
+    Erosion,
+    /// The project's file, body, datasets and device.
+    Project,
+}
+
+impl Tab {
+    const ALL: [(Tab, &'static str); 5] = [
+        (Tab::View, "View"),
+        (Tab::Compare, "Compare"),
+        (Tab::Brush, "Brush"),
+        (Tab::Erosion, "Erosion"),
+        (Tab::Project, "Project"),
+    ];
+}
+
 impl App {
     pub(super) fn side_panel(&mut self, ui: &mut egui::Ui) {
-        egui::ScrollArea::vertical().show(ui, |ui| {
+        // The views and the layers: at most half the panel's height, scrolled within it.
+        egui::ScrollArea::vertical().id_salt("layers").max_height(ui.available_height() * 0.5).show(ui, |ui| {
             ui.heading("Views");
             let names: Vec<String> = self.project.views.keys().cloned().collect();
             ui.horizontal_wrapped(|ui| {
@@ -25,122 +52,6 @@ impl App {
                     self.save_view();
                 }
             });
-
-            ui.separator();
-            ui.heading("Camera");
-            let mut c = self.camera;
-            egui::Grid::new("camera").num_columns(2).show(ui, |ui| {
-                let row = |ui: &mut egui::Ui, label: &str, v: &mut f64, speed: f64, range: (f64, f64), unit: &str| {
-                    let name = ui.label(label).id;
-                    ui.add(egui::DragValue::new(v).speed(speed).range(range.0..=range.1).suffix(unit).max_decimals(6))
-                        .labelled_by(name);
-                    ui.end_row();
-                };
-                row(ui, "latitude", &mut c.lat, 0.01, (-90.0, 90.0), "°");
-                row(ui, "longitude", &mut c.lon, 0.01, (-180.0, 180.0), "°");
-                let alt_speed = (c.alt.abs() * 0.01).max(1.0);
-                row(ui, "altitude", &mut c.alt, alt_speed, (-1.0e5, 1.0e9), " m");
-                row(ui, "heading", &mut c.heading, 0.5, (0.0, 360.0), "°");
-                row(ui, "pitch", &mut c.pitch, 0.5, (-90.0, 90.0), "°");
-                row(ui, "field of view", &mut c.fov, 0.5, (1.0, 150.0), "°");
-            });
-            self.set_camera(c);
-            let text = format!(
-                "{:.6},{:.6},{:.1},{:.2},{:.2},{:.1}",
-                self.camera.lat,
-                self.camera.lon,
-                self.camera.alt,
-                self.camera.heading,
-                self.camera.pitch,
-                self.camera.fov
-            );
-            ui.label(egui::RichText::new(format!("--camera {text}")).monospace().small())
-                .on_hover_text("this camera for terrafuse render");
-
-            ui.separator();
-            ui.heading("Detail");
-            let t = self.threshold_px;
-            ui.add(egui::Slider::new(&mut self.threshold_px, 0.5..=8.0).logarithmic(true).text("t, pixels per sample"));
-            if t != self.threshold_px {
-                self.renderer.set_threshold(self.threshold_px);
-                self.dirty = true;
-                self.mark_unsaved();
-            }
-            let s = self.render_scale;
-            ui.add(egui::Slider::new(&mut self.render_scale, 0.25..=1.0).text("render scale"))
-                .on_hover_text("renders fewer pixels and scales the image up (for software GPUs)");
-            if s != self.render_scale {
-                self.dirty = true;
-            }
-
-            ui.separator();
-            ui.heading("Colour");
-            let v = &mut self.visuals;
-            let current = match &v.colour_map.file {
-                Some(f) => format!("file {}", f.display()),
-                None => v.colour_map.preset.clone(),
-            };
-            egui::ComboBox::from_label("colour map").selected_text(current).show_ui(ui, |ui| {
-                for (name, _, _) in crate::colour::PRESETS {
-                    if ui.selectable_label(v.colour_map.file.is_none() && v.colour_map.preset == *name, *name).clicked()
-                    {
-                        v.colour_map.preset = (*name).to_string();
-                        v.colour_map.file = None;
-                    }
-                }
-            });
-            let data = self.renderer.scene().range_m;
-            let mut range = v.colour_map.range_m.unwrap_or([data.0, data.1]);
-            ui.horizontal(|ui| {
-                ui.label("range");
-                let low = ui.add(egui::DragValue::new(&mut range[0]).speed(10.0).suffix(" m"));
-                low.on_hover_text("the height of the ramp's first colour");
-                let high = ui.add(egui::DragValue::new(&mut range[1]).speed(10.0).suffix(" m"));
-                high.on_hover_text("the height of the ramp's last colour");
-                if ui.small_button("data").on_hover_text("the datasets' height range").clicked() {
-                    range = [data.0, data.1];
-                }
-            });
-            if range[1] > range[0] && Some(range) != v.colour_map.range_m && range != [data.0, data.1] {
-                v.colour_map.range_m = Some(range);
-            } else if range == [data.0, data.1] {
-                v.colour_map.range_m = None;
-            }
-            ui.add(egui::Slider::new(&mut v.exaggeration, 0.1..=50.0).logarithmic(true).text("exaggeration"));
-
-            ui.separator();
-            ui.heading("Isolines");
-            let iso = &mut v.isolines;
-            ui.checkbox(&mut iso.enabled, "show isolines");
-            egui::Grid::new("isolines").num_columns(2).show(ui, |ui| {
-                let row = |ui: &mut egui::Ui, label: &str, value: egui::DragValue<'_>| {
-                    let name = ui.label(label).id;
-                    ui.add(value).labelled_by(name);
-                    ui.end_row();
-                };
-                row(
-                    ui,
-                    "interval",
-                    egui::DragValue::new(&mut iso.interval_m).speed(1.0).range(0.01..=1.0e6).suffix(" m"),
-                );
-                row(ui, "offset", egui::DragValue::new(&mut iso.offset_m).speed(1.0).suffix(" m"));
-                row(ui, "major every", egui::DragValue::new(&mut iso.major_every).range(0..=100));
-                row(ui, "width", egui::DragValue::new(&mut iso.width_px).speed(0.05).range(0.1..=10.0).suffix(" px"));
-                row(
-                    ui,
-                    "major width",
-                    egui::DragValue::new(&mut iso.major_width_px).speed(0.05).range(0.1..=10.0).suffix(" px"),
-                );
-            });
-
-            ui.separator();
-            ui.heading("Lighting");
-            let light = &mut v.lighting;
-            ui.checkbox(&mut light.enabled, "hillshade");
-            ui.add(egui::Slider::new(&mut light.sun_azimuth_deg, 0.0..=360.0).text("sun azimuth °"));
-            ui.add(egui::Slider::new(&mut light.sun_elevation_deg, 0.0..=90.0).text("sun elevation °"));
-            ui.add(egui::Slider::new(&mut light.strength, 0.0..=1.0).text("strength"));
-            self.apply_visuals();
 
             ui.separator();
             ui.heading("Layers");
@@ -191,83 +102,208 @@ impl App {
                     self.message = e.to_string();
                 }
             }
-
-            ui.separator();
-            ui.heading("Brush");
-            self.brush_ui(ui);
-
-            ui.separator();
-            ui.heading("Erosion");
-            self.erosion_ui(ui);
-
-            ui.separator();
-            ui.heading("Compare");
-            match self.compare.ui(ui, &self.project) {
-                crate::gui::compare_panel::CompareAction::Apply { layer, shift_m, up_m } => {
-                    self.apply_coregistration(&layer, shift_m, up_m);
-                }
-                crate::gui::compare_panel::CompareAction::ShowDifference { a, b } => {
-                    let spec = crate::gui::difference_ui::new_layer(&self.project, &a, &b);
-                    let mut change = crate::gui::layers_panel::LayersChange::default();
-                    crate::gui::layers_panel::insert(&mut self.renderer, &mut self.project, spec, &mut change);
-                    if change.changed {
-                        self.dirty = true;
-                        self.mark_unsaved();
-                        self.message = format!("drawing {a} - {b} over the terrain (layer on top of the stack)");
-                    }
-                    if let Some(e) = change.error {
-                        self.message = e.to_string();
-                    }
-                }
-                crate::gui::compare_panel::CompareAction::None => {}
+        });
+        ui.separator();
+        ui.horizontal_wrapped(|ui| {
+            for (tab, name) in Tab::ALL {
+                ui.selectable_value(&mut self.tab, tab, name);
             }
-            self.profile_ui(ui);
-            let (a, b) = self.compare.selection();
-            let (a, b) = (a.to_string(), b.to_string());
-            if !a.is_empty() && a != b {
-                let mut on = self.swipe.is_some();
-                if ui
-                    .checkbox(&mut on, format!("swipe {a} | {b}"))
-                    .on_hover_text("A left of a line, B right of it; drag the line in the view")
-                    .changed()
-                {
-                    if on {
-                        self.swipe_request = Some((a, b));
-                    } else {
-                        self.swipe = None;
-                        self.dirty = true;
+        });
+        ui.separator();
+        egui::ScrollArea::vertical().id_salt("tab").show(ui, |ui| match self.tab {
+            Tab::View => self.view_settings(ui),
+            Tab::Compare => self.compare_tab(ui),
+            Tab::Brush => self.brush_ui(ui),
+            Tab::Erosion => self.erosion_ui(ui),
+            Tab::Project => self.project_facts(ui),
+        });
+    }
+
+    /// Camera, detail, colour, isolines and lighting, each in a collapsible section.
+    fn view_settings(&mut self, ui: &mut egui::Ui) {
+        egui::CollapsingHeader::new("Camera").default_open(false).show(ui, |ui| {
+            let mut c = self.camera;
+            egui::Grid::new("camera").num_columns(2).show(ui, |ui| {
+                let row = |ui: &mut egui::Ui, label: &str, v: &mut f64, speed: f64, range: (f64, f64), unit: &str| {
+                    let name = ui.label(label).id;
+                    ui.add(egui::DragValue::new(v).speed(speed).range(range.0..=range.1).suffix(unit).max_decimals(6))
+                        .labelled_by(name);
+                    ui.end_row();
+                };
+                row(ui, "latitude", &mut c.lat, 0.01, (-90.0, 90.0), "°");
+                row(ui, "longitude", &mut c.lon, 0.01, (-180.0, 180.0), "°");
+                let alt_speed = (c.alt.abs() * 0.01).max(1.0);
+                row(ui, "altitude", &mut c.alt, alt_speed, (-1.0e5, 1.0e9), " m");
+                row(ui, "heading", &mut c.heading, 0.5, (0.0, 360.0), "°");
+                row(ui, "pitch", &mut c.pitch, 0.5, (-90.0, 90.0), "°");
+                row(ui, "field of view", &mut c.fov, 0.5, (1.0, 150.0), "°");
+            });
+            self.set_camera(c);
+            let text = format!(
+                "{:.6},{:.6},{:.1},{:.2},{:.2},{:.1}",
+                self.camera.lat,
+                self.camera.lon,
+                self.camera.alt,
+                self.camera.heading,
+                self.camera.pitch,
+                self.camera.fov
+            );
+            ui.label(egui::RichText::new(format!("--camera {text}")).monospace().small())
+                .on_hover_text("this camera for terrafuse render");
+        });
+        egui::CollapsingHeader::new("Detail").default_open(false).show(ui, |ui| {
+            let t = self.threshold_px;
+            ui.add(egui::Slider::new(&mut self.threshold_px, 0.5..=8.0).logarithmic(true).text("t, pixels per sample"));
+            if t != self.threshold_px {
+                self.renderer.set_threshold(self.threshold_px);
+                self.dirty = true;
+                self.mark_unsaved();
+            }
+            let s = self.render_scale;
+            ui.add(egui::Slider::new(&mut self.render_scale, 0.25..=1.0).text("render scale"))
+                .on_hover_text("renders fewer pixels and scales the image up (for software GPUs)");
+            if s != self.render_scale {
+                self.dirty = true;
+            }
+        });
+        egui::CollapsingHeader::new("Colour").default_open(true).show(ui, |ui| {
+            let v = &mut self.visuals;
+            let current = match &v.colour_map.file {
+                Some(f) => format!("file {}", f.display()),
+                None => v.colour_map.preset.clone(),
+            };
+            egui::ComboBox::from_label("colour map").selected_text(current).show_ui(ui, |ui| {
+                for (name, _, _) in crate::colour::PRESETS {
+                    if ui.selectable_label(v.colour_map.file.is_none() && v.colour_map.preset == *name, *name).clicked()
+                    {
+                        v.colour_map.preset = (*name).to_string();
+                        v.colour_map.file = None;
                     }
                 }
-                if let Some(swipe) = &mut self.swipe
-                    && ui
-                        .checkbox(&mut swipe.side_by_side, "side by side")
-                        .on_hover_text("two linked views, one camera, instead of one split picture")
-                        .changed()
-                {
+            });
+            let data = self.renderer.scene().range_m;
+            let mut range = v.colour_map.range_m.unwrap_or([data.0, data.1]);
+            ui.horizontal(|ui| {
+                ui.label("range");
+                let low = ui.add(egui::DragValue::new(&mut range[0]).speed(10.0).suffix(" m"));
+                low.on_hover_text("the height of the ramp's first colour");
+                let high = ui.add(egui::DragValue::new(&mut range[1]).speed(10.0).suffix(" m"));
+                high.on_hover_text("the height of the ramp's last colour");
+                if ui.small_button("data").on_hover_text("the datasets' height range").clicked() {
+                    range = [data.0, data.1];
+                }
+            });
+            if range[1] > range[0] && Some(range) != v.colour_map.range_m && range != [data.0, data.1] {
+                v.colour_map.range_m = Some(range);
+            } else if range == [data.0, data.1] {
+                v.colour_map.range_m = None;
+            }
+            ui.add(egui::Slider::new(&mut v.exaggeration, 0.1..=50.0).logarithmic(true).text("exaggeration"));
+        });
+        egui::CollapsingHeader::new("Isolines").default_open(true).show(ui, |ui| {
+            let v = &mut self.visuals;
+            let iso = &mut v.isolines;
+            ui.checkbox(&mut iso.enabled, "show isolines");
+            egui::Grid::new("isolines").num_columns(2).show(ui, |ui| {
+                let row = |ui: &mut egui::Ui, label: &str, value: egui::DragValue<'_>| {
+                    let name = ui.label(label).id;
+                    ui.add(value).labelled_by(name);
+                    ui.end_row();
+                };
+                row(
+                    ui,
+                    "interval",
+                    egui::DragValue::new(&mut iso.interval_m).speed(1.0).range(0.01..=1.0e6).suffix(" m"),
+                );
+                row(ui, "offset", egui::DragValue::new(&mut iso.offset_m).speed(1.0).suffix(" m"));
+                row(ui, "major every", egui::DragValue::new(&mut iso.major_every).range(0..=100));
+                row(ui, "width", egui::DragValue::new(&mut iso.width_px).speed(0.05).range(0.1..=10.0).suffix(" px"));
+                row(
+                    ui,
+                    "major width",
+                    egui::DragValue::new(&mut iso.major_width_px).speed(0.05).range(0.1..=10.0).suffix(" px"),
+                );
+            });
+        });
+        egui::CollapsingHeader::new("Lighting").default_open(false).show(ui, |ui| {
+            let v = &mut self.visuals;
+            let light = &mut v.lighting;
+            ui.checkbox(&mut light.enabled, "hillshade");
+            ui.add(egui::Slider::new(&mut light.sun_azimuth_deg, 0.0..=360.0).text("sun azimuth °"));
+            ui.add(egui::Slider::new(&mut light.sun_elevation_deg, 0.0..=90.0).text("sun elevation °"));
+            ui.add(egui::Slider::new(&mut light.strength, 0.0..=1.0).text("strength"));
+        });
+        self.apply_visuals();
+        ui.separator();
+        ui.label(
+            egui::RichText::new(
+                "drag: move the globe · right drag or ctrl+drag: orbit · middle drag or shift+drag: look · \
+                 wheel: zoom to the cursor · W A S D / arrows: fly · Q E: down, up · N: north up · H: home",
+            )
+            .small(),
+        );
+    }
+
+    /// The comparison panel, its profile and the swipe.
+    fn compare_tab(&mut self, ui: &mut egui::Ui) {
+        match self.compare.ui(ui, &self.project) {
+            crate::gui::compare_panel::CompareAction::Apply { layer, shift_m, up_m } => {
+                self.apply_coregistration(&layer, shift_m, up_m);
+            }
+            crate::gui::compare_panel::CompareAction::ShowDifference { a, b } => {
+                let spec = crate::gui::difference_ui::new_layer(&self.project, &a, &b);
+                let mut change = crate::gui::layers_panel::LayersChange::default();
+                crate::gui::layers_panel::insert(&mut self.renderer, &mut self.project, spec, &mut change);
+                if change.changed {
+                    self.dirty = true;
+                    self.mark_unsaved();
+                    self.message = format!("drawing {a} - {b} over the terrain (layer on top of the stack)");
+                }
+                if let Some(e) = change.error {
+                    self.message = e.to_string();
+                }
+            }
+            crate::gui::compare_panel::CompareAction::None => {}
+        }
+        self.profile_ui(ui);
+        let (a, b) = self.compare.selection();
+        let (a, b) = (a.to_string(), b.to_string());
+        if !a.is_empty() && a != b {
+            let mut on = self.swipe.is_some();
+            if ui
+                .checkbox(&mut on, format!("swipe {a} | {b}"))
+                .on_hover_text("A left of a line, B right of it; drag the line in the view")
+                .changed()
+            {
+                if on {
+                    self.swipe_request = Some((a, b));
+                } else {
+                    self.swipe = None;
                     self.dirty = true;
                 }
             }
-
-            ui.separator();
-            ui.heading("Project");
-            ui.label(self.project_path.display().to_string());
-            ui.label(format!("body: {}", self.project.body));
-            for info in self.renderer.scene().datasets.iter() {
-                ui.label(format!(
-                    "{}: levels 0–{}, {:.0} … {:.0} m",
-                    info.dataset, info.finest_level, info.range_m.0, info.range_m.1
-                ));
+            if let Some(swipe) = &mut self.swipe
+                && ui
+                    .checkbox(&mut swipe.side_by_side, "side by side")
+                    .on_hover_text("two linked views, one camera, instead of one split picture")
+                    .changed()
+            {
+                self.dirty = true;
             }
-            ui.label(egui::RichText::new(&self.device).small());
-            ui.separator();
-            ui.label(
-                egui::RichText::new(
-                    "drag: move the globe · right drag or ctrl+drag: orbit · middle drag or shift+drag: look · \
-                     wheel: zoom to the cursor · W A S D / arrows: fly · Q E: down, up · N: north up · H: home",
-                )
-                .small(),
-            );
-        });
+        }
+    }
+
+    /// The project's file, body, datasets and device.
+    fn project_facts(&mut self, ui: &mut egui::Ui) {
+        ui.label(self.project_path.display().to_string());
+        ui.label(format!("body: {}", self.project.body));
+        for info in self.renderer.scene().datasets.iter() {
+            ui.label(format!(
+                "{}: levels 0–{}, {:.0} … {:.0} m",
+                info.dataset, info.finest_level, info.range_m.0, info.range_m.1
+            ));
+        }
+        ui.label(egui::RichText::new(&self.device).small());
     }
 
     /// Moves layer `layer` by `shift_m` more and raises it by `up_m` (a co-registration applied).
