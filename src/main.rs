@@ -255,7 +255,8 @@ enum Command {
         /// The box: WEST,SOUTH,EAST,NORTH degrees (west > east crosses the antimeridian).
         #[arg(long, allow_hyphen_values = true)]
         region: Option<String>,
-        /// The level whose samples are the cells.
+        /// The level whose samples are the cells (default: the coarsest with 512 cells along the
+        /// box's north–south side, as the workstation chooses).
         #[arg(long)]
         level: Option<u8>,
         /// Steps (each the preset's Δt or less, by the CFL bound).

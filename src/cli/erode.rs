@@ -38,7 +38,7 @@ pub struct ErodeRequest {
     pub layer: String,
     /// `WEST,SOUTH,EAST,NORTH`, degrees (west > east crosses the antimeridian).
     pub region: Option<String>,
-    /// The level of the cells.
+    /// The level of the cells (default: `erosion::placement::default_level`).
     pub level: Option<u8>,
     /// Steps.
     pub steps: Option<u64>,
@@ -114,10 +114,16 @@ pub fn erode_command(request: &ErodeRequest) -> Result<String, CliError> {
             return finish(&project, path, index, out);
         }
         (None, None, true) => {}
-        _ => return Err("give either --region, --level and --steps for a run, or --undo N, or --redo N".into()),
+        _ => return Err("give either --region and --steps (and --level) for a run, or --undo N, or --redo N".into()),
     }
     let region = super::geo::parse_box(request.region.as_deref().ok_or("--region: a run needs its box")?)?;
-    let level = request.level.ok_or("--level: a run needs the level of its cells")?;
+    // Without --level, as the workstation chooses: the layer's level, else the coarsest with 512
+    // cells along the box.
+    let layer_level = project.layers[index].runs().first().map(|r| r.level);
+    let level = match request.level.or(layer_level) {
+        Some(level) => level,
+        None => crate::erosion::placement::default_level(&project.ellipsoid()?, &region),
+    };
     let steps = request.steps.ok_or("--steps: a run needs its number of steps")?;
     let preset = request.preset.clone().unwrap_or_else(|| "rain".into());
     let params = params_of(&preset, &project.body, &request.set)?;

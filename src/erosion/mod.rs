@@ -23,6 +23,7 @@ pub mod grid;
 pub mod layer;
 pub mod operation;
 pub mod params;
+pub mod placement;
 pub mod region;
 pub mod sim;
 

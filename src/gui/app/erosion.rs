@@ -15,11 +15,9 @@ use crate::erosion::operation::{BrushPath, Device, Operation};
 use crate::erosion::params::{Params, gravity_of_body};
 use crate::erosion::region::Region;
 use crate::erosion::sim::Run;
-use crate::geodesy::GeoBox;
 use crate::gpu::erosion::GpuRun;
 use crate::gui::GuiError;
 use crate::layers::LayerSpec;
-use crate::store::grid::spacing_m;
 
 /// What the region map shows.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -347,18 +345,7 @@ impl App {
     pub(crate) fn start_erosion(&mut self, brush: Option<BrushPath>) {
         let e = self.renderer.scene().ellipsoid;
         let (centre, half) = match &brush {
-            Some(b) => {
-                let (lat0, lat1) = b.points.iter().fold((90f64, -90f64), |m, p| (m.0.min(p[0]), m.1.max(p[0])));
-                let (lon0, lon1) = b.points.iter().fold((180f64, -180f64), |m, p| (m.0.min(p[1]), m.1.max(p[1])));
-                let r = (b.radius_m / e.a_m()).to_degrees();
-                let box_ = GeoBox::wrapped(
-                    lon0 - r / lat0.to_radians().cos().max(0.05),
-                    lat0 - r,
-                    lon1 + r / lat1.to_radians().cos().max(0.05),
-                    lat1 + r,
-                );
-                (None, Some(box_))
-            }
+            Some(b) => (None, Some(crate::erosion::placement::box_along(&e, &b.points, b.radius_m))),
             None => {
                 let ppp = self.erosion.ctx.as_ref().map_or(1.0, egui::Context::pixels_per_point);
                 let centre = self.viewport_rect_px().and_then(|rect| {
@@ -375,10 +362,12 @@ impl App {
             (_, Some(b)) => b,
             (Some(p), None) => {
                 let g = geodesy::geodetic_from_ecef(&e, p);
-                let (lat, lon) = (g.lat_rad.to_degrees(), g.lon_rad.to_degrees());
-                let d = (self.erosion.half_m / e.a_m()).to_degrees();
-                let d_lon = d / lat.to_radians().cos().max(0.05);
-                GeoBox::wrapped(lon - d_lon, lat - d, lon + d_lon, lat + d)
+                crate::erosion::placement::box_around(
+                    &e,
+                    g.lat_rad.to_degrees(),
+                    g.lon_rad.to_degrees(),
+                    self.erosion.half_m,
+                )
             }
             (None, None) => {
                 self.message = "erosion: no terrain at the view's centre".into();
@@ -393,12 +382,9 @@ impl App {
             }
         };
         let t = &self.erosion;
-        let side_m = (region.north_deg - region.south_deg).to_radians() * e.a_m();
         let index = self.project.layers.iter().position(|l| l.name == t.layer);
         let layer_level = index.and_then(|i| self.project.layers[i].runs().first().map(|r| r.level));
-        let level = layer_level
-            .or(t.level)
-            .unwrap_or_else(|| (0..=22u8).find(|l| spacing_m(&e, *l) * 512.0 <= side_m).unwrap_or(22));
+        let level = layer_level.or(t.level).unwrap_or_else(|| crate::erosion::placement::default_level(&e, &region));
         let Some(params) = Params::preset(&t.preset, gravity_of_body(&self.project.body)) else { return };
         let op = Operation {
             region,
