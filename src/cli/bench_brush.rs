@@ -4,8 +4,8 @@
 //! front/right face edge. Deterministic: the strokes come from a fixed PCG sequence.
 
 use super::CliError;
+use super::bench_harness::{timed, timed_ms};
 use std::fmt::Write as _;
-use std::time::Instant;
 
 use crate::ecm::QuadId;
 use crate::ecm::points::sample_point;
@@ -60,23 +60,19 @@ fn waves_below(q: QuadId) -> Result<Vec<f32>, crate::errors::Failure> {
 pub fn bench_brush(strokes: usize, level: u8, gpu: bool) -> Result<String, CliError> {
     let e = Ellipsoid::MOON;
     let session = scripted_strokes(strokes, level);
-    let t = Instant::now();
-    let mut raster = EditRaster::build(e, &session, &waves_below)?;
-    let build_s = t.elapsed().as_secs_f64();
+    let (raster, build_s) = timed(|| EditRaster::build(e, &session, &waves_below));
+    let mut raster = raster?;
     let extra = scripted_strokes(strokes + 1, level).pop().ok_or("no stroke")?;
-    let t = Instant::now();
-    let touched = raster.apply(strokes, &extra, &waves_below)?;
-    let stroke_ms = t.elapsed().as_secs_f64() * 1e3;
+    let (touched, stroke_ms) = timed_ms(|| raster.apply(strokes, &extra, &waves_below));
+    let touched = touched?;
     let mut all = session.clone();
     all.push(extra);
     let mut without_history = raster.clone();
     without_history.clear_history();
-    let t = Instant::now();
-    raster.undo_to(&all, strokes, &waves_below)?;
-    let undo_ms = t.elapsed().as_secs_f64() * 1e3;
-    let t = Instant::now();
-    without_history.undo_to(&all, strokes, &waves_below)?;
-    let recompute_ms = t.elapsed().as_secs_f64() * 1e3;
+    let (done, undo_ms) = timed_ms(|| raster.undo_to(&all, strokes, &waves_below));
+    done?;
+    let (done, recompute_ms) = timed_ms(|| without_history.undo_to(&all, strokes, &waves_below));
+    done?;
     if without_history != raster {
         return Err("the two undo paths disagree".into());
     }
@@ -96,12 +92,14 @@ pub fn bench_brush(strokes: usize, level: u8, gpu: bool) -> Result<String, CliEr
         let ctx = crate::gpu::GpuContext::headless()?;
         let kernel = crate::gpu::brush::StrokeKernel::new(&ctx.device)?;
         let rasteriser = kernel.on_context(&ctx);
-        let t = Instant::now();
-        let mut on_gpu = EditRaster::new(e, level);
-        for (k, stroke) in session.iter().enumerate() {
-            on_gpu.apply_with(k, stroke, &waves_below, &rasteriser)?;
-        }
-        let gpu_s = t.elapsed().as_secs_f64();
+        let (on_gpu, gpu_s) = timed(|| -> Result<EditRaster, CliError> {
+            let mut on_gpu = EditRaster::new(e, level);
+            for (k, stroke) in session.iter().enumerate() {
+                on_gpu.apply_with(k, stroke, &waves_below, &rasteriser)?;
+            }
+            Ok(on_gpu)
+        });
+        let on_gpu = on_gpu?;
         let mut worst = 0f64;
         for (q, tile) in &raster.tiles {
             let other = on_gpu.tile(*q).ok_or_else(|| format!("{q}: on the CPU, not on the GPU"))?;

@@ -5,10 +5,11 @@
 //! (so that every stroke starts from the same session); the undo's latency too.
 
 use super::CliError;
+use super::bench_harness::timed_ms;
 use crate::maths::median;
 use std::fmt::Write as _;
 use std::path::Path;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use crate::edit::{Falloff, Stroke, Tool};
 use crate::gpu::{DrawMode, GpuContext, IMAGE_FORMAT, Renderer};
@@ -35,9 +36,9 @@ pub fn bench_brush_latency(project: &Path, rounds: usize, width: u32, height: u3
     // The same frame with nothing changed: what drawing and reading back cost alone.
     let mut frame_ms = Vec::new();
     for _ in 0..3 {
-        let t = Instant::now();
-        settle(&mut r)?;
-        frame_ms.push(t.elapsed().as_secs_f64() * 1e3);
+        let (done, ms) = timed_ms(|| settle(&mut r));
+        done?;
+        frame_ms.push(ms);
     }
     frame_ms.sort_by(f64::total_cmp);
     let applied = p.layers[index].applied_strokes().len();
@@ -66,18 +67,19 @@ pub fn bench_brush_latency(project: &Path, rounds: usize, width: u32, height: u3
                 seed: k as u32,
                 height_m: None,
             };
-            let t = Instant::now();
-            r.apply_stroke(index, stroke)?;
-            let rasterised = t.elapsed();
-            settle(&mut r)?;
-            let done = t.elapsed();
-            raster.push(rasterised.as_secs_f64() * 1e3);
-            rest.push((done - rasterised).as_secs_f64() * 1e3);
-            total.push(done.as_secs_f64() * 1e3);
-            let t = Instant::now();
-            r.set_applied(index, applied)?;
-            settle(&mut r)?;
-            undo.push(t.elapsed().as_secs_f64() * 1e3);
+            let (done, rasterised_ms) = timed_ms(|| r.apply_stroke(index, stroke));
+            done?;
+            let (done, rest_ms) = timed_ms(|| settle(&mut r));
+            done?;
+            raster.push(rasterised_ms);
+            rest.push(rest_ms);
+            total.push(rasterised_ms + rest_ms);
+            let (done, undo_ms) = timed_ms(|| -> Result<(), CliError> {
+                r.set_applied(index, applied)?;
+                settle(&mut r)
+            });
+            done?;
+            undo.push(undo_ms);
         }
         let max = total.iter().copied().fold(0.0, f64::max);
         let _ = writeln!(

@@ -4,9 +4,9 @@
 //! as the tests do), and both tools' co-registration error against the known shift.
 
 use super::CliError;
+use super::bench_harness::timed;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
-use std::time::Instant;
 
 use crate::compare::{CompareOptions, CoregOptions, compare, coregister};
 use crate::geodesy::Ellipsoid;
@@ -27,10 +27,6 @@ pub struct CompareBenchSettings {
     pub python: PathBuf,
     /// The folder of `xdem_bench.py`.
     pub reference_dir: PathBuf,
-}
-
-fn seconds(t: Instant) -> f64 {
-    t.elapsed().as_secs_f64()
 }
 
 /// Warps a raster to the transverse Mercator centred at (lat, lon), 90 m, bilinear.
@@ -134,12 +130,10 @@ pub fn bench_compare(settings: &CompareBenchSettings) -> Result<String, CliError
     );
     // 1. The bundled Erzurum pair.
     let project = Project::load(&settings.project)?;
-    let t = Instant::now();
-    let c = compare(&project, "blurred", "srtm", &CompareOptions::default())?;
-    let stats_s = seconds(t);
-    let t = Instant::now();
-    let r = coregister(&project, "blurred", "srtm", &CoregOptions::default())?;
-    let coreg_s = seconds(t);
+    let (c, stats_s) = timed(|| compare(&project, "blurred", "srtm", &CompareOptions::default()));
+    let c = c?;
+    let (r, coreg_s) = timed(|| coregister(&project, "blurred", "srtm", &CoregOptions::default()));
+    let r = r?;
     let _ = writeln!(
         report,
         "{:<34} {:>10} {:>9.2} {:>9.2} {:>10.3} {:>10.3} {:>10} {:>9.3}",
@@ -170,9 +164,8 @@ pub fn bench_compare(settings: &CompareBenchSettings) -> Result<String, CliError
     }
     // 2. The synthetic pair with a known shift.
     let (dlon, dlat) = (0.0004, -0.0003);
-    let t = Instant::now();
-    let (ref_tif, moved_tif) = synthetic_pair(&settings.out, settings.size, dlon, dlat)?;
-    let made_s = seconds(t);
+    let (pair, made_s) = timed(|| synthetic_pair(&settings.out, settings.size, dlon, dlat));
+    let (ref_tif, moved_tif) = pair?;
     let side = settings.size as f64 / 1200.0;
     let (lat_c, lon_c) = (40.0 - side / 2.0, 40.0 + side / 2.0);
     let synthetic = format!(
@@ -188,17 +181,17 @@ pub fn bench_compare(settings: &CompareBenchSettings) -> Result<String, CliError
     let synthetic_path = settings.out.join("synthetic.json");
     crate::files::write_atomic(&synthetic_path, synthetic.as_bytes())
         .map_err(CliError::file(&synthetic_path, "cannot write"))?;
-    let t = Instant::now();
-    let project = Project::load(&synthetic_path)?;
-    crate::scene::Scene::open(&project)?; // imports both rasters
-    let import_s = seconds(t);
-    let t = Instant::now();
-    let c = compare(&project, "moved", "ref", &CompareOptions::default())?;
-    let stats_s = seconds(t);
-    let t = Instant::now();
+    let (project, import_s) = timed(|| -> Result<Project, CliError> {
+        let project = Project::load(&synthetic_path)?;
+        crate::scene::Scene::open(&project)?; // imports both rasters
+        Ok(project)
+    });
+    let project = project?;
+    let (c, stats_s) = timed(|| compare(&project, "moved", "ref", &CompareOptions::default()));
+    let c = c?;
     let opts = CoregOptions { level: Some(c.level), ..CoregOptions::default() };
-    let r = coregister(&project, "moved", "ref", &opts)?;
-    let coreg_s = seconds(t);
+    let (r, coreg_s) = timed(|| coregister(&project, "moved", "ref", &opts));
+    let r = r?;
     let (e, n) = metres_of_degrees(-dlon, -dlat, lat_c);
     let label = format!("synthetic {0}², Terrafuse (L{1})", settings.size, c.level);
     let _ = writeln!(

@@ -6,10 +6,11 @@
 //! one-layer change in a settled view against recomposing every drawn quad.
 
 use super::CliError;
+use super::bench_harness::timed_ms;
 use crate::maths::median;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use crate::ecm::{CubeProjection, QuadId};
 use crate::gpu::{GpuContext, IMAGE_FORMAT, Renderer};
@@ -109,17 +110,20 @@ fn measure(
     let mut gpu = Vec::new();
     for _ in 0..repeats {
         renderer.invalidate_composed();
-        let t = Instant::now();
-        renderer.compose_now(quads)?;
-        renderer.read_heights(quads[0])?; // waits for the GPU
-        gpu.push(t.elapsed().as_secs_f64() * 1e3);
+        let (done, ms) = timed_ms(|| -> Result<(), CliError> {
+            renderer.compose_now(quads)?;
+            renderer.read_heights(quads[0])?; // waits for the GPU
+            Ok(())
+        });
+        done?;
+        gpu.push(ms);
     }
     let mut cpu = Vec::new();
     let mut cpu_grids = Default::default();
     for _ in 0..repeats.clamp(1, 3) {
-        let t = Instant::now();
-        cpu_grids = scene.compose_cpu(quads)?;
-        cpu.push(t.elapsed().as_secs_f64() * 1e3);
+        let (grids, ms) = timed_ms(|| scene.compose_cpu(quads));
+        cpu_grids = grids?;
+        cpu.push(ms);
     }
     let mut worst = 0f64;
     let mut grids = Vec::new();
@@ -283,10 +287,13 @@ fn difference_cost(
         let mut gpu = Vec::new();
         for _ in 0..repeats {
             renderer.invalidate_composed();
-            let t = Instant::now();
-            renderer.compose_now(quads)?;
-            renderer.read_heights(quads[0])?;
-            gpu.push(t.elapsed().as_secs_f64() * 1e3);
+            let (done, ms) = timed_ms(|| -> Result<(), CliError> {
+                renderer.compose_now(quads)?;
+                renderer.read_heights(quads[0])?;
+                Ok(())
+            });
+            done?;
+            gpu.push(ms);
         }
         Ok((median(gpu), renderer, scene))
     };
@@ -319,13 +326,16 @@ fn edge_field_cost(base: &Project, faded: LayerSpec, quads: &[QuadId]) -> Result
     let (scene, _) = Scene::open(&p)?;
     let fields = crate::scene::loader::EdgeFields::default();
     let mut stores: Vec<_> = scene.datasets.iter().map(|_| None).collect();
-    let t = Instant::now();
-    for &q in quads {
-        if let Some((_, Some(edge))) = scene.layer_tiles(0, q) {
-            crate::scene::loader::read_tile(edge, &scene.datasets, &mut stores, &fields)?;
+    let (done, total_ms) = timed_ms(|| -> Result<(), CliError> {
+        for &q in quads {
+            if let Some((_, Some(edge))) = scene.layer_tiles(0, q) {
+                crate::scene::loader::read_tile(edge, &scene.datasets, &mut stores, &fields)?;
+            }
         }
-    }
-    let ms = t.elapsed().as_secs_f64() * 1e3 / quads.len().max(1) as f64;
+        Ok(())
+    });
+    done?;
+    let ms = total_ms / quads.len().max(1) as f64;
     Ok(format!(
         "no-data edge distances (5 km feather, level-9 fields over 3 × 3 quads, CPU, loader side): {ms:.1} ms per quad\n"
     ))
@@ -350,10 +360,13 @@ fn recompose_cost(ctx: &GpuContext, base: &Project, layers: &[LayerSpec]) -> Res
     let settled = r.settle(&camera, 640, 480, Duration::from_secs(300));
     let drawn = settled.selection.quads.len();
     let frame = |r: &mut Renderer| -> Result<(f64, usize, usize), CliError> {
-        let t = Instant::now();
-        let s = r.prepare(&camera, 640, 480);
-        r.wait_idle()?;
-        Ok((t.elapsed().as_secs_f64() * 1e3, s.composed.len(), s.layers_read))
+        let (s, ms) = timed_ms(|| -> Result<_, CliError> {
+            let s = r.prepare(&camera, 640, 480);
+            r.wait_idle()?;
+            Ok(s)
+        });
+        let s = s?;
+        Ok((ms, s.composed.len(), s.layers_read))
     };
     let edit = |r: &mut Renderer, index: usize| -> Result<Vec<(f64, usize, usize)>, CliError> {
         let mut spec = p.layers[index].clone();

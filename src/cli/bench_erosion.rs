@@ -4,8 +4,8 @@
 //! of the final terrain from the Δt/4 run) beside the time each took.
 
 use super::CliError;
+use super::bench_harness::timed;
 use std::fmt::Write as _;
-use std::time::Instant;
 
 use crate::erosion::grid::Grid;
 use crate::erosion::params::{Border, EARTH_G, Params};
@@ -83,11 +83,12 @@ pub fn bench_erosion(settings: &ErosionBenchSettings) -> Result<String, CliError
             for _ in 0..20 {
                 run.step();
             }
-            let t = Instant::now();
-            for _ in 0..steps {
-                run.step();
-            }
-            row(&mut out, "cpu", t.elapsed().as_secs_f64(), cpu_bytes);
+            let ((), s) = timed(|| {
+                for _ in 0..steps {
+                    run.step();
+                }
+            });
+            row(&mut out, "cpu", s, cpu_bytes);
         }
         if let (Some(g), Some(k)) = (&gpu, &kernel) {
             let run = wet_run(n)?;
@@ -100,10 +101,13 @@ pub fn bench_erosion(settings: &ErosionBenchSettings) -> Result<String, CliError
             };
             gr.step(20)?;
             gr.wait()?;
-            let t = Instant::now();
-            gr.step(steps as u32)?;
-            gr.wait()?;
-            row(&mut out, "gpu", t.elapsed().as_secs_f64(), gpu_bytes);
+            let (done, s) = timed(|| -> Result<(), CliError> {
+                gr.step(steps as u32)?;
+                gr.wait()?;
+                Ok(())
+            });
+            done?;
+            row(&mut out, "gpu", s, gpu_bytes);
         }
     }
     // The error against the step size: 60 s simulated on 128² with Δt = 0.2, 0.1 and 0.05 s.
@@ -114,11 +118,12 @@ pub fn bench_erosion(settings: &ErosionBenchSettings) -> Result<String, CliError
         let grid = Grid::flat_patch(n, n, 10.0, terrain(n, 10.0));
         let params = Params { dt_s: dt, border: Border::Open, ..Params::preset("rain", EARTH_G).ok_or("no preset")? };
         let mut run = Run::new(grid, params)?;
-        let t = Instant::now();
-        while run.simulated_s < 60.0 - 1e-9 {
-            run.step();
-        }
-        finals.push((dt, run.steps, t.elapsed().as_secs_f64(), run.delta_m()));
+        let ((), s) = timed(|| {
+            while run.simulated_s < 60.0 - 1e-9 {
+                run.step();
+            }
+        });
+        finals.push((dt, run.steps, s, run.delta_m()));
     }
     let reference = finals.last().ok_or("no run")?.3.clone();
     for (dt, steps, s, delta) in &finals {
@@ -150,10 +155,11 @@ fn resolution_rows(out: &mut String) -> Result<(), CliError> {
             .collect();
         let params = Params { dt_s: 0.1, border: Border::Open, ..Params::preset("rain", EARTH_G).ok_or("no preset")? };
         let mut run = Run::new(Grid::flat_patch(n, n, cell, base), params)?;
-        let t = Instant::now();
-        while run.simulated_s < 120.0 - 1e-9 {
-            run.step();
-        }
+        let ((), run_s) = timed(|| {
+            while run.simulated_s < 120.0 - 1e-9 {
+                run.step();
+            }
+        });
         let delta = run.delta_m();
         let area = cell * cell;
         let eroded: f64 = delta.iter().filter(|d| **d < 0.0).map(|d| -d * area).sum();
@@ -193,8 +199,7 @@ fn resolution_rows(out: &mut String) -> Result<(), CliError> {
         let _ = writeln!(
             out,
             "  {cell:>4} m   {n}²   {}   {:.1}   {eroded:.2}   {deposited:.2}   {versus}",
-            run.steps,
-            t.elapsed().as_secs_f64()
+            run.steps, run_s
         );
     }
     Ok(())

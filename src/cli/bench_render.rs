@@ -6,9 +6,10 @@
 //! surface positions, seen from the camera (pixels), over the pixels both draw terrain in.
 
 use super::CliError;
+use super::bench_harness::timed_ms;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use super::render::open_renderer;
 use crate::gpu::{DrawMode, RenderedImage};
@@ -115,10 +116,12 @@ pub fn bench_render(settings: &RenderBenchSettings) -> Result<(Vec<RenderBenchRo
                 let (mut cpu, mut select, mut gpu, mut wall) = (0.0, 0.0, 0.0, 0.0);
                 let frames = settings.frames.max(1);
                 for _ in 0..frames {
-                    let start = Instant::now();
-                    let stats = renderer.prepare(camera, settings.width, settings.height);
-                    let image = renderer.render_image(DrawMode::Colour)?;
-                    wall += start.elapsed().as_secs_f64() * 1e3;
+                    let ((stats, image), ms) = timed_ms(|| {
+                        let stats = renderer.prepare(camera, settings.width, settings.height);
+                        (stats, renderer.render_image(DrawMode::Colour))
+                    });
+                    let image = image?;
+                    wall += ms;
                     cpu += stats.prepare_ms;
                     select += stats.select_ms;
                     gpu += image.gpu_ms.unwrap_or(f64::NAN);

@@ -5,10 +5,10 @@
 //! with `--gpu`, compared with the CPU); then a log of 10⁵ strokes is saved and loaded, with
 //! the file's size and the process's peak memory.
 
+use super::bench_harness::timed;
 use super::{CliError, Within};
 use std::fmt::Write as _;
 use std::path::PathBuf;
-use std::time::Instant;
 
 use crate::erosion::operation::Operation;
 use crate::erosion::params::{Params, gravity_of_body};
@@ -116,12 +116,10 @@ pub fn bench_replay(s: &ReplayBenchSettings, progress: &mut dyn FnMut(&str)) -> 
     let mut out = String::new();
     let p = synthetic_session(s.strokes, s.steps)?;
     let path = s.out.join("replay-bench.json");
-    let t = Instant::now();
-    p.save(&path)?;
-    let save_s = t.elapsed().as_secs_f64();
-    let t = Instant::now();
-    let loaded = Project::load(&path)?;
-    let load_s = t.elapsed().as_secs_f64();
+    let (saved, save_s) = timed(|| p.save(&path));
+    saved?;
+    let (loaded, load_s) = timed(|| Project::load(&path));
+    let loaded = loaded?;
     let bytes = std::fs::metadata(&path).map_or(0, |m| m.len());
     let _ = writeln!(
         out,
@@ -168,13 +166,11 @@ pub fn bench_replay(s: &ReplayBenchSettings, progress: &mut dyn FnMut(&str)) -> 
     }
     log.layers.push(edit);
     let log_path = s.out.join("log-bench.json");
-    let t = Instant::now();
-    log.save(&log_path)?;
-    let save_s = t.elapsed().as_secs_f64();
+    let (saved, save_s) = timed(|| log.save(&log_path));
+    saved?;
     let before = crate::store::import::peak_rss_bytes();
-    let t = Instant::now();
-    let again = Project::load(&log_path)?;
-    let load_s = t.elapsed().as_secs_f64();
+    let (again, load_s) = timed(|| Project::load(&log_path));
+    let again = again?;
     let peak = crate::store::import::peak_rss_bytes();
     if again.layers != log.layers {
         return Err("the log did not load back the same".into());

@@ -2,12 +2,22 @@
 //! one process, the merge and the pyramid timed apart, and a projection to a cluster from the
 //! measured costs.
 
+use super::bench_harness::timed;
 use std::fmt::Write as _;
 use std::path::PathBuf;
 use std::process::Command;
-use std::time::Instant;
 
-use anyhow::{Context, Result, bail};
+use super::CliError;
+use super::error::Context;
+
+type Result<T> = std::result::Result<T, CliError>;
+
+/// Returns a failed run's message.
+macro_rules! bail {
+    ($($arg:tt)*) => {
+        return Err(CliError::Run(format!($($arg)*)))
+    };
+}
 
 use crate::store::Store;
 use crate::store::grid::{GRID, spacing_m};
@@ -58,16 +68,16 @@ pub fn bench_shards(s: &ShardBenchSettings, progress: &mut dyn FnMut(&str)) -> R
     let single = s.work.join("single.gpkg");
     let _ = std::fs::remove_file(&single);
     progress("one process…");
-    let t = Instant::now();
-    let summary =
+    let (summary, single_s) = timed(|| {
         run_ok(Command::new(&exe).args(["import", &src, "--body", &s.body, "--max-level", &s.level]).args([
             "--store",
             &single.to_string_lossy(),
             "--threads",
             &threads,
             "--quiet",
-        ]))?;
-    let single_s = t.elapsed().as_secs_f64();
+        ]))
+    });
+    let summary = summary?;
     let store = Store::open_read_only(&single)?;
     let d = store.resolve_dataset(None)?;
     let level = d.settings.finest_level;
@@ -95,35 +105,39 @@ pub fn bench_shards(s: &ShardBenchSettings, progress: &mut dyn FnMut(&str)) -> R
     for &n in &s.shards {
         let dir = s.work.join(format!("shards-{n}"));
         let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir)?;
+        std::fs::create_dir_all(&dir).map_err(CliError::file(&dir, "cannot create"))?;
         let manifest = dir.join("plan.json");
         progress(&format!("{n} shards…"));
-        let t = Instant::now();
-        run_ok(Command::new(&exe).args(["import", &src, "--body", &s.body, "--max-level", &s.level]).args([
-            "--plan",
-            &manifest.to_string_lossy(),
-            "--shards",
-            &n.to_string(),
-        ]))?;
-        let plan_s = t.elapsed().as_secs_f64();
+        let (planned, plan_s) = timed(|| {
+            run_ok(Command::new(&exe).args(["import", &src, "--body", &s.body, "--max-level", &s.level]).args([
+                "--plan",
+                &manifest.to_string_lossy(),
+                "--shards",
+                &n.to_string(),
+            ]))
+        });
+        planned?;
         Manifest::load(&manifest)?;
-        let t = Instant::now();
-        let children: Vec<_> = (0..n)
-            .map(|i| {
-                Command::new(&exe)
-                    .args(["import", "--manifest", &manifest.to_string_lossy(), "--shard", &i.to_string()])
-                    .args(["--store", &dir.join(format!("part-{i}.gpkg")).to_string_lossy(), "--threads", &threads])
-                    .arg("--quiet")
-                    .stdout(std::process::Stdio::null())
-                    .spawn()
-            })
-            .collect::<Result<_, _>>()?;
-        for mut c in children {
-            if !c.wait()?.success() {
-                bail!("a shard of {} failed", manifest.display());
+        let (ran, shards_s) = timed(|| -> Result<()> {
+            let children: Vec<_> = (0..n)
+                .map(|i| {
+                    Command::new(&exe)
+                        .args(["import", "--manifest", &manifest.to_string_lossy(), "--shard", &i.to_string()])
+                        .args(["--store", &dir.join(format!("part-{i}.gpkg")).to_string_lossy(), "--threads", &threads])
+                        .arg("--quiet")
+                        .stdout(std::process::Stdio::null())
+                        .spawn()
+                })
+                .collect::<std::result::Result<_, _>>()
+                .context("cannot start a shard")?;
+            for mut c in children {
+                if !c.wait().context("a shard did not finish")?.success() {
+                    bail!("a shard of {} failed", manifest.display());
+                }
             }
-        }
-        let shards_s = t.elapsed().as_secs_f64();
+            Ok(())
+        });
+        ran?;
         let parts: Vec<PathBuf> = (0..n).map(|i| dir.join(format!("part-{i}.gpkg"))).collect();
         let merged = dir.join("merged.gpkg");
         let r = merge(&MergeOptions { store: merged, parts, threads: Some(s.threads), progress: false, watch: None })?;

@@ -78,6 +78,9 @@ pub enum CliError {
     /// Something a callback or device reported.
     #[error(transparent)]
     Failed(#[from] crate::errors::Failure),
+    /// A program the command ran (a shard, `sbatch`) that failed, with what it said.
+    #[error("{0}")]
+    Run(String),
     /// An error with what the command was doing (the project, the layer, the output file).
     #[error("{context}")]
     Within {
@@ -118,5 +121,30 @@ impl CliError {
     pub fn file(path: impl Into<PathBuf>, what: &'static str) -> impl FnOnce(std::io::Error) -> CliError {
         let path = path.into();
         move |source| CliError::File { path, what, source }
+    }
+}
+
+/// Names what a command was doing when a foreign error (I/O, a child process) happened, keeping
+/// that error as the cause.
+pub trait Context<T> {
+    /// The error under `what`.
+    fn context(self, what: impl std::fmt::Display) -> Result<T, CliError>;
+    /// The error under the text `what` makes (only made on failure).
+    fn with_context<D: std::fmt::Display>(self, what: impl FnOnce() -> D) -> Result<T, CliError>;
+}
+
+impl<T, E: std::error::Error + Send + Sync + 'static> Context<T> for Result<T, E> {
+    fn context(self, what: impl std::fmt::Display) -> Result<T, CliError> {
+        self.map_err(|e| CliError::Within {
+            context: what.to_string(),
+            source: Box::new(CliError::Failed(Box::new(e))),
+        })
+    }
+
+    fn with_context<D: std::fmt::Display>(self, what: impl FnOnce() -> D) -> Result<T, CliError> {
+        self.map_err(|e| CliError::Within {
+            context: what().to_string(),
+            source: Box::new(CliError::Failed(Box::new(e))),
+        })
     }
 }

@@ -6,6 +6,7 @@ mod bench_brush_latency;
 mod bench_compare;
 mod bench_compose;
 mod bench_erosion;
+mod bench_harness;
 mod bench_render;
 mod bench_replay;
 mod bench_shards;

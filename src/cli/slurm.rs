@@ -4,7 +4,17 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use anyhow::{Context, Result, bail};
+use super::CliError;
+use super::error::Context;
+
+type Result<T> = std::result::Result<T, CliError>;
+
+/// Returns a failed run's message.
+macro_rules! bail {
+    ($($arg:tt)*) => {
+        return Err(CliError::Run(format!($($arg)*)))
+    };
+}
 
 use super::shard::array_ranges;
 use crate::slurm::{SlurmJob, part_path};
