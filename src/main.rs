@@ -1002,16 +1002,24 @@ fn run(args: Args) -> Result<ExitCode> {
         }
         Command::Render { project, out, width, height, look, swipe } => {
             note_recovery(&project);
-            let report = cli::render(&cli::RenderRequest {
-                project: &project,
-                out: &out,
-                width,
-                height,
-                view: look.view.as_deref(),
-                camera: look.camera.as_deref(),
-                lod_threshold: look.lod_threshold,
-                swipe: swipe.as_deref(),
-            })?;
+            let report = cli::render(
+                &cli::RenderRequest {
+                    project: &project,
+                    out: &out,
+                    width,
+                    height,
+                    view: look.view.as_deref(),
+                    camera: look.camera.as_deref(),
+                    lod_threshold: look.lod_threshold,
+                    swipe: swipe.as_deref(),
+                    trace: match (std::env::var_os("TERRAFUSE_DEBUG"), std::env::var_os("TERRAFUSE_DEBUG_QUADS")) {
+                        (None, _) => cli::Trace::Off,
+                        (Some(_), None) => cli::Trace::Steps,
+                        (Some(_), Some(_)) => cli::Trace::Quads,
+                    },
+                },
+                &mut |line| eprintln!("{line}"),
+            )?;
             print!("{report}");
         }
         Command::Profile { project, from, to, line, samples, level, csv } => {
@@ -1208,7 +1216,8 @@ fn run(args: Args) -> Result<ExitCode> {
                 store.display(),
                 reader.dataset()
             );
-            let (_, refused) = cli::sample_lines(&mut reader, level, io::stdin().lock(), io::stdout().lock())?;
+            let (_, refused) =
+                cli::sample_lines(&mut reader, level, io::stdin().lock(), io::stdout().lock(), io::stderr().lock())?;
             if refused > 0 {
                 eprintln!("terrafuse: {refused} lines refused");
                 return Ok(ExitCode::FAILURE);

@@ -1,7 +1,8 @@
 //! The module graph, read from the source: every `crate::MODULE` a library file names (outside
 //! comments and its unit tests) must be one its module may import, and no two files of one
 //! module may import each other, directly or round a longer loop. The allowed graph below is the
-//! one ARCHITECTURE.md draws; change both together.
+//! one ARCHITECTURE.md draws; change both together. Library code (everything but `main.rs`)
+//! neither prints nor reads environment variables.
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
@@ -153,6 +154,28 @@ fn every_module_imports_only_what_the_architecture_allows() {
     let listed: BTreeSet<String> = allowed.keys().map(|m| m.to_string()).collect();
     assert_eq!(seen_modules, listed, "the allowed graph and src/ list different modules");
     assert!(problems.is_empty(), "{}", problems.join("\n"));
+}
+
+#[test]
+fn library_code_neither_prints_nor_reads_the_environment() {
+    // Only the binary talks to the terminal and the environment; the library returns text and
+    // takes what main.rs read (a trace level, a log callback, a configuration folder).
+    let src = common::repo_path("src");
+    let mut problems = Vec::new();
+    for file in rust_files(&src) {
+        if module_of(&src, &file).is_none() || file.file_name().is_some_and(|n| n == "tests.rs") {
+            continue;
+        }
+        let code = code_of(&std::fs::read_to_string(&file).unwrap());
+        for (k, line) in code.lines().enumerate() {
+            let prints = ["println!", "eprintln!", "print!(", "eprint!(", "dbg!("].iter().any(|m| line.contains(m));
+            let reads_env = line.contains("env::var");
+            if prints || reads_env {
+                problems.push(format!("{}:{}: {}", file.display(), k + 1, line.trim()));
+            }
+        }
+    }
+    assert!(problems.is_empty(), "library code that prints or reads the environment:\n{}", problems.join("\n"));
 }
 
 #[test]

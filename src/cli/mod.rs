@@ -46,7 +46,7 @@ pub use geometry::{
 };
 pub use profile::{ProfileRequest, profile_command};
 pub use project::{project_check, project_upgrade};
-pub use render::{RenderRequest, frame_report, open_renderer, render, request_camera, write_png};
+pub use render::{RenderRequest, Trace, frame_report, open_renderer, render, request_camera, write_png};
 pub use replay::{ReplayOutcome, ReplayRequest, replay_command};
 pub use report::{overview, tissot_report};
 pub use shard::{array_ranges, merge_summary, plan_summary, shard_summary};

@@ -29,6 +29,20 @@ pub struct RenderRequest<'a> {
     /// `A,B[,POSITION]`: layer A left of a vertical line at POSITION (0–1 of the width, default
     /// 0.5), layer B right of it.
     pub swipe: Option<&'a str>,
+    /// What to report while the frame settles (to `render`'s `log`).
+    pub trace: Trace,
+}
+
+/// What `render` reports while the frame settles (`TERRAFUSE_DEBUG`, `TERRAFUSE_DEBUG_QUADS` on
+/// the command line).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Trace {
+    /// Nothing.
+    Off,
+    /// Each waiting step: drawn, pending, uploads, requests, culling.
+    Steps,
+    /// The steps and the quads drawn and wanted.
+    Quads,
 }
 
 /// A parsed `--swipe A,B[,POSITION]`.
@@ -161,7 +175,7 @@ pub fn write_png(path: &Path, image: &RenderedImage) -> Result<(), CliError> {
 }
 
 /// Renders one frame and writes it; returns the report.
-pub fn render(request: &RenderRequest) -> Result<String, CliError> {
+pub fn render(request: &RenderRequest, log: &mut dyn FnMut(&str)) -> Result<String, CliError> {
     if request.width == 0 || request.height == 0 || request.width > 16384 || request.height > 16384 {
         return Err(format!("image size {}x{} must lie within 1–16384 pixels", request.width, request.height).into());
     }
@@ -191,11 +205,10 @@ pub fn render(request: &RenderRequest) -> Result<String, CliError> {
             renderer.set_threshold(t);
         }
     }
-    let debug = std::env::var_os("TERRAFUSE_DEBUG").is_some();
-    let quads = std::env::var_os("TERRAFUSE_DEBUG_QUADS").is_some();
+    let (debug, quads) = (request.trace != Trace::Off, request.trace == Trace::Quads);
     let stats = renderer.settle_traced(&camera, request.width, request.height, Duration::from_secs(300), &mut |s, busy| {
         if debug {
-            eprintln!(
+            log(&format!(
                 "settle: {} drawn, {} pending, {} uploads, {} requested, {} blocked, loader {busy} / culled {} {} visited {}",
                 s.selection.quads.len(),
                 s.pending,
@@ -205,14 +218,14 @@ pub fn render(request: &RenderRequest) -> Result<String, CliError> {
                 s.selection.culled_frustum,
                 s.selection.culled_horizon,
                 s.selection.visited
-            );
+            ));
         }
         if debug && quads {
-            eprintln!(
+            log(&format!(
                 "  drawn {:?}\n  wanted {:?}",
                 s.selection.quads.iter().map(|q| q.to_string()).collect::<Vec<_>>(),
                 s.selection.wanted.iter().map(|q| q.to_string()).collect::<Vec<_>>()
-            );
+            ));
         }
     });
     let mut image = renderer.render_image(DrawMode::Colour)?;

@@ -163,6 +163,7 @@ pub fn sample_lines(
     level: u8,
     input: impl BufRead,
     mut output: impl Write,
+    mut refusals: impl Write,
 ) -> Result<(u64, u64), StoreError> {
     let (mut n, mut refused) = (0, 0);
     let path = reader.store().path().to_owned();
@@ -185,7 +186,7 @@ pub fn sample_lines(
                 n += 1;
             }
             _ => {
-                eprintln!("line {}: '{t}' is not 'lat lon' in degrees", k + 1);
+                writeln!(refusals, "line {}: '{t}' is not 'lat lon' in degrees", k + 1).map_err(io)?;
                 writeln!(output, "nan").map_err(io)?;
                 refused += 1;
             }
