@@ -11,7 +11,7 @@ use common::{sample_project, terrafuse};
 use terrafuse::ecm::{CubeProjection, QuadId};
 use terrafuse::edit::EditRaster;
 use terrafuse::geodesy::Ellipsoid;
-use terrafuse::gpu::{DrawMode, GpuContext, IMAGE_FORMAT, Renderer};
+use terrafuse::gpu::{DrawMode, Editor, GpuContext, IMAGE_FORMAT, Renderer};
 use terrafuse::layers::LayerKind;
 use terrafuse::project::Project;
 use terrafuse::scene::Scene;
@@ -354,13 +354,13 @@ fn a_stroke_recomposes_only_the_quads_it_changed_and_undo_restores_their_heights
         height_m: None,
     };
     let applied = p.layers[index].applied_strokes().len();
-    r.apply_stroke(index, stroke).unwrap();
+    Editor::new(&GpuContext::headless().unwrap()).unwrap().apply_stroke(&mut r, index, stroke).unwrap();
     r.compose_now(&quads).unwrap();
     assert_eq!(r.compose_counters().quads, n0 + 1, "the stroke's quad alone is recomposed");
     let after = r.read_heights(target).unwrap().unwrap();
     let moved = before.iter().zip(&after).filter(|(a, b)| (*a - *b).abs() > 50.0).count();
     assert!(moved > 0, "the raise shows");
-    r.set_applied(index, applied).unwrap();
+    Editor::new(&GpuContext::headless().unwrap()).unwrap().set_applied(&mut r, index, applied).unwrap();
     r.compose_now(&quads).unwrap();
     assert_eq!(r.compose_counters().quads, n0 + 2, "undo recomposes the same quad");
     let undone = r.read_heights(target).unwrap().unwrap();

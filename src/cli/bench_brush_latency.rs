@@ -23,6 +23,7 @@ pub fn bench_brush_latency(project: &Path, rounds: usize, width: u32, height: u3
     let (scene, _) = Scene::open(&p)?;
     let ctx = GpuContext::headless()?;
     let mut r = Renderer::new(&ctx, scene, IMAGE_FORMAT)?;
+    let editor = crate::gpu::Editor::new(&ctx)?;
     let index = r.scene().stack.index_of("sculpt").ok_or("the project has no edit layer 'sculpt'")?;
     let settle = |r: &mut Renderer| -> Result<(), CliError> {
         let stats = r.settle(&camera, width, height, Duration::from_secs(120));
@@ -67,7 +68,7 @@ pub fn bench_brush_latency(project: &Path, rounds: usize, width: u32, height: u3
                 seed: k as u32,
                 height_m: None,
             };
-            let (done, rasterised_ms) = timed_ms(|| r.apply_stroke(index, stroke));
+            let (done, rasterised_ms) = timed_ms(|| editor.apply_stroke(&mut r, index, stroke));
             done?;
             let (done, rest_ms) = timed_ms(|| settle(&mut r));
             done?;
@@ -75,7 +76,7 @@ pub fn bench_brush_latency(project: &Path, rounds: usize, width: u32, height: u3
             rest.push(rest_ms);
             total.push(rasterised_ms + rest_ms);
             let (done, undo_ms) = timed_ms(|| -> Result<(), CliError> {
-                r.set_applied(index, applied)?;
+                editor.set_applied(&mut r, index, applied)?;
                 settle(&mut r)
             });
             done?;

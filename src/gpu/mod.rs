@@ -7,6 +7,7 @@ pub mod codes;
 pub mod compose;
 mod compute;
 pub mod context;
+pub mod editing;
 pub mod erosion;
 mod layout;
 pub mod renderer;
@@ -17,6 +18,7 @@ mod terrain;
 mod uniforms;
 
 pub use context::{GpuContext, GpuError};
+pub use editing::Editor;
 pub use renderer::{ComposeCounters, FrameStats, Renderer};
 pub use targets::{DrawMode, FrameTargets, ID_FORMAT, IMAGE_FORMAT, RenderedImage, SURFACE_FORMAT};
 pub use terrain::{MESH_EDGE, TRIANGLES_PER_QUAD};

@@ -137,10 +137,11 @@ pub fn build_app(cc: &eframe::CreationContext<'_>, opened: Opened) -> Result<app
     let ctx = context_of(rs);
     let device = format!("device: {}", ctx.describe());
     let renderer = Renderer::new(&ctx, opened.scene, IMAGE_FORMAT)?;
+    let editor = crate::gpu::Editor::new(&ctx)?;
     Ok(app::App::new(
         opened.project,
         opened.project_path,
-        renderer,
+        (renderer, editor),
         opened.camera,
         opened.screenshot,
         opened.outcome,

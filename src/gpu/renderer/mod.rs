@@ -3,12 +3,12 @@
 //! per-quad camera-relative values) and drawing to any colour target or to an image. The device
 //! is in `context`, the targets and read-back in `targets`, the pipelines in `terrain`, the
 //! shader structs' twins in `uniforms`, the slot pools in `slots`, the selection's data side in
-//! `quads`; the layer stack's side of the renderer (composition, layer edits) in `stack`.
+//! `quads`; the layer stack's side of the renderer (composition, layer edits) in `stack`. Strokes,
+//! erosion runs and undo belong to the editing session ([`crate::gpu::editing`]) that drives it.
 
 use std::collections::HashMap;
 use std::time::{Duration, Instant};
 
-mod erosion;
 mod stack;
 
 use super::compose::{ComposeBatch, ComposePass};
@@ -128,11 +128,6 @@ pub struct Renderer {
     auto_range_m: Option<f64>,
     /// The brush's footprint to draw: centre (ECEF) and radius, metres.
     brush: Option<(glam::DVec3, f64)>,
-    /// The GPU stroke rasteriser, on hardware adapters (on a software one the CPU reference is
-    /// faster: BENCHMARKS.md); used for the strokes shown while dragging.
-    stroke_kernel: Option<super::brush::StrokeKernel>,
-    /// The erosion kernels, on hardware adapters (software ones run the CPU reference).
-    erosion_kernel: Option<std::sync::Arc<super::erosion::ErosionKernel>>,
 }
 
 impl Renderer {
@@ -195,15 +190,7 @@ impl Renderer {
         let flat = flat_rule_for(&scene.ellipsoid, exaggerated_range(&scene, scene.visuals.exaggeration));
         let loader = Loader::start(scene.datasets.clone(), scene.ellipsoid, loader_threads());
         let cpu = CpuCache::new((scene.detail.cpu_cache_mib.max(16) << 20) as usize);
-        let stroke_kernel = (ctx.info.device_type != wgpu::DeviceType::Cpu)
-            .then(|| super::brush::StrokeKernel::new(&device))
-            .transpose()?;
-        let erosion_kernel = (ctx.info.device_type != wgpu::DeviceType::Cpu)
-            .then(|| super::erosion::ErosionKernel::new(&device).map(std::sync::Arc::new))
-            .transpose()?;
         Ok(Renderer {
-            stroke_kernel,
-            erosion_kernel,
             device,
             queue: ctx.queue.clone(),
             timestamps: ctx.timestamps,
@@ -240,6 +227,14 @@ impl Renderer {
     /// The scene.
     pub fn scene(&self) -> &Scene {
         &self.scene
+    }
+
+    /// Changes the scene (an editing session's strokes and runs: [`crate::gpu::editing`]); the
+    /// quads whose plans changed are recomposed from the next prepared frame on.
+    pub fn with_scene<T>(&mut self, change: impl FnOnce(&mut Scene) -> T) -> T {
+        let out = change(&mut self.scene);
+        self.cache.plans.clear();
+        out
     }
 
     /// Changes the level-of-detail threshold (pixels per sample).

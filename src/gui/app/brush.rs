@@ -5,7 +5,7 @@
 //! the mean sphere's until the probe catches up); while dragging, the stroke so far is applied
 //! provisionally every few frames (the previous provisional version undone from the undo history,
 //! which is instant), and on release the whole stroke replaces it, through
-//! `Renderer::apply_stroke`, as `terrafuse brush` would append it.
+//! `Editor::apply_stroke`, as `terrafuse brush` would append it.
 //! Ctrl+Z and Ctrl+Shift+Z undo and redo on the edit layer.
 
 use super::*;
@@ -146,7 +146,7 @@ impl App {
         if !(0..=total).contains(&applied) {
             return;
         }
-        match self.renderer.set_applied(index, applied as usize) {
+        match self.editor.set_applied(&mut self.renderer, index, applied as usize) {
             Ok(spec) => {
                 self.project.layers[index] = spec;
                 self.dirty = true;
@@ -238,7 +238,7 @@ impl App {
     pub(crate) fn apply_brush_stroke(&mut self, path: Vec<[f64; 2]>) {
         // The provisional version of this stroke, if any, goes first (instant: from the history).
         if let Some((index, before)) = self.brush.preview.take() {
-            match self.renderer.set_applied(index, before) {
+            match self.editor.set_applied(&mut self.renderer, index, before) {
                 Ok(spec) => self.project.layers[index] = spec,
                 Err(e) => {
                     self.message = e.to_string();
@@ -280,7 +280,7 @@ impl App {
         let before = self.project.layers[index].applied_strokes().len();
         // While dragging, the stroke so far is shown from the GPU rasteriser (where the adapter
         // is hardware); the stroke kept, on release, is the CPU reference's.
-        match self.renderer.apply_stroke_on(index, stroke, self.brush.painting) {
+        match self.editor.apply_stroke_on(&mut self.renderer, index, stroke, self.brush.painting) {
             Ok(spec) => {
                 if self.brush.painting {
                     self.brush.preview = Some((index, before));

@@ -211,8 +211,8 @@ impl App {
             if ui.add_enabled(busy, egui::Button::new("discard")).clicked()
                 && let Some(s) = self.erosion.session.take()
             {
-                let _ = self.renderer.set_erosion_overlay(None);
-                self.renderer.discard_erosion(s.index, s.base);
+                let _ = self.editor.set_erosion_overlay(&mut self.renderer, None);
+                self.editor.discard_erosion(&mut self.renderer, s.index, s.base);
                 self.dirty = true;
             }
         });
@@ -317,7 +317,7 @@ impl App {
             }
         };
         let (index, base, region) = (s.index, s.base.clone(), s.region);
-        self.renderer.show_erosion(index, &base, &region, &run);
+        self.editor.show_erosion(&mut self.renderer, index, &base, &region, &run);
         let image = region_map(&run, self.erosion.overlay);
         self.set_map(image);
         let drape = self.erosion.drape.then(|| {
@@ -325,7 +325,7 @@ impl App {
             let range = values.iter().filter(|v| v.is_finite()).fold(0f64, |m, v| m.max(v.abs()));
             (crate::erosion::layer::field_raster(base.ellipsoid, &region, &values), &region, range)
         });
-        if let Err(e) = self.renderer.set_erosion_overlay(drape) {
+        if let Err(e) = self.editor.set_erosion_overlay(&mut self.renderer, drape) {
             self.message = format!("erosion overlay: {}", crate::errors::chain(&e));
         }
         self.dirty = true;
@@ -414,7 +414,7 @@ impl App {
                 top
             }
         };
-        let (region, run, base) = match self.renderer.prepare_erosion(index, &op) {
+        let (region, run, base) = match self.editor.prepare_erosion(&self.renderer, index, &op) {
             Ok(prepared) => prepared,
             Err(e) => {
                 self.message = format!("erosion: {}", crate::errors::chain(&e));
@@ -422,7 +422,7 @@ impl App {
             }
         };
         let mut op = op;
-        let engine = match self.renderer.erosion_on_gpu(&run) {
+        let engine = match self.editor.erosion_on_gpu(&run) {
             Some(Ok(gpu)) => {
                 op.device = Device::Gpu;
                 Engine::Gpu(Box::new(gpu))
@@ -450,7 +450,7 @@ impl App {
     /// Records the session's run (its steps so far) on the layer.
     pub(crate) fn keep_erosion(&mut self) {
         let Some(mut s) = self.erosion.session.take() else { return };
-        if let Err(e) = self.renderer.set_erosion_overlay(None) {
+        if let Err(e) = self.editor.set_erosion_overlay(&mut self.renderer, None) {
             self.message = format!("erosion overlay: {}", crate::errors::chain(&e));
         }
         let run = match s.sync() {
@@ -461,11 +461,11 @@ impl App {
             }
         };
         if run.steps == 0 {
-            self.renderer.discard_erosion(s.index, s.base);
+            self.editor.discard_erosion(&mut self.renderer, s.index, s.base);
             self.message = "erosion: no step taken, nothing kept".into();
             return;
         }
-        match self.renderer.commit_erosion(s.index, s.op, s.base, s.region, &run, s.seconds) {
+        match self.editor.commit_erosion(&mut self.renderer, s.index, s.op, s.base, s.region, &run, s.seconds) {
             Ok((spec, o)) => {
                 self.message = format!(
                     "erosion run {} kept: {} steps, {:.1} s simulated, change {:.2} … {:.2} m",
@@ -490,7 +490,7 @@ impl App {
         if !(0..=total).contains(&applied) {
             return;
         }
-        match self.renderer.set_erosion_applied(index, applied as usize) {
+        match self.editor.set_erosion_applied(&mut self.renderer, index, applied as usize) {
             Ok(spec) => {
                 self.project.layers[index] = spec;
                 self.dirty = true;

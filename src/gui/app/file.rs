@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use super::App;
-use crate::gpu::{IMAGE_FORMAT, Renderer};
+use crate::gpu::{Editor, IMAGE_FORMAT, Renderer};
 use crate::gui::recent::Recent;
 use crate::project::recovery::{self, Recovery};
 use crate::project::{CameraSpec, Project};
@@ -136,7 +136,9 @@ impl App {
             self.message = "no wgpu device to draw the project with".into();
             return;
         };
-        let renderer = match Renderer::new(&crate::gui::context_of(rs), opened.scene, IMAGE_FORMAT) {
+        let ctx = crate::gui::context_of(rs);
+        let made = Renderer::new(&ctx, opened.scene, IMAGE_FORMAT).and_then(|r| Ok((r, Editor::new(&ctx)?)));
+        let (renderer, editor) = match made {
             Ok(r) => r,
             Err(e) => {
                 self.message = format!("{}: {}", opened.path.display(), crate::errors::chain(&e));
@@ -150,7 +152,7 @@ impl App {
         let next = App::new(
             opened.project,
             opened.path.clone(),
-            renderer,
+            (renderer, editor),
             opened.camera,
             None,
             self.outcome.clone(),

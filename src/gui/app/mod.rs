@@ -11,7 +11,7 @@ use glam::DVec3;
 use super::navigate;
 use super::viewport::{Viewport, frame_line};
 use crate::geodesy;
-use crate::gpu::{FrameStats, Renderer};
+use crate::gpu::{Editor, FrameStats, Renderer};
 use crate::project::{CameraSpec, Project, Visuals};
 use crate::scene::Camera;
 use crate::scene::resolve_ramp;
@@ -51,6 +51,8 @@ pub struct App {
     project: Project,
     project_path: PathBuf,
     renderer: Renderer,
+    /// Strokes, erosion runs and undo on the renderer's layers.
+    editor: Editor,
     camera: CameraSpec,
     home: CameraSpec,
     visuals: Visuals,
@@ -108,7 +110,7 @@ impl App {
     pub fn new(
         project: Project,
         project_path: PathBuf,
-        renderer: Renderer,
+        (renderer, editor): (Renderer, Editor),
         camera: CameraSpec,
         screenshot: Option<ScreenshotJob>,
         outcome: Outcome,
@@ -120,6 +122,7 @@ impl App {
             project,
             project_path,
             renderer,
+            editor,
             camera,
             home: camera,
             visuals,
