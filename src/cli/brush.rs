@@ -13,35 +13,50 @@ use crate::scene::Scene;
 use crate::store::grid::spacing_m;
 
 /// What `terrafuse brush` was asked.
-#[derive(Clone, Debug, Default)]
+#[derive(clap::Args, Clone, Debug, Default)]
 pub struct BrushRequest {
-    /// The project file.
+    /// The project file (JSON).
     pub project: PathBuf,
-    /// The edit layer (made on top of the stack when the project has none of that name).
+    /// The edit layer.
+    #[arg(long)]
     pub layer: String,
-    /// The tool's name (None with `undo` or `redo`).
+    /// raise, lower, smooth, flatten, ramp, noise or restore.
+    #[arg(long)]
     pub tool: Option<String>,
-    /// Radius, metres.
+    /// Brush radius on the surface, metres.
+    #[arg(long = "radius-m")]
     pub radius_m: Option<f64>,
     /// Metres per dab (raise, lower, noise).
+    #[arg(long = "strength-m", allow_hyphen_values = true)]
     pub strength_m: Option<f64>,
-    /// A fraction per dab (smooth, flatten, ramp, restore).
+    /// A fraction 0–1 per dab (restore and the tools that read the terrain).
+    #[arg(long)]
     pub strength: Option<f64>,
-    /// `lat,lon;lat,lon;…` degrees.
+    /// The path: LAT,LON;LAT,LON;… degrees.
+    #[arg(long, allow_hyphen_values = true)]
     pub path: Option<String>,
-    /// Falloff name.
+    /// smooth, linear, spherical or tip.
+    #[arg(long)]
     pub falloff: Option<String>,
-    /// Spacing, a fraction of the radius.
+    /// Dab spacing, a fraction of the radius (default 0.25).
+    #[arg(long)]
     pub spacing: Option<f64>,
-    /// Level (default: the coarsest whose samples are at most a tenth of the radius apart).
+    /// The level it is rasterised at (default: the coarsest with samples at most a tenth of
+    /// the radius apart).
+    #[arg(long)]
     pub level: Option<u8>,
     /// Noise seed.
+    #[arg(long)]
     pub seed: Option<u32>,
-    /// Flatten: the height to flatten to, metres.
+    /// Flatten: the height to flatten to, metres above the ellipsoid (default: the terrain's
+    /// under the path's first point, before the stroke).
+    #[arg(long = "height-m", allow_hyphen_values = true)]
     pub height_m: Option<f64>,
-    /// Undo this many strokes.
+    /// Undo this many strokes (no stroke).
+    #[arg(long)]
     pub undo: Option<usize>,
-    /// Redo this many strokes.
+    /// Redo this many strokes (no stroke).
+    #[arg(long)]
     pub redo: Option<usize>,
 }
 

@@ -11,24 +11,29 @@ use crate::geodesy::GeoBox;
 use crate::project::Project;
 
 /// What `terrafuse compare` was asked.
-#[derive(Clone, Debug)]
+#[derive(clap::Args, Clone, Debug)]
 pub struct CompareRequest {
-    /// The project file.
+    /// The project file (JSON).
     pub project: PathBuf,
     /// Layer A.
     pub a: String,
     /// Layer B, the reference.
     pub b: String,
-    /// The level (default: the coarser dataset's finest, or finer where a layer of strokes, runs
-    /// or noise adds detail below it).
+    /// Level to compare at (default: the coarser dataset's finest, or finer where strokes, erosion runs or noise on either side add detail below it, within 4096 quads).
+    #[arg(long)]
     pub level: Option<u8>,
-    /// `WEST,SOUTH,EAST,NORTH` in degrees.
+    /// Only inside WEST,SOUTH,EAST,NORTH (degrees; east < west crosses ±180°).
+    #[arg(long, allow_hyphen_values = true)]
     pub region: Option<String>,
-    /// Count samples instead of weighting them by area.
+    /// Count every sample once (as xDEM and demcompare count pixels) instead of weighting by area.
+    #[arg(long)]
     pub unweighted: bool,
-    /// Print JSON.
+    /// Print JSON (stable field names: count, nodata_count, mean_m, median_m, std_m, rmse_m,
+    /// nmad_m, min_m, max_m, le90_m, p90_abs_m, histogram, by_slope).
+    #[arg(long)]
     pub json: bool,
-    /// Write every sample here as CSV.
+    /// Also write every sample (lon_deg, lat_deg, dh_m, area_m2, slope_deg) as CSV.
+    #[arg(long)]
     pub samples: Option<PathBuf>,
 }
 
@@ -116,21 +121,27 @@ pub fn table(c: &Comparison) -> String {
 }
 
 /// What `terrafuse coregister` was asked.
-#[derive(Clone, Debug)]
+#[derive(clap::Args, Clone, Debug)]
 pub struct CoregRequest {
-    /// The project file.
+    /// The project file (JSON).
     pub project: PathBuf,
     /// The layer to move.
     pub a: String,
-    /// The reference (`--to`).
+    /// The reference layer.
+    #[arg(long = "to")]
     pub b: String,
-    /// The level.
+    /// Level to work at (default: one finer than the coarser dataset's finest, where A and B
+    /// are smoothed alike by interpolation).
+    #[arg(long)]
     pub level: Option<u8>,
-    /// `WEST,SOUTH,EAST,NORTH` in degrees.
+    /// Only inside WEST,SOUTH,EAST,NORTH (degrees).
+    #[arg(long, allow_hyphen_values = true)]
     pub region: Option<String>,
-    /// Write the result into the project as A's `shift_m` and `offset_m`.
+    /// Write the result into the project: A's shift_m and offset_m.
+    #[arg(long)]
     pub apply: bool,
-    /// Print JSON.
+    /// Print JSON (east_m, north_m, up_m, iterations, before, after).
+    #[arg(long)]
     pub json: bool,
 }
 

@@ -30,32 +30,59 @@ pub enum ErodeOn {
 }
 
 /// What `terrafuse erode` was asked.
-#[derive(Clone, Debug, Default)]
+#[derive(clap::Args, Clone, Debug, Default)]
 pub struct ErodeRequest {
-    /// The project file.
+    /// The project file (JSON).
     pub project: PathBuf,
     /// The erosion layer.
+    #[arg(long)]
     pub layer: String,
-    /// `WEST,SOUTH,EAST,NORTH`, degrees (west > east crosses the antimeridian).
+    /// The box: WEST,SOUTH,EAST,NORTH degrees (west > east crosses the antimeridian).
+    #[arg(long, allow_hyphen_values = true)]
     pub region: Option<String>,
-    /// The level of the cells (default: `erosion::placement::default_level`).
+    /// The level whose samples are the cells (default: the coarsest with 512 cells along the
+    /// box's north–south side, as the workstation chooses).
+    #[arg(long)]
     pub level: Option<u8>,
-    /// Steps.
+    /// Steps (each the preset's Δt or less, by the CFL bound).
+    #[arg(long)]
     pub steps: Option<u64>,
-    /// The preset (default `rain`).
+    /// rain, river, thermal or gentle (default rain).
+    #[arg(long)]
     pub preset: Option<String>,
-    /// Parameter overrides, `FIELD=VALUE`.
+    /// Overrides a parameter: FIELD=VALUE (repeatable), e.g. rain_m_s=2e-5, border=closed.
+    #[arg(long)]
     pub set: Vec<String>,
-    /// The dither's seed.
+    /// The seed of the rounding dither.
+    #[arg(long)]
     pub seed: Option<u64>,
-    /// Where it runs.
-    pub on: ErodeOn,
-    /// Print JSON.
+    /// Run on the GPU (lavapipe too).
+    #[arg(long, conflicts_with = "cpu")]
+    pub gpu: bool,
+    /// Run the CPU reference (bit for bit reproducible; the default without a hardware GPU).
+    #[arg(long)]
+    pub cpu: bool,
+    /// Print JSON (steps, simulated_s, water_unexplained_rel, soil_unexplained_rel,
+    /// water_out_m3, soil_out_m3, seconds, …).
+    #[arg(long)]
     pub json: bool,
-    /// Undo this many runs.
+    /// Undo this many runs (no run).
+    #[arg(long)]
     pub undo: Option<usize>,
-    /// Redo this many runs.
+    /// Redo this many runs (no run).
+    #[arg(long)]
     pub redo: Option<usize>,
+}
+
+impl ErodeRequest {
+    /// Where it runs, from `--gpu` and `--cpu`.
+    pub fn on(&self) -> ErodeOn {
+        match (self.gpu, self.cpu) {
+            (true, _) => ErodeOn::Gpu,
+            (_, true) => ErodeOn::Cpu,
+            _ => ErodeOn::Auto,
+        }
+    }
 }
 
 /// The preset `name` on the project's body with `set` overrides applied (`FIELD=VALUE`).
@@ -133,7 +160,7 @@ pub fn erode_command(request: &ErodeRequest) -> Result<String, CliError> {
     for line in report.imported.iter().chain(&report.edits) {
         let _ = writeln!(out, "{line}");
     }
-    let gpu = match request.on {
+    let gpu = match request.on() {
         ErodeOn::Cpu => None,
         ErodeOn::Gpu => Some(GpuContext::headless().within("--gpu")?),
         ErodeOn::Auto => GpuContext::headless().ok().filter(|c| c.info.device_type != wgpu::DeviceType::Cpu),

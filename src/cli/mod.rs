@@ -1,8 +1,13 @@
-//! The logic behind the `terrafuse` subcommands, kept out of `main.rs` so it can be tested:
-//! batch coordinate conversion in the manner of PROJ's `cct` and the analysis reports.
+//! The logic behind the `terrafuse` subcommands, kept out of `main.rs` so it can be tested: the
+//! command line's types (`args`, `bench_args`), running a parsed command (`dispatch`,
+//! `bench_command`) on a `console`, and
+//! one file per command or benchmark.
 
+pub mod args;
+mod bench_args;
 mod bench_brush;
 mod bench_brush_latency;
+mod bench_command;
 mod bench_compare;
 mod bench_compose;
 mod bench_erosion;
@@ -12,6 +17,8 @@ mod bench_replay;
 mod bench_shards;
 mod brush;
 mod compare;
+mod console;
+mod dispatch;
 mod erode;
 mod error;
 mod export;
@@ -36,6 +43,8 @@ pub use bench_replay::{ReplayBenchSettings, bench_replay, synthetic_session};
 pub use bench_shards::{SRTM_SAMPLES, ShardBenchSettings, bench_shards};
 pub use brush::{BrushRequest, brush_command};
 pub use compare::{CompareRequest, CoregRequest, compare_command, coregister_command, table as compare_table};
+pub use console::Console;
+pub use dispatch::run;
 pub use erode::{ErodeOn, ErodeRequest, erode_command, params_of};
 pub use error::{CliError, Within};
 pub use export::{ComposeOn, ComposedExport, ComposedReport, export_composed};

@@ -9,21 +9,27 @@ use crate::compare::{ProfileOptions, profile};
 use crate::project::Project;
 
 /// What `terrafuse profile` was asked.
-#[derive(Clone, Debug)]
+#[derive(clap::Args, Clone, Debug)]
 pub struct ProfileRequest {
-    /// The project file.
+    /// The project file (JSON).
     pub project: PathBuf,
-    /// `LAT,LON` of the start, degrees.
+    /// Start: LAT,LON in degrees.
+    #[arg(long, allow_hyphen_values = true)]
     pub from: Option<String>,
-    /// `LAT,LON` of the end, degrees.
+    /// End: LAT,LON in degrees.
+    #[arg(long, allow_hyphen_values = true)]
     pub to: Option<String>,
-    /// A profile line saved in the project instead of `from` and `to`.
+    /// A profile line saved in the project (comparison.profiles) instead of --from and --to.
+    #[arg(long)]
     pub line: Option<String>,
-    /// Samples along the line.
+    /// Samples along the line (default: one per sample spacing of the level).
+    #[arg(long)]
     pub samples: Option<usize>,
-    /// The level.
+    /// Level to sample (default: the finest among the datasets).
+    #[arg(long)]
     pub level: Option<u8>,
-    /// Write the profile here as CSV.
+    /// Write the profile as CSV (distance_m, lat_deg, lon_deg, a column per layer, composed).
+    #[arg(long)]
     pub csv: Option<PathBuf>,
 }
 

@@ -14,17 +14,26 @@ use crate::project::Project;
 use crate::replay::{self, Engine, Replayed, digest};
 
 /// What `terrafuse replay` was asked.
-#[derive(Clone, Debug, Default)]
+#[derive(clap::Args, Clone, Debug, Default)]
 pub struct ReplayRequest {
-    /// The project file.
+    /// The project file (JSON).
     pub project: PathBuf,
-    /// Compare with the recorded checks.
+    /// Compare with the digests recorded in the project's "checks"; exit 1 on a mismatch.
+    #[arg(long)]
     pub check: bool,
-    /// Write the checks' digests into the project.
+    /// Write the digests of the project's checks into it (from the CPU reference).
+    #[arg(long, conflicts_with_all = ["check", "gpu"])]
     pub record: bool,
-    /// Rebuild on the GPU.
+    /// Rebuild on the GPU (lavapipe too); with --check, each layer is compared with the CPU
+    /// reference within its stated tolerance.
+    #[arg(long, conflicts_with = "cpu")]
     pub gpu: bool,
-    /// Print JSON.
+    /// Rebuild with the CPU reference, bit for bit (the default).
+    #[arg(long)]
+    pub cpu: bool,
+    /// Print JSON (project, engine, layers[name, kind, operations, tiles, digest, seconds],
+    /// checks[name, digest, expected, ok, first_differing_tile], seconds, passed).
+    #[arg(long)]
     pub json: bool,
 }
 

@@ -1,0 +1,441 @@
+//! The command line: clap's types for every `terrafuse` subcommand. The commands that act on a
+//! project take their request types ([`BrushRequest`], [`ErodeRequest`], …) straight from
+//! clap; [`super::dispatch::run`] runs them; `main.rs` only parses and prints.
+
+use std::path::PathBuf;
+
+use clap::Subcommand;
+
+use super::bench_args::Bench;
+use super::{BrushRequest, CliError, CompareRequest, CoregRequest, ErodeRequest, ProfileRequest, ReplayRequest};
+
+/// A `terrafuse` subcommand.
+#[derive(Subcommand)]
+pub enum Command {
+    /// Print what Terrafuse does, on the bundled landmark sample.
+    Overview {
+        /// Landmark file: lines of `name lat lon h`.
+        #[arg(long, default_value = concat!(env!("CARGO_MANIFEST_DIR"), "/projects/samples/landmarks.txt"))]
+        landmarks: PathBuf,
+    },
+    /// Batch coordinate conversions, one record per line from stdin (or --input) to stdout.
+    Geo {
+        /// The conversion.
+        #[command(subcommand)]
+        operation: GeoCommand,
+        /// Body: wgs84, moon, mars, a=A,b=B, a=A,rf=F or r=R (metres).
+        #[arg(long, global = true, default_value = "wgs84")]
+        body: String,
+        /// Cube projection for to-face/from-face: qsc, gnomonic, adjusted-gnomonic.
+        #[arg(long, global = true, default_value = "qsc")]
+        projection: String,
+        /// Read records from this file instead of standard input.
+        #[arg(long, global = true)]
+        input: Option<PathBuf>,
+    },
+    /// Analyses of the cube map.
+    Analyze {
+        /// The analysis.
+        #[command(subcommand)]
+        analysis: Analysis,
+    },
+    /// Import rasters GDAL reads (any CRS) onto the cube map, into a GeoPackage tile store.
+    Import {
+        /// What to import and how.
+        #[command(flatten)]
+        import: ImportArgs,
+    },
+    /// Read a tile store: info, sample, export; merge a sharded import's parts.
+    Store {
+        /// The subcommand.
+        #[command(subcommand)]
+        command: StoreCommand,
+    },
+    /// Run a sharded import on a Slurm cluster.
+    Slurm {
+        /// The subcommand.
+        #[command(subcommand)]
+        command: SlurmCommand,
+    },
+    /// Render one frame of a project to a PNG and report what it drew and what it cost.
+    Render {
+        /// The project file (JSON).
+        project: PathBuf,
+        /// The PNG to write.
+        #[arg(long)]
+        out: PathBuf,
+        /// Image width, pixels.
+        #[arg(long, default_value_t = 1280)]
+        width: u32,
+        /// Image height, pixels.
+        #[arg(long, default_value_t = 1024)]
+        height: u32,
+        /// The view: a named one, a camera, a level of detail.
+        #[command(flatten)]
+        look: LookArgs,
+        /// A,B[,POSITION]: layer A left of a vertical line at POSITION (0–1 of the width,
+        /// default 0.5), layer B right of it (each shown with the other hidden); or the name of
+        /// a swipe saved in the project (comparison.swipes), with its view.
+        #[arg(long)]
+        swipe: Option<String>,
+    },
+    /// Write a project's composed elevation (every visible layer, as drawn) as a GeoTIFF in any
+    /// CRS: float32, NaN nodata, written atomically.
+    Export {
+        /// The project file (JSON).
+        project: PathBuf,
+        /// The GeoTIFF to write.
+        out: PathBuf,
+        /// The output grid.
+        #[command(flatten)]
+        raster: RasterArgs,
+        /// Level to compose (default: the output's pixel size, no finer than the finest dataset
+        /// unless procedural layers add detail).
+        #[arg(long)]
+        level: Option<u8>,
+        /// Where to compose: gpu (the renderer's pass) or cpu (the reference, bit for bit).
+        #[arg(long, default_value = "gpu", value_parser = ["gpu", "cpu"])]
+        compose: String,
+        /// A,B: write layer A − layer B (each composed alone) instead of the stack.
+        #[arg(long)]
+        difference: Option<String>,
+    },
+    /// Compare layer A with layer B (the reference) of a project: statistics of A − B over
+    /// their overlap at one level, weighted by each sample's cell area on the ellipsoid, by slope
+    /// class of B, with a histogram.
+    Compare(CompareRequest),
+    /// Co-register layer A onto layer B (Nuth & Kääb 2011 on the ellipsoid): the horizontal
+    /// shift (east, north, metres) and vertical offset that align A with B, and the statistics of
+    /// A − B before and after.
+    Coregister(CoregRequest),
+    /// Appends a brush stroke to an edit layer (made on top when missing), or moves its undo
+    /// position, and saves the project atomically.
+    Brush(BrushRequest),
+    /// Runs erosion headless on a region (the box rounded out to whole quads of the level),
+    /// appends the run to an erosion layer (made on top when missing) or moves its undo
+    /// position, prints the budgets and the time, and saves the project atomically.
+    Erode(ErodeRequest),
+    /// Every visible layer's elevation (each alone) and the composed stack's along the geodesic
+    /// between two points.
+    Profile(ProfileRequest),
+    /// Open the workstation: a window with the project's terrain, its views and its visual
+    /// settings (needs an X11 display; `xvfb-run` provides one for screenshots).
+    View {
+        /// The project file (JSON).
+        project: PathBuf,
+        /// The view: a named one, a camera, a level of detail.
+        #[command(flatten)]
+        look: LookArgs,
+        /// Window width, pixels.
+        #[arg(long, default_value_t = 1280)]
+        width: u32,
+        /// Window height, pixels.
+        #[arg(long, default_value_t = 800)]
+        height: u32,
+        /// Once the view has loaded, write a picture of the whole window to this PNG and close.
+        #[arg(long)]
+        screenshot: Option<PathBuf>,
+        /// Seconds a --screenshot run waits for the view to load.
+        #[arg(long, default_value_t = 300.0)]
+        timeout: f64,
+    },
+    /// Rebuild every edit and erosion layer of a project from its operations and print a digest
+    /// per layer; --check compares the project's recorded checks (exit status 1 on a mismatch,
+    /// naming the check and the first differing tile), --record writes them.
+    Replay(ReplayRequest),
+    /// Project files: check one, bring one to the current version, print the schema.
+    Project {
+        /// The subcommand.
+        #[command(subcommand)]
+        command: ProjectCommand,
+    },
+    /// Benchmarks that report speed beside error.
+    Bench {
+        /// The benchmark.
+        #[command(subcommand)]
+        bench: Bench,
+    },
+}
+
+/// `terrafuse project …`.
+#[derive(Subcommand)]
+pub enum ProjectCommand {
+    /// Load and check a project (every field, its stores and sources there, a recovery file)
+    /// and summarise it.
+    Check {
+        /// The project file (JSON).
+        project: PathBuf,
+    },
+    /// Rewrite a project in the current version (atomically); --out writes a copy elsewhere
+    /// with its relative paths rewritten to reach the same files.
+    Upgrade {
+        /// The project file (JSON).
+        project: PathBuf,
+        /// Write here instead of over the project.
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
+    /// Print the JSON Schema of project files (docs/project.schema.json), or with --markdown
+    /// the field reference of docs/project-format.md.
+    Schema {
+        /// The reference as Markdown tables instead.
+        #[arg(long)]
+        markdown: bool,
+    },
+}
+
+/// Where a frame looks from, and its level of detail.
+#[derive(clap::Args, Clone)]
+pub struct LookArgs {
+    /// A named view of the project (default: its default view).
+    #[arg(long, conflicts_with = "camera")]
+    pub view: Option<String>,
+    /// A camera: lat,lon,alt,heading,pitch[,fov] (degrees, metres above the ellipsoid).
+    #[arg(long, allow_hyphen_values = true)]
+    pub camera: Option<String>,
+    /// Split quads while a sample covers more than this many pixels (the project's default).
+    #[arg(long)]
+    pub lod_threshold: Option<f64>,
+}
+
+/// `terrafuse import`.
+#[derive(clap::Args, Clone)]
+pub struct ImportArgs {
+    /// Source rasters (GeoTIFF, COG, VRT, …); where they overlap the first with data wins.
+    #[arg(required_unless_present = "manifest", conflicts_with = "manifest")]
+    pub sources: Vec<PathBuf>,
+    /// The store (a GeoPackage; created if missing); with --shard, the shard's partial store.
+    #[arg(long, required_unless_present = "plan")]
+    pub store: Option<PathBuf>,
+    /// Body: wgs84, moon, mars, a=A,b=B, a=A,rf=F or r=R (metres).
+    #[arg(long, required_unless_present = "manifest")]
+    pub body: Option<String>,
+    /// Plan a sharded import instead: write this manifest (the finest level's quads cut into
+    /// --shards runs along a Hilbert curve per face) and import nothing.
+    #[arg(long, requires = "shards", conflicts_with_all = ["store", "manifest"])]
+    pub plan: Option<PathBuf>,
+    /// Shards of the plan.
+    #[arg(long, requires = "plan")]
+    pub shards: Option<usize>,
+    /// Import one shard of this manifest (with --shard and --store).
+    #[arg(long, requires = "shard")]
+    pub manifest: Option<PathBuf>,
+    /// The shard: 0 … N−1, or `env` for the array index of Slurm (SLURM_ARRAY_TASK_ID),
+    /// Kubernetes (JOB_COMPLETION_INDEX) or AWS Batch (AWS_BATCH_JOB_ARRAY_INDEX).
+    #[arg(long, requires = "manifest")]
+    pub shard: Option<String>,
+    /// With --shard: build the partial store in this folder (node-local disk) and copy it to
+    /// --store when complete.
+    #[arg(long, requires = "shard")]
+    pub work_dir: Option<PathBuf>,
+    /// Dataset name (default: the first source's file name).
+    #[arg(long)]
+    pub name: Option<String>,
+    /// Finest level: auto (from the source resolution) or 0–30.
+    #[arg(long, default_value = "auto")]
+    pub max_level: String,
+    /// Resampling at the finest level: bilinear, cubic or nearest.
+    #[arg(long, default_value = "bilinear")]
+    pub resampling: String,
+    /// Where samples fall in the sources: lattice (exact on a coarse lattice per quad,
+    /// interpolated within 10⁻³ source pixel, measured on every quad, else exact) or exact
+    /// (every sample through PROJ).
+    #[arg(long, default_value = "lattice")]
+    pub transform: String,
+    /// Vertical datum of the source heights: ellipsoidal, egm96, egm2008 or geoid:GRIDFILE
+    /// (geoid heights are converted to ellipsoidal ones through PROJ), or unspecified.
+    #[arg(long, default_value = "unspecified")]
+    pub vertical_datum: String,
+    /// Memory budget (GDAL cache, source windows, tiles in flight), e.g. 2GiB.
+    #[arg(long, default_value = "2GiB")]
+    pub memory_budget: String,
+    /// Worker threads (default: all cores).
+    #[arg(long)]
+    pub threads: Option<usize>,
+    /// No progress bar.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+/// `terrafuse slurm …`.
+#[derive(Subcommand)]
+pub enum SlurmCommand {
+    /// Submit a plan's missing shards as a job array (one shard per task, built on node-local
+    /// disk, copied to --parts when complete) and a merge job that runs after it
+    /// (--dependency=afterok). After failures, run it again: only missing shards are submitted.
+    Submit(SubmitArgs),
+}
+
+/// `terrafuse slurm submit`.
+#[derive(clap::Args, Clone)]
+pub struct SubmitArgs {
+    /// The manifest (`terrafuse import … --plan MANIFEST --shards N`).
+    #[arg(long)]
+    pub manifest: PathBuf,
+    /// Folder for the partial stores, on storage every node sees (also the scripts and logs, in
+    /// PARTS/slurm).
+    #[arg(long)]
+    pub parts: PathBuf,
+    /// The merged store.
+    #[arg(long)]
+    pub store: PathBuf,
+    /// CPUs per task, and the import's threads.
+    #[arg(long, default_value_t = 2)]
+    pub threads: usize,
+    /// Memory budget per task.
+    #[arg(long, default_value = "2GiB")]
+    pub memory_budget: String,
+    /// Node-local folder a task builds its shard in (a shell word, expanded on the node).
+    #[arg(long, default_value = "${TMPDIR:-/tmp}")]
+    pub work_dir: String,
+    /// An extra sbatch argument for both jobs (repeat it): --sbatch-arg=--partition=short.
+    #[arg(long, allow_hyphen_values = true)]
+    pub sbatch_arg: Vec<String>,
+    /// The terrafuse executable the nodes run (default: this one).
+    #[arg(long)]
+    pub terrafuse: Option<PathBuf>,
+    /// Print the sbatch commands without submitting.
+    #[arg(long)]
+    pub dry_run: bool,
+}
+
+/// `terrafuse store …`.
+#[derive(Subcommand)]
+pub enum StoreCommand {
+    /// Merge the partial stores of a sharded import into STORE (one transaction per shard; a
+    /// shard merged before is skipped) and, when every shard is in, build the pyramid. Exits 3
+    /// when shards are still missing.
+    Merge {
+        /// The store (created if missing).
+        store: PathBuf,
+        /// Partial stores (`terrafuse import --manifest M --shard I --store PART`).
+        #[arg(required = true)]
+        parts: Vec<PathBuf>,
+        /// Worker threads for the pyramid (default: all cores).
+        #[arg(long)]
+        threads: Option<usize>,
+        /// No progress bar.
+        #[arg(long)]
+        quiet: bool,
+    },
+    /// Body, datasets, levels, tile counts, extents and provenance.
+    Info {
+        /// The store.
+        store: PathBuf,
+    },
+    /// Heights at `lat lon` lines from stdin (degrees), bilinear; `nan` where there are no data.
+    Sample {
+        /// The store.
+        store: PathBuf,
+        /// Dataset (needed when the store has several).
+        #[arg(long)]
+        dataset: Option<String>,
+        /// Level to sample (default: the finest).
+        #[arg(long)]
+        level: Option<u8>,
+    },
+    /// Write a dataset as a GeoTIFF in any CRS.
+    Export {
+        /// The store.
+        store: PathBuf,
+        /// The GeoTIFF to write.
+        out: PathBuf,
+        /// The output grid.
+        #[command(flatten)]
+        raster: RasterArgs,
+        /// Dataset (needed when the store has several).
+        #[arg(long)]
+        dataset: Option<String>,
+        /// Level to read (default: the finest the output resolution needs).
+        #[arg(long)]
+        level: Option<u8>,
+    },
+}
+
+/// The output raster of `export` and `store export`.
+#[derive(clap::Args)]
+pub struct RasterArgs {
+    /// Output CRS (EPSG:4326, EPSG:32637, a PROJ string, WKT).
+    #[arg(long)]
+    pub crs: String,
+    /// xmin,ymin,xmax,ymax in the output CRS.
+    #[arg(long, allow_hyphen_values = true)]
+    pub bounds: String,
+    /// Pixel size in CRS units: one value, or x,y.
+    #[arg(long)]
+    pub resolution: String,
+}
+
+/// An output grid: the CRS, the bounds (xmin, ymin, xmax, ymax) and the pixel size (x, y).
+pub type OutputGrid = (String, [f64; 4], (f64, f64));
+
+impl RasterArgs {
+    /// The CRS, the bounds and the pixel size (x, y), checked for shape.
+    pub fn parse(self) -> Result<OutputGrid, CliError> {
+        let b = parse_numbers(&self.bounds, "--bounds")?;
+        if b.len() != 4 {
+            return Err("--bounds takes xmin,ymin,xmax,ymax".into());
+        }
+        let r = parse_numbers(&self.resolution, "--resolution")?;
+        let resolution = match r.as_slice() {
+            [v] => (*v, *v),
+            [x, y] => (*x, *y),
+            _ => return Err("--resolution takes one value or x,y".into()),
+        };
+        Ok((self.crs, [b[0], b[1], b[2], b[3]], resolution))
+    }
+}
+
+/// `terrafuse geo …`: the conversion.
+#[derive(Subcommand, Clone, Copy)]
+pub enum GeoCommand {
+    /// `lat lon` (degrees) → `face x y`, x and y in [-1, 1] (PROJ's qsc metres / a).
+    ToFace,
+    /// `face x y` → `lat lon` (degrees).
+    FromFace,
+    /// `lat lon h` (degrees, metres above the ellipsoid) → `X Y Z` (metres, ECEF).
+    ToEcef,
+    /// `X Y Z` (metres, ECEF) → `lat lon h`.
+    FromEcef,
+}
+
+/// `terrafuse analyze …`.
+#[derive(Subcommand)]
+pub enum Analysis {
+    /// Angular and areal distortion of the cube projections and the alternative grids.
+    Tissot {
+        /// Points per chart side for the pointwise supremum.
+        #[arg(long, default_value_t = 600)]
+        samples: usize,
+        /// Quadtree level whose cells are measured (2-12).
+        #[arg(long, default_value_t = 10)]
+        level: u8,
+    },
+    /// Per level: largest displacement and normal deviation of the static maps, and the flat
+    /// rule that drops them (fitted for the body).
+    Cutoff {
+        /// Body: wgs84, moon, mars, a=A,b=B, a=A,rf=F or r=R (metres).
+        #[arg(long, default_value = "wgs84")]
+        body: String,
+        /// Tolerance on the flat path's position error, metres.
+        #[arg(long, default_value_t = crate::ecm::geometry::FlatRule::DEFAULT_TOLERANCE_M)]
+        tolerance_m: f64,
+        /// Cap the tolerance at this fraction of the f32 limit at each level's draw distance
+        /// (0: the absolute tolerance alone).
+        #[arg(long, default_value_t = 0.25)]
+        limit_fraction: f64,
+        /// Deepest level in the table (≤ 30).
+        #[arg(long, default_value_t = 30)]
+        max_level: u8,
+        /// Samples per quad edge in the scan.
+        #[arg(long, default_value_t = 17)]
+        samples: u32,
+    },
+}
+
+/// Comma-separated numbers of an option.
+pub fn parse_numbers(text: &str, what: &str) -> Result<Vec<f64>, CliError> {
+    text.split(',')
+        .map(|v| v.trim().parse::<f64>().map_err(|_| format!("{what}: '{v}' is not a number").into()))
+        .collect()
+}

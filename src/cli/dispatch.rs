@@ -1,0 +1,253 @@
+//! Runs a parsed command line: each [`Command`] calls the library and writes what it reports to
+//! the [`Console`] that `main.rs` gives (standard input, output and error, the environment's
+//! settings), so that the library itself neither prints nor reads the environment. Returns the
+//! exit status: 0, 1 when a check or a record failed, 3 for an incomplete merge.
+
+use std::io::BufReader;
+
+use super::args::{Analysis, Command, GeoCommand, ImportArgs, ProjectCommand, SlurmCommand, StoreCommand};
+use super::console::Console;
+use super::error::Context;
+use super::{CliError, GeoOperation};
+use crate::ecm::CubeProjection;
+use crate::geodesy::Ellipsoid;
+
+/// Runs `command` (all but `view`, which needs the workstation: `main.rs` opens it).
+pub fn run(command: Command, c: &mut Console) -> Result<u8, CliError> {
+    match command {
+        Command::Overview { landmarks } => {
+            let text = std::fs::read_to_string(&landmarks)
+                .with_context(|| format!("cannot read landmark file {}", landmarks.display()))?;
+            c.print(super::overview(&text))?;
+            c.print(format_args!("\n{}", super::tissot_report(600, 10).0))?;
+        }
+        Command::Geo { operation, body, projection, input } => {
+            let ellipsoid: Ellipsoid = body.parse()?;
+            let projection: CubeProjection = projection.parse()?;
+            let operation = match operation {
+                GeoCommand::ToFace => GeoOperation::ToFace,
+                GeoCommand::FromFace => GeoOperation::FromFace,
+                GeoCommand::ToEcef => GeoOperation::ToEcef,
+                GeoCommand::FromEcef => GeoOperation::FromEcef,
+            };
+            let report = match input {
+                Some(path) => {
+                    let file = std::fs::File::open(&path)
+                        .with_context(|| format!("cannot open input file {}", path.display()))?;
+                    super::run_batch(operation, &ellipsoid, projection, BufReader::new(file), &mut *c.out, &mut *c.err)
+                }
+                None => super::run_batch(operation, &ellipsoid, projection, &mut *c.input, &mut *c.out, &mut *c.err),
+            }
+            .context("cannot convert the records")?;
+            if report.refused > 0 {
+                c.note(format_args!(
+                    "terrafuse: {} of {} records refused",
+                    report.refused,
+                    report.refused + report.converted
+                ));
+                return Ok(1);
+            }
+        }
+        Command::Analyze { analysis: Analysis::Tissot { samples, level } } => {
+            c.print(super::tissot_report(samples, level).0)?;
+        }
+        Command::Analyze { analysis: Analysis::Cutoff { body, tolerance_m, limit_fraction, max_level, samples } } => {
+            let ellipsoid: Ellipsoid = body.parse()?;
+            if tolerance_m.is_nan() || tolerance_m <= 0.0 {
+                return Err("--tolerance-m: the tolerance must be a positive number of metres".into());
+            }
+            if limit_fraction.is_nan() || limit_fraction < 0.0 {
+                return Err("--limit-fraction: the limit fraction must be 0 or more".into());
+            }
+            let (table, _) =
+                super::cutoff_report(&ellipsoid, tolerance_m, limit_fraction, max_level.min(30), samples.max(3));
+            c.print(table)?;
+        }
+        Command::Render { project, out, width, height, look, swipe } => {
+            c.note_recovery(&project);
+            let request = super::RenderRequest {
+                project: &project,
+                out: &out,
+                width,
+                height,
+                view: look.view.as_deref(),
+                camera: look.camera.as_deref(),
+                lod_threshold: look.lod_threshold,
+                swipe: swipe.as_deref(),
+                trace: c.trace,
+            };
+            let err = &mut *c.err;
+            let report = super::render(&request, &mut |line| {
+                let _ = writeln!(err, "{line}");
+            })?;
+            c.print(report)?;
+        }
+        Command::Profile(request) => c.print(super::profile_command(&request)?)?,
+        Command::Compare(request) => c.print(super::compare_command(&request)?)?,
+        Command::Coregister(request) => c.print(super::coregister_command(&request)?)?,
+        Command::Brush(request) => c.print(super::brush_command(&request)?)?,
+        Command::Erode(request) => c.print(super::erode_command(&request)?)?,
+        Command::Replay(request) => {
+            c.note_recovery(&request.project);
+            let outcome = super::replay_command(&request)?;
+            c.print(&outcome.report)?;
+            if !outcome.passed {
+                c.note("terrafuse: replay: a check failed (see above)");
+                return Ok(1);
+            }
+        }
+        Command::Project { command } => match command {
+            ProjectCommand::Check { project } => c.print(super::project_check(&project)?)?,
+            ProjectCommand::Upgrade { project, out } => c.print(super::project_upgrade(&project, out.as_deref())?)?,
+            ProjectCommand::Schema { markdown: false } => c.print(crate::project::Project::schema())?,
+            ProjectCommand::Schema { markdown: true } => c.print(crate::project::reference::markdown())?,
+        },
+        Command::Export { project, out, raster, level, compose, difference } => {
+            let (crs, bounds, resolution) = raster.parse()?;
+            let difference = match difference.as_deref().map(|d| d.split(',').map(str::trim).collect::<Vec<_>>()) {
+                None => None,
+                Some(v) if v.len() == 2 && v[0] != v[1] => Some((v[0].to_string(), v[1].to_string())),
+                Some(v) => return Err(format!("--difference {}: give two different layers A,B", v.join(",")).into()),
+            };
+            let compose_on = if compose == "cpu" { super::ComposeOn::Cpu } else { super::ComposeOn::Gpu };
+            let opts = super::ComposedExport { project, out, crs, bounds, resolution, level, compose_on, difference };
+            let report = super::export_composed(&opts)?;
+            c.print(format_args!(
+                "wrote {} ({}×{} pixels, level {}, {} quads composed on the {}, {} pixels with data)\n",
+                opts.out.display(),
+                report.size.0,
+                report.size.1,
+                report.level,
+                report.quads,
+                report.composer,
+                report.valid
+            ))?;
+        }
+        Command::View { .. } => {
+            return Err("the workstation is opened by the terrafuse program, not the library".into());
+        }
+        Command::Import { import } => run_import(&import, c)?,
+        Command::Store { command: StoreCommand::Merge { store, parts, threads, quiet } } => {
+            let opts = crate::store::merge::MergeOptions {
+                store: store.clone(),
+                parts,
+                threads,
+                progress: !quiet,
+                watch: None,
+            };
+            let report = crate::store::merge::merge(&opts)?;
+            c.print(super::merge_summary(&store, &report))?;
+            if !report.complete {
+                return Ok(3);
+            }
+        }
+        Command::Slurm { command: SlurmCommand::Submit(a) } => {
+            c.print(super::slurm_submit(&super::SubmitRequest {
+                manifest: a.manifest,
+                parts: a.parts,
+                store: a.store,
+                threads: a.threads,
+                memory_budget: a.memory_budget,
+                work_dir: a.work_dir,
+                sbatch_args: a.sbatch_arg,
+                terrafuse: a.terrafuse,
+                dry_run: a.dry_run,
+            })?)?;
+        }
+        Command::Store { command: StoreCommand::Info { store } } => c.print(super::store_info(&store)?)?,
+        Command::Store { command: StoreCommand::Sample { store, dataset, level } } => {
+            let s = crate::store::Store::open_read_only(&store)?;
+            let mut reader = crate::store::GridReader::new(s, dataset.as_deref().unwrap_or(""))?;
+            let finest = reader.finest_level();
+            let level = level.unwrap_or(finest);
+            if level > finest {
+                let problem = format!("dataset {} has levels 0–{finest}, not {level}", reader.dataset());
+                return Err(format!("{}: {problem}", store.display()).into());
+            }
+            let (_, refused) = super::sample_lines(&mut reader, level, &mut *c.input, &mut *c.out, &mut *c.err)?;
+            if refused > 0 {
+                c.note(format_args!("terrafuse: {refused} lines refused"));
+                return Ok(1);
+            }
+        }
+        Command::Store { command: StoreCommand::Export { store, out, raster, dataset, level } } => {
+            let (crs, bounds, resolution) = raster.parse()?;
+            let opts = crate::store::export::ExportOptions { store, dataset, crs, bounds, resolution, level, out };
+            let report = crate::store::export::export(&opts)?;
+            c.print(format_args!(
+                "wrote {} ({}×{} pixels, level {}, {} with data)\n",
+                opts.out.display(),
+                report.size.0,
+                report.size.1,
+                report.level,
+                report.valid
+            ))?;
+        }
+        Command::Bench { bench } => return super::bench_command::run(bench, c),
+    }
+    Ok(0)
+}
+
+/// `terrafuse import`: a plan, one shard of a plan, or a whole import.
+fn run_import(import: &ImportArgs, c: &mut Console) -> Result<(), CliError> {
+    match (&import.plan, &import.manifest) {
+        (Some(plan), _) => {
+            let opts = import_options(import)?;
+            let report = crate::store::shard::plan(&opts, plan, import.shards.unwrap_or(0))?;
+            c.print(super::plan_summary(plan, &report))
+        }
+        (None, Some(manifest)) => {
+            let shard = shard_index(import.shard.as_deref().unwrap_or_default(), c.var)?;
+            let store = import.store.clone().unwrap_or_default();
+            let opts = crate::store::shard::ShardOptions {
+                manifest: manifest.clone(),
+                shard,
+                store: store.clone(),
+                work_dir: import.work_dir.clone(),
+                threads: import.threads,
+                memory_budget: super::parse_bytes(&import.memory_budget)?,
+                progress: !import.quiet,
+                watch: None,
+            };
+            let report = crate::store::shard::import_shard(&opts)?;
+            c.print(super::shard_summary(&store, shard, &report))
+        }
+        (None, None) => {
+            let opts = import_options(import)?;
+            let report = crate::store::import(&opts)?;
+            c.print(super::import_summary(&opts.store, &report))
+        }
+    }
+}
+
+/// The shard a task runs: a number, or `env` for the scheduler's array index.
+fn shard_index(text: &str, var: &dyn Fn(&str) -> Option<String>) -> Result<usize, CliError> {
+    if text == "env" {
+        const VARS: [&str; 3] = ["SLURM_ARRAY_TASK_ID", "JOB_COMPLETION_INDEX", "AWS_BATCH_JOB_ARRAY_INDEX"];
+        let (name, value) = VARS
+            .iter()
+            .find_map(|v| var(v).map(|x| (*v, x)))
+            .ok_or_else(|| format!("--shard env: none of {} is set", VARS.join(", ")))?;
+        return value.trim().parse().map_err(|_| format!("--shard env: {name}={value} is not a shard number").into());
+    }
+    text.parse().map_err(|_| format!("--shard {text}: give a shard number 0 … N−1, or env").into())
+}
+
+/// The import the flags ask for.
+fn import_options(a: &ImportArgs) -> Result<crate::store::ImportOptions, CliError> {
+    Ok(crate::store::ImportOptions {
+        sources: a.sources.clone(),
+        store: a.store.clone().or_else(|| a.plan.clone()).unwrap_or_default(),
+        body: a.body.as_deref().unwrap_or_default().parse()?,
+        name: a.name.clone(),
+        level: a.max_level.parse()?,
+        resampling: a.resampling.parse()?,
+        transform: a.transform.parse()?,
+        vertical: a.vertical_datum.parse()?,
+        memory_budget: super::parse_bytes(&a.memory_budget)?,
+        threads: a.threads,
+        progress: !a.quiet,
+        finest_only: false,
+        watch: None,
+    })
+}
