@@ -402,13 +402,21 @@ fn recompose_cost(ctx: &GpuContext, base: &Project, layers: &[LayerSpec]) -> Res
 }
 
 fn write_csv(dir: &Path, rows: &[ComposeBenchRow]) -> Result<(), CliError> {
-    let mut csv = String::from("case,layers,samples,gpu_ms,cpu_ms,max_diff_m,skip_max_m,skip_rms_m\n");
+    let columns = ["case", "layers:", "samples:", "gpu_ms:", "cpu_ms:", "max_diff_m:", "skip_max_m:", "skip_rms_m:"];
+    let mut table = super::bench_harness::Table::new(&columns);
     for r in rows {
         let (a, b) = r.skip_error_m.map_or((String::new(), String::new()), |(a, b)| (a.to_string(), b.to_string()));
-        let _ =
-            writeln!(csv, "{},{},{},{},{},{},{a},{b}", r.case, r.layers, r.samples, r.gpu_ms, r.cpu_ms, r.max_diff_m);
+        let (layers, samples) = (r.layers.to_string(), r.samples.to_string());
+        table.row(vec![
+            r.case.to_string(),
+            layers,
+            samples,
+            r.gpu_ms.to_string(),
+            r.cpu_ms.to_string(),
+            r.max_diff_m.to_string(),
+            a,
+            b,
+        ]);
     }
-    std::fs::create_dir_all(dir).map_err(CliError::file(dir, "cannot create"))?;
-    let path = dir.join("compose.csv");
-    crate::files::write_atomic(&path, csv.as_bytes()).map_err(CliError::file(&path, "cannot write"))
+    table.write_csv(&dir.join("compose.csv"))
 }

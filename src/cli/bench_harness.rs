@@ -1,8 +1,13 @@
-//! What the benchmark commands share: timing one piece of work (medians of repeats are
-//! `crate::maths::median`), in one place, so that every figure in BENCHMARKS.md is measured the same way (wall time from just
-//! before the work to just after it, nothing else inside).
+//! What the benchmark commands share, so that every figure in BENCHMARKS.md is measured and
+//! written the same way: timing one piece of work (wall time from just before the work to just
+//! after it, nothing else inside; medians of repeats are `crate::maths::median`), and the
+//! [`Table`] each benchmark fills once and writes as CSV (for plots and scripts) and as a
+//! Markdown table (for the terminal and BENCHMARKS.md).
 
+use std::path::Path;
 use std::time::Instant;
+
+use super::CliError;
 
 /// Runs `work` once: its result and its wall time, seconds.
 pub fn timed<T>(work: impl FnOnce() -> T) -> (T, f64) {
@@ -17,9 +22,88 @@ pub fn timed_ms<T>(work: impl FnOnce() -> T) -> (T, f64) {
     (out, s * 1e3)
 }
 
+/// A benchmark's results: named columns, rows of formatted values.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Table {
+    columns: Vec<&'static str>,
+    /// Which columns are numbers (right-aligned in Markdown).
+    numeric: Vec<bool>,
+    rows: Vec<Vec<String>>,
+}
+
+impl Table {
+    /// A table of `columns`; a name ending in `:` marks a numeric column (the `:` is dropped).
+    pub fn new(columns: &[&'static str]) -> Table {
+        let numeric = columns.iter().map(|c| c.ends_with(':')).collect();
+        let columns = columns.iter().map(|c| c.trim_end_matches(':')).collect();
+        Table { columns, numeric, rows: Vec::new() }
+    }
+
+    /// Adds a row (one value per column; missing ones are empty, extra ones dropped).
+    pub fn row(&mut self, values: Vec<String>) {
+        let mut values = values;
+        values.resize(self.columns.len(), String::new());
+        self.rows.push(values);
+    }
+
+    /// The rows.
+    pub fn rows(&self) -> &[Vec<String>] {
+        &self.rows
+    }
+
+    /// The header and the rows as CSV (values with a comma or quote are quoted).
+    pub fn csv(&self) -> String {
+        let quote = |v: &str| {
+            if v.contains([',', '"', '\n']) { format!("\"{}\"", v.replace('"', "\"\"")) } else { v.to_string() }
+        };
+        let line = |values: &mut dyn Iterator<Item = &str>| values.map(quote).collect::<Vec<_>>().join(",") + "\n";
+        let mut out = line(&mut self.columns.iter().copied());
+        for row in &self.rows {
+            out += &line(&mut row.iter().map(String::as_str));
+        }
+        out
+    }
+
+    /// The header line and its alignment line of the Markdown table.
+    pub fn markdown_header(&self) -> String {
+        let align: Vec<&str> = self.numeric.iter().map(|&n| if n { "---:" } else { "---" }).collect();
+        format!("| {} |\n|{}|\n", self.columns.join(" | "), align.join("|"))
+    }
+
+    /// Row `k` as a Markdown line.
+    pub fn markdown_row(&self, k: usize) -> String {
+        format!("| {} |\n", self.rows[k].join(" | "))
+    }
+
+    /// Writes the CSV to `path` atomically (its folder made when missing).
+    pub fn write_csv(&self, path: &Path) -> Result<(), CliError> {
+        if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+            std::fs::create_dir_all(dir).map_err(CliError::file(dir, "cannot create"))?;
+        }
+        crate::files::write_atomic(path, self.csv().as_bytes()).map_err(CliError::file(path, "cannot write"))
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_table_writes_the_same_rows_as_csv_and_markdown() {
+        let mut t = Table::new(&["case", "ms:"]);
+        t.row(vec!["a, b".into(), "1.5".into()]);
+        t.row(vec!["c".into()]);
+        assert_eq!(t.csv(), "case,ms\n\"a, b\",1.5\nc,\n");
+        assert_eq!(
+            t.markdown_header() + &t.markdown_row(0) + &t.markdown_row(1),
+            "| case | ms |\n|---|---:|\n| a, b | 1.5 |\n| c |  |\n"
+        );
+        let dir = std::env::temp_dir().join(format!("terrafuse-table-{}", std::process::id()));
+        let path = dir.join("sub/t.csv");
+        t.write_csv(&path).unwrap();
+        assert_eq!(std::fs::read_to_string(&path).unwrap(), t.csv());
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 
     #[test]
     fn a_timing_covers_the_work_and_keeps_its_result() {

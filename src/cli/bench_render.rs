@@ -205,13 +205,27 @@ fn row_values(r: &RenderBenchRow) -> [String; 15] {
 
 /// The CSV of the rows.
 pub fn render_bench_csv(rows: &[RenderBenchRow]) -> String {
-    let mut out = String::from(
-        "project,view,threshold_px,quads,triangles,max_level,cpu_ms,select_ms,gpu_ms,frame_ms,height_error_mean_m,height_error_max_m,position_error_mean_px,position_error_max_px,coverage_mismatch\n",
-    );
+    let mut table = super::bench_harness::Table::new(&[
+        "project",
+        "view",
+        "threshold_px:",
+        "quads:",
+        "triangles:",
+        "max_level:",
+        "cpu_ms:",
+        "select_ms:",
+        "gpu_ms:",
+        "frame_ms:",
+        "height_error_mean_m:",
+        "height_error_max_m:",
+        "position_error_mean_px:",
+        "position_error_max_px:",
+        "coverage_mismatch:",
+    ]);
     for r in rows {
-        let _ = writeln!(out, "{}", row_values(r).join(","));
+        table.row(row_values(r).to_vec());
     }
-    out
+    table.csv()
 }
 
 /// Plot: GPU pass time and triangles (top) and mean errors (bottom) against t, one line per view.

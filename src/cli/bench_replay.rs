@@ -5,7 +5,7 @@
 //! with `--gpu`, compared with the CPU); then a log of 10⁵ strokes is saved and loaded, with
 //! the file's size and the process's peak memory.
 
-use super::bench_harness::timed;
+use super::bench_harness::{Table, timed};
 use super::{CliError, Within};
 use std::fmt::Write as _;
 use std::path::PathBuf;
@@ -128,14 +128,20 @@ pub fn bench_replay(s: &ReplayBenchSettings, progress: &mut dyn FnMut(&str)) -> 
     );
     let _ =
         writeln!(out, "project file {:.1} MB: saved in {save_s:.3} s, loaded in {load_s:.3} s\n", bytes as f64 / 1e6);
-    let _ = writeln!(out, "| engine | layer | operations | tiles | seconds | GPU − CPU (m) |");
-    let _ = writeln!(out, "|---|---|---:|---:|---:|---:|");
+    let mut table = Table::new(&["engine", "layer", "operations:", "tiles:", "seconds:", "GPU − CPU (m):"]);
+    out += &table.markdown_header();
     progress(&out);
+    // Each row shows as soon as it is measured.
+    let mut add = |table: &mut Table, out: &mut String, row: Vec<String>| {
+        table.row(row);
+        let line = table.markdown_row(table.rows().len() - 1);
+        progress(&line);
+        *out += &line;
+    };
     let cpu = replay::replay(&loaded, Engine::Cpu)?;
     for l in &cpu.layers {
-        let row = format!("| cpu | {} | {} | {} | {:.2} | |\n", l.name, l.operations, l.digests.tiles.len(), l.seconds);
-        progress(&row);
-        out += &row;
+        let row = vec!["cpu".into(), l.name.clone(), l.operations.to_string(), l.digests.tiles.len().to_string()];
+        add(&mut table, &mut out, [row, vec![format!("{:.2}", l.seconds), String::new()]].concat());
     }
     if s.gpu {
         let ctx = GpuContext::headless().within("--gpu")?;
@@ -146,16 +152,15 @@ pub fn bench_replay(s: &ReplayBenchSettings, progress: &mut dyn FnMut(&str)) -> 
                 (Some(a), Some(b)) => format!("{:.2e}", replay::largest_difference_m(a, b)),
                 _ => "-".into(),
             };
-            let row = format!(
-                "| gpu ({}) | {} | {} | {} | {:.2} | {difference} |\n",
-                ctx.info.name,
-                l.name,
-                l.operations,
-                l.digests.tiles.len(),
-                l.seconds
-            );
-            progress(&row);
-            out += &row;
+            let row = vec![
+                format!("gpu ({})", ctx.info.name),
+                l.name.clone(),
+                l.operations.to_string(),
+                l.digests.tiles.len().to_string(),
+                format!("{:.2}", l.seconds),
+                difference,
+            ];
+            add(&mut table, &mut out, row);
         }
     }
     // The long log: save and load only.

@@ -214,23 +214,29 @@ fn over_goal(rows: &[AccuracyRow]) -> String {
 /// The rows as CSV with the columns
 /// `approach,body,level,camera_distance_m,max_error_m,rms_error_m,f32_limit_m,ratio_to_limit`.
 pub fn accuracy_csv(rows: &[AccuracyRow]) -> String {
-    let mut out =
-        String::from("approach,body,level,camera_distance_m,max_error_m,rms_error_m,f32_limit_m,ratio_to_limit\n");
+    let mut table = super::bench_harness::Table::new(&[
+        "approach",
+        "body",
+        "level:",
+        "camera_distance_m:",
+        "max_error_m:",
+        "rms_error_m:",
+        "f32_limit_m:",
+        "ratio_to_limit:",
+    ]);
     for r in rows {
-        let _ = writeln!(
-            out,
-            "{},{},{},{:e},{:e},{:e},{:e},{:e}",
-            r.approach.name(),
-            r.body,
-            r.level,
-            r.camera_distance_m,
-            r.max_error_m,
-            r.rms_error_m,
-            r.f32_limit_m,
-            r.ratio_to_limit
-        );
+        table.row(vec![
+            r.approach.name().to_string(),
+            r.body.to_string(),
+            r.level.to_string(),
+            format!("{:e}", r.camera_distance_m),
+            format!("{:e}", r.max_error_m),
+            format!("{:e}", r.rms_error_m),
+            format!("{:e}", r.f32_limit_m),
+            format!("{:e}", r.ratio_to_limit),
+        ]);
     }
-    out
+    table.csv()
 }
 
 /// Colour of an approach in the plot.

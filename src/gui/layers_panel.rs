@@ -3,24 +3,42 @@
 //! changed layer touches), order changed by dragging a layer onto another or with up/down,
 //! constant, procedural and difference layers added (datasets by [`super::add_dataset`]; a
 //! difference's settings by [`super::difference_ui`]) and any layer removed (not one a difference
-//! reads).
+//! reads). The panel reads the project and returns [`LayerAction`]s; the workstation applies
+//! them to the renderer and the project.
 
-use crate::gpu::Renderer;
 use crate::layers::{BlendMode, DetailWhere, ExtentSpec, LayerPayload, LayerSpec, NoiseSpec, NoiseType};
 use crate::project::Project;
 
-/// What the panel did this frame.
-#[derive(Default)]
-pub struct LayersChange {
-    /// A layer's settings or the order changed (the view must be redrawn, the project saved).
-    pub changed: bool,
-    /// A refused edit, for the status line.
-    pub error: Option<String>,
+/// A change of the stack asked for in the panel.
+#[derive(Clone, Debug, PartialEq)]
+pub enum LayerAction {
+    /// Put a new layer on top of the stack.
+    Insert(LayerSpec),
+    /// Layer `index` gets these settings.
+    Update(usize, LayerSpec),
+    /// Take layer `index` off the stack.
+    Remove(usize),
+    /// Move layer `from` to position `to` (0: bottom).
+    Move {
+        /// The layer's position now.
+        from: usize,
+        /// Its new one.
+        to: usize,
+    },
 }
 
-/// Draws the panel; edits go to the renderer and into the project (saved with "save project").
-pub fn layers_ui(ui: &mut egui::Ui, renderer: &mut Renderer, project: &mut Project) -> LayersChange {
-    let mut change = LayersChange::default();
+/// What the panel shows of the renderer: the drawn difference layer and its range, metres.
+#[derive(Clone, Copy, Debug)]
+pub struct Drawn {
+    /// The difference layer drawn over the terrain, if any.
+    pub difference: Option<usize>,
+    /// Its colour map's range, metres.
+    pub range_m: f64,
+}
+
+/// Draws the panel for `project`'s stack; returns what the person asked for this frame.
+pub fn layers_ui(ui: &mut egui::Ui, project: &Project, drawn: Drawn) -> Vec<LayerAction> {
+    let mut actions = Vec::new();
     let count = project.layers.len();
     if count == 0 {
         ui.label("no layers yet: add a dataset, a constant or detail");
@@ -32,7 +50,7 @@ pub fn layers_ui(ui: &mut egui::Ui, renderer: &mut Renderer, project: &mut Proje
                 opacity: 0.5,
                 ..LayerSpec::constant(&unique_name(project, "constant"), 0.0)
             };
-            insert(renderer, project, spec, &mut change);
+            actions.push(LayerAction::Insert(spec));
         }
         if ui.small_button("add detail").on_hover_text("fBm noise added on top of the stack").clicked() {
             let noise = NoiseSpec {
@@ -45,7 +63,7 @@ pub fn layers_ui(ui: &mut egui::Ui, renderer: &mut Renderer, project: &mut Proje
                 gain: 0.5,
                 placement: DetailWhere::Everywhere,
             };
-            insert(renderer, project, LayerSpec::procedural(&unique_name(project, "detail"), noise), &mut change);
+            actions.push(LayerAction::Insert(LayerSpec::procedural(&unique_name(project, "detail"), noise)));
         }
         let heights: Vec<&str> = project.layers.iter().filter(|l| l.gives_heights()).map(|l| l.name.as_str()).collect();
         let two = heights.len() >= 2;
@@ -57,7 +75,7 @@ pub fn layers_ui(ui: &mut egui::Ui, renderer: &mut Renderer, project: &mut Proje
         {
             let (a, b) = (heights[heights.len() - 1], heights[heights.len() - 2]);
             let spec = super::difference_ui::new_layer(project, a, b);
-            insert(renderer, project, spec, &mut change);
+            actions.push(LayerAction::Insert(spec));
         }
     });
     // A move from one position to another (up, down, or a layer dragged onto another).
@@ -90,9 +108,8 @@ pub fn layers_ui(ui: &mut egui::Ui, renderer: &mut Renderer, project: &mut Proje
                     let heights = project.layers.iter().filter(|l| l.gives_heights());
                     let names: Vec<String> = heights.clone().map(|l| l.name.clone()).collect();
                     let visible: Vec<String> = heights.filter(|l| l.visible).map(|l| l.name.clone()).collect();
-                    let drawn = renderer.scene().stack.drawn_difference() == Some(index);
-                    super::difference_ui::settings_ui(ui, &mut spec, &names, &visible, renderer.difference_range_m());
-                    if !drawn && spec.visible {
+                    super::difference_ui::settings_ui(ui, &mut spec, &names, &visible, drawn.range_m);
+                    if drawn.difference != Some(index) && spec.visible {
                         ui.label("(a difference above this one is drawn)");
                     }
                 } else {
@@ -110,34 +127,13 @@ pub fn layers_ui(ui: &mut egui::Ui, renderer: &mut Renderer, project: &mut Proje
             moved = Some((*from, index));
         }
         if spec != before {
-            match renderer.update_layer(index, spec.clone()) {
-                Ok(()) => {
-                    project.layers[index] = spec;
-                    change.changed = true;
-                }
-                Err(e) => change.error = Some(e.to_string()),
-            }
+            actions.push(LayerAction::Update(index, spec));
         }
         ui.separator();
     }
-    if let Some(index) = remove {
-        match renderer.remove_layer(index) {
-            Ok(()) => {
-                let removed = project.layers.remove(index);
-                // Saved swipes that show it go with it (the project would not load otherwise).
-                project.comparison.swipes.retain(|_, s| s.a != removed.name && s.b != removed.name);
-                change.changed = true;
-            }
-            Err(e) => change.error = Some(e.to_string()),
-        }
-    }
-    if let Some((from, to)) = moved {
-        renderer.move_layer(from, to);
-        let layer = project.layers.remove(from);
-        project.layers.insert(to, layer);
-        change.changed = true;
-    }
-    change
+    actions.extend(remove.map(LayerAction::Remove));
+    actions.extend(moved.map(|(from, to)| LayerAction::Move { from, to }));
+    actions
 }
 
 /// A layer name not used yet: `base`, else `base 2`, `base 3`, …
@@ -147,38 +143,6 @@ fn unique_name(project: &Project, base: &str) -> String {
         return base.to_string();
     }
     (2..).map(|k| format!("{base} {k}")).find(|n| !used(n)).unwrap_or_else(|| base.to_string())
-}
-
-/// Puts a dataset layer (opened by [`super::add_dataset`]) on top of the stack, in the renderer
-/// and the project.
-pub fn insert_dataset(
-    renderer: &mut Renderer,
-    project: &mut Project,
-    spec: LayerSpec,
-    info: crate::scene::dataset::DatasetInfo,
-) -> LayersChange {
-    let mut change = LayersChange::default();
-    let top = project.layers.len();
-    match renderer.insert_dataset_layer(top, spec.clone(), info) {
-        Ok(()) => {
-            project.layers.push(spec);
-            change.changed = true;
-        }
-        Err(e) => change.error = Some(e.to_string()),
-    }
-    change
-}
-
-/// Puts a new layer on top of the stack, in the renderer and the project.
-pub fn insert(renderer: &mut Renderer, project: &mut Project, spec: LayerSpec, change: &mut LayersChange) {
-    let top = project.layers.len();
-    match renderer.insert_layer(top, spec.clone()) {
-        Ok(()) => {
-            project.layers.push(spec);
-            change.changed = true;
-        }
-        Err(e) => change.error = Some(e.to_string()),
-    }
 }
 
 fn layer_settings_ui(ui: &mut egui::Ui, spec: &mut LayerSpec) {

@@ -57,10 +57,20 @@ impl Default for BrushTool {
     }
 }
 
-impl App {
-    /// The *Brush* section.
-    pub(super) fn brush_ui(&mut self, ui: &mut egui::Ui) {
-        let b = &mut self.brush;
+/// What the *Brush* section asks the workstation to do.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum BrushAction {
+    /// Move the edit layer's undo position back one stroke.
+    Undo,
+    /// Forward one stroke.
+    Redo,
+}
+
+impl BrushTool {
+    /// The *Brush* section: its settings, edited in place, and undo and redo for the edit layer
+    /// of `project` it paints on.
+    pub(crate) fn ui(&mut self, ui: &mut egui::Ui, project: &Project) -> Option<BrushAction> {
+        let b = self;
         ui.checkbox(&mut b.on, "brush (left drag paints)")
             .on_hover_text("navigate with the right or middle button, or Shift/Ctrl + left");
         egui::ComboBox::from_label("tool").selected_text(b.tool.name()).show_ui(ui, |ui| {
@@ -107,20 +117,34 @@ impl App {
             let label = ui.label("edit layer").id;
             ui.text_edit_singleline(&mut b.layer).labelled_by(label);
         });
-        let index = self.project.layers.iter().position(|l| l.name == self.brush.layer && l.as_edit().is_some());
+        let index = project.layers.iter().position(|l| l.name == b.layer && l.as_edit().is_some());
+        let (applied, total) = index.map_or((0, 0), |i| {
+            let l = &project.layers[i];
+            (l.applied_strokes().len(), l.strokes().len())
+        });
         ui.horizontal(|ui| {
-            let (applied, total) = index.map_or((0, 0), |i| {
-                let l = &self.project.layers[i];
-                (l.applied_strokes().len(), l.strokes().len())
-            });
+            let mut action = None;
             if ui.add_enabled(applied > 0, egui::Button::new("undo")).on_hover_text("Ctrl+Z").clicked() {
-                self.move_undo(-1);
+                action = Some(BrushAction::Undo);
             }
             if ui.add_enabled(applied < total, egui::Button::new("redo")).on_hover_text("Ctrl+Shift+Z").clicked() {
-                self.move_undo(1);
+                action = Some(BrushAction::Redo);
             }
             ui.label(format!("{applied} of {total} strokes"));
-        });
+            action
+        })
+        .inner
+    }
+}
+
+impl App {
+    /// The *Brush* section, its action applied.
+    pub(super) fn brush_ui(&mut self, ui: &mut egui::Ui) {
+        match self.brush.ui(ui, &self.project) {
+            Some(BrushAction::Undo) => self.move_undo(-1),
+            Some(BrushAction::Redo) => self.move_undo(1),
+            None => {}
+        }
     }
 
     /// Ctrl+Z and Ctrl+Shift+Z (when no text field has the keyboard).

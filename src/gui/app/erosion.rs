@@ -141,21 +141,29 @@ impl Session {
     }
 }
 
-impl App {
-    /// The erosion run in progress: steps taken and asked (tests; people read the panel).
-    pub fn erosion_progress(&self) -> Option<(u64, u64)> {
-        self.erosion.session.as_ref().map(|s| (s.steps(), s.op.steps))
-    }
+/// What the *Erosion* section asks the workstation to do (run and pause are the section's own).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum ErosionAction {
+    /// Prepare a run on a region around the view's centre.
+    Start,
+    /// Take one step.
+    Step,
+    /// Record the run on the layer.
+    Keep,
+    /// Drop the run.
+    Discard,
+    /// Move the layer's undo position back one run.
+    Undo,
+    /// Forward one run.
+    Redo,
+}
 
-    /// Sets the erosion section's steps and region half-size (tests; people use the panel).
-    pub fn set_erosion(&mut self, steps: u64, half_m: f64) {
-        self.erosion.steps = steps;
-        self.erosion.half_m = half_m;
-    }
-
-    /// The *Erosion* section.
-    pub(super) fn erosion_ui(&mut self, ui: &mut egui::Ui) {
-        let t = &mut self.erosion;
+impl ErosionTool {
+    /// The *Erosion* section: its settings, edited in place, the run in progress, and the
+    /// erosion layer of `project`'s runs.
+    pub(crate) fn ui(&mut self, ui: &mut egui::Ui, project: &Project) -> Option<ErosionAction> {
+        let mut action = None;
+        let t = &mut *self;
         t.ctx = Some(ui.ctx().clone());
         ui.horizontal(|ui| {
             let label = ui.label("erosion layer").id;
@@ -187,42 +195,38 @@ impl App {
             ui.add(egui::DragValue::new(&mut t.seed)).labelled_by(label);
         });
         ui.add(egui::Slider::new(&mut t.per_frame, 1..=64).text("steps per frame"));
-        let busy = self.erosion.session.is_some();
+        let busy = self.session.is_some();
         ui.horizontal(|ui| {
             if ui
                 .add_enabled(!busy, egui::Button::new("start"))
                 .on_hover_text("a region around the view's centre")
                 .clicked()
             {
-                self.start_erosion(None);
+                action = Some(ErosionAction::Start);
             }
-            let running = self.erosion.session.as_ref().is_some_and(|s| s.running);
+            let running = self.session.as_ref().is_some_and(|s| s.running);
             if ui.add_enabled(busy, egui::Button::new(if running { "pause" } else { "run" })).clicked()
-                && let Some(s) = &mut self.erosion.session
+                && let Some(s) = &mut self.session
             {
                 s.running = !s.running;
             }
             if ui.add_enabled(busy && !running, egui::Button::new("step")).clicked() {
-                self.erosion_steps(1, true);
+                action = Some(ErosionAction::Step);
             }
             if ui.add_enabled(busy, egui::Button::new("keep")).on_hover_text("records the run on the layer").clicked() {
-                self.keep_erosion();
+                action = Some(ErosionAction::Keep);
             }
-            if ui.add_enabled(busy, egui::Button::new("discard")).clicked()
-                && let Some(s) = self.erosion.session.take()
-            {
-                let _ = self.editor.set_erosion_overlay(&mut self.renderer, None);
-                self.editor.discard_erosion(&mut self.renderer, s.index, s.base);
-                self.dirty = true;
+            if ui.add_enabled(busy, egui::Button::new("discard")).clicked() {
+                action = Some(ErosionAction::Discard);
             }
         });
-        let t = &mut self.erosion;
+        let t = &mut *self;
         ui.horizontal(|ui| {
             ui.checkbox(&mut t.brush, "brush (left drag erodes)")
                 .on_hover_text("a run of the steps above along the drag");
         });
         ui.add(egui::Slider::new(&mut t.brush_radius_m, 10.0..=20_000.0).logarithmic(true).text("brush radius m"));
-        if let Some(s) = &self.erosion.session {
+        if let Some(s) = &self.session {
             let run = s.run();
             let steps = s.steps();
             let device = if matches!(s.engine, Engine::Gpu(_)) { "GPU" } else { "CPU reference" };
@@ -251,31 +255,64 @@ impl App {
             let (w, soil) = run.unexplained();
             ui.label(format!("unexplained (as last read): water {w} units, soil {soil} units"));
             ui.horizontal(|ui| {
-                let t = &mut self.erosion;
-                ui.selectable_value(&mut t.overlay, Overlay::Water, "water");
-                ui.selectable_value(&mut t.overlay, Overlay::Sediment, "sediment");
-                ui.selectable_value(&mut t.overlay, Overlay::Change, "change");
-                ui.checkbox(&mut t.drape, "on the terrain");
+                let t = &mut self.overlay;
+                ui.selectable_value(t, Overlay::Water, "water");
+                ui.selectable_value(t, Overlay::Sediment, "sediment");
+                ui.selectable_value(t, Overlay::Change, "change");
+                ui.checkbox(&mut self.drape, "on the terrain");
             });
-            if let Some(map) = &self.erosion.map {
+            if let Some(map) = &self.map {
                 ui.image((map.id(), egui::vec2(200.0, 200.0)));
             }
         }
-        let index = self.project.layers.iter().position(|l| l.name == self.erosion.layer && l.as_erosion().is_some());
+        let index = project.layers.iter().position(|l| l.name == self.layer && l.as_erosion().is_some());
         ui.horizontal(|ui| {
             let (applied, total) = index.map_or((0, 0), |i| {
-                let l = &self.project.layers[i];
+                let l = &project.layers[i];
                 (l.applied_runs().len(), l.runs().len())
             });
-            let idle = self.erosion.session.is_none();
+            let idle = self.session.is_none();
             if ui.add_enabled(idle && applied > 0, egui::Button::new("undo run")).clicked() {
-                self.move_erosion_undo(-1);
+                action = Some(ErosionAction::Undo);
             }
             if ui.add_enabled(idle && applied < total, egui::Button::new("redo run")).clicked() {
-                self.move_erosion_undo(1);
+                action = Some(ErosionAction::Redo);
             }
             ui.label(format!("{applied} of {total} runs"));
         });
+        action
+    }
+}
+
+impl App {
+    /// The erosion run in progress: steps taken and asked (tests; people read the panel).
+    pub fn erosion_progress(&self) -> Option<(u64, u64)> {
+        self.erosion.session.as_ref().map(|s| (s.steps(), s.op.steps))
+    }
+
+    /// Sets the erosion section's steps and region half-size (tests; people use the panel).
+    pub fn set_erosion(&mut self, steps: u64, half_m: f64) {
+        self.erosion.steps = steps;
+        self.erosion.half_m = half_m;
+    }
+
+    /// The *Erosion* section, its action applied.
+    pub(super) fn erosion_ui(&mut self, ui: &mut egui::Ui) {
+        match self.erosion.ui(ui, &self.project) {
+            Some(ErosionAction::Start) => self.start_erosion(None),
+            Some(ErosionAction::Step) => self.erosion_steps(1, true),
+            Some(ErosionAction::Keep) => self.keep_erosion(),
+            Some(ErosionAction::Discard) => {
+                if let Some(s) = self.erosion.session.take() {
+                    let _ = self.editor.set_erosion_overlay(&mut self.renderer, None);
+                    self.editor.discard_erosion(&mut self.renderer, s.index, s.base);
+                    self.dirty = true;
+                }
+            }
+            Some(ErosionAction::Undo) => self.move_erosion_undo(-1),
+            Some(ErosionAction::Redo) => self.move_erosion_undo(1),
+            None => {}
+        }
     }
 
     /// Every frame: a running session takes its steps, and its progress shows.

@@ -19,6 +19,7 @@ use crate::scene::resolve_ramp;
 mod brush;
 mod erosion;
 pub mod file;
+mod layers;
 mod legend;
 mod profile;
 mod side_panel;

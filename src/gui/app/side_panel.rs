@@ -64,30 +64,16 @@ impl App {
             if let Some(e) = &self.difference_range.error {
                 ui.colored_label(egui::Color32::LIGHT_RED, format!("difference range: {e}"));
             }
-            let change = crate::gui::layers_panel::layers_ui(ui, &mut self.renderer, &mut self.project);
-            if change.changed {
-                self.dirty = true;
-                self.mark_unsaved();
-                if self.swipe.take().is_some() {
-                    // The second stack would no longer match the first.
-                    self.message = "swipe stopped: the layer stack changed".into();
-                }
-            }
-            if let Some(e) = change.error {
-                ui.colored_label(egui::Color32::LIGHT_RED, e);
-            }
+            self.layers_ui(ui);
             match self.add_dataset.ui(ui, &self.project) {
                 Some(Ok((spec, info))) => {
-                    let change =
-                        crate::gui::layers_panel::insert_dataset(&mut self.renderer, &mut self.project, spec, info);
-                    if change.changed {
-                        self.dirty = true;
-                        self.mark_unsaved();
-                        self.message =
-                            format!("added dataset layer '{}'", self.project.layers.last().map_or("", |l| &l.name));
-                    }
-                    if let Some(e) = change.error {
-                        self.message = e.to_string();
+                    let name = spec.name.clone();
+                    match self.insert_dataset(spec, info) {
+                        Ok(()) => {
+                            self.stack_changed();
+                            self.message = format!("added dataset layer '{name}'");
+                        }
+                        Err(e) => self.message = crate::errors::chain(&e),
                     }
                 }
                 Some(Err(e)) => self.message = e.to_string(),
@@ -252,15 +238,12 @@ impl App {
             }
             crate::gui::compare_panel::CompareAction::ShowDifference { a, b } => {
                 let spec = crate::gui::difference_ui::new_layer(&self.project, &a, &b);
-                let mut change = crate::gui::layers_panel::LayersChange::default();
-                crate::gui::layers_panel::insert(&mut self.renderer, &mut self.project, spec, &mut change);
-                if change.changed {
-                    self.dirty = true;
-                    self.mark_unsaved();
-                    self.message = format!("drawing {a} - {b} over the terrain (layer on top of the stack)");
-                }
-                if let Some(e) = change.error {
-                    self.message = e.to_string();
+                match self.insert_layer(spec) {
+                    Ok(()) => {
+                        self.stack_changed();
+                        self.message = format!("drawing {a} - {b} over the terrain (layer on top of the stack)");
+                    }
+                    Err(e) => self.message = crate::errors::chain(&e),
                 }
             }
             crate::gui::compare_panel::CompareAction::None => {}
