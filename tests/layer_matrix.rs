@@ -143,6 +143,8 @@ fn fixture(kind: LayerKind) -> (Vec<LayerSpec>, LayerSpec, Option<u8>) {
                 seed: 1,
                 preset: Some("thermal".into()),
                 params,
+                model: terrafuse::erosion::operation::Model::Hydraulic,
+                stream_power: None,
                 brush: None,
                 device: Default::default(),
             };

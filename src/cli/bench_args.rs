@@ -89,6 +89,20 @@ pub enum Bench {
         #[arg(long, default_value = "out/bench-compare")]
         out: PathBuf,
     },
+    /// Landscape evolution (stream power): cell-steps per second on the CPU beside fastscapelib
+    /// 0.3.0 on the same grids in the same run, and how far apart the results are; writes
+    /// landscape.csv.
+    Landscape {
+        /// Grid edges, cells (comma-separated).
+        #[arg(long, value_delimiter = ',', default_value = "128,256,512")]
+        sizes: Vec<usize>,
+        /// Steps per run.
+        #[arg(long, default_value_t = 50)]
+        steps: u64,
+        /// Folder for landscape.csv.
+        #[arg(long, default_value = "out/bench-landscape")]
+        out: PathBuf,
+    },
     /// The layer stack's composition: samples per second on the GPU against the CPU reference
     /// for 1, 2, 4, 8 layers and each kind, the GPU − CPU difference, octave skipping (time and
     /// error), and recomposition after a one-layer change; writes compose.csv.

@@ -41,6 +41,21 @@ pub fn run(bench: Bench, c: &mut Console) -> Result<u8, CliError> {
             };
             c.print(super::bench_compare(&settings)?)?;
         }
+        Bench::Landscape { sizes, steps, out } => {
+            if sizes.iter().any(|s| !(3..=8192).contains(s)) || steps == 0 {
+                return Err("--sizes must lie within 3–8192 cells and --steps be at least 1".into());
+            }
+            let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+            let settings = super::LandscapeBenchSettings {
+                sizes,
+                steps,
+                python: root.join(".venv-ref/bin/python"),
+                script: root.join("tests/reference/fastscape_run.py"),
+                out: out.clone(),
+            };
+            let table = super::bench_landscape(&settings)?;
+            c.print(format_args!("{table}wrote {}\n", out.join("landscape.csv").display()))?;
+        }
         Bench::Compose { project, quads, repeats, out } => {
             if quads == 0 || repeats == 0 {
                 return Err("--quads and --repeats must be at least 1".into());

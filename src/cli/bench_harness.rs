@@ -75,6 +75,11 @@ impl Table {
         format!("| {} |\n", self.rows[k].join(" | "))
     }
 
+    /// The whole Markdown table.
+    pub fn markdown(&self) -> String {
+        (0..self.rows.len()).fold(self.markdown_header(), |out, k| out + &self.markdown_row(k))
+    }
+
     /// Writes the CSV to `path` atomically (its folder made when missing).
     pub fn write_csv(&self, path: &Path) -> Result<(), CliError> {
         if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {

@@ -99,6 +99,8 @@ pub fn synthetic_session(strokes: usize, steps: u64) -> Result<Project, CliError
         seed: 1,
         preset: Some("rain".into()),
         params,
+        model: crate::erosion::operation::Model::Hydraulic,
+        stream_power: None,
         brush: None,
         device: Default::default(),
     };

@@ -9,7 +9,7 @@ use std::path::PathBuf;
 use std::sync::Arc;
 
 use crate::erosion::layer::{CpuStepper, Outcome, Stepper};
-use crate::erosion::operation::Operation;
+use crate::erosion::operation::{Device, Model, Operation};
 use crate::erosion::params::{Params, gravity_of_body};
 use crate::gpu::GpuContext;
 use crate::gpu::erosion::{ErosionKernel, GpuStepper};
@@ -44,9 +44,38 @@ pub struct ErodeRequest {
     /// box's north–south side, as the workstation chooses).
     #[arg(long)]
     pub level: Option<u8>,
-    /// Steps (each the preset's Δt or less, by the CFL bound).
+    /// Steps (each the preset's Δt or less, by the CFL bound; hydraulic only: a stream-power run
+    /// takes years / dt-years steps).
     #[arg(long)]
     pub steps: Option<u64>,
+    /// hydraulic (virtual pipes over seconds of rain; the default) or stream-power (uplift,
+    /// river incision and hillslope diffusion over geological time).
+    #[arg(long, value_parser = ["hydraulic", "stream-power"])]
+    pub model: Option<String>,
+    /// Stream power: the simulated time, years (default 2e6).
+    #[arg(long, allow_hyphen_values = true)]
+    pub years: Option<f64>,
+    /// Stream power: the time step, years (default 1e4; the implicit solver is stable for any).
+    #[arg(long = "dt-years", allow_hyphen_values = true)]
+    pub dt_years: Option<f64>,
+    /// Stream power: uniform rock uplift, m/yr (default 1e-3).
+    #[arg(long = "uplift-m-per-year", allow_hyphen_values = true)]
+    pub uplift_m_per_year: Option<f64>,
+    /// Stream power: erodibility K of E = K·A^m·S^n (default 2e-5).
+    #[arg(long, allow_hyphen_values = true)]
+    pub k: Option<f64>,
+    /// Stream power: the drainage-area exponent m, in (0, 1] (default 0.45).
+    #[arg(long, allow_hyphen_values = true)]
+    pub m: Option<f64>,
+    /// Stream power: the slope exponent n (default 1).
+    #[arg(long, allow_hyphen_values = true)]
+    pub n: Option<f64>,
+    /// Stream power: hillslope diffusivity, m²/yr (default 0.01).
+    #[arg(long = "kd-m2-per-year", allow_hyphen_values = true)]
+    pub kd_m2_per_year: Option<f64>,
+    /// Stream power: the ξ-q deposition coefficient G (0 = detachment-limited, the default).
+    #[arg(long, allow_hyphen_values = true)]
+    pub deposition: Option<f64>,
     /// rain, river, thermal or gentle (default rain).
     #[arg(long)]
     pub preset: Option<String>,
@@ -132,7 +161,9 @@ pub fn erode_command(request: &ErodeRequest) -> Result<String, CliError> {
     };
     let applied = project.layers[index].applied_runs().len();
     let total = project.layers[index].runs().len();
-    let asked_run = request.region.is_some() || request.level.is_some() || request.steps.is_some();
+    let landscape = super::erode_landscape::params_of(request)?;
+    let asked_run =
+        request.region.is_some() || request.level.is_some() || request.steps.is_some() || request.years.is_some();
     match (request.undo, request.redo, asked_run) {
         (Some(_), None, false) | (None, Some(_), false) => {
             let to = project.layers[index].move_applied(request.undo, request.redo)?;
@@ -141,7 +172,12 @@ pub fn erode_command(request: &ErodeRequest) -> Result<String, CliError> {
             return finish(&project, path, index, out);
         }
         (None, None, true) => {}
-        _ => return Err("give either --region and --steps (and --level) for a run, or --undo N, or --redo N".into()),
+        _ => {
+            return Err(
+                "give either --region and --steps (or --years) (and --level) for a run, or --undo N, or --redo N"
+                    .into(),
+            );
+        }
     }
     let region = super::geo::parse_box(request.region.as_deref().ok_or("--region: a run needs its box")?)?;
     // Without --level, as the workstation chooses: the layer's level, else the coarsest with 512
@@ -151,7 +187,13 @@ pub fn erode_command(request: &ErodeRequest) -> Result<String, CliError> {
         Some(level) => level,
         None => crate::erosion::placement::default_level(&project.ellipsoid()?, &region),
     };
-    let steps = request.steps.ok_or("--steps: a run needs its number of steps")?;
+    let steps = match &landscape {
+        Some(p) if request.steps.is_some() => {
+            return Err(format!("--steps: a stream-power run takes --years / --dt-years = {} steps", p.steps()).into());
+        }
+        Some(p) => p.steps(),
+        None => request.steps.ok_or("--steps: a run needs its number of steps")?,
+    };
     let preset = request.preset.clone().unwrap_or_else(|| "rain".into());
     let params = params_of(&preset, &project.body, &request.set)?;
     // The layer as it stands (its runs in effect), opened and built or read from its cache.
@@ -161,6 +203,7 @@ pub fn erode_command(request: &ErodeRequest) -> Result<String, CliError> {
         let _ = writeln!(out, "{line}");
     }
     let gpu = match request.on() {
+        _ if landscape.is_some() => None,
         ErodeOn::Cpu => None,
         ErodeOn::Gpu => Some(GpuContext::headless().within("--gpu")?),
         ErodeOn::Auto => GpuContext::headless().ok().filter(|c| c.info.device_type != wgpu::DeviceType::Cpu),
@@ -173,15 +216,18 @@ pub fn erode_command(request: &ErodeRequest) -> Result<String, CliError> {
         (Some(c), Some(k)) => Box::new(GpuStepper { device: &c.device, queue: &c.queue, kernel: k.clone() }),
         _ => Box::new(CpuStepper),
     };
+    let model = if landscape.is_some() { Model::StreamPower } else { Model::Hydraulic };
     let op = Operation {
         region,
         level,
         steps,
         seed: request.seed.unwrap_or(0),
-        preset: Some(preset),
-        params,
+        preset: landscape.is_none().then_some(preset),
+        model,
+        params: if landscape.is_some() { Params::standard() } else { params },
+        stream_power: landscape,
         brush: None,
-        device: stepper.device(),
+        device: if model == Model::StreamPower { Device::Cpu } else { stepper.device() },
     };
     let uid = scene.stack.layers[index].uid;
     let mut raster = scene.edits.get(&uid).map(|r| (**r).clone()).ok_or("the erosion layer was not built")?;
@@ -194,6 +240,7 @@ pub fn erode_command(request: &ErodeRequest) -> Result<String, CliError> {
                     "level" => "--level".to_string(),
                     "steps" => "--steps".to_string(),
                     f if f.starts_with("params.") => format!("--set {}", &f[7..]),
+                    f if f.starts_with("stream_power.") => super::erode_landscape::flag_of(&f[13..]),
                     f => f.to_string(),
                 };
                 format!("{flag}: {}", e.problem)
@@ -203,8 +250,18 @@ pub fn erode_command(request: &ErodeRequest) -> Result<String, CliError> {
     scene.set_edit(index, raster);
     let cached = scene.save_edit_cache(index)?;
     project.save(path)?;
-    let device =
-        if gpu.is_some() { gpu.as_ref().map(GpuContext::describe).unwrap_or_default() } else { "CPU reference".into() };
+    let device = match (&gpu, model) {
+        (Some(g), Model::Hydraulic) => g.describe(),
+        _ => "CPU reference".into(),
+    };
+    if let Some(figures) = &outcome.landscape {
+        let report = super::erode_landscape::Report { layer: &request.layer, run: applied, outcome: &outcome, figures };
+        return Ok(if request.json {
+            report.json(cached.as_deref(), path)
+        } else {
+            out + &report.text(cached.as_deref(), path)
+        });
+    }
     if request.json {
         return Ok(json_of(&outcome, &device, cached.as_deref(), path));
     }

@@ -40,6 +40,9 @@ pub enum CliError {
     /// An erosion run.
     #[error(transparent)]
     Erosion(#[from] crate::erosion::layer::OperationError),
+    /// Landscape-evolution parameters.
+    #[error(transparent)]
+    Landscape(#[from] crate::erosion::landscape::LandscapeError),
     /// Erosion parameters.
     #[error(transparent)]
     Params(#[from] crate::erosion::params::ParamError),

@@ -10,7 +10,9 @@ use std::time::Instant;
 
 use glam::DVec3;
 
-use super::operation::{BrushPath, Operation};
+use super::grid::Grid;
+use super::landscape::Evolution;
+use super::operation::{BrushPath, Model, Operation};
 use super::region::Region;
 use super::sim::Run;
 use crate::ecm::points::sample_point;
@@ -97,6 +99,8 @@ pub struct Outcome {
     pub seconds: f64,
     /// The smallest and largest change of height, metres.
     pub range_m: (f64, f64),
+    /// A stream-power run's figures (None for a hydraulic one).
+    pub landscape: Option<super::landscape::LandscapeOutcome>,
     /// The quads whose tiles changed.
     pub quads: BTreeSet<QuadId>,
 }
@@ -131,6 +135,18 @@ pub fn apply(
     below: &Below,
     stepper: &dyn Stepper,
 ) -> Result<Outcome, OperationError> {
+    if let Some(params) = op.stream_power.as_ref().filter(|_| op.model == Model::StreamPower) {
+        let (region, grid) = prepare_grid(raster, index, op, below)?;
+        let t = Instant::now();
+        let mut run = Evolution::new(grid, params.clone()).map_err(|e| OperationError {
+            index,
+            field: format!("stream_power.{}", e.field),
+            problem: e.problem,
+            cause: None,
+        })?;
+        run.run_to_end();
+        return Ok(finish_landscape(raster, index, region, &run, t.elapsed().as_secs_f64()));
+    }
     let (region, run) = prepare(raster, index, op, below)?;
     let t = Instant::now();
     let run = stepper.run(run, op.steps).map_err(|e| OperationError {
@@ -151,6 +167,23 @@ pub fn prepare(
     op: &Operation,
     below: &Below,
 ) -> Result<(Region, Run), OperationError> {
+    let err = |field: &str, problem: String| OperationError { index, field: field.into(), problem, cause: None };
+    if op.model != Model::Hydraulic {
+        return Err(err("model", format!("{} runs are taken whole (`apply`), not step by step", op.model.name())));
+    }
+    let (region, grid) = prepare_grid(raster, index, op, below)?;
+    let run = Run::new(grid, op.params.clone()).map_err(|p| err(&format!("params.{}", p.field), p.to_string()))?;
+    Ok((region, run.with_seed(op.seed)))
+}
+
+/// The region of `op` and its grid: the terrain below the layer plus the runs before it, with
+/// the brush's masks.
+fn prepare_grid(
+    raster: &mut EditRaster,
+    index: usize,
+    op: &Operation,
+    below: &Below,
+) -> Result<(Region, Grid), OperationError> {
     let err = |field: &str, problem: String| OperationError { index, field: field.into(), problem, cause: None };
     op.check().map_err(|(f, p)| err(&f, p))?;
     if raster.level != op.level && !raster.tiles.is_empty() {
@@ -194,8 +227,7 @@ pub fn prepare(
         grid.rain_mask = Some(mask.clone());
         grid.erosion_mask = Some(mask);
     }
-    let run = Run::new(grid, op.params.clone()).map_err(|p| err(&format!("params.{}", p.field), p.to_string()))?;
-    Ok((region, run.with_seed(op.seed)))
+    Ok((region, grid))
 }
 
 /// The tiles of `raster` over `region` with the change of height `run` has made so far added
@@ -245,6 +277,40 @@ pub fn finish(raster: &mut EditRaster, index: usize, region: Region, run: &Run, 
         deposited_m3: run.state.soil.iter().filter(|s| **s > 0).sum::<i64>() as f64 * unit,
         seconds,
         range_m: range,
+        landscape: None,
+        quads,
+    }
+}
+
+/// Adds a finished stream-power run's change of height to `raster` as operation `index`.
+fn finish_landscape(raster: &mut EditRaster, index: usize, region: Region, run: &Evolution, seconds: f64) -> Outcome {
+    let delta = run.delta_m();
+    let base = |q: QuadId| raster.tile(q).map_or_else(|| vec![0.0f32; N * N], <[f32]>::to_vec);
+    let add = |t: f32, d: f64| if d.is_finite() { (f64::from(t) + d) as f32 } else { t };
+    let tiles = tiles_of(&raster.ellipsoid, &region, &delta, &base, &add);
+    let range = delta.iter().filter(|d| d.is_finite()).fold((0f64, 0f64), |r, d| (r.0.min(*d), r.1.max(*d)));
+    let quads: BTreeSet<QuadId> = tiles.iter().map(|(q, _)| *q).collect();
+    raster.apply_tiles(index, tiles);
+    let figures = run.outcome();
+    let year_s = super::landscape::YEAR_S;
+    let dt_s = run.params.dt_years * year_s;
+    Outcome {
+        region,
+        steps: run.steps,
+        simulated_s: run.years * year_s,
+        dt_range_s: (dt_s, dt_s),
+        dt_asked_s: dt_s,
+        water_unexplained_rel: 0.0,
+        soil_unexplained_rel: figures.unexplained_rel,
+        water_out_m3: 0.0,
+        soil_out_m3: figures.outflow_m3,
+        rain_m3: 0.0,
+        volume_change_m3: run.change.iter().sum::<i64>() as f64 * run.unit_m3(),
+        eroded_m3: figures.eroded_m3,
+        deposited_m3: figures.deposited_m3,
+        seconds,
+        range_m: range,
+        landscape: Some(figures),
         quads,
     }
 }

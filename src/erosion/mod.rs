@@ -1,4 +1,4 @@
-//! Hydraulic and thermal erosion: the CPU reference of the model, on a grid of cells with their
+//! Hydraulic and thermal erosion, and landscape evolution: the CPU reference of the models, on a grid of cells with their
 //! areas and lengths in metres, and the erosion layer built from recorded runs.
 //!
 //! - [`params`]: the parameters with their units and ranges, presets;
@@ -9,7 +9,9 @@
 //!   one grid, with its lengths and areas on the ellipsoid;
 //! - [`dither`]: the seeded dither that rounds flows to the fixed point;
 //! - [`operation`]: a run as a project records it;
-//! - [`layer`]: an erosion layer's raster built from its runs, with budgets and volumes.
+//! - [`layer`]: an erosion layer's raster built from its runs, with budgets and volumes;
+//! - [`landscape`]: the second model, landscape evolution over geological time (uplift,
+//!   stream-power incision, hillslope diffusion, lakes), on the same grids.
 //!
 //! The GPU kernels that mirror [`sim`] are `crate::gpu::erosion` (`shaders/erosion/`);
 //! `terrafuse erode` and the workstation's *Erosion* section drive them.
@@ -20,6 +22,7 @@ pub const MODEL_VERSION: u32 = 3;
 
 pub mod dither;
 pub mod grid;
+pub mod landscape;
 pub mod layer;
 pub mod operation;
 pub mod params;

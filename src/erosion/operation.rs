@@ -5,10 +5,14 @@
 //! ```json
 //! { "region": [41.2, 39.85, 41.35, 39.95], "level": 10, "steps": 400, "seed": 1,
 //!   "preset": "rain", "params": { "rain_m_s": 0.0001, … } }
+//! { "region": [41.2, 39.85, 41.35, 39.95], "level": 9, "steps": 200, "model": "stream-power",
+//!   "stream_power": { "uplift_m_per_year": 0.001, "k": 2e-5, "m": 0.45, "n": 1.0,
+//!                     "kd_m2_per_year": 0.01, "years": 2000000.0, "dt_years": 10000.0 } }
 //! ```
 
 use serde::{Deserialize, Serialize};
 
+use super::landscape::LandscapeParams;
 use super::params::Params;
 use crate::geodesy::GeoBox;
 
@@ -30,8 +34,16 @@ pub struct Operation {
     /// The preset the parameters started from (a label; `params` holds every value).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub preset: Option<String>,
-    /// The parameters.
+    /// The model: `hydraulic` (virtual pipes, seconds of rain; the default) or `stream-power`
+    /// (landscape evolution over geological time).
+    #[serde(default, skip_serializing_if = "Model::is_hydraulic")]
+    pub model: Model,
+    /// The hydraulic model's parameters (a stream-power run has none: the rain preset stands in).
+    #[serde(default = "Params::standard", skip_serializing_if = "Params::is_standard")]
     pub params: Params,
+    /// A stream-power run's parameters (with `"model": "stream-power"`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub stream_power: Option<LandscapeParams>,
     /// The erosion brush's path: rain and erosion fade out beyond `radius_m` of it (outside,
     /// cells are sinks: what flows there leaves the run, counted).
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -40,6 +52,32 @@ pub struct Operation {
     /// its stated tolerance of it). A rebuild from the operation runs the CPU reference.
     #[serde(default)]
     pub device: Device,
+}
+
+/// Which erosion model a run uses.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, schemars::JsonSchema)]
+#[serde(rename_all = "kebab-case")]
+pub enum Model {
+    /// Virtual pipes: water, sediment and thermal slumping over seconds to hours.
+    #[default]
+    Hydraulic,
+    /// Uplift, stream-power incision and hillslope diffusion over thousands to millions of years.
+    StreamPower,
+}
+
+impl Model {
+    /// Whether it is the default model (not written to the project).
+    pub fn is_hydraulic(&self) -> bool {
+        *self == Model::Hydraulic
+    }
+
+    /// The name the command line and the project use.
+    pub fn name(self) -> &'static str {
+        match self {
+            Model::Hydraulic => "hydraulic",
+            Model::StreamPower => "stream-power",
+        }
+    }
 }
 
 /// Where a run was made.
@@ -70,6 +108,25 @@ impl Operation {
     /// Checks the fields a run does not check itself: (field, problem).
     pub fn check(&self) -> Result<(), (String, String)> {
         let bad = |field: &str, problem: String| Err((field.to_string(), problem));
+        match (self.model, &self.stream_power) {
+            (Model::StreamPower, None) => return bad("stream_power", "a stream-power run needs its parameters".into()),
+            (Model::Hydraulic, Some(_)) => {
+                return bad("model", "stream_power parameters are given but the model is hydraulic".into());
+            }
+            (Model::StreamPower, Some(p)) => {
+                p.check().map_err(|e| (format!("stream_power.{}", e.field), e.problem))?;
+                if self.steps != p.steps() {
+                    return bad(
+                        "steps",
+                        format!("{} differs from the {} steps of years / dt_years", self.steps, p.steps()),
+                    );
+                }
+                if self.brush.is_some() {
+                    return bad("brush", "a stream-power run covers its whole region (no brush)".into());
+                }
+            }
+            (Model::Hydraulic, None) => {}
+        }
         if !(1..=MAX_STEPS).contains(&self.steps) {
             return bad("steps", format!("{} is outside 1 … {MAX_STEPS}", self.steps));
         }

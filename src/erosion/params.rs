@@ -117,6 +117,18 @@ impl Params {
         })
     }
 
+    /// The `rain` preset at the Earth's standard gravity: what an operation without `params`
+    /// (a stream-power run) holds, and so what is not written for one.
+    pub fn standard() -> Params {
+        Params::preset("rain", 9.806_65).expect("rain is a preset")
+    }
+
+    /// Whether these are [`Params::standard`] (skipped when saved: reading them back gives the
+    /// same).
+    pub fn is_standard(&self) -> bool {
+        *self == Params::standard()
+    }
+
     /// Checks every field against its range.
     pub fn check(&self) -> Result<(), ParamError> {
         let within = |field, value: f64, lo: f64, hi: f64, range| {

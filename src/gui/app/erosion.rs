@@ -430,6 +430,8 @@ impl App {
             seed: t.seed,
             preset: Some(t.preset.clone()),
             params,
+            model: crate::erosion::operation::Model::Hydraulic,
+            stream_power: None,
             brush,
             device: Device::Cpu,
         };
