@@ -616,6 +616,18 @@ fn the_erosion_section_starts_steps_runs_keeps_undoes_and_brushes_a_run() {
     let brushed = h.state().project().layers.iter().find(|l| l.name == "erosion").unwrap().runs()[3].clone();
     let path = brushed.brush.expect("a brush run keeps its path");
     assert!(path.points.len() >= 2 && path.radius_m > 0.0, "{path:?}");
+    // Landscape evolution: the whole run at once, kept as a stream-power run.
+    h.get_by_label("brush (left drag erodes)").click_accesskit();
+    h.run_steps(2);
+    h.state_mut().set_landscape(2e4, 1e4);
+    h.run_steps(2);
+    h.get_by_label("run landscape").click_accesskit();
+    h.run_steps(2);
+    assert_eq!(runs(&h), (5, 5), "{}", h.state().message());
+    assert!(h.state().message().starts_with("landscape run 4 kept: 2 steps"), "{}", h.state().message());
+    let evolved = h.state().project().layers.iter().find(|l| l.name == "erosion").unwrap().runs()[4].clone();
+    assert_eq!(evolved.model, terrafuse::erosion::operation::Model::StreamPower);
+    assert_eq!(evolved.stream_power.map(|p| p.years), Some(2e4));
     settle(&mut h);
 }
 

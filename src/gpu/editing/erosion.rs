@@ -111,6 +111,30 @@ impl Editor {
         Ok((spec, outcome))
     }
 
+    /// Runs `op` whole on erosion layer `index` (a stream-power run: its years are taken at once
+    /// on the CPU reference) and records it as [`Editor::commit_erosion`] records a stepped run.
+    pub fn run_whole(&self, r: &mut Renderer, index: usize, op: Operation) -> Result<(LayerSpec, Outcome), LayerError> {
+        let (mut spec, mut raster) = erosion_layer(r.scene(), index)?;
+        let below = r
+            .scene()
+            .below(index)
+            .map_err(|e| LayerError::caused(&spec.name, "runs", "the layers below cannot be read", e))?;
+        let applied = spec.applied_runs().len();
+        let outcome = layer::apply(&mut raster, applied, &op, &|q| Ok(below.heights_cpu(q)?), &layer::CpuStepper)
+            .map_err(|e| LayerError {
+                layer: spec.name.clone(),
+                field: format!("runs[{applied}].{}", e.field),
+                problem: e.problem,
+                cause: e.cause,
+            })?;
+        spec.record_run(op)?;
+        r.with_scene(|s| {
+            s.set_edit(index, raster);
+            s.stack.set_runs(index, spec.runs().to_vec(), None);
+        });
+        Ok((spec, outcome))
+    }
+
     /// Moves erosion layer `index`'s undo position to `applied` runs (back: restoring the quads
     /// from the undo history or rebuilding; forward: the runs redone by the CPU reference).
     /// Returns the layer's new spec.

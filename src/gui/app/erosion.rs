@@ -11,7 +11,8 @@
 
 use super::*;
 use crate::edit::EditRaster;
-use crate::erosion::operation::{BrushPath, Device, Operation};
+use crate::erosion::landscape::LandscapeParams;
+use crate::erosion::operation::{BrushPath, Device, Model, Operation};
 use crate::erosion::params::{Params, gravity_of_body};
 use crate::erosion::region::Region;
 use crate::erosion::sim::Run;
@@ -30,6 +31,9 @@ pub(crate) enum Overlay {
 /// The section's settings and the run in progress.
 pub(crate) struct ErosionTool {
     layer: String,
+    /// Hydraulic runs step by step; stream-power runs whole (`landscape` their parameters).
+    model: Model,
+    landscape: LandscapeParams,
     preset: String,
     /// Half the region's side, metres.
     half_m: f64,
@@ -56,6 +60,8 @@ impl Default for ErosionTool {
     fn default() -> ErosionTool {
         ErosionTool {
             layer: "erosion".into(),
+            model: Model::Hydraulic,
+            landscape: LandscapeParams::default(),
             preset: "rain".into(),
             half_m: 3000.0,
             level: None,
@@ -169,6 +175,13 @@ impl ErosionTool {
             let label = ui.label("erosion layer").id;
             ui.text_edit_singleline(&mut t.layer).labelled_by(label);
         });
+        egui::ComboBox::from_label("model").selected_text(t.model.name()).show_ui(ui, |ui| {
+            ui.selectable_value(&mut t.model, Model::Hydraulic, Model::Hydraulic.name());
+            ui.selectable_value(&mut t.model, Model::StreamPower, Model::StreamPower.name());
+        });
+        if t.model == Model::StreamPower {
+            return t.landscape_ui(ui, project);
+        }
         egui::ComboBox::from_label("preset").selected_text(t.preset.clone()).show_ui(ui, |ui| {
             for p in Params::PRESETS {
                 ui.selectable_value(&mut t.preset, p.to_string(), p);
@@ -284,7 +297,65 @@ impl ErosionTool {
     }
 }
 
+impl ErosionTool {
+    /// The stream-power settings: a region around the view's centre, the years and time step,
+    /// uplift, K, m, n and K_d, and *run landscape* (the whole run at once, on the CPU reference).
+    fn landscape_ui(&mut self, ui: &mut egui::Ui, project: &Project) -> Option<ErosionAction> {
+        let mut action = None;
+        let p = &mut self.landscape;
+        ui.add(egui::Slider::new(&mut self.half_m, 100.0..=100_000.0).logarithmic(true).text("region half-size m"));
+        let field = |ui: &mut egui::Ui, label: &str, value: &mut f64, speed: f64| {
+            ui.horizontal(|ui| {
+                let id = ui.label(label).id;
+                ui.add(egui::DragValue::new(value).speed(speed)).labelled_by(id);
+            });
+        };
+        field(ui, "years", &mut p.years, 1e4);
+        field(ui, "time step, years", &mut p.dt_years, 100.0);
+        field(ui, "uplift m/yr", &mut p.uplift_m_per_year, 1e-5);
+        field(ui, "K", &mut p.k, 1e-6);
+        field(ui, "m", &mut p.m, 0.01);
+        field(ui, "n", &mut p.n, 0.01);
+        field(ui, "K_d m²/yr", &mut p.kd_m2_per_year, 1e-3);
+        let check = p.check();
+        if let Err(e) = &check {
+            ui.colored_label(egui::Color32::LIGHT_RED, e.to_string());
+        }
+        let idle = self.session.is_none();
+        if ui
+            .add_enabled(idle && check.is_ok(), egui::Button::new("run landscape"))
+            .on_hover_text(
+                "uplift, river incision and hillslope diffusion over the years, on a region around the view's centre",
+            )
+            .clicked()
+        {
+            action = Some(ErosionAction::Start);
+        }
+        let index = project.layers.iter().position(|l| l.name == self.layer && l.as_erosion().is_some());
+        let (applied, total) =
+            index.map_or((0, 0), |i| (project.layers[i].applied_runs().len(), project.layers[i].runs().len()));
+        ui.horizontal(|ui| {
+            if ui.add_enabled(idle && applied > 0, egui::Button::new("undo run")).clicked() {
+                action = Some(ErosionAction::Undo);
+            }
+            if ui.add_enabled(idle && applied < total, egui::Button::new("redo run")).clicked() {
+                action = Some(ErosionAction::Redo);
+            }
+            ui.label(format!("{applied} of {total} runs"));
+        });
+        action
+    }
+}
+
 impl App {
+    /// Switches the erosion section to stream power for `years` in steps of `dt_years` (tests;
+    /// people use the panel).
+    pub fn set_landscape(&mut self, years: f64, dt_years: f64) {
+        self.erosion.model = Model::StreamPower;
+        self.erosion.landscape.years = years;
+        self.erosion.landscape.dt_years = dt_years;
+    }
+
     /// The erosion run in progress: steps taken and asked (tests; people read the panel).
     pub fn erosion_progress(&self) -> Option<(u64, u64)> {
         self.erosion.session.as_ref().map(|s| (s.steps(), s.op.steps))
@@ -422,16 +493,29 @@ impl App {
         let index = self.project.layers.iter().position(|l| l.name == t.layer);
         let layer_level = index.and_then(|i| self.project.layers[i].runs().first().map(|r| r.level));
         let level = layer_level.or(t.level).unwrap_or_else(|| crate::erosion::placement::default_level(&e, &region));
-        let Some(params) = Params::preset(&t.preset, gravity_of_body(&self.project.body)) else { return };
+        // A stream-power run covers its whole region (the erosion brush stays hydraulic).
+        let landscape = (t.model == Model::StreamPower && brush.is_none()).then(|| t.landscape.clone());
+        let params = match &landscape {
+            Some(_) => Params::standard(),
+            None => {
+                let Some(params) = Params::preset(&t.preset, gravity_of_body(&self.project.body)) else { return };
+                params
+            }
+        };
+        let steps = match (&landscape, &brush) {
+            (Some(p), _) => p.steps(),
+            (None, Some(_)) => t.steps.min(2000),
+            (None, None) => t.steps,
+        };
         let op = Operation {
             region,
             level,
-            steps: if brush.is_some() { t.steps.min(2000) } else { t.steps },
+            steps,
             seed: t.seed,
-            preset: Some(t.preset.clone()),
+            preset: landscape.is_none().then(|| t.preset.clone()),
             params,
-            model: crate::erosion::operation::Model::Hydraulic,
-            stream_power: None,
+            model: if landscape.is_some() { Model::StreamPower } else { Model::Hydraulic },
+            stream_power: landscape,
             brush,
             device: Device::Cpu,
         };
@@ -453,6 +537,10 @@ impl App {
                 top
             }
         };
+        if op.model == Model::StreamPower {
+            self.run_landscape(index, op);
+            return;
+        }
         let (region, run, base) = match self.editor.prepare_erosion(&self.renderer, index, &op) {
             Ok(prepared) => prepared,
             Err(e) => {
@@ -487,6 +575,27 @@ impl App {
     }
 
     /// Records the session's run (its steps so far) on the layer.
+    /// Runs a stream-power operation whole on erosion layer `index` and keeps it.
+    fn run_landscape(&mut self, index: usize, op: Operation) {
+        let steps = op.steps;
+        match self.editor.run_whole(&mut self.renderer, index, op) {
+            Ok((spec, o)) => {
+                let years = o.landscape.map_or(0.0, |f| f.simulated_years);
+                self.message = format!(
+                    "landscape run {} kept: {steps} steps, {years} years in {:.1} s, change {:.1} … {:.1} m",
+                    spec.runs().len() - 1,
+                    o.seconds,
+                    o.range_m.0,
+                    o.range_m.1
+                );
+                self.project.layers[index] = spec;
+                self.mark_unsaved();
+            }
+            Err(e) => self.message = format!("landscape: {}", crate::errors::chain(&e)),
+        }
+        self.dirty = true;
+    }
+
     pub(crate) fn keep_erosion(&mut self) {
         let Some(mut s) = self.erosion.session.take() else { return };
         if let Err(e) = self.editor.set_erosion_overlay(&mut self.renderer, None) {
