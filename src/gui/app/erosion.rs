@@ -278,13 +278,17 @@ impl ErosionTool {
                 ui.image((map.id(), egui::vec2(200.0, 200.0)));
             }
         }
+        self.undo_ui(ui, project).or(action)
+    }
+
+    /// *undo run* and *redo run* for the erosion layer of `project`, while no run is in progress.
+    fn undo_ui(&self, ui: &mut egui::Ui, project: &Project) -> Option<ErosionAction> {
         let index = project.layers.iter().position(|l| l.name == self.layer && l.as_erosion().is_some());
+        let (applied, total) =
+            index.map_or((0, 0), |i| (project.layers[i].applied_runs().len(), project.layers[i].runs().len()));
+        let idle = self.session.is_none();
         ui.horizontal(|ui| {
-            let (applied, total) = index.map_or((0, 0), |i| {
-                let l = &project.layers[i];
-                (l.applied_runs().len(), l.runs().len())
-            });
-            let idle = self.session.is_none();
+            let mut action = None;
             if ui.add_enabled(idle && applied > 0, egui::Button::new("undo run")).clicked() {
                 action = Some(ErosionAction::Undo);
             }
@@ -292,8 +296,9 @@ impl ErosionTool {
                 action = Some(ErosionAction::Redo);
             }
             ui.label(format!("{applied} of {total} runs"));
-        });
-        action
+            action
+        })
+        .inner
     }
 }
 
@@ -331,19 +336,7 @@ impl ErosionTool {
         {
             action = Some(ErosionAction::Start);
         }
-        let index = project.layers.iter().position(|l| l.name == self.layer && l.as_erosion().is_some());
-        let (applied, total) =
-            index.map_or((0, 0), |i| (project.layers[i].applied_runs().len(), project.layers[i].runs().len()));
-        ui.horizontal(|ui| {
-            if ui.add_enabled(idle && applied > 0, egui::Button::new("undo run")).clicked() {
-                action = Some(ErosionAction::Undo);
-            }
-            if ui.add_enabled(idle && applied < total, egui::Button::new("redo run")).clicked() {
-                action = Some(ErosionAction::Redo);
-            }
-            ui.label(format!("{applied} of {total} runs"));
-        });
-        action
+        self.undo_ui(ui, project).or(action)
     }
 }
 
