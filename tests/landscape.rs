@@ -6,6 +6,7 @@ mod common;
 use common::repo_path;
 use terrafuse::ecm::Face;
 use terrafuse::erosion::Grid;
+use terrafuse::erosion::landscape::flow::Routing;
 use terrafuse::erosion::landscape::{Evolution, LandscapeParams, flow, tent};
 use terrafuse::erosion::region::Region;
 use terrafuse::geodesy::Ellipsoid;
@@ -76,6 +77,7 @@ fn fastscape_params(years: f64, kd_m2_per_year: f64) -> LandscapeParams {
         n: 1.0,
         kd_m2_per_year,
         deposition: 0.0,
+        routing: Routing::D8,
         years,
         dt_years: 1e4,
     }
@@ -151,6 +153,7 @@ fn across_a_face_edge_and_a_cube_corner_rivers_drain_to_the_border_and_keep_the_
         n: 1.0,
         kd_m2_per_year: 0.0,
         deposition: 0.0,
+        routing: Routing::D8,
         years: 4e6,
         dt_years: 2e4,
     };
@@ -193,4 +196,75 @@ fn across_a_face_edge_and_a_cube_corner_rivers_drain_to_the_border_and_keep_the_
     let expected = params.uplift_m_per_year / params.k;
     assert!((concavity - params.m).abs() < 0.02, "concavity {concavity}");
     assert!((steepness / expected - 1.0).abs() < 0.05, "steepness {steepness}, expected {expected}");
+}
+
+#[test]
+fn terrafuse_erode_stream_power_reports_the_issues_json_records_the_run_and_refuses_bad_flags() {
+    let dir = common::out_path("landscape-cli");
+    let _ = std::fs::remove_dir_all(&dir);
+    let path = common::sample_project("erzurum", &dir);
+    let p = path.to_str().unwrap();
+    let erode = |args: &[&str]| {
+        common::terrafuse(&[&["erode", p, "--layer", "land", "--model", "stream-power"], args].concat(), "")
+    };
+    let region = ["--region", "40.50,39.60,40.60,39.68", "--level", "8"];
+    let out = erode(
+        &[
+            &region[..],
+            &[
+                "--years",
+                "1e5",
+                "--dt-years",
+                "2e4",
+                "--deposition",
+                "0.5",
+                "--routing",
+                "mfd",
+                "--uplift-m-per-year",
+                "2e-3",
+                "--json",
+            ],
+        ]
+        .concat(),
+    );
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    for field in [
+        "steps",
+        "simulated_years",
+        "uplifted_m3",
+        "eroded_m3",
+        "deposited_m3",
+        "outflow_m3",
+        "unexplained_rel",
+        "seconds",
+    ] {
+        assert!(v.get(field).is_some_and(|x| x.is_number()), "JSON field {field}: {v}");
+    }
+    assert_eq!(v["model"], "stream-power");
+    assert_eq!(v["steps"], 5);
+    assert_eq!(v["simulated_years"], 1e5);
+    assert_eq!(v["unexplained_rel"], 0.0);
+    assert!(v["deposited_m3"].as_f64().unwrap() > 0.0, "G = 0.5 lays sediment down: {v}");
+    let project = terrafuse::project::Project::load(&path).unwrap();
+    let run = &project.layers.iter().find(|l| l.name == "land").unwrap().runs()[0];
+    let sp = run.stream_power.as_ref().expect("the run keeps its parameters");
+    assert_eq!((sp.deposition, sp.routing, sp.uplift_m_per_year), (0.5, Routing::Mfd, 2e-3));
+    // Bad values: refused by flag, the project untouched.
+    let before = std::fs::read(&path).unwrap();
+    for (args, expect) in [
+        (vec!["--years", "-5"], "--years"),
+        (vec!["--m", "1.5"], "--m: 1.5 is outside (0, 1]"),
+        (vec!["--years", "1e4", "--dt-years", "2e4"], "--dt-years"),
+        (vec!["--deposition", "-1"], "--deposition"),
+        (vec!["--routing", "dinf"], "--routing"),
+        (vec!["--steps", "5"], "--steps"),
+    ] {
+        let out = erode(&[&region[..], &args].concat());
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success() && err.contains(expect), "{args:?}: {err}");
+        assert_eq!(std::fs::read(&path).unwrap(), before, "{args:?} changed the project");
+    }
+    let hydraulic = common::terrafuse(&["erode", p, "--layer", "land", "--routing", "mfd"], "");
+    assert!(String::from_utf8_lossy(&hydraulic.stderr).contains("add --model stream-power"));
 }

@@ -629,6 +629,30 @@ fn the_erosion_section_starts_steps_runs_keeps_undoes_and_brushes_a_run() {
     assert_eq!(evolved.model, terrafuse::erosion::operation::Model::StreamPower);
     assert_eq!(evolved.stream_power.map(|p| p.years), Some(2e4));
     settle(&mut h);
+    // The drainage overlay: the channel network of the visible stack, draped over the terrain.
+    h.get_by_label("drainage").click_accesskit();
+    h.run_steps(2);
+    let summary = h.state().drainage_summary().to_string();
+    assert!(summary.contains("channel cells"), "{summary} / {}", h.state().message());
+    assert!(live(&h), "the drainage is draped over the terrain");
+    assert!(h.state().project().layers.iter().all(|l| !l.name.starts_with("erosion-live")));
+    settle(&mut h);
+    h.render().unwrap().save(dir.join("drainage.png")).unwrap(); // for people, not compared
+    // The uplift brush: a stream-power run whose uplift follows the drag; the drainage is
+    // routed again on the raised terrain.
+    h.get_by_label("uplift brush (left drag raises rock)").click_accesskit();
+    h.run_steps(2);
+    drag(&mut h, egui::pos2(x - 60.0, y), egui::pos2(x + 60.0, y));
+    h.run_steps(2);
+    assert_eq!(runs(&h), (6, 6), "{}", h.state().message());
+    let raised = h.state().project().layers.iter().find(|l| l.name == "erosion").unwrap().runs()[5].clone();
+    assert_eq!(raised.model, terrafuse::erosion::operation::Model::StreamPower);
+    assert!(raised.brush.is_some(), "the uplift brush keeps its path");
+    assert!(live(&h), "the drainage follows the run");
+    h.get_by_label("drainage").click_accesskit();
+    h.run_steps(2);
+    assert!(!live(&h), "unticked, the drainage goes");
+    settle(&mut h);
 }
 
 /// Steps until the project being opened has been taken over.

@@ -58,7 +58,7 @@ pub struct ErodeRequest {
     /// Stream power: the time step, years (default 1e4; the implicit solver is stable for any).
     #[arg(long = "dt-years", allow_hyphen_values = true)]
     pub dt_years: Option<f64>,
-    /// Stream power: uniform rock uplift, m/yr (default 1e-3).
+    /// Stream power: rock uplift, m/yr (default 1e-3), uniform over the region.
     #[arg(long = "uplift-m-per-year", allow_hyphen_values = true)]
     pub uplift_m_per_year: Option<f64>,
     /// Stream power: erodibility K of E = K·A^m·S^n (default 2e-5).
@@ -76,6 +76,10 @@ pub struct ErodeRequest {
     /// Stream power: the ξ-q deposition coefficient G (0 = detachment-limited, the default).
     #[arg(long, allow_hyphen_values = true)]
     pub deposition: Option<f64>,
+    /// Stream power: drainage area by d8 (steepest neighbour; the default) or mfd (shared among
+    /// every lower neighbour, Freeman 1991).
+    #[arg(long, value_parser = ["d8", "mfd"])]
+    pub routing: Option<String>,
     /// rain, river, thermal or gentle (default rain).
     #[arg(long)]
     pub preset: Option<String>,

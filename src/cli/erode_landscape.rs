@@ -5,6 +5,7 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 use super::{CliError, ErodeRequest};
+use crate::erosion::landscape::flow::Routing;
 use crate::erosion::landscape::{LandscapeOutcome, LandscapeParams};
 use crate::erosion::layer::Outcome;
 
@@ -34,6 +35,9 @@ pub fn params_of(request: &ErodeRequest) -> Result<Option<LandscapeParams>, CliE
         if let Some((flag, _)) = given.iter().find(|(_, v)| v.is_some()) {
             return Err(format!("{flag}: a stream-power flag; add --model stream-power").into());
         }
+        if request.routing.is_some() {
+            return Err("--routing: a stream-power flag; add --model stream-power".into());
+        }
         return Ok(None);
     }
     if request.gpu {
@@ -50,6 +54,7 @@ pub fn params_of(request: &ErodeRequest) -> Result<Option<LandscapeParams>, CliE
         n: request.n.unwrap_or(d.n),
         kd_m2_per_year: request.kd_m2_per_year.unwrap_or(d.kd_m2_per_year),
         deposition: request.deposition.unwrap_or(d.deposition),
+        routing: if request.routing.as_deref() == Some("mfd") { Routing::Mfd } else { Routing::D8 },
         years: request.years.unwrap_or(d.years),
         dt_years: request.dt_years.unwrap_or(d.dt_years),
     };

@@ -45,7 +45,9 @@ pub struct Operation {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub stream_power: Option<LandscapeParams>,
     /// The erosion brush's path: rain and erosion fade out beyond `radius_m` of it (outside,
-    /// cells are sinks: what flows there leaves the run, counted).
+    /// cells are sinks: what flows there leaves the run, counted). In a stream-power run the
+    /// path is where the rock rises: uplift fades out the same way, and rivers run on over the
+    /// whole region.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub brush: Option<BrushPath>,
     /// Where the run was made: `cpu` (the reference, bit for bit reproducible) or `gpu` (within
@@ -120,9 +122,6 @@ impl Operation {
                         "steps",
                         format!("{} differs from the {} steps of years / dt_years", self.steps, p.steps()),
                     );
-                }
-                if self.brush.is_some() {
-                    return bad("brush", "a stream-power run covers its whole region (no brush)".into());
                 }
             }
             (Model::Hydraulic, None) => {}

@@ -14,7 +14,38 @@
 use std::cmp::Ordering;
 use std::collections::BinaryHeap;
 
+use serde::{Deserialize, Serialize};
+
 use crate::erosion::grid::{Grid, PIPES};
+
+/// How drainage area is accumulated.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, schemars::JsonSchema)]
+#[serde(rename_all = "kebab-case")]
+pub enum Routing {
+    /// Single flow direction: all of a cell's area to its steepest neighbour.
+    #[default]
+    D8,
+    /// Multiple flow directions: a cell's area shared among every lower neighbour.
+    Mfd,
+}
+
+impl Routing {
+    /// Whether it is the default (not written to the project).
+    pub fn is_d8(&self) -> bool {
+        *self == Routing::D8
+    }
+
+    /// The name the command line and the project use.
+    pub fn name(self) -> &'static str {
+        match self {
+            Routing::D8 => "d8",
+            Routing::Mfd => "mfd",
+        }
+    }
+}
+
+/// Freeman's (1991) exponent of the slope that shares a cell's area among its lower neighbours.
+pub const MFD_EXPONENT: f64 = 1.1;
 
 /// The routing of one surface.
 #[derive(Clone, Debug, PartialEq)]
@@ -54,6 +85,12 @@ pub fn base_level(grid: &Grid) -> Vec<bool> {
 /// the grid's lengths along +x and +y are each cell's to its next, so a step towards −x or −y
 /// takes the neighbour's (the same distance both ways).
 pub fn pipe_distance_m(grid: &Grid, i: usize, j: usize, k: usize) -> f64 {
+    pipe_distance2_m2(grid, i, j, k).sqrt()
+}
+
+/// The square of [`pipe_distance_m`], m² (the routing compares slopes by their squares, so that
+/// only the steepest way down takes a square root).
+fn pipe_distance2_m2(grid: &Grid, i: usize, j: usize, k: usize) -> f64 {
     let (dx, dy) = PIPES[k];
     let lx = match dx {
         0 => 0.0,
@@ -65,7 +102,7 @@ pub fn pipe_distance_m(grid: &Grid, i: usize, j: usize, k: usize) -> f64 {
         1 => grid.dy_m[i],
         _ => grid.dy_m[j],
     };
-    (lx * lx + ly * ly).sqrt()
+    lx * lx + ly * ly
 }
 
 /// A cell in the flood's queue: lowest first, then the lowest index (so the order is total and
@@ -144,20 +181,25 @@ fn steepest(grid: &Grid, surface: &[f64], base: &[bool], which: &dyn Fn(usize) -
         if base[i] || surface[i].is_nan() || !which(i) {
             continue;
         }
-        // Not base level, so not on the border: all eight neighbours exist.
-        let mut steepest = 0.0;
+        // Not base level, so not on the border: all eight neighbours exist. Slopes compared by
+        // their squares (the same order for drops > 0).
+        let mut steepest2 = 0.0;
+        let mut best_d2 = 0.0;
         for k in VISIT {
             let (dx, dy) = PIPES[k];
             let j = (i as isize + dx as isize + dy as isize * grid.width as isize) as usize;
-            if surface[j].is_nan() {
+            let drop = surface[i] - surface[j];
+            // (A NaN neighbour gives a NaN drop, which is not > 0.)
+            if drop.is_nan() || drop <= 0.0 {
                 continue;
             }
-            let d = pipe_distance_m(grid, i, j, k);
-            let slope = (surface[i] - surface[j]) / d;
-            if slope > steepest {
-                (steepest, receiver[i], distance_m[i]) = (slope, j, d);
+            let d2 = pipe_distance2_m2(grid, i, j, k);
+            let slope2 = drop * drop / d2;
+            if slope2 > steepest2 {
+                (steepest2, receiver[i], best_d2) = (slope2, j, d2);
             }
         }
+        distance_m[i] = best_d2.sqrt();
     }
     (receiver, distance_m)
 }
@@ -233,4 +275,82 @@ pub fn route(grid: &Grid, heights: &[f64], base: &[bool]) -> Flow {
     }
     let lake_cells = (0..n).filter(|&i| flooded[i] > heights[i]).count();
     Flow { receiver, distance_m, order, area_m2, flooded_m: flooded, lake_cells }
+}
+
+/// Multiple flow directions (Freeman 1991) on a surface without closed depressions
+/// ([`Flow::flooded_m`]): the cells from the highest down, and each one's lower neighbours with
+/// the share of its flow each takes, in proportion to slope^1.1. On the flooded surface every
+/// cell but base level has a lower neighbour, so whatever is accumulated reaches base level, as
+/// with one flow direction; only the way it spreads differs (divergent on hillslopes,
+/// convergent in valleys).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Spread {
+    /// The cells that pass their flow on, highest first (equal heights by index).
+    pub order: Vec<usize>,
+    /// Where each cell's shares start in `shares` (indexed by cell; one past the last cell too).
+    start: Vec<usize>,
+    /// (lower neighbour, share), the shares of a cell summing to 1.
+    shares: Vec<(usize, f64)>,
+}
+
+impl Spread {
+    /// The shares of `flooded`'s cells (base level and cells without data pass nothing on).
+    pub fn of(grid: &Grid, flooded: &[f64], base: &[bool]) -> Spread {
+        let n = grid.len();
+        let mut order: Vec<usize> = (0..n).filter(|&i| !flooded[i].is_nan() && !base[i]).collect();
+        order.sort_by(|&a, &b| flooded[b].total_cmp(&flooded[a]).then(a.cmp(&b)));
+        let mut start = vec![0usize; n + 1];
+        let mut shares = Vec::with_capacity(order.len() * 3);
+        let mut by_cell: Vec<(usize, usize)> = vec![(0, 0); n];
+        for &i in &order {
+            let first = shares.len();
+            let mut total = 0.0;
+            for k in VISIT {
+                let Some(j) = grid.neighbour(i, k) else { continue };
+                if flooded[j].is_nan() || flooded[j] >= flooded[i] {
+                    continue;
+                }
+                let w = ((flooded[i] - flooded[j]) / pipe_distance_m(grid, i, j, k)).powf(MFD_EXPONENT);
+                shares.push((j, w));
+                total += w;
+            }
+            for share in &mut shares[first..] {
+                share.1 /= total;
+            }
+            by_cell[i] = (first, shares.len());
+        }
+        // Reindex by cell, so that a cell's shares are found in O(1).
+        let mut flat = Vec::with_capacity(shares.len());
+        for i in 0..n {
+            start[i] = flat.len();
+            let (a, b) = by_cell[i];
+            flat.extend_from_slice(&shares[a..b]);
+        }
+        start[n] = flat.len();
+        Spread { order, start, shares: flat }
+    }
+
+    /// Cell `i`'s lower neighbours and their shares.
+    pub fn shares(&self, i: usize) -> &[(usize, f64)] {
+        &self.shares[self.start[i]..self.start[i + 1]]
+    }
+
+    /// Accumulates `own` (one value per cell) down the shares: each cell's own value plus what
+    /// reaches it from above.
+    pub fn accumulate(&self, own: &[f64]) -> Vec<f64> {
+        let mut total = own.to_vec();
+        for &i in &self.order {
+            let here = total[i];
+            for &(j, w) in self.shares(i) {
+                total[j] += here * w;
+            }
+        }
+        total
+    }
+}
+
+/// Drainage area by multiple flow directions on `flooded` (see [`Spread`]).
+pub fn area_mfd(grid: &Grid, flooded: &[f64], base: &[bool]) -> Vec<f64> {
+    let own: Vec<f64> = (0..grid.len()).map(|i| if flooded[i].is_nan() { 0.0 } else { grid.area_m2[i] }).collect();
+    Spread::of(grid, flooded, base).accumulate(&own)
 }

@@ -4,13 +4,16 @@
 //! Willett 2013) and fastscapelib, which the tests compare it with.
 //!
 //! One step of Δt years, as fastscapelib's examples order it: the cells that are not base level
-//! rise by U·Δt; the uplifted surface is routed ([`flow`]); rivers incise it implicitly
-//! ([`spl`]); the result diffuses implicitly ([`diffusion`]). The change of every cell is kept in
+//! rise by U·Δt (along a brush path, by its mask); the uplifted surface is routed ([`flow`], by
+//! steepest descent, drainage area optionally by multiple flow directions); rivers incise it
+//! implicitly and, with a deposition coefficient G, lay sediment down (ξ-q, [`spl`]); the result
+//! diffuses implicitly ([`diffusion`]). The change of every cell is kept in
 //! fixed point (the hydraulic model's volume unit), so the budgets (uplifted, eroded, deposited,
 //! out through base level) add up to the state to the last unit, and the CPU path is the
 //! reference, deterministic bit for bit.
 
 pub mod diffusion;
+pub mod drainage;
 pub mod flow;
 pub mod spl;
 
@@ -22,7 +25,8 @@ use super::grid::Grid;
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct LandscapeParams {
-    /// Uniform rock uplift U, m/yr (base level does not rise).
+    /// Rock uplift U, m/yr: uniform, or along a run's brush path scaled by its mask (1 within
+    /// half the radius, fading to 0 at the radius); base level does not rise.
     pub uplift_m_per_year: f64,
     /// Erodibility K of E = K·A^m·S^n (A in m², S in m/m, E in m/yr).
     pub k: f64,
@@ -33,10 +37,15 @@ pub struct LandscapeParams {
     /// Hillslope diffusivity K_d, m²/yr (0: none).
     #[serde(default)]
     pub kd_m2_per_year: f64,
-    /// The ξ-q deposition coefficient G (Davy & Lague 2009); 0: detachment-limited. Only 0 is
-    /// run for now (see docs/erosion.md).
+    /// The ξ-q deposition coefficient G (Davy & Lague 2009): rivers lay down G·Qs/A of the
+    /// sediment flux Qs they carry, per year; 0: detachment-limited (no deposition).
     #[serde(default)]
     pub deposition: f64,
+    /// How drainage area is accumulated: `d8` (to the steepest of 8 neighbours; the default) or
+    /// `mfd` (shared among every lower neighbour, Freeman 1991). Incision follows the steepest
+    /// neighbour either way.
+    #[serde(default, skip_serializing_if = "flow::Routing::is_d8")]
+    pub routing: flow::Routing,
     /// The simulated time, years.
     pub years: f64,
     /// The time step, years (the last step is shorter when `years` is not a multiple).
@@ -56,6 +65,7 @@ impl Default for LandscapeParams {
             n: 1.0,
             kd_m2_per_year: 0.01,
             deposition: 0.0,
+            routing: flow::Routing::D8,
             years: 2e6,
             dt_years: 1e4,
         }
@@ -95,8 +105,8 @@ impl LandscapeParams {
         if !(finite(self.kd_m2_per_year) && self.kd_m2_per_year >= 0.0 && self.kd_m2_per_year <= 1e3) {
             return bad("kd_m2_per_year", format!("{} is outside 0 … 1000 m²/yr", self.kd_m2_per_year));
         }
-        if self.deposition != 0.0 {
-            return bad("deposition", format!("{}: only 0 (detachment-limited) is run for now", self.deposition));
+        if !(finite(self.deposition) && (0.0..=100.0).contains(&self.deposition)) {
+            return bad("deposition", format!("{} is outside 0 … 100", self.deposition));
         }
         if !(finite(self.years) && self.years > 0.0) {
             return bad("years", format!("{} must be a positive number of years", self.years));
@@ -129,7 +139,7 @@ pub struct LandscapeBudget {
     pub uplifted: i64,
     /// Lowered by incision and by diffusion where it lowers.
     pub eroded: i64,
-    /// Raised by diffusion where it raises (and by deposition).
+    /// Raised by deposition and by diffusion where it raises.
     pub deposited: i64,
     /// Left through base level: eroded − deposited.
     pub outflow: i64,
@@ -155,6 +165,10 @@ pub struct Evolution {
     /// The routing of the last step (None before the first).
     pub flow: Option<flow::Flow>,
     unit_m3: f64,
+    /// With deposition: the sediment that entered each cell over the last step, m³.
+    sediment_in: Vec<f64>,
+    /// The last step's length, years.
+    last_dt: f64,
 }
 
 impl Evolution {
@@ -177,6 +191,8 @@ impl Evolution {
             years: 0.0,
             flow: None,
             unit_m3,
+            sediment_in: Vec::new(),
+            last_dt: 0.0,
         })
     }
 
@@ -225,22 +241,36 @@ impl Evolution {
         let law = spl::StreamPower { k: p.k, m: p.m, n: p.n };
         let kd = p.kd_m2_per_year;
         let n = self.grid.len();
-        // Uplift, in whole units.
-        let uplift: Vec<i64> =
-            (0..n)
-                .map(|i| {
-                    if self.base[i] || self.grid.base_m[i].is_nan() {
-                        0
-                    } else {
-                        self.units(i, p.uplift_m_per_year * dt)
-                    }
-                })
-                .collect();
+        // Uplift, in whole units (scaled by the brush's mask where the run has one).
+        let mask = |i: usize| self.grid.erosion_mask.as_ref().map_or(1.0, |m| m[i]);
+        let uplift: Vec<i64> = (0..n)
+            .map(|i| {
+                if self.base[i] || self.grid.base_m[i].is_nan() {
+                    0
+                } else {
+                    self.units(i, p.uplift_m_per_year * mask(i) * dt)
+                }
+            })
+            .collect();
         let mut heights: Vec<f64> =
             (0..n).map(|i| self.height_m(i) + uplift[i] as f64 * self.unit_m3 / self.grid.area_m2[i]).collect();
         let uplifted = heights.clone();
-        let routing = flow::route(&self.grid, &heights, &self.base);
-        spl::incise(&routing, &mut heights, law, dt);
+        let mut routing = flow::route(&self.grid, &heights, &self.base);
+        let spread =
+            (p.routing == flow::Routing::Mfd).then(|| flow::Spread::of(&self.grid, &routing.flooded_m, &self.base));
+        if let Some(spread) = &spread {
+            let own: Vec<f64> = (0..n).map(|i| if heights[i].is_nan() { 0.0 } else { self.grid.area_m2[i] }).collect();
+            routing.area_m2 = spread.accumulate(&own);
+        }
+        if p.deposition > 0.0 {
+            // The last step's sediment, scaled to this step's length, is the first guess.
+            let scale = if self.last_dt > 0.0 { dt / self.last_dt } else { 0.0 };
+            self.sediment_in.iter_mut().for_each(|v| *v *= scale);
+            let sediment = spl::Sediment { spread: spread.as_ref(), inflow: &mut self.sediment_in };
+            spl::incise_and_deposit(&routing, &self.grid.area_m2, &mut heights, law, dt, p.deposition, sediment);
+        } else {
+            spl::incise(&routing, &mut heights, law, dt);
+        }
         let diffused = diffusion::diffuse(&self.grid, &self.base, &heights, kd, dt);
         for i in 0..n {
             if self.grid.base_m[i].is_nan() {
@@ -257,6 +287,7 @@ impl Evolution {
         }
         self.budget.outflow = self.budget.eroded - self.budget.deposited;
         self.flow = Some(routing);
+        self.last_dt = dt;
         self.steps += 1;
         self.years += dt;
     }

@@ -12,6 +12,7 @@
 use super::*;
 use crate::edit::EditRaster;
 use crate::erosion::landscape::LandscapeParams;
+use crate::erosion::landscape::flow::Routing;
 use crate::erosion::operation::{BrushPath, Device, Model, Operation};
 use crate::erosion::params::{Params, gravity_of_body};
 use crate::erosion::region::Region;
@@ -36,9 +37,9 @@ pub(crate) struct ErosionTool {
     landscape: LandscapeParams,
     preset: String,
     /// Half the region's side, metres.
-    half_m: f64,
+    pub(super) half_m: f64,
     /// The level of the cells (None: about 512 cells across the region).
-    level: Option<u8>,
+    pub(super) level: Option<u8>,
     steps: u64,
     per_frame: u32,
     seed: u64,
@@ -54,6 +55,8 @@ pub(crate) struct ErosionTool {
     painting: bool,
     /// The window's context (for the map's texture and the pixel scale).
     ctx: Option<egui::Context>,
+    /// The drainage overlay.
+    pub(crate) drainage: super::drainage::DrainageTool,
 }
 
 impl Default for ErosionTool {
@@ -77,6 +80,7 @@ impl Default for ErosionTool {
             path: Vec::new(),
             painting: false,
             ctx: None,
+            drainage: Default::default(),
         }
     }
 }
@@ -162,6 +166,8 @@ pub(crate) enum ErosionAction {
     Undo,
     /// Forward one run.
     Redo,
+    /// Route the drainage overlay again (or remove it).
+    Drainage,
 }
 
 impl ErosionTool {
@@ -281,8 +287,17 @@ impl ErosionTool {
         self.undo_ui(ui, project).or(action)
     }
 
-    /// *undo run* and *redo run* for the erosion layer of `project`, while no run is in progress.
-    fn undo_ui(&self, ui: &mut egui::Ui, project: &Project) -> Option<ErosionAction> {
+    /// *undo run* and *redo run* for the erosion layer of `project`, while no run is in
+    /// progress, and the drainage overlay.
+    fn undo_ui(&mut self, ui: &mut egui::Ui, project: &Project) -> Option<ErosionAction> {
+        let undo = self.undo_buttons(ui, project);
+        ui.separator();
+        let drainage = self.drainage.ui(ui).then_some(ErosionAction::Drainage);
+        undo.or(drainage)
+    }
+
+    /// *undo run*, *redo run* and where the layer stands among its runs.
+    fn undo_buttons(&self, ui: &mut egui::Ui, project: &Project) -> Option<ErosionAction> {
         let index = project.layers.iter().position(|l| l.name == self.layer && l.as_erosion().is_some());
         let (applied, total) =
             index.map_or((0, 0), |i| (project.layers[i].applied_runs().len(), project.layers[i].runs().len()));
@@ -303,8 +318,15 @@ impl ErosionTool {
 }
 
 impl ErosionTool {
+    /// The erosion layer's name.
+    pub(crate) fn layer_name(&self) -> &str {
+        &self.layer
+    }
+
     /// The stream-power settings: a region around the view's centre, the years and time step,
-    /// uplift, K, m, n and K_d, and *run landscape* (the whole run at once, on the CPU reference).
+    /// uplift, K, m, n, K_d, the deposition coefficient G and the routing, and *run landscape*
+    /// (the whole run at once, on the CPU reference; with *brush* ticked, a drag raises rock
+    /// along its path instead).
     fn landscape_ui(&mut self, ui: &mut egui::Ui, project: &Project) -> Option<ErosionAction> {
         let mut action = None;
         let p = &mut self.landscape;
@@ -322,6 +344,18 @@ impl ErosionTool {
         field(ui, "m", &mut p.m, 0.01);
         field(ui, "n", &mut p.n, 0.01);
         field(ui, "K_d m²/yr", &mut p.kd_m2_per_year, 1e-3);
+        field(ui, "deposition G", &mut p.deposition, 0.01);
+        ui.horizontal(|ui| {
+            ui.label("drainage area");
+            ui.selectable_value(&mut p.routing, Routing::D8, "D8");
+            ui.selectable_value(&mut p.routing, Routing::Mfd, "MFD").on_hover_text("Freeman 1991");
+        });
+        ui.horizontal(|ui| {
+            ui.checkbox(&mut self.brush, "uplift brush (left drag raises rock)")
+                .on_hover_text("a run whose uplift follows the drag, on a region three radii around it");
+        });
+        ui.add(egui::Slider::new(&mut self.brush_radius_m, 10.0..=20_000.0).logarithmic(true).text("brush radius m"));
+        let p = &self.landscape;
         let check = p.check();
         if let Err(e) = &check {
             ui.colored_label(egui::Color32::LIGHT_RED, e.to_string());
@@ -371,10 +405,12 @@ impl App {
                     let _ = self.editor.set_erosion_overlay(&mut self.renderer, None);
                     self.editor.discard_erosion(&mut self.renderer, s.index, s.base);
                     self.dirty = true;
+                    self.update_drainage();
                 }
             }
             Some(ErosionAction::Undo) => self.move_erosion_undo(-1),
             Some(ErosionAction::Redo) => self.move_erosion_undo(1),
+            Some(ErosionAction::Drainage) => self.update_drainage(),
             None => {}
         }
     }
@@ -441,44 +477,37 @@ impl App {
         }
     }
 
+    /// A box of half-size `half_m` around the terrain at the view's centre (an error message
+    /// when the view shows no terrain there).
+    pub(super) fn view_box(&self, half_m: f64) -> Result<crate::geodesy::GeoBox, String> {
+        let e = self.renderer.scene().ellipsoid;
+        let ppp = self.erosion.ctx.as_ref().map_or(1.0, egui::Context::pixels_per_point);
+        let centre = self.viewport_rect_px().and_then(|rect| {
+            let r =
+                egui::Rect::from_min_max((rect.min.to_vec2() / ppp).to_pos2(), (rect.max.to_vec2() / ppp).to_pos2());
+            self.surface_at(r.center(), r)
+        });
+        let Some(p) = centre else { return Err("no terrain at the view's centre".into()) };
+        let g = geodesy::geodetic_from_ecef(&e, p);
+        crate::erosion::placement::box_around(&e, g.lat_rad.to_degrees(), g.lon_rad.to_degrees(), half_m)
+            .map_err(|e| crate::errors::chain(&e))
+    }
+
     /// Prepares a run on the erosion layer (made on top when missing): around the view's centre,
     /// or along a brush path.
     pub(crate) fn start_erosion(&mut self, brush: Option<BrushPath>) {
         let e = self.renderer.scene().ellipsoid;
-        let (centre, half) = match &brush {
-            Some(b) => (None, Some(crate::erosion::placement::box_along(&e, &b.points, b.radius_m))),
-            None => {
-                let ppp = self.erosion.ctx.as_ref().map_or(1.0, egui::Context::pixels_per_point);
-                let centre = self.viewport_rect_px().and_then(|rect| {
-                    let r = egui::Rect::from_min_max(
-                        (rect.min.to_vec2() / ppp).to_pos2(),
-                        (rect.max.to_vec2() / ppp).to_pos2(),
-                    );
-                    self.surface_at(r.center(), r)
-                });
-                (centre, None)
-            }
-        };
-        let region = match (centre, half) {
-            (_, Some(b)) => b,
-            (Some(p), None) => {
-                let g = geodesy::geodetic_from_ecef(&e, p);
-                crate::erosion::placement::box_around(
-                    &e,
-                    g.lat_rad.to_degrees(),
-                    g.lon_rad.to_degrees(),
-                    self.erosion.half_m,
-                )
-            }
-            (None, None) => {
-                self.message = "erosion: no terrain at the view's centre".into();
-                return;
-            }
+        // A stream-power brush raises rock along the path; its rivers need room around it.
+        let room = if self.erosion.model == Model::StreamPower { 3.0 } else { 1.0 };
+        let region = match &brush {
+            Some(b) => crate::erosion::placement::box_along(&e, &b.points, room * b.radius_m)
+                .map_err(|e| format!("erosion: {}", crate::errors::chain(&e))),
+            None => self.view_box(self.erosion.half_m).map_err(|m| format!("erosion: {m}")),
         };
         let region = match region {
             Ok(b) => b,
-            Err(e) => {
-                self.message = format!("erosion: {}", crate::errors::chain(&e));
+            Err(message) => {
+                self.message = message;
                 return;
             }
         };
@@ -486,8 +515,8 @@ impl App {
         let index = self.project.layers.iter().position(|l| l.name == t.layer);
         let layer_level = index.and_then(|i| self.project.layers[i].runs().first().map(|r| r.level));
         let level = layer_level.or(t.level).unwrap_or_else(|| crate::erosion::placement::default_level(&e, &region));
-        // A stream-power run covers its whole region (the erosion brush stays hydraulic).
-        let landscape = (t.model == Model::StreamPower && brush.is_none()).then(|| t.landscape.clone());
+        // A stream-power brush is an uplift brush (the path's mask scales U).
+        let landscape = (t.model == Model::StreamPower).then(|| t.landscape.clone());
         let params = match &landscape {
             Some(_) => Params::standard(),
             None => {
@@ -587,6 +616,7 @@ impl App {
             Err(e) => self.message = format!("landscape: {}", crate::errors::chain(&e)),
         }
         self.dirty = true;
+        self.update_drainage();
     }
 
     pub(crate) fn keep_erosion(&mut self) {
@@ -622,6 +652,7 @@ impl App {
             Err(e) => self.message = e.to_string(),
         }
         self.dirty = true;
+        self.update_drainage();
     }
 
     fn move_erosion_undo(&mut self, by: i64) {
@@ -637,6 +668,7 @@ impl App {
                 self.dirty = true;
                 self.mark_unsaved();
                 self.message = format!("{} to {applied} of {total} runs", if by < 0 { "undone" } else { "redone" });
+                self.update_drainage();
             }
             Err(e) => self.message = e.to_string(),
         }

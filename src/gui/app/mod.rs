@@ -17,6 +17,7 @@ use crate::scene::Camera;
 use crate::scene::resolve_ramp;
 
 mod brush;
+mod drainage;
 mod erosion;
 pub mod file;
 mod layers;
