@@ -5,14 +5,13 @@
 //! interactive, *step* takes one; the live time step, CFL bound, speeds and budgets show as it
 //! runs, the terrain change shows on the layer a few times a second, and water depth, sediment or
 //! the change of height show as a map of the region. *keep* records the run (its steps so far) on
-//! the layer as `terrafuse erode` would; *discard* drops it. The erosion brush: a left drag (with
-//! *brush* ticked) records a path, and on release a run of the chosen steps rains and erodes
-//! within the brush's radius of it only. Undo and redo move the layer's position among its runs.
+//! the layer as `terrafuse erode` would; *discard* drops it. The erosion brush is in
+//! `erosion_brush.rs`, stream power in `landscape.rs`, the drainage overlay in `drainage.rs`.
+//! Undo and redo move the layer's position among its runs.
 
 use super::*;
 use crate::edit::EditRaster;
 use crate::erosion::landscape::LandscapeParams;
-use crate::erosion::landscape::flow::Routing;
 use crate::erosion::operation::{BrushPath, Device, Model, Operation};
 use crate::erosion::params::{Params, gravity_of_body};
 use crate::erosion::region::Region;
@@ -33,8 +32,8 @@ pub(crate) enum Overlay {
 pub(crate) struct ErosionTool {
     layer: String,
     /// Hydraulic runs step by step; stream-power runs whole (`landscape` their parameters).
-    model: Model,
-    landscape: LandscapeParams,
+    pub(super) model: Model,
+    pub(super) landscape: LandscapeParams,
     preset: String,
     /// Half the region's side, metres.
     pub(super) half_m: f64,
@@ -50,9 +49,9 @@ pub(crate) struct ErosionTool {
     map: Option<egui::TextureHandle>,
     /// The erosion brush.
     pub(crate) brush: bool,
-    brush_radius_m: f64,
-    path: Vec<[f64; 2]>,
-    painting: bool,
+    pub(super) brush_radius_m: f64,
+    pub(super) path: Vec<[f64; 2]>,
+    pub(super) painting: bool,
     /// The window's context (for the map's texture and the pixel scale).
     ctx: Option<egui::Context>,
     /// The drainage overlay.
@@ -94,7 +93,7 @@ pub(crate) enum Engine {
 /// A run in progress.
 pub(crate) struct Session {
     index: usize,
-    op: Operation,
+    pub(super) op: Operation,
     region: Region,
     /// The layer's raster before the run.
     base: EditRaster,
@@ -122,7 +121,7 @@ impl Session {
     }
 
     /// Takes `n` steps (the GPU's without waiting).
-    fn step(&mut self, n: u32) -> Result<(), GuiError> {
+    pub(super) fn step(&mut self, n: u32) -> Result<(), GuiError> {
         let t = Instant::now();
         match &mut self.engine {
             Engine::Cpu(run) => {
@@ -289,7 +288,7 @@ impl ErosionTool {
 
     /// *undo run* and *redo run* for the erosion layer of `project`, while no run is in
     /// progress, and the drainage overlay.
-    fn undo_ui(&mut self, ui: &mut egui::Ui, project: &Project) -> Option<ErosionAction> {
+    pub(super) fn undo_ui(&mut self, ui: &mut egui::Ui, project: &Project) -> Option<ErosionAction> {
         let undo = self.undo_buttons(ui, project);
         ui.separator();
         let drainage = self.drainage.ui(ui).then_some(ErosionAction::Drainage);
@@ -322,67 +321,9 @@ impl ErosionTool {
     pub(crate) fn layer_name(&self) -> &str {
         &self.layer
     }
-
-    /// The stream-power settings: a region around the view's centre, the years and time step,
-    /// uplift, K, m, n, K_d, the deposition coefficient G and the routing, and *run landscape*
-    /// (the whole run at once, on the CPU reference; with *brush* ticked, a drag raises rock
-    /// along its path instead).
-    fn landscape_ui(&mut self, ui: &mut egui::Ui, project: &Project) -> Option<ErosionAction> {
-        let mut action = None;
-        let p = &mut self.landscape;
-        ui.add(egui::Slider::new(&mut self.half_m, 100.0..=100_000.0).logarithmic(true).text("region half-size m"));
-        let field = |ui: &mut egui::Ui, label: &str, value: &mut f64, speed: f64| {
-            ui.horizontal(|ui| {
-                let id = ui.label(label).id;
-                ui.add(egui::DragValue::new(value).speed(speed)).labelled_by(id);
-            });
-        };
-        field(ui, "years", &mut p.years, 1e4);
-        field(ui, "time step, years", &mut p.dt_years, 100.0);
-        field(ui, "uplift m/yr", &mut p.uplift_m_per_year, 1e-5);
-        field(ui, "K", &mut p.k, 1e-6);
-        field(ui, "m", &mut p.m, 0.01);
-        field(ui, "n", &mut p.n, 0.01);
-        field(ui, "K_d m²/yr", &mut p.kd_m2_per_year, 1e-3);
-        field(ui, "deposition G", &mut p.deposition, 0.01);
-        ui.horizontal(|ui| {
-            ui.label("drainage area");
-            ui.selectable_value(&mut p.routing, Routing::D8, "D8");
-            ui.selectable_value(&mut p.routing, Routing::Mfd, "MFD").on_hover_text("Freeman 1991");
-        });
-        ui.horizontal(|ui| {
-            ui.checkbox(&mut self.brush, "uplift brush (left drag raises rock)")
-                .on_hover_text("a run whose uplift follows the drag, on a region three radii around it");
-        });
-        ui.add(egui::Slider::new(&mut self.brush_radius_m, 10.0..=20_000.0).logarithmic(true).text("brush radius m"));
-        let p = &self.landscape;
-        let check = p.check();
-        if let Err(e) = &check {
-            ui.colored_label(egui::Color32::LIGHT_RED, e.to_string());
-        }
-        let idle = self.session.is_none();
-        if ui
-            .add_enabled(idle && check.is_ok(), egui::Button::new("run landscape"))
-            .on_hover_text(
-                "uplift, river incision and hillslope diffusion over the years, on a region around the view's centre",
-            )
-            .clicked()
-        {
-            action = Some(ErosionAction::Start);
-        }
-        self.undo_ui(ui, project).or(action)
-    }
 }
 
 impl App {
-    /// Switches the erosion section to stream power for `years` in steps of `dt_years` (tests;
-    /// people use the panel).
-    pub fn set_landscape(&mut self, years: f64, dt_years: f64) {
-        self.erosion.model = Model::StreamPower;
-        self.erosion.landscape.years = years;
-        self.erosion.landscape.dt_years = dt_years;
-    }
-
     /// The erosion run in progress: steps taken and asked (tests; people read the panel).
     pub fn erosion_progress(&self) -> Option<(u64, u64)> {
         self.erosion.session.as_ref().map(|s| (s.steps(), s.op.steps))
@@ -597,28 +538,6 @@ impl App {
     }
 
     /// Records the session's run (its steps so far) on the layer.
-    /// Runs a stream-power operation whole on erosion layer `index` and keeps it.
-    fn run_landscape(&mut self, index: usize, op: Operation) {
-        let steps = op.steps;
-        match self.editor.run_whole(&mut self.renderer, index, op) {
-            Ok((spec, o)) => {
-                let years = o.landscape.map_or(0.0, |f| f.simulated_years);
-                self.message = format!(
-                    "landscape run {} kept: {steps} steps, {years} years in {:.1} s, change {:.1} … {:.1} m",
-                    spec.runs().len() - 1,
-                    o.seconds,
-                    o.range_m.0,
-                    o.range_m.1
-                );
-                self.project.layers[index] = spec;
-                self.mark_unsaved();
-            }
-            Err(e) => self.message = format!("landscape: {}", crate::errors::chain(&e)),
-        }
-        self.dirty = true;
-        self.update_drainage();
-    }
-
     pub(crate) fn keep_erosion(&mut self) {
         let Some(mut s) = self.erosion.session.take() else { return };
         if let Err(e) = self.editor.set_erosion_overlay(&mut self.renderer, None) {
@@ -672,59 +591,6 @@ impl App {
             }
             Err(e) => self.message = e.to_string(),
         }
-    }
-
-    /// The erosion brush's input while it is on: a left drag records a path; its release runs
-    /// erosion along it and keeps the run. True when the input was the brush's.
-    pub(super) fn erode_paint(&mut self, ui: &egui::Ui, response: &egui::Response, rect: egui::Rect) -> bool {
-        if !self.erosion.brush {
-            return false;
-        }
-        let modifiers = ui.input(|i| i.modifiers);
-        let plain = !modifiers.shift && !modifiers.command;
-        if response.drag_started_by(egui::PointerButton::Primary) && plain && self.erosion.session.is_none() {
-            self.erosion.painting = true;
-            self.erosion.path.clear();
-        }
-        if !self.erosion.painting {
-            return false;
-        }
-        let under = response.interact_pointer_pos().or(response.hover_pos()).and_then(|p| self.surface_at(p, rect));
-        if let Some(p) = under {
-            let g = geodesy::geodetic_from_ecef(&self.renderer.scene().ellipsoid, p);
-            let point = [g.lat_rad.to_degrees(), g.lon_rad.to_degrees()];
-            if self.erosion.path.last() != Some(&point) {
-                self.erosion.path.push(point);
-            }
-        }
-        if response.drag_stopped() || !response.dragged() {
-            self.erosion.painting = false;
-            let points = std::mem::take(&mut self.erosion.path);
-            if !points.is_empty() {
-                self.erode_along(points);
-            }
-        }
-        true
-    }
-
-    /// One erosion brush stroke: a run of the section's steps (at most 2000) along `points`,
-    /// taken at once and kept.
-    pub(crate) fn erode_along(&mut self, points: Vec<[f64; 2]>) {
-        self.start_erosion(Some(BrushPath { points, radius_m: self.erosion.brush_radius_m }));
-        let Some(s) = &self.erosion.session else { return };
-        let steps = s.op.steps;
-        let mut left = steps;
-        while left > 0 {
-            let n = left.min(256) as u32;
-            if let Some(s) = &mut self.erosion.session
-                && let Err(e) = s.step(n)
-            {
-                self.message = format!("erosion: {}", crate::errors::chain(&e));
-                return;
-            }
-            left -= u64::from(n);
-        }
-        self.keep_erosion();
     }
 }
 
