@@ -137,7 +137,7 @@ impl LandscapeParams {
 pub struct LandscapeBudget {
     /// Rock uplifted into the region.
     pub uplifted: i64,
-    /// Lowered by incision and by diffusion where it lowers.
+    /// Taken by incision and by diffusion where it lowers.
     pub eroded: i64,
     /// Raised by deposition and by diffusion where it raises.
     pub deposited: i64,
@@ -262,25 +262,32 @@ impl Evolution {
             let own: Vec<f64> = (0..n).map(|i| if heights[i].is_nan() { 0.0 } else { self.grid.area_m2[i] }).collect();
             routing.area_m2 = spread.accumulate(&own);
         }
-        if p.deposition > 0.0 {
+        // What rivers laid down on each cell, metres (none without deposition).
+        let settled = if p.deposition > 0.0 {
             // The last step's sediment, scaled to this step's length, is the first guess.
             let scale = if self.last_dt > 0.0 { dt / self.last_dt } else { 0.0 };
             self.sediment_in.iter_mut().for_each(|v| *v *= scale);
             let sediment = spl::Sediment { spread: spread.as_ref(), inflow: &mut self.sediment_in };
-            spl::incise_and_deposit(&routing, &self.grid.area_m2, &mut heights, law, dt, p.deposition, sediment);
+            spl::incise_and_deposit(&routing, &self.grid.area_m2, &mut heights, law, dt, p.deposition, sediment)
         } else {
             spl::incise(&routing, &mut heights, law, dt);
-        }
+            Vec::new()
+        };
         let diffused = diffusion::diffuse(&self.grid, &self.base, &heights, kd, dt);
         for i in 0..n {
             if self.grid.base_m[i].is_nan() {
                 continue;
             }
+            // The net fall, split into what was taken (incision, diffusion where it lowers) and
+            // what was laid down (by rivers, by diffusion where it raises): eroded − deposited
+            // is the fall to the unit.
             let lowered = self.units(i, uplifted[i] - diffused[i]);
+            let laid = settled.get(i).map_or(0, |d| self.units(i, *d));
             self.change[i] += uplift[i] - lowered;
             self.budget.uplifted += uplift[i];
-            if lowered > 0 {
-                self.budget.eroded += lowered;
+            if lowered + laid >= 0 {
+                self.budget.eroded += lowered + laid;
+                self.budget.deposited += laid;
             } else {
                 self.budget.deposited -= lowered;
             }

@@ -98,7 +98,8 @@ pub struct Sediment<'a> {
 }
 
 /// Incises `heights` for `dt_years` along `flow` with ξ-q deposition of coefficient `g`
-/// (`cell_area_m2`: each cell's own area); returns the passes taken.
+/// (`cell_area_m2`: each cell's own area); returns what settled on each cell, metres (G·V/A of
+/// the flux V through it over the step; its incision is the fall of its height plus that).
 pub fn incise_and_deposit(
     flow: &Flow,
     cell_area_m2: &[f64],
@@ -107,7 +108,7 @@ pub fn incise_and_deposit(
     dt_years: f64,
     g: f64,
     sediment: Sediment,
-) -> usize {
+) -> Vec<f64> {
     let start = heights.to_vec();
     let inflow = sediment.inflow;
     inflow.resize(heights.len(), 0.0);
@@ -160,8 +161,16 @@ pub fn incise_and_deposit(
             }
         }
         if pass > 1 && moved <= 1e-6 {
-            return pass;
+            break;
         }
     }
-    DEPOSITION_PASSES
+    (0..heights.len())
+        .map(|i| {
+            if flow.receiver[i] == i {
+                return 0.0;
+            }
+            let through = (inflow[i] + (start[i] - heights[i]) * cell_area_m2[i]).max(0.0);
+            g * through / flow.area_m2[i]
+        })
+        .collect()
 }
