@@ -1,4 +1,5 @@
-// The ECM terrain: one instanced draw of every selected quad. Vertex stage: the camera-centric
+// The ECM terrain: one instanced draw per stride of the selected quads' patches (32 × 32 sample
+// spacings of a quad, drawn every stride samples). Vertex stage: the camera-centric
 // single-precision reconstruction P = A′ + (patch + oₑ + h₀·δn + (h − h₀)·nₑ) with skirts;
 // fragment stage: colour ramp, isolines and hillshade computed per pixel from the elevation, and
 // the drawn difference layer's dh in a diverging colour map with its own isolines.
@@ -6,9 +7,9 @@
 //!include shared/shading.wgsl
 //!include generated/codes.wgsl
 
-// Samples per quad edge, and with the skirt ring around them.
+// Samples per quad edge; sample spacings per patch edge.
 const N: u32 = 257u;
-const NV: u32 = 259u;
+const PATCH_CELLS: u32 = 32u;
 // A height slot of no data, and the value a sample without data is stored as.
 const NODATA_BELOW: f32 = -1.0e37;
 
@@ -46,8 +47,19 @@ struct Quad {
     sym: array<vec4<f32>, 3>,
     // split code, map slot (NO_SLOT: flat), height slot (NO_SLOT: no data), symmetry flags.
     slots: vec4<u32>,
-    // skirt depth (metres), level, height drawn where there is no data, unused.
+    // skirt depth (metres), level, height drawn where there is no data, the deepest skirt a
+    // coarser stride may need (relief and roughness, metres).
     params: vec4<f32>,
+}
+
+struct Patch {
+    // The quad's index in `quads`.
+    quad: u32,
+    // The sample (i, j) of the patch's first corner.
+    i0: u32,
+    j0: u32,
+    // Samples between two vertices.
+    stride: u32,
 }
 
 struct RampStop {
@@ -66,6 +78,7 @@ struct RampStop {
 @group(0) @binding(6) var<storage, read> ramp: array<RampStop>;
 // A − B of the drawn difference layer per height slot (NODATA_BELOW where either has no data).
 @group(0) @binding(7) var<storage, read> overlay: array<f32>;
+@group(0) @binding(8) var<storage, read> patches: array<Patch>;
 
 struct VertexOut {
     @builtin(position) clip: vec4<f32>,
@@ -159,19 +172,24 @@ fn local_position(q: Quad, i: u32, j: u32, h: f32) -> vec3<f32> {
 
 @vertex
 fn vs_main(@builtin(vertex_index) vertex: u32, @builtin(instance_index) instance: u32) -> VertexOut {
-    let q = quads[instance];
-    let gi = vertex % NV;
-    let gj = vertex / NV;
-    let i = u32(clamp(i32(gi) - 1, 0, i32(N) - 1));
-    let j = u32(clamp(i32(gj) - 1, 0, i32(N) - 1));
-    let skirt = gi == 0u || gj == 0u || gi == NV - 1u || gj == NV - 1u;
+    // Vertex b·(n+1) + a is the patch's sample (a, b) at its stride; (n+1)² more, the same sample
+    // lowered by the skirt depth (the index buffers of terrain.rs's patch_indices).
+    let p = patches[instance];
+    let q = quads[p.quad];
+    let nv = PATCH_CELLS / p.stride + 1u;
+    let skirt = vertex >= nv * nv;
+    let v = select(vertex, vertex - nv * nv, skirt);
+    let i = p.i0 + (v % nv) * p.stride;
+    let j = p.j0 + (v / nv) * p.stride;
 
     let raw = raw_height(q, i, j);
     let valid = raw > NODATA_BELOW;
     let up = ellipsoid_normal(q, i, j);
     var local = local_position(q, i, j, geometry_height(q, i, j));
     if skirt {
-        local = local - up * q.params.x;
+        // Deeper at coarser strides, where a neighbour's finer edge may leave its line by the
+        // height change over a stride, at most the quad's relief (params.w).
+        local = local - up * max(q.params.x, min(q.params.x * f32(p.stride), q.params.w));
     }
     // Tangents from the neighbouring samples (one-sided at the quad's edges): the ellipsoid
     // point's change plus the height's change along this sample's normal (the normal's own turn
@@ -191,7 +209,7 @@ fn vs_main(@builtin(vertex_index) vertex: u32, @builtin(instance_index) instance
     out.up = up;
     out.along_i = along_i;
     out.along_j = along_j;
-    out.quad = instance;
+    out.quad = p.quad;
     out.sample = vec3<u32>(i, j, select(0u, 1u, skirt));
     out.dh = 0.0;
     out.dh_valid = 0.0;

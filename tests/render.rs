@@ -251,6 +251,72 @@ fn no_cracks_between_levels_and_across_the_cube_corner() {
     assert_eq!(holes(&image, magenta), 0, "Erzurum: background inside the terrain (levels {levels:?})");
 }
 
+#[test]
+fn patches_are_culled_and_strided_without_cracks_and_draw_the_same_surface() {
+    // Each drawn quad as 8 × 8 patches, culled on their own and drawn at the stride their nearest
+    // point needs, against the same quads drawn whole (every patch at stride 1).
+    let magenta = [255, 0, 255, 255];
+    let erzurum = project("erzurum");
+    let mut r = renderer(&erzurum, |p| p.visuals.background = magenta);
+    for (name, camera) in
+        [("down-50km", cam(39.5, 40.5, 50_000.0, 0.0, -90.0)), ("oblique-6km", cam(39.2, 40.1, 6_000.0, 40.0, -12.0))]
+    {
+        r.set_adaptive_patches(false);
+        let whole_stats = r.settle(&camera, 256, 192, Duration::from_secs(120));
+        let whole = r.render_image(DrawMode::Probe).unwrap();
+        r.set_adaptive_patches(true);
+        let stats = r.settle(&camera, 256, 192, Duration::from_secs(120));
+        let adaptive = r.render_image(DrawMode::Probe).unwrap();
+        assert_eq!(stats.selection.quads, whole_stats.selection.quads, "{name}: the same quads");
+        let p = &stats.patches;
+        let strides: std::collections::BTreeSet<u32> = p.patches.iter().map(|x| x.stride).collect();
+        assert!(
+            p.culled_frustum + p.culled_horizon > 0 || strides.iter().any(|&s| s > 1),
+            "{name}: nothing culled or coarsened: {strides:?}"
+        );
+        assert!(
+            stats.triangles * 3 < whole_stats.triangles * 2,
+            "{name}: {} vs {}",
+            stats.triangles,
+            whole_stats.triangles
+        );
+        let n = holes(&adaptive, magenta);
+        if n > 0 {
+            terrafuse::cli::write_png(&out_dir().join(format!("patches-{name}.cracks.png")), &adaptive).unwrap();
+        }
+        assert_eq!(n, 0, "{name}: {n} background pixels inside the terrain");
+        // The same surface: the eye's view of each pixel's surface point moves by a small fraction
+        // of a pixel for most pixels (a pixel on a silhouette may see a farther slope instead),
+        // and terrain and sky swap at almost no pixel.
+        let (ws, wi) = (whole.surface.as_ref().unwrap(), whole.ids.as_ref().unwrap());
+        let (s, i) = (adaptive.surface.as_ref().unwrap(), adaptive.ids.as_ref().unwrap());
+        let focal = r.last_camera().unwrap().focal_px(192);
+        let (mut moved, mut swapped) = (Vec::new(), 0usize);
+        for k in 0..ws.len() {
+            match (wi[k][0] > 0, i[k][0] > 0) {
+                (true, true) => {
+                    let a = glam::DVec3::new(f64::from(ws[k][0]), f64::from(ws[k][1]), f64::from(ws[k][2]));
+                    let b = glam::DVec3::new(f64::from(s[k][0]), f64::from(s[k][1]), f64::from(s[k][2]));
+                    moved.push((a - b).length() / a.length() * focal);
+                }
+                (false, false) => {}
+                _ => swapped += 1,
+            }
+        }
+        moved.sort_by(f64::total_cmp);
+        assert!(moved.len() > 10_000, "{name}: {} terrain pixels", moved.len());
+        let median = moved[moved.len() / 2];
+        let over_1px = moved.iter().filter(|&&m| m > 1.0).count();
+        assert!(median < 0.05, "{name}: the surface moved {median} px at the median pixel");
+        assert!(over_1px * 100 <= moved.len(), "{name}: {over_1px} of {} pixels moved > 1 px", moved.len());
+        assert!(swapped * 1000 <= ws.len(), "{name}: {swapped} pixels swap terrain and sky");
+        eprintln!(
+            "{name}: {} → {} triangles, strides {strides:?}, culled {} + {}, moved {median:.4} px at the median, {over_1px} pixels > 1 px, swapped {swapped}",
+            whole_stats.triangles, stats.triangles, p.culled_frustum, p.culled_horizon
+        );
+    }
+}
+
 /// Compares with `tests/reference/NAME.png`: mean difference ≤ 1 level per channel and at most
 /// 0.5 % of pixels off by more than 24 levels. A failing run writes NAME.new.png and
 /// NAME.diff.png to the test output folder's `render/`; UPDATE_SNAPSHOTS=1 writes the reference instead.

@@ -3,7 +3,10 @@
 //! For each project and each of its views (the camera path), the finest rendering (t = the
 //! smallest threshold) is the reference; every threshold is rendered to the same pixels and
 //! compared with it: height difference at each pixel (metres) and the difference of the rendered
-//! surface positions, seen from the camera (pixels), over the pixels both draw terrain in.
+//! surface positions, seen from the camera (pixels), over the pixels both draw terrain in. Each
+//! threshold is drawn twice by the same binary: with every patch of a drawn quad at stride 1 (the
+//! quads whole, as before per-patch density: `whole`) and with patches culled and drawn at the
+//! stride they need (`adaptive`); the reference is the whole quads at the finest threshold.
 
 use super::CliError;
 use super::bench_harness::timed_ms;
@@ -38,12 +41,16 @@ pub struct RenderBenchRow {
     pub project: String,
     /// View name.
     pub view: String,
+    /// `whole` (every patch of a drawn quad at stride 1) or `adaptive` (culled, strided).
+    pub patches: &'static str,
     /// Threshold.
     pub threshold: f64,
     /// Quads and triangles drawn.
     pub quads: usize,
     /// Triangles.
     pub triangles: u64,
+    /// Pixels that show terrain.
+    pub terrain_pixels: usize,
     /// Deepest level drawn.
     pub max_level: u8,
     /// CPU frame preparation (selection, per-quad values), ms, mean over frames.
@@ -105,11 +112,13 @@ pub fn bench_render(settings: &RenderBenchSettings) -> Result<(Vec<RenderBenchRo
         let name = project_path.file_stem().map_or_else(String::new, |s| s.to_string_lossy().into_owned());
         for (view, camera) in &project.views {
             renderer.set_threshold(finest);
+            renderer.set_adaptive_patches(false);
             renderer.settle(camera, settings.width, settings.height, Duration::from_secs(600));
             let reference = renderer.render_image(DrawMode::Probe)?;
             let focal = renderer.last_camera().map_or(1.0, |c| c.focal_px(settings.height));
-            for &t in &settings.thresholds {
+            for (&t, adaptive) in settings.thresholds.iter().flat_map(|t| [(t, false), (t, true)]) {
                 renderer.set_threshold(t);
+                renderer.set_adaptive_patches(adaptive);
                 let settled = renderer.settle(camera, settings.width, settings.height, Duration::from_secs(600));
                 let probe = renderer.render_image(DrawMode::Probe)?;
                 let (height_error_m, position_error_px, coverage_mismatch) = compare(&reference, &probe, focal);
@@ -130,9 +139,11 @@ pub fn bench_render(settings: &RenderBenchSettings) -> Result<(Vec<RenderBenchRo
                 rows.push(RenderBenchRow {
                     project: name.clone(),
                     view: view.clone(),
+                    patches: if adaptive { "adaptive" } else { "whole" },
                     threshold: t,
                     quads: settled.selection.quads.len(),
                     triangles: settled.triangles,
+                    terrain_pixels: probe.ids.as_ref().map_or(0, |ids| ids.iter().filter(|id| id[0] > 0).count()),
                     max_level: settled.selection.quads.iter().map(|q| q.level).max().unwrap_or(0),
                     cpu_ms: cpu / f,
                     select_ms: select / f,
@@ -147,12 +158,14 @@ pub fn bench_render(settings: &RenderBenchSettings) -> Result<(Vec<RenderBenchRo
     }
     let _ = writeln!(
         report,
-        "{:<10} {:<10} {:>5} {:>6} {:>10} {:>4} {:>8} {:>8} {:>9} {:>9} {:>10} {:>10} {:>9} {:>9} {:>7}",
+        "{:<10} {:<10} {:<8} {:>5} {:>6} {:>10} {:>7} {:>4} {:>8} {:>8} {:>9} {:>9} {:>10} {:>10} {:>9} {:>9} {:>7}",
         "project",
         "view",
+        "patches",
         "t",
         "quads",
         "triangles",
+        "tri/px",
         "Lmax",
         "cpu ms",
         "sel ms",
@@ -166,12 +179,12 @@ pub fn bench_render(settings: &RenderBenchSettings) -> Result<(Vec<RenderBenchRo
     );
     for r in &rows {
         let v = row_values(r);
-        let widths = [10, 10, 5, 6, 10, 4, 8, 8, 9, 9, 10, 10, 9, 9, 7];
+        let widths = [10, 10, 8, 5, 6, 10, 7, 4, 8, 8, 9, 9, 10, 10, 9, 9, 7];
         let cells: Vec<String> = v
             .iter()
             .zip(widths)
             .enumerate()
-            .map(|(k, (value, w))| if k < 2 { format!("{value:<w$}") } else { format!("{value:>w$}") })
+            .map(|(k, (value, w))| if k < 3 { format!("{value:<w$}") } else { format!("{value:>w$}") })
             .collect();
         let _ = writeln!(report, "{}", cells.join(" "));
     }
@@ -183,13 +196,15 @@ pub fn bench_render(settings: &RenderBenchSettings) -> Result<(Vec<RenderBenchRo
 }
 
 /// A row's values as printed: the table and the CSV share them.
-fn row_values(r: &RenderBenchRow) -> [String; 15] {
+fn row_values(r: &RenderBenchRow) -> [String; 17] {
     [
         r.project.chars().take(10).collect(),
         r.view.clone(),
+        r.patches.to_string(),
         r.threshold.to_string(),
         r.quads.to_string(),
         r.triangles.to_string(),
+        format!("{:.2}", r.triangles as f64 / r.terrain_pixels.max(1) as f64),
         r.max_level.to_string(),
         format!("{:.3}", r.cpu_ms),
         format!("{:.3}", r.select_ms),
@@ -208,9 +223,11 @@ pub fn render_bench_csv(rows: &[RenderBenchRow]) -> String {
     let mut table = super::bench_harness::Table::new(&[
         "project",
         "view",
+        "patches",
         "threshold_px:",
         "quads:",
         "triangles:",
+        "triangles_per_terrain_pixel:",
         "max_level:",
         "cpu_ms:",
         "select_ms:",
@@ -235,7 +252,9 @@ pub fn render_bench_plot(rows: &[RenderBenchRow]) -> Result<Vec<u8>, CliError> {
     let (w, h) = (1100u32, 900u32);
     let mut buffer = vec![0u8; (w * h * 3) as usize];
     let err = |e: &dyn std::fmt::Display| e.to_string();
-    let mut keys: Vec<(String, String)> = rows.iter().map(|r| (r.project.clone(), r.view.clone())).collect();
+    let mut keys: Vec<(String, String, &str)> =
+        rows.iter().map(|r| (r.project.clone(), r.view.clone(), r.patches)).collect();
+    keys.sort();
     keys.dedup();
     let t_min = rows.iter().map(|r| r.threshold).fold(f64::INFINITY, f64::min).max(1e-3);
     let t_max = rows.iter().map(|r| r.threshold).fold(0.0, f64::max).max(t_min * 2.0);
@@ -269,17 +288,17 @@ pub fn render_bench_plot(rows: &[RenderBenchRow]) -> Result<Vec<u8>, CliError> {
                 .y_label_formatter(&|v| format!("{v:.1e}"))
                 .draw()
                 .map_err(|e| err(&e))?;
-            for (k, (project, view)) in keys.iter().enumerate() {
+            for (k, (project, view, patches)) in keys.iter().enumerate() {
                 let c = palette[k % palette.len()];
                 let points: Vec<(f64, f64)> = rows
                     .iter()
-                    .filter(|r| &r.project == project && &r.view == view)
+                    .filter(|r| &r.project == project && &r.view == view && r.patches == *patches)
                     .map(|r| (r.threshold, metric(r).max(lo.max(1e-6))))
                     .collect();
                 chart
                     .draw_series(LineSeries::new(points.clone(), c.stroke_width(2)))
                     .map_err(|e| err(&e))?
-                    .label(format!("{project} {view}"))
+                    .label(format!("{project} {view} {patches}"))
                     .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], c.stroke_width(2)));
                 chart.draw_series(points.iter().map(|&p| Circle::new(p, 3, c.filled()))).map_err(|e| err(&e))?;
             }

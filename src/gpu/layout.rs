@@ -10,7 +10,7 @@ mod tests {
     use super::super::compose::{ComposeJob, JobLayer, OctaveOrigin};
     use super::super::erosion::{Control, GpuParams};
     use super::super::shading::ShadingProbe;
-    use super::super::uniforms::{FrameUniform, QuadInstance};
+    use super::super::uniforms::{FrameUniform, PatchInstance, QuadInstance};
     use crate::gpu::brush::StrokeTile;
 
     /// A Rust struct's size and its fields' names and offsets, in declaration order.
@@ -70,6 +70,7 @@ mod tests {
                 "Quad",
                 layout!(QuadInstance { anchor, corners, normals, sym, slots, params }),
             ),
+            ("PatchInstance", "terrain.wgsl", "Patch", layout!(PatchInstance { quad, i0, j0, stride })),
             (
                 "ComposeJob",
                 "compose/compose.wgsl",

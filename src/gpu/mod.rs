@@ -21,5 +21,4 @@ pub use context::{GpuContext, GpuError};
 pub use editing::Editor;
 pub use renderer::{ComposeCounters, FrameStats, Renderer};
 pub use targets::{DrawMode, FrameTargets, ID_FORMAT, IMAGE_FORMAT, RenderedImage, SURFACE_FORMAT};
-pub use terrain::{MESH_EDGE, TRIANGLES_PER_QUAD};
 pub use uniforms::QuadInstance;

@@ -1,18 +1,47 @@
 //! The terrain pass: the pipelines of the ECM terrain (colour, probe, points), their bind group
-//! layout, the shared index buffer of a quad's 259² mesh (257² samples and a skirt ring), the
-//! ramp buffer, and recording the one instanced draw.
+//! layout, the shared index buffer of a patch's mesh at each stride (its grid and a skirt ring),
+//! the ramp buffer, and recording one instanced draw per stride.
 
 use wgpu::util::DeviceExt;
 
 use super::context::GpuError;
 use super::targets::{DEPTH_FORMAT, ID_FORMAT, IMAGE_FORMAT, SURFACE_FORMAT};
 use super::uniforms::rgba;
-use crate::scene::loader::SAMPLES;
+use crate::scene::patches::{PATCH_CELLS, STRIDES, triangles_at};
 
-/// Vertices along a quad edge with the skirt ring.
-pub const MESH_EDGE: u32 = SAMPLES + 2;
-/// Triangles one quad draws (grid and skirts).
-pub const TRIANGLES_PER_QUAD: u64 = 2 * (MESH_EDGE as u64 - 1) * (MESH_EDGE as u64 - 1);
+/// The indices of a patch drawn at `stride` (see terrain.wgsl's `vs_main`): with n = 32 / stride
+/// cells a side, vertex b·(n+1) + a is the sample (a, b) of the patch's grid at that stride and
+/// (n+1)² + b·(n+1) + a the same sample lowered by the skirt depth; two triangles a cell (the
+/// diagonal from (a, b) to (a+1, b+1), as the quads were always cut), then two a cell along each
+/// side joining the edge to its lowered copy.
+pub(crate) fn patch_indices(stride: u32) -> Vec<u32> {
+    let n = PATCH_CELLS / stride;
+    let nv = n + 1;
+    let low = nv * nv;
+    let mut out = Vec::with_capacity(triangles_at(stride) as usize * 3);
+    for b in 0..n {
+        for a in 0..n {
+            let v00 = b * nv + a;
+            let (v10, v01) = (v00 + 1, v00 + nv);
+            out.extend_from_slice(&[v00, v10, v01 + 1, v00, v01 + 1, v01]);
+        }
+    }
+    // The ring: each side's edge from one corner to the next (south, east, north, west), and
+    // its lowered copy.
+    let side = |side: u32, k: u32| match side {
+        0 => k,
+        1 => k * nv + n,
+        2 => n * nv + (n - k),
+        _ => (n - k) * nv,
+    };
+    for s in 0..4 {
+        for k in 0..n {
+            let (u, w) = (side(s, k), side(s, k + 1));
+            out.extend_from_slice(&[u, w, w + low, u, w + low, u + low]);
+        }
+    }
+    out
+}
 
 /// The ramp's stops for the shader: value, padding, linear RGBA.
 pub(crate) fn ramp_buffer(device: &wgpu::Device, ramp: &crate::colour::Ramp) -> wgpu::Buffer {
@@ -53,7 +82,17 @@ pub(crate) struct TerrainPass {
     pub(crate) points_pipeline: wgpu::RenderPipeline,
     pub(crate) layout: wgpu::BindGroupLayout,
     pub(crate) index_buffer: wgpu::Buffer,
-    pub(crate) index_count: u32,
+    /// Per stride (in the order of [`STRIDES`]): the first index of its patch mesh and the count.
+    pub(crate) index_ranges: [(u32, u32); STRIDES.len()],
+}
+
+impl TerrainPass {
+    /// The index range of a patch mesh at `stride`.
+    pub(crate) fn indices_of(&self, stride: u32) -> std::ops::Range<u32> {
+        let k = STRIDES.iter().position(|&s| s == stride).unwrap_or(0);
+        let (first, count) = self.index_ranges[k];
+        first..first + count
+    }
 }
 
 impl TerrainPass {
@@ -65,13 +104,12 @@ impl TerrainPass {
             source: wgpu::ShaderSource::Wgsl(source.into()),
         });
 
-        let mut indices = Vec::with_capacity(TRIANGLES_PER_QUAD as usize * 3);
-        for b in 0..MESH_EDGE - 1 {
-            for a in 0..MESH_EDGE - 1 {
-                let v00 = b * MESH_EDGE + a;
-                let (v10, v01) = (v00 + 1, v00 + MESH_EDGE);
-                indices.extend_from_slice(&[v00, v10, v01 + 1, v00, v01 + 1, v01]);
-            }
+        let mut indices = Vec::new();
+        let mut index_ranges = [(0, 0); STRIDES.len()];
+        for (k, &stride) in STRIDES.iter().enumerate() {
+            let mesh = patch_indices(stride);
+            index_ranges[k] = (indices.len() as u32, mesh.len() as u32);
+            indices.extend(mesh);
         }
         let index_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("quad mesh"),
@@ -99,6 +137,7 @@ impl TerrainPass {
                 entry(5, wgpu::ShaderStages::VERTEX, read),
                 entry(6, wgpu::ShaderStages::FRAGMENT, read),
                 entry(7, wgpu::ShaderStages::VERTEX, read),
+                entry(8, wgpu::ShaderStages::VERTEX, read),
             ],
         });
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -146,18 +185,12 @@ impl TerrainPass {
         let probe_pipeline = make("terrain probe", "fs_probe", &probe_targets, wgpu::PrimitiveTopology::TriangleList);
         let points_pipeline = make("terrain points", "fs_probe", &probe_targets, wgpu::PrimitiveTopology::PointList);
 
-        Ok(TerrainPass {
-            pipeline,
-            probe_pipeline,
-            points_pipeline,
-            layout,
-            index_count: indices.len() as u32,
-            index_buffer,
-        })
+        Ok(TerrainPass { pipeline, probe_pipeline, points_pipeline, layout, index_ranges, index_buffer })
     }
 
-    /// The terrain bind group: frame, quads, heights, the three maps, the ramp, the overlay.
-    pub(crate) fn bind_group(&self, device: &wgpu::Device, buffers: [&wgpu::Buffer; 8]) -> wgpu::BindGroup {
+    /// The terrain bind group: frame, quads, heights, the three maps, the ramp, the overlay, the
+    /// patches.
+    pub(crate) fn bind_group(&self, device: &wgpu::Device, buffers: [&wgpu::Buffer; 9]) -> wgpu::BindGroup {
         bind_buffers(device, &self.layout, "terrain", &buffers)
     }
 }

@@ -51,6 +51,25 @@ impl QuadInstance {
         self.slots[1] != NO_SLOT
     }
 }
+/// One patch's record for the shader (`Patch` in terrain.wgsl; keep in sync): the quad's index
+/// in the quad records, the sample (i, j) of its first corner, its stride in samples.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Pod, Zeroable)]
+pub struct PatchInstance {
+    pub(crate) quad: u32,
+    pub(crate) i0: u32,
+    pub(crate) j0: u32,
+    pub(crate) stride: u32,
+}
+
+impl PatchInstance {
+    /// The record of a selected patch.
+    pub(crate) fn of(p: &crate::scene::patches::Patch) -> PatchInstance {
+        let (i0, j0) = p.origin();
+        PatchInstance { quad: p.quad, i0, j0, stride: p.stride }
+    }
+}
+
 pub(crate) fn v4(v: glam::Vec3, w: f32) -> [f32; 4] {
     [v.x, v.y, v.z, w]
 }
@@ -61,3 +80,4 @@ pub(crate) fn rgba(c: [u8; 4]) -> [f32; 4] {
 
 const _: () = assert!(std::mem::size_of::<FrameUniform>() == 64 + 10 * 16);
 const _: () = assert!(std::mem::size_of::<QuadInstance>() == 16 * (1 + 4 + 4 + 3 + 1 + 1));
+const _: () = assert!(std::mem::size_of::<PatchInstance>() == 16);

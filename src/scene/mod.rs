@@ -7,6 +7,7 @@
 pub mod camera;
 pub mod dataset;
 pub mod loader;
+pub mod patches;
 pub(crate) mod quads;
 pub mod select;
 pub mod shifted;

@@ -43,6 +43,9 @@ pub(crate) fn exaggerated_range(scene: &Scene, exaggeration: f64) -> HeightRange
     }
 }
 
+/// A quad's 64 patch boxes (row-major), shared with the frame that draws them.
+pub(crate) type PatchBoxes = Arc<Vec<QuadBounds>>;
+
 /// Per-quad geometry, plans and bounds kept for selection and per-frame values.
 #[derive(Default)]
 pub(crate) struct QuadCache {
@@ -52,6 +55,17 @@ pub(crate) struct QuadCache {
     pub(crate) plans: HashMap<QuadId, Arc<QuadPlan>>,
     /// Per loaded source tile (dataset, quad): its height range and edge roughness, metres.
     pub(crate) tile_ranges: HashMap<(u32, QuadId), (f32, f32, f32)>,
+    /// Per drawn quad, its 64 patch boxes under the height range they were computed for.
+    pub(crate) patches: HashMap<QuadId, ((f32, f32), PatchBoxes)>,
+}
+
+/// How far the 257² surface between the coarse bounding samples may bulge out of the box of
+/// those samples: the sagitta of a coarse cell's diagonal on the most curved part of the
+/// ellipsoid, with half again for safety.
+fn sag_pad_m(ellipsoid: &crate::geodesy::Ellipsoid, edge_m: f64) -> f64 {
+    let cell = edge_m / f64::from(BOUND_SAMPLES - 1) * std::f64::consts::SQRT_2;
+    let r_min = ellipsoid.b_m() * ellipsoid.b_m() / ellipsoid.a_m();
+    1.5 * cell * cell / (8.0 * r_min)
 }
 
 /// The data side of selection, borrowing the renderer's parts.
@@ -69,6 +83,26 @@ impl QuadCache {
         self.geometry
             .entry(quad)
             .or_insert_with(|| QuadGeometry::compute(&scene.ellipsoid, CubeProjection::Qsc, quad, BOUND_SAMPLES))
+    }
+
+    /// The quad's 64 patch boxes for heights in `range` (exaggerated metres), cached under it.
+    pub(crate) fn patch_bounds(
+        &mut self,
+        scene: &Scene,
+        quad: QuadId,
+        range: (f32, f32),
+        edge_m: f64,
+    ) -> Arc<Vec<QuadBounds>> {
+        if let Some((r, b)) = self.patches.get(&quad)
+            && *r == range
+        {
+            return b.clone();
+        }
+        let pad = sag_pad_m(&scene.ellipsoid, edge_m);
+        let g = self.geometry(scene, quad);
+        let bounds = Arc::new(super::patches::patch_bounds(g, (f64::from(range.0), f64::from(range.1)), pad));
+        self.patches.insert(quad, (range, bounds.clone()));
+        bounds
     }
 
     /// The quad's plan (cached until the stack changes).
@@ -139,11 +173,7 @@ impl QuadSource for Source<'_> {
         let edge_m =
             [(q[1] - q[0]), (q[2] - q[0]), (q[3] - q[1]), (q[3] - q[2])].iter().map(|v| v.length()).fold(0.0, f64::max);
         let mut bounds = QuadBounds::compute(g, f64::from(range.0), f64::from(range.1));
-        // The 257² surface between the coarse samples bulges by at most the sagitta of a coarse
-        // cell's diagonal on the most curved part of the ellipsoid.
-        let cell = edge_m / f64::from(BOUND_SAMPLES - 1) * std::f64::consts::SQRT_2;
-        let r_min = ellipsoid.b_m() * ellipsoid.b_m() / ellipsoid.a_m();
-        bounds.half_extents_m += DVec3::splat(1.5 * cell * cell / (8.0 * r_min));
+        bounds.half_extents_m += DVec3::splat(sag_pad_m(&ellipsoid, edge_m));
         let info = QuadInfo { bounds, edge_m };
         self.cache.infos.insert(quad, (range, info));
         info

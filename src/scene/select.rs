@@ -110,19 +110,33 @@ pub fn pixels_per_sample(camera: &Camera, info: &QuadInfo, height_px: u32) -> f6
     info.edge_m / 256.0 * camera.focal_px(height_px) / distance
 }
 
-enum Culled {
+/// Why a box is not drawn.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Culled {
+    /// Wholly outside the view frustum.
     Frustum,
+    /// Wholly behind the horizon of the occluding ellipsoid.
     Horizon,
 }
 
-fn cull(camera: &Camera, planes: &[super::camera::Plane; 5], params: &SelectParams, info: &QuadInfo) -> Option<Culled> {
-    if planes.iter().any(|p| info.bounds.outside_plane(p.normal, p.d)) {
+/// Whether a box (a quad's or a patch's) is culled, and why.
+pub(crate) fn cull_box(
+    camera: &Camera,
+    planes: &[super::camera::Plane; 5],
+    occluder_m: (f64, f64),
+    bounds: &QuadBounds,
+) -> Option<Culled> {
+    if planes.iter().any(|p| bounds.outside_plane(p.normal, p.d)) {
         return Some(Culled::Frustum);
     }
-    if behind_horizon(camera.position, &info.bounds.corners(), params.occluder_m) {
+    if behind_horizon(camera.position, &bounds.corners(), occluder_m) {
         return Some(Culled::Horizon);
     }
     None
+}
+
+fn cull(camera: &Camera, planes: &[super::camera::Plane; 5], params: &SelectParams, info: &QuadInfo) -> Option<Culled> {
+    cull_box(camera, planes, params.occluder_m, &info.bounds)
 }
 
 fn visible(camera: &Camera, planes: &[super::camera::Plane; 5], params: &SelectParams, info: &QuadInfo) -> bool {

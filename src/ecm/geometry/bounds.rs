@@ -25,6 +25,13 @@ impl QuadBounds {
     /// renderer draws: exact corners, the f32 maps (or the flat patch), every sample. Padded by
     /// 1 mm + 10⁻⁶ of its size for the f32 rounding of the maps.
     pub fn compute(geometry: &QuadGeometry, min_m: f64, max_m: f64) -> QuadBounds {
+        let last = geometry.samples - 1;
+        QuadBounds::compute_within(geometry, (0, last), (0, last), min_m, max_m)
+    }
+
+    /// The box of the samples `i.0 ..= i.1` × `j.0 ..= j.1` of the geometry (a patch of the
+    /// quad), for heights in `min_m ..= max_m`, in the quad's axes.
+    pub fn compute_within(geometry: &QuadGeometry, i: (u32, u32), j: (u32, u32), min_m: f64, max_m: f64) -> QuadBounds {
         let q = geometry.corners_ecef;
         let up = geometry.corner_normals.iter().sum::<DVec3>().normalize();
         let along_s = (q[1] - q[0]) + (q[3] - q[2]);
@@ -34,8 +41,8 @@ impl QuadBounds {
         let origin = q.iter().sum::<DVec3>() * 0.25;
         let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
         let n = geometry.samples;
-        for j in 0..n {
-            for i in 0..n {
+        for j in j.0..=j.1 {
+            for i in i.0..=i.1 {
                 let (s, t) = sample_st(n, i, j);
                 let patch = interpolate_f64(geometry.split, &q, s, t);
                 let (surface, normal) = match geometry.maps_at(i, j) {

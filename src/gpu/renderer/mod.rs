@@ -14,8 +14,8 @@ mod stack;
 use super::compose::{ComposeBatch, ComposePass};
 use super::context::{GpuContext, GpuError};
 use super::targets::{DrawMode, FrameTargets, RenderedImage};
-use super::terrain::{MESH_EDGE, TRIANGLES_PER_QUAD, TerrainPass, ramp_buffer};
-use super::uniforms::{FrameUniform, NO_SLOT, QuadInstance, rgba, v4};
+use super::terrain::{TerrainPass, ramp_buffer};
+use super::uniforms::{FrameUniform, NO_SLOT, PatchInstance, QuadInstance, rgba, v4};
 use crate::ecm::geometry::{FlatRule, MapSymmetry, QuadFrame, QuadGeometry, Split};
 use crate::ecm::{CubeProjection, QuadId};
 use crate::layers::{LayerError, LayerSpec};
@@ -23,6 +23,7 @@ use crate::project::CameraSpec;
 use crate::scene::Camera;
 use crate::scene::Scene;
 use crate::scene::loader::{CpuCache, DataKey, Loaded, Loader, SAMPLES};
+use crate::scene::patches::{PATCH_CELLS, PATCHES_PER_EDGE, PatchSelection, QuadPatches, select_patches};
 use crate::scene::quads::{QuadCache, Source, exaggerated_range, flat_rule_for};
 use crate::scene::select::{self, SelectParams, Selection};
 use crate::scene::slots::SlotPool;
@@ -50,8 +51,10 @@ pub struct FrameStats {
     pub requested: usize,
     /// 1 when wanted quads were left out because the GPU cache is full of this frame's quads.
     pub blocked: usize,
-    /// Triangles drawn.
+    /// Triangles drawn (patch grids and skirts).
     pub triangles: u64,
+    /// The patches of the drawn quads: drawn (per stride) and culled.
+    pub patches: PatchSelection,
     /// Quads drawn without static maps (past the flat rule).
     pub flat_quads: usize,
     /// GPU cache: height and map slots in use, of the capacity.
@@ -101,6 +104,8 @@ pub struct Renderer {
     ramp_buffer: wgpu::Buffer,
     frame_buffer: wgpu::Buffer,
     quad_buffer: wgpu::Buffer,
+    /// The drawn patches' records, grouped by stride.
+    patch_buffer: wgpu::Buffer,
     heights_buffer: wgpu::Buffer,
     /// A − B of the drawn difference layer, one slot per height slot (a stand-in of one sample
     /// until a difference is drawn).
@@ -122,6 +127,11 @@ pub struct Renderer {
     frame: u64,
     instances: Vec<QuadInstance>,
     drawn: Vec<QuadId>,
+    /// The prepared frame's patches.
+    patches: PatchSelection,
+    /// Whether patches are culled and drawn at the stride they need (else every patch of a drawn
+    /// quad at stride 1: the quads whole).
+    adaptive: bool,
     camera: Option<Camera>,
     size: (u32, u32),
     /// The drawn difference's range from its percentile (set by the tool that computed it).
@@ -164,6 +174,9 @@ impl Renderer {
         let map_buffers = ["map o", "map n", "map dn"].map(|l| storage(l, u64::from(map_slots) * map_slot));
         let max_quads = scene.detail.max_quads.max(6);
         let quad_buffer = storage("quads", (max_quads * std::mem::size_of::<QuadInstance>()) as u64);
+        let patches_per_quad = (PATCHES_PER_EDGE * PATCHES_PER_EDGE) as usize;
+        let patch_buffer =
+            storage("patches", (max_quads * patches_per_quad * std::mem::size_of::<PatchInstance>()) as u64);
         let frame_buffer = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("frame"),
             size: std::mem::size_of::<FrameUniform>() as u64,
@@ -184,6 +197,7 @@ impl Renderer {
                 &map_buffers[2],
                 &ramp_buffer,
                 &overlay_buffer,
+                &patch_buffer,
             ],
         );
 
@@ -199,6 +213,7 @@ impl Renderer {
             ramp_buffer,
             frame_buffer,
             quad_buffer,
+            patch_buffer,
             heights_buffer,
             overlay_buffer,
             sources_buffer,
@@ -217,11 +232,24 @@ impl Renderer {
             frame: 0,
             instances: Vec::new(),
             drawn: Vec::new(),
+            patches: PatchSelection::default(),
+            adaptive: true,
             camera: None,
             size: (1, 1),
             auto_range_m: None,
             brush: None,
         })
+    }
+
+    /// Whether patches are culled and drawn at the stride they need (the default), or every
+    /// patch of a drawn quad at stride 1 (the quads whole, as before patches: for comparisons).
+    pub fn set_adaptive_patches(&mut self, adaptive: bool) {
+        self.adaptive = adaptive;
+    }
+
+    /// The prepared frame's patches.
+    pub fn patches(&self) -> &PatchSelection {
+        &self.patches
     }
 
     /// The scene.
@@ -303,6 +331,7 @@ impl Renderer {
                 &self.map_buffers[2],
                 &self.ramp_buffer,
                 &self.overlay_buffer,
+                &self.patch_buffer,
             ],
         );
     }
@@ -527,8 +556,9 @@ impl Renderer {
             let _ = self.device.poll(wgpu::PollType::Poll);
         }
 
-        // Per-quad values, camera-relative, from f64.
+        // Per-quad values, camera-relative, from f64; each quad's patch boxes.
         self.instances.clear();
+        let mut patch_bounds = Vec::with_capacity(selection.quads.len());
         for &quad in &selection.quads {
             let plan = self.cache.plan(&self.scene, quad);
             let has = plan.has_data(&self.scene.stack);
@@ -548,6 +578,7 @@ impl Renderer {
             let height_slot = if has { self.heights_pool.get(quad).unwrap_or(NO_SLOT) } else { NO_SLOT };
             let flags = u32::from(symmetry.swap) | u32::from(symmetry.flip_x) << 1 | u32::from(symmetry.flip_y) << 2;
             let edge_m = info.map_or(0.0, |i| i.edge_m);
+            patch_bounds.push((edge_m, self.cache.patch_bounds(&self.scene, quad, range, edge_m)));
             let spacing = edge_m / f64::from(SAMPLES - 1);
             let r_min = e.b_m() * e.b_m() / e.a_m();
             let sag = spacing * spacing / (8.0 * r_min);
@@ -565,15 +596,23 @@ impl Renderer {
                 normals: frame.corner_normals.map(|n| v4(n, 0.0)),
                 sym: [m.x_axis, m.y_axis, m.z_axis].map(|c| v4(c.as_vec3(), 0.0)),
                 slots: [Split::of(quad).code(), map_slot, height_slot, flags],
-                params: [skirt as f32, f32::from(quad.level), 0.0, 0.0],
+                params: [skirt as f32, f32::from(quad.level), 0.0, (relief + roughness * exaggeration + skirt) as f32],
             });
         }
         if !self.instances.is_empty() {
             self.queue.write_buffer(&self.quad_buffer, 0, bytemuck::cast_slice(&self.instances));
         }
+        let quads: Vec<QuadPatches> =
+            patch_bounds.iter().map(|(edge_m, b)| QuadPatches { edge_m: *edge_m, bounds: b }).collect();
+        self.patches = select_patches(&camera, &params, &quads, self.adaptive);
+        let records: Vec<PatchInstance> = self.patches.patches.iter().map(PatchInstance::of).collect();
+        if !records.is_empty() {
+            self.queue.write_buffer(&self.patch_buffer, 0, bytemuck::cast_slice(&records));
+        }
         self.write_frame(&camera, width, height);
         self.drawn = selection.quads.clone();
-        stats.triangles = self.instances.len() as u64 * TRIANGLES_PER_QUAD;
+        stats.triangles = self.patches.triangles();
+        stats.patches = self.patches.clone();
         stats.pending = selection.wanted.len() + stale;
         stats.gpu_slots = (
             self.heights_pool.slots.len(),
@@ -681,11 +720,11 @@ impl Renderer {
 
     /// Draws the prepared frame into a render pass.
     pub fn draw<'a>(&'a self, pass: &mut wgpu::RenderPass<'a>, mode: DrawMode) {
-        if self.instances.is_empty() {
+        if self.instances.is_empty() || self.patches.patches.is_empty() {
             return;
         }
-        let n = self.instances.len() as u32;
         pass.set_bind_group(0, &self.bind_group, &[]);
+        let groups = self.patches.groups();
         match mode {
             DrawMode::Colour | DrawMode::Probe => {
                 pass.set_pipeline(if mode == DrawMode::Colour {
@@ -694,11 +733,16 @@ impl Renderer {
                     &self.terrain.probe_pipeline
                 });
                 pass.set_index_buffer(self.terrain.index_buffer.slice(..), wgpu::IndexFormat::Uint32);
-                pass.draw_indexed(0..self.terrain.index_count, 0, 0..n);
+                for (stride, first, count) in groups {
+                    pass.draw_indexed(self.terrain.indices_of(stride), 0, first..first + count);
+                }
             }
             DrawMode::Points => {
                 pass.set_pipeline(&self.terrain.points_pipeline);
-                pass.draw(0..MESH_EDGE * MESH_EDGE, 0..n);
+                for (stride, first, count) in groups {
+                    let nv = PATCH_CELLS / stride + 1;
+                    pass.draw(0..nv * nv, first..first + count);
+                }
             }
         }
     }

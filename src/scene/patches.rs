@@ -1,0 +1,268 @@
+//! Per-patch density and culling: a drawn quad is drawn as 8 × 8 patches of 32 × 32 sample
+//! spacings, each culled against the frustum and the horizon on its own and drawn at the stride
+//! (1, 2, 4 … 32 samples) that its projected sample size needs under the threshold t, so that a
+//! quad much larger than the view costs only the part of it that shows, at the density that part
+//! needs. Patches of different strides meet at T-junctions; each patch has its own skirt ring,
+//! as quads do, so the seams stay closed.
+
+use super::camera::Camera;
+use super::select::{Culled, QuadInfo, SelectParams, cull_box, pixels_per_sample};
+use crate::ecm::geometry::{QuadBounds, QuadGeometry};
+
+/// Patches along a quad's edge.
+pub const PATCHES_PER_EDGE: u32 = 8;
+/// Sample spacings along a patch's edge (256 / 8).
+pub const PATCH_CELLS: u32 = 32;
+/// The strides a patch may be drawn at, in samples, finest first.
+pub const STRIDES: [u32; 6] = [1, 2, 4, 8, 16, 32];
+
+/// One patch to draw: which drawn quad, where in it, how densely.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+pub struct Patch {
+    /// The stride, samples (one of [`STRIDES`]); first, so that sorting groups the draws.
+    pub stride: u32,
+    /// The quad's index in the frame's drawn quads.
+    pub quad: u32,
+    /// The patch's row and column in the quad (0 … 7).
+    pub py: u32,
+    /// The patch's column.
+    pub px: u32,
+}
+
+impl Patch {
+    /// Cells along the patch's edge at its stride.
+    pub fn cells(&self) -> u32 {
+        PATCH_CELLS / self.stride
+    }
+
+    /// The sample (i, j) of the patch's first corner in its quad.
+    pub fn origin(&self) -> (u32, u32) {
+        (self.px * PATCH_CELLS, self.py * PATCH_CELLS)
+    }
+
+    /// Triangles the patch draws: its grid and its skirt ring.
+    pub fn triangles(&self) -> u64 {
+        triangles_at(self.stride)
+    }
+}
+
+/// Triangles a patch draws at `stride`: 2n² for the grid of n cells a side, 8n for the skirt
+/// ring (two per cell along each of the four sides).
+pub fn triangles_at(stride: u32) -> u64 {
+    let n = u64::from(PATCH_CELLS / stride);
+    2 * n * n + 8 * n
+}
+
+/// The patches of one frame.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct PatchSelection {
+    /// Patches to draw, sorted by stride, then quad, row and column.
+    pub patches: Vec<Patch>,
+    /// Patches of drawn quads dropped outside the frustum.
+    pub culled_frustum: usize,
+    /// Patches of drawn quads dropped behind the horizon.
+    pub culled_horizon: usize,
+}
+
+impl PatchSelection {
+    /// Triangles drawn.
+    pub fn triangles(&self) -> u64 {
+        self.patches.iter().map(Patch::triangles).sum()
+    }
+
+    /// Patches drawn per stride, in the order of [`STRIDES`].
+    pub fn per_stride(&self) -> [usize; STRIDES.len()] {
+        let mut counts = [0; STRIDES.len()];
+        for p in &self.patches {
+            if let Some(k) = STRIDES.iter().position(|&s| s == p.stride) {
+                counts[k] += 1;
+            }
+        }
+        counts
+    }
+
+    /// The runs of patches of one stride: (stride, first, count), for one instanced draw each.
+    pub fn groups(&self) -> Vec<(u32, u32, u32)> {
+        let mut out: Vec<(u32, u32, u32)> = Vec::new();
+        for (k, p) in self.patches.iter().enumerate() {
+            match out.last_mut() {
+                Some(g) if g.0 == p.stride => g.2 += 1,
+                _ => out.push((p.stride, k as u32, 1)),
+            }
+        }
+        out
+    }
+}
+
+/// The stride a patch needs: the largest of [`STRIDES`] whose spacing still covers at most
+/// `threshold_px` pixels at the patch's nearest point (1 when even one sample covers more).
+pub fn stride_for(pixels_per_sample: f64, threshold_px: f64) -> u32 {
+    STRIDES.iter().rev().copied().find(|&s| f64::from(s) * pixels_per_sample <= threshold_px).unwrap_or(1)
+}
+
+/// The boxes of a quad's 64 patches (row-major: patch (px, py) at `py * 8 + px`) from its coarse
+/// bounding geometry (whose cells must tile the patches: 17² samples give 2 × 2 a patch), for
+/// heights in `range_m`, each widened by `pad_m` (the sagitta of the surface between the coarse
+/// samples, as the quad's box is).
+pub fn patch_bounds(geometry: &QuadGeometry, range_m: (f64, f64), pad_m: f64) -> Vec<QuadBounds> {
+    let cells = geometry.samples - 1;
+    debug_assert_eq!(cells % PATCHES_PER_EDGE, 0, "the bounding geometry's cells must tile the patches");
+    let per = cells / PATCHES_PER_EDGE;
+    let mut out = Vec::with_capacity((PATCHES_PER_EDGE * PATCHES_PER_EDGE) as usize);
+    for py in 0..PATCHES_PER_EDGE {
+        for px in 0..PATCHES_PER_EDGE {
+            let mut b = QuadBounds::compute_within(
+                geometry,
+                (px * per, (px + 1) * per),
+                (py * per, (py + 1) * per),
+                range_m.0,
+                range_m.1,
+            );
+            b.half_extents_m += glam::DVec3::splat(pad_m);
+            out.push(b);
+        }
+    }
+    out
+}
+
+/// One drawn quad as patch selection sees it: the quad's longest edge (metres) and its 64
+/// patch boxes.
+pub struct QuadPatches<'a> {
+    /// The quad's longest edge, metres (its sample spacing is this / 256).
+    pub edge_m: f64,
+    /// The patch boxes of [`patch_bounds`].
+    pub bounds: &'a [QuadBounds],
+}
+
+/// The patches of the drawn quads (in their order) to draw: each culled on its own and at the
+/// stride its nearest point needs. With `adaptive` false every patch is drawn at stride 1 and
+/// none is culled: the quads drawn whole, as before patches (for comparisons and the vertex
+/// tests that want every sample).
+pub fn select_patches(camera: &Camera, params: &SelectParams, quads: &[QuadPatches], adaptive: bool) -> PatchSelection {
+    let mut out = PatchSelection::default();
+    let planes = camera.frustum(params.width, params.height);
+    for (k, q) in quads.iter().enumerate() {
+        for (n, bounds) in q.bounds.iter().enumerate() {
+            let (px, py) = (n as u32 % PATCHES_PER_EDGE, n as u32 / PATCHES_PER_EDGE);
+            let stride = if adaptive {
+                match cull_box(camera, &planes, params.occluder_m, bounds) {
+                    Some(Culled::Frustum) => {
+                        out.culled_frustum += 1;
+                        continue;
+                    }
+                    Some(Culled::Horizon) => {
+                        out.culled_horizon += 1;
+                        continue;
+                    }
+                    None => {}
+                }
+                let info = QuadInfo { bounds: *bounds, edge_m: q.edge_m };
+                stride_for(pixels_per_sample(camera, &info, params.height), params.threshold_px)
+            } else {
+                1
+            };
+            out.patches.push(Patch { stride, quad: k as u32, py, px });
+        }
+    }
+    out.patches.sort_unstable();
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::ecm::{CubeProjection, Face, QuadId};
+    use crate::geodesy::Ellipsoid;
+    use crate::project::CameraSpec;
+
+    fn params(t: f64) -> SelectParams {
+        SelectParams {
+            threshold_px: t,
+            max_quads: 128,
+            width: 640,
+            height: 512,
+            occluder_m: (1_737_000.0, 1_737_000.0),
+        }
+    }
+
+    fn quad_patches(quad: QuadId) -> (f64, Vec<QuadBounds>) {
+        let g = QuadGeometry::compute(&Ellipsoid::MOON, CubeProjection::Qsc, quad, 17);
+        let q = g.corners_ecef;
+        let edge = (q[1] - q[0]).length().max((q[2] - q[0]).length());
+        (edge, patch_bounds(&g, (-100.0, 100.0), 1.0))
+    }
+
+    #[test]
+    fn strides_are_the_coarsest_that_keep_a_sample_under_the_threshold() {
+        assert_eq!(stride_for(2.0, 1.5), 1, "already too coarse: the finest");
+        assert_eq!(stride_for(1.5, 1.5), 1);
+        assert_eq!(stride_for(0.7, 1.5), 2);
+        assert_eq!(stride_for(0.1, 1.5), 8);
+        assert_eq!(stride_for(0.01, 1.5), 32, "never coarser than one cell a patch");
+        assert_eq!(triangles_at(1), 2 * 32 * 32 + 8 * 32);
+        assert_eq!(triangles_at(32), 2 + 8);
+    }
+
+    #[test]
+    fn patch_boxes_tile_the_quad_box() {
+        let quad = QuadId::root(Face::Front).children().unwrap()[3];
+        let g = QuadGeometry::compute(&Ellipsoid::MOON, CubeProjection::Qsc, quad, 17);
+        let whole = QuadBounds::compute(&g, -100.0, 100.0);
+        let patches = patch_bounds(&g, (-100.0, 100.0), 0.0);
+        assert_eq!(patches.len(), 64);
+        // Every sample of the coarse geometry is in the patch boxes that share it, and every
+        // patch box is much smaller than the quad's.
+        for (n, b) in patches.iter().enumerate() {
+            assert!(b.radius_m() < whole.radius_m() / 4.0, "patch {n}: {} vs {}", b.radius_m(), whole.radius_m());
+            let (px, py) = (n as u32 % 8, n as u32 / 8);
+            for (i, j) in [(2 * px, 2 * py), (2 * px + 2, 2 * py + 2), (2 * px + 1, 2 * py + 1)] {
+                let (s, t) = crate::ecm::geometry::sample_st(17, i, j);
+                let p = crate::ecm::geometry::interpolate_f64(g.split, &g.corners_ecef, s, t)
+                    + g.maps_at(i, j).map_or(glam::DVec3::ZERO, |m| m[0].as_dvec3());
+                assert!(b.contains(p), "patch {n} lacks its sample ({i},{j})");
+            }
+        }
+    }
+
+    #[test]
+    fn a_quad_larger_than_the_view_draws_only_the_patches_that_show_and_coarser_far_away() {
+        // Looking obliquely at a level-3 quad from 20 km: part of it is off screen.
+        let quad = QuadId::root(Face::Front).children().unwrap()[0].children().unwrap()[0].children().unwrap()[0];
+        let (edge_m, bounds) = quad_patches(quad);
+        let corner = crate::ecm::geometry::quad_corners(&Ellipsoid::MOON, CubeProjection::Qsc, quad).0[0];
+        let g = crate::geodesy::geodetic_from_ecef(&Ellipsoid::MOON, corner);
+        let spec = CameraSpec {
+            lat: g.lat_rad.to_degrees(),
+            lon: g.lon_rad.to_degrees(),
+            alt: 20_000.0,
+            heading: 45.0,
+            pitch: -20.0,
+            fov: 60.0,
+        };
+        let camera = Camera::new(&Ellipsoid::MOON, spec, 1.0);
+        let quads = [QuadPatches { edge_m, bounds: &bounds }];
+        let full = select_patches(&camera, &params(1.5), &quads, false);
+        assert_eq!(full.patches.len(), 64);
+        assert_eq!(full.triangles(), 64 * triangles_at(1));
+        let near = select_patches(&camera, &params(1.5), &quads, true);
+        assert!(near.culled_frustum > 0, "{near:?}");
+        assert!(near.triangles() < full.triangles(), "{} of {}", near.triangles(), full.triangles());
+        // From 500 km its samples cover about one pixel at the nearest corner, less beyond.
+        let camera = Camera::new(&Ellipsoid::MOON, CameraSpec { alt: 500_000.0, pitch: -40.0, ..spec }, 1.0);
+        let adaptive = select_patches(&camera, &params(1.5), &quads, true);
+        assert!(adaptive.triangles() * 4 < full.triangles() * 3, "{} of {}", adaptive.triangles(), full.triangles());
+        let strides: std::collections::BTreeSet<u32> = adaptive.patches.iter().map(|p| p.stride).collect();
+        assert!(strides.len() >= 2, "near and far patches at different strides: {strides:?}");
+        // Each drawn patch's stride keeps a sample at its nearest point under t, unless it is 1.
+        for p in &adaptive.patches {
+            let info = QuadInfo { bounds: bounds[(p.py * 8 + p.px) as usize], edge_m };
+            let px = pixels_per_sample(&camera, &info, 512);
+            assert!(p.stride == 1 || f64::from(p.stride) * px <= 1.5, "{p:?}: {px}");
+            assert!(p.stride == 32 || f64::from(2 * p.stride) * px > 1.5, "{p:?} could be coarser: {px}");
+        }
+        // Sorted into one run per stride.
+        let groups = adaptive.groups();
+        assert_eq!(groups.len(), strides.len());
+        assert_eq!(groups.iter().map(|g| g.2 as usize).sum::<usize>(), adaptive.patches.len());
+    }
+}
