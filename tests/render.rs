@@ -395,7 +395,9 @@ fn the_render_command_writes_the_png_and_reports_what_it_drew() {
     );
     let stdout = String::from_utf8_lossy(&o.stdout);
     assert!(o.status.success(), "{stdout}\n{}", String::from_utf8_lossy(&o.stderr));
-    for expected in ["device: ", "quads: ", "L1:", "triangles: ", "cpu: selection ", "gpu: ", "wrote "] {
+    for expected in
+        ["device: ", "quads: ", "L1:", "patches: ", "at stride ", "triangles: ", "cpu: selection ", "gpu: ", "wrote "]
+    {
         assert!(stdout.contains(expected), "missing '{expected}' in:\n{stdout}");
     }
     let png = image::open(&out).unwrap();

@@ -278,6 +278,21 @@ pub fn frame_report(stats: &FrameStats, gpu_ms: Option<f64>, threshold_px: f64) 
         s.visited,
         if s.capped { "; the quad cap stopped refinement" } else { "" }
     );
+    let p = &stats.patches;
+    let strides: Vec<String> = crate::scene::patches::STRIDES
+        .iter()
+        .zip(p.per_stride())
+        .filter(|(_, n)| *n > 0)
+        .map(|(s, n)| format!("{n} at stride {s}"))
+        .collect();
+    let _ = writeln!(
+        out,
+        "patches: {} ({}); culled {} outside the frustum, {} behind the horizon",
+        p.patches.len(),
+        strides.join(", "),
+        p.culled_frustum,
+        p.culled_horizon
+    );
     let _ = writeln!(out, "triangles: {} ({} quads without static maps)", stats.triangles, stats.flat_quads);
     let _ = writeln!(out, "cpu: selection {:.3} ms, frame preparation {:.3} ms", stats.select_ms, stats.prepare_ms);
     match gpu_ms {
