@@ -34,6 +34,8 @@ struct Frame {
     difference: vec4<f32>,
     // The brush's footprint: its centre relative to the camera (metres) and radius (0: none).
     brush: vec4<f32>,
+    // Geomorphing: focal length over t (pixels per pixel), the morph band's end, on (1) or off (0).
+    morph: vec4<f32>,
 }
 
 struct Quad {
@@ -50,6 +52,8 @@ struct Quad {
     // skirt depth (metres), level, height drawn where there is no data, the deepest skirt a
     // coarser stride may need (relief and roughness, metres).
     params: vec4<f32>,
+    // The quad's sample spacing (its longest edge / 256, metres), unused ×3.
+    lod: vec4<f32>,
 }
 
 struct Patch {
@@ -170,6 +174,58 @@ fn local_position(q: Quad, i: u32, j: u32, h: f32) -> vec3<f32> {
     return ecm_local_with_maps(base, o, n, dn, h0, h);
 }
 
+// What a vertex draws before the skirt: its position relative to A′, ellipsoid normal, shown
+// height, tangents and drawn difference.
+struct Sample {
+    local: vec3<f32>,
+    up: vec3<f32>,
+    height: f32,
+    valid: f32,
+    along_i: vec3<f32>,
+    along_j: vec3<f32>,
+    dh: f32,
+    dh_valid: f32,
+}
+
+fn sample_at(q: Quad, i: u32, j: u32) -> Sample {
+    var out: Sample;
+    let raw = raw_height(q, i, j);
+    let valid = raw > NODATA_BELOW;
+    out.up = ellipsoid_normal(q, i, j);
+    out.local = local_position(q, i, j, geometry_height(q, i, j));
+    out.height = select(q.params.z, raw, valid);
+    out.valid = select(0.0, 1.0, valid);
+    // Tangents from the neighbouring samples (one-sided at the quad's edges): the ellipsoid
+    // point's change plus the height's change along this sample's normal (the normal's own turn
+    // over one sample, ~10⁻⁴ rad at level 0, is left out: it only tilts the shading normal).
+    let i0 = max(i, 1u) - 1u;
+    let i1 = min(i + 1u, N - 1u);
+    let j0 = max(j, 1u) - 1u;
+    let j1 = min(j + 1u, N - 1u);
+    out.along_i = (surface_point(q, i1, j) - surface_point(q, i0, j) + out.up * (geometry_height(q, i1, j) - geometry_height(q, i0, j))) / f32(i1 - i0);
+    out.along_j = (surface_point(q, i, j1) - surface_point(q, i, j0) + out.up * (geometry_height(q, i, j1) - geometry_height(q, i, j0))) / f32(j1 - j0);
+    out.dh = 0.0;
+    out.dh_valid = 0.0;
+    if frame.difference.w > 0.5 && q.slots.z != NO_SLOT {
+        let dh = overlay[q.slots.z * N * N + j * N + i];
+        out.dh = select(0.0, dh, dh > NODATA_BELOW);
+        out.dh_valid = select(0.0, 1.0, dh > NODATA_BELOW);
+    }
+    return out;
+}
+
+// Geomorphing (CDLOD, Strugar 2009): how far a vertex of a patch at `stride` has moved toward the
+// patch's mesh at twice the stride, from its projected spacing ρ = 2·stride·spacing·focal/(t·d)
+// (the coarser mesh's spacing over t): 1 at ρ ≤ 1, where the coarser mesh would do, 0 from the
+// band's end on. CPU twin: scene::patches::morph_factor.
+fn morph_factor(q: Quad, stride: u32, distance: f32) -> f32 {
+    if frame.morph.z < 0.5 || stride >= PATCH_CELLS {
+        return 0.0;
+    }
+    let rho = 2.0 * f32(stride) * q.lod.x * frame.morph.x / max(distance, 1e-6);
+    return clamp((frame.morph.y - rho) / (frame.morph.y - 1.0), 0.0, 1.0);
+}
+
 @vertex
 fn vs_main(@builtin(vertex_index) vertex: u32, @builtin(instance_index) instance: u32) -> VertexOut {
     // Vertex b·(n+1) + a is the patch's sample (a, b) at its stride; (n+1)² more, the same sample
@@ -179,45 +235,54 @@ fn vs_main(@builtin(vertex_index) vertex: u32, @builtin(instance_index) instance
     let nv = PATCH_CELLS / p.stride + 1u;
     let skirt = vertex >= nv * nv;
     let v = select(vertex, vertex - nv * nv, skirt);
-    let i = p.i0 + (v % nv) * p.stride;
-    let j = p.j0 + (v / nv) * p.stride;
+    let a = v % nv;
+    let b = v / nv;
+    let i = p.i0 + a * p.stride;
+    let j = p.j0 + b * p.stride;
 
-    let raw = raw_height(q, i, j);
-    let valid = raw > NODATA_BELOW;
-    let up = ellipsoid_normal(q, i, j);
-    var local = local_position(q, i, j, geometry_height(q, i, j));
+    var s = sample_at(q, i, j);
+    // A vertex the coarser mesh lacks (odd a or b) slides toward the coarser mesh's point there:
+    // the midpoint of its two neighbours at twice the stride along the edge, or along the cell's
+    // diagonal (the mesh's cut) for a cell centre. At m = 1 the patch draws the coarser mesh.
+    let da = a % 2u;
+    let db = b % 2u;
+    if da + db > 0u {
+        let m = morph_factor(q, p.stride, length(q.anchor.xyz + s.local));
+        if m > 0.0 {
+            let n1 = sample_at(q, i - da * p.stride, j - db * p.stride);
+            let n2 = sample_at(q, i + da * p.stride, j + db * p.stride);
+            s.local = mix(s.local, 0.5 * (n1.local + n2.local), m);
+            s.up = normalize(mix(s.up, 0.5 * (n1.up + n2.up), m));
+            if n1.valid > 0.5 && n2.valid > 0.5 && s.valid > 0.5 {
+                s.height = mix(s.height, 0.5 * (n1.height + n2.height), m);
+            }
+            s.along_i = mix(s.along_i, 0.5 * (n1.along_i + n2.along_i), m);
+            s.along_j = mix(s.along_j, 0.5 * (n1.along_j + n2.along_j), m);
+            if n1.dh_valid > 0.5 && n2.dh_valid > 0.5 && s.dh_valid > 0.5 {
+                s.dh = mix(s.dh, 0.5 * (n1.dh + n2.dh), m);
+            }
+        }
+    }
+    var local = s.local;
     if skirt {
         // Deeper at coarser strides, where a neighbour's finer edge may leave its line by the
         // height change over a stride, at most the quad's relief (params.w).
-        local = local - up * max(q.params.x, min(q.params.x * f32(p.stride), q.params.w));
+        local = local - s.up * max(q.params.x, min(q.params.x * f32(p.stride), q.params.w));
     }
-    // Tangents from the neighbouring samples (one-sided at the quad's edges): the ellipsoid
-    // point's change plus the height's change along this sample's normal (the normal's own turn
-    // over one sample, ~10⁻⁴ rad at level 0, is left out: it only tilts the shading normal).
-    let i0 = max(i, 1u) - 1u;
-    let i1 = min(i + 1u, N - 1u);
-    let j0 = max(j, 1u) - 1u;
-    let j1 = min(j + 1u, N - 1u);
-    let along_i = (surface_point(q, i1, j) - surface_point(q, i0, j) + up * (geometry_height(q, i1, j) - geometry_height(q, i0, j))) / f32(i1 - i0);
-    let along_j = (surface_point(q, i, j1) - surface_point(q, i, j0) + up * (geometry_height(q, i, j1) - geometry_height(q, i, j0))) / f32(j1 - j0);
 
     var out: VertexOut;
     out.rel = q.anchor.xyz + local;
     out.clip = frame.view_proj * vec4<f32>(out.rel, 1.0);
-    out.height = select(q.params.z, raw, valid);
-    out.valid = select(0.0, 1.0, valid);
-    out.up = up;
-    out.along_i = along_i;
-    out.along_j = along_j;
+    out.height = s.height;
+    out.valid = s.valid;
+    out.up = s.up;
+    out.along_i = s.along_i;
+    out.along_j = s.along_j;
     out.quad = p.quad;
-    out.sample = vec3<u32>(i, j, select(0u, 1u, skirt));
-    out.dh = 0.0;
-    out.dh_valid = 0.0;
-    if frame.difference.w > 0.5 && q.slots.z != NO_SLOT {
-        let dh = overlay[q.slots.z * N * N + j * N + i];
-        out.dh = select(0.0, dh, dh > NODATA_BELOW);
-        out.dh_valid = select(0.0, 1.0, dh > NODATA_BELOW);
-    }
+    // z: bit 0 a skirt vertex, the stride above it (the probe's id.w carries both).
+    out.sample = vec3<u32>(i, j, select(0u, 1u, skirt) | (p.stride << 1u));
+    out.dh = s.dh;
+    out.dh_valid = s.dh_valid;
     return out;
 }
 
@@ -321,7 +386,8 @@ struct ProbeOut {
     @location(0) colour: vec4<f32>,
     // Camera-relative position (metres) and height (metres).
     @location(1) surface: vec4<f32>,
-    // Quad index + 1, sample i, sample j; w: bit 0 the sample has data, bit 1 a skirt vertex.
+    // Quad index + 1, sample i, sample j; w: bit 0 the sample has data, bit 1 a skirt vertex,
+    // the patch's stride from bit 2 on.
     @location(2) id: vec4<u32>,
 }
 

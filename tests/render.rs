@@ -13,6 +13,7 @@ use terrafuse::ecm::{CubeProjection, Face, QuadId};
 use terrafuse::gpu::{DrawMode, GpuContext, IMAGE_FORMAT, RenderedImage, Renderer};
 use terrafuse::project::{CameraSpec, Project};
 use terrafuse::scene::Scene;
+use terrafuse::scene::patches::{morph_factor, morph_neighbours};
 
 fn out_dir() -> PathBuf {
     let dir = common::out_path("render");
@@ -47,8 +48,16 @@ fn draw(r: &mut Renderer, camera: &CameraSpec, w: u32, h: u32, mode: DrawMode) -
 
 #[test]
 fn vertex_positions_match_the_cpu_reference_and_the_f64_truth() {
+    // Without geomorphing every vertex is its sample's; with it, a vertex the coarser stride
+    // lacks has slid toward the midpoint of its two neighbours there (scene::patches's twins).
+    check_vertex_positions(false);
+    check_vertex_positions(true);
+}
+
+fn check_vertex_positions(morph: bool) {
     let path = project("erzurum");
     let mut r = renderer(&path, |_| {});
+    r.set_geomorph(morph);
     // From 30 km over the SRTM tile: quads of levels 2–9, with and without data.
     let camera = cam(39.3, 40.42, 30_000.0, 0.0, -45.0);
     let image = draw(&mut r, &camera, 320, 240, DrawMode::Points);
@@ -57,11 +66,12 @@ fn vertex_positions_match_the_cpu_reference_and_the_f64_truth() {
     let instances = r.instances().to_vec();
     let cam = *r.last_camera().unwrap();
     let e = r.scene().ellipsoid;
+    let focal_over_t = cam.focal_px(240) / r.scene().detail.lod_threshold_px;
     let levels: std::collections::BTreeSet<u8> = drawn.iter().map(|q| q.level).collect();
     assert!(levels.len() >= 3, "levels {levels:?}");
     let mut geometries = std::collections::HashMap::new();
     let mut composed = std::collections::HashMap::new();
-    let (mut checked, mut worst_cpu, mut worst_truth) = (0usize, 0f64, 0f64);
+    let (mut checked, mut morphed, mut worst_cpu, mut worst_truth) = (0usize, 0usize, 0f64, 0f64);
     for (k, id) in ids.iter().enumerate() {
         if id[0] == 0 || id[3] & 2 != 0 {
             continue; // nothing drawn here, or a skirt vertex
@@ -72,18 +82,47 @@ fn vertex_positions_match_the_cpu_reference_and_the_f64_truth() {
         }
         let index = (id[0] - 1) as usize;
         let quad = drawn[index];
-        let (i, j) = (id[1], id[2]);
+        let (i, j, stride) = (id[1], id[2], id[3] >> 2);
         let g = geometries.entry(quad).or_insert_with(|| r.reference_geometry(quad));
         let heights = composed.entry(quad).or_insert_with(|| r.read_heights(quad).unwrap());
-        let h = heights.as_ref().map_or(0.0, |hs| {
-            let v = hs[(j * 257 + i) as usize];
-            if v.is_nan() { 0.0 } else { v }
-        });
+        let h = |i: u32, j: u32| {
+            heights.as_ref().map_or(0.0, |hs| {
+                let v = hs[(j * 257 + i) as usize];
+                if v.is_nan() { 0.0 } else { v }
+            })
+        };
         let frame: QuadFrame = g.frame(cam.position, f64::from(instances[index].reference_height_m()));
-        let (s, t) = sample_st(257, i, j);
-        let maps = if instances[index].has_maps() { g.maps_at(i, j) } else { None };
-        let cpu = vertex_f32(g.split, &frame, s as f32, t as f32, maps, h);
-        let truth = g.exact_position(&e, CubeProjection::Qsc, cam.position, i, j, f64::from(h));
+        let has_maps = instances[index].has_maps();
+        let cpu_at = |i: u32, j: u32| {
+            let (s, t) = sample_st(257, i, j);
+            let maps = if has_maps { g.maps_at(i, j) } else { None };
+            vertex_f32(g.split, &frame, s as f32, t as f32, maps, h(i, j))
+        };
+        let truth_at =
+            |i: u32, j: u32| g.exact_position(&e, CubeProjection::Qsc, cam.position, i, j, f64::from(h(i, j)));
+        let (mut cpu, mut truth) = (cpu_at(i, j), truth_at(i, j));
+        let (a, b) = ((i % 32) / stride, (j % 32) / stride);
+        let mut slack = 0.0;
+        if let Some([n1, n2]) = morph_neighbours(a, b, stride).filter(|_| morph) {
+            let q = g.corners_ecef;
+            let edge = [(q[1] - q[0]), (q[2] - q[0]), (q[3] - q[1]), (q[3] - q[2])]
+                .iter()
+                .map(|v| v.length())
+                .fold(0.0, f64::max);
+            let m = morph_factor(stride, edge / 256.0, f64::from(cpu.length()), focal_over_t, 1.0);
+            let at = |d: (i64, i64)| ((i64::from(i) + d.0) as u32, (i64::from(j) + d.1) as u32);
+            let (p1, p2) = (at(n1), at(n2));
+            let cpu_target = (cpu_at(p1.0, p1.1) + cpu_at(p2.0, p2.1)) * 0.5;
+            let truth_target = (truth_at(p1.0, p1.1) + truth_at(p2.0, p2.1)) * 0.5;
+            // The factor from the f32 distance on the GPU, from the f64 one here; the midpoint
+            // and the blend round twice more in f32.
+            slack = 1e-5 * (truth_target - truth).length() + 2.0 * truth.length() * 2f64.powi(-24);
+            cpu = cpu.lerp(cpu_target, m as f32);
+            truth = truth.lerp(truth_target, m);
+            if m > 0.0 {
+                morphed += 1;
+            }
+        }
         let gpu = glam::DVec3::new(f64::from(surface[k][0]), f64::from(surface[k][1]), f64::from(surface[k][2]));
         let distance = truth.length();
         let ulp = distance * 2f64.powi(-24);
@@ -92,8 +131,14 @@ fn vertex_positions_match_the_cpu_reference_and_the_f64_truth() {
         // The GPU may fuse multiply-adds the CPU rounds twice: a few units of the last place of
         // the camera distance; against the truth, the geometry issue's bound (1.55 f32 limits)
         // with the same allowance.
-        assert!(d_cpu <= 4.0 * ulp + 1e-6, "{quad} ({i},{j}): GPU {gpu} vs CPU {cpu}: {d_cpu} m at {distance} m");
-        assert!(d_truth <= 6.0 * ulp + 1e-6, "{quad} ({i},{j}): GPU {gpu} vs f64 {truth}: {d_truth} m at {distance} m");
+        assert!(
+            d_cpu <= 4.0 * ulp + 1e-6 + slack,
+            "{quad} ({i},{j}) stride {stride}: GPU {gpu} vs CPU {cpu}: {d_cpu} m at {distance} m"
+        );
+        assert!(
+            d_truth <= 6.0 * ulp + 1e-6 + slack,
+            "{quad} ({i},{j}) stride {stride}: GPU {gpu} vs f64 {truth}: {d_truth} m at {distance} m"
+        );
         worst_cpu = worst_cpu.max(d_cpu / ulp);
         worst_truth = worst_truth.max(d_truth / ulp);
         // The pixel it landed on is where the f64 camera projects it.
@@ -106,7 +151,12 @@ fn vertex_positions_match_the_cpu_reference_and_the_f64_truth() {
         checked += 1;
     }
     assert!(checked > 500, "only {checked} vertices checked");
-    eprintln!("{checked} vertices: GPU − CPU ≤ {worst_cpu:.2} f32 limits, GPU − f64 ≤ {worst_truth:.2}");
+    if morph {
+        assert!(morphed > 20, "only {morphed} of {checked} vertices morphed");
+    }
+    eprintln!(
+        "morph {morph}: {checked} vertices ({morphed} morphed): GPU − CPU ≤ {worst_cpu:.2} f32 limits, GPU − f64 ≤ {worst_truth:.2}"
+    );
 }
 
 fn byte_diff(a: &[u8], b: [f64; 4]) -> f64 {
@@ -466,6 +516,84 @@ fn the_render_command_writes_the_png_and_reports_what_it_drew() {
     let e = String::from_utf8_lossy(&o.stderr);
     assert!(e.contains("orphan.json") && e.contains("absent.gpkg") && e.contains("no source"), "{e}");
     assert!(!out_dir().join("absent.gpkg").exists());
+}
+
+/// `frames.csv` as rows of named fields.
+fn read_frames(path: &Path) -> Vec<std::collections::HashMap<String, String>> {
+    let text = std::fs::read_to_string(path).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<String> = lines.next().unwrap().split(',').map(String::from).collect();
+    lines.map(|l| header.iter().cloned().zip(l.split(',').map(String::from)).collect()).collect()
+}
+
+#[test]
+fn a_flight_writes_its_frames_and_geomorphing_hides_the_changes_of_density() {
+    // Down from 40 km to 4 km over the Erzurum tile at t = 4, where level and stride changes
+    // show: with geomorphing and without.
+    let erzurum = project("erzurum");
+    let flight = "39.3,40.3,40000,0,-90;39.4,40.45,4000,30,-20";
+    let fly = |dir: &str, extra: &[&str]| {
+        let out = out_dir().join(dir);
+        let _ = std::fs::remove_dir_all(&out);
+        let mut args = vec![
+            "render",
+            erzurum.to_str().unwrap(),
+            "--flight",
+            flight,
+            "--frames",
+            "8",
+            "--width",
+            "160",
+            "--height",
+            "128",
+            "--lod-threshold",
+            "4",
+            "--out-dir",
+            out.to_str().unwrap(),
+        ];
+        args.extend_from_slice(extra);
+        let o = terrafuse(&args, "");
+        let stdout = String::from_utf8_lossy(&o.stdout).into_owned();
+        assert!(o.status.success(), "{stdout}\n{}", String::from_utf8_lossy(&o.stderr));
+        assert!(stdout.contains("flight: 8 frames of 160x128 at t = 4"), "{stdout}");
+        for k in 0..8 {
+            let png = image::open(out.join(format!("frame_{k:04}.png"))).unwrap();
+            assert_eq!((png.width(), png.height()), (160, 128));
+        }
+        let header = std::fs::read_to_string(out.join("frames.csv")).unwrap();
+        assert!(
+            header.starts_with("frame,quads,patches,triangles,terrain_pixels,levels,pop_px,gpu_ms,cpu_ms\n"),
+            "{header}"
+        );
+        read_frames(&out.join("frames.csv"))
+    };
+    let morphed = fly("flight-morph", &[]);
+    let popping = fly("flight-pop", &["--no-geomorph"]);
+    assert_eq!(morphed.len(), 8);
+    let pop = |rows: &[std::collections::HashMap<String, String>]| -> Vec<f64> {
+        rows.iter().map(|r| r["pop_px"].parse().unwrap()).collect()
+    };
+    let (with, without) = (pop(&morphed), pop(&popping));
+    assert_eq!(with[0], 0.0, "the first frame has nothing to pop from");
+    // The same frames are drawn (morphing moves vertices, not what is selected).
+    for (a, b) in morphed.iter().zip(&popping) {
+        for field in ["quads", "patches", "triangles", "levels"] {
+            assert_eq!(a[field], b[field], "frame {}: {field}", a["frame"]);
+        }
+        assert!(a["terrain_pixels"].parse::<usize>().unwrap() > 0);
+    }
+    let worst = |v: &[f64]| v.iter().copied().fold(0.0, f64::max);
+    assert!(worst(&without) > 1.0, "density changes without morphing pop by more than a pixel: {without:?}");
+    assert!(worst(&with) * 4.0 < worst(&without), "morphing hides most of it: {with:?} vs {without:?}");
+    // Bad flights are refused by name.
+    let o = terrafuse(
+        &["render", erzurum.to_str().unwrap(), "--flight", "39,40,x,0,-90;39,40,100,0,-90", "--out-dir", "/tmp/x"],
+        "",
+    );
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && stderr.contains("waypoint 1 '39,40,x,0,-90'"), "{stderr}");
+    let o = terrafuse(&["render", erzurum.to_str().unwrap(), "--flight", flight], "");
+    assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains("--out-dir"));
 }
 
 #[test]

@@ -57,13 +57,27 @@ pub enum Command {
         #[command(subcommand)]
         command: SlurmCommand,
     },
-    /// Render one frame of a project to a PNG and report what it drew and what it cost.
+    /// Render one frame of a project to a PNG and report what it drew and what it cost; or, with
+    /// --flight, frames along a camera path with frames.csv.
     Render {
         /// The project file (JSON).
         project: PathBuf,
         /// The PNG to write.
+        #[arg(long, required_unless_present = "flight", conflicts_with = "flight")]
+        out: Option<PathBuf>,
+        /// A camera path: LAT,LON,ALT,HEADING,PITCH[,FOV];LAT,… (degrees, metres above the
+        /// ellipsoid), flown along geodesics, the altitude geometrically.
+        #[arg(long, allow_hyphen_values = true, requires = "out_dir", conflicts_with_all = ["swipe", "view", "camera"])]
+        flight: Option<String>,
+        /// Frames along the flight.
+        #[arg(long, default_value_t = 60, requires = "flight")]
+        frames: usize,
+        /// Folder for the flight's frame_0000.png … and frames.csv.
+        #[arg(long, requires = "flight")]
+        out_dir: Option<PathBuf>,
+        /// Draw without geomorphing (to measure the pops it hides).
         #[arg(long)]
-        out: PathBuf,
+        no_geomorph: bool,
         /// Image width, pixels.
         #[arg(long, default_value_t = 1280)]
         width: u32,

@@ -63,11 +63,29 @@ pub fn run(command: Command, c: &mut Console) -> Result<u8, CliError> {
                 super::cutoff_report(&ellipsoid, tolerance_m, limit_fraction, max_level.min(30), samples.max(3));
             c.print(table)?;
         }
-        Command::Render { project, out, width, height, look, swipe } => {
+        Command::Render { project, out: None, width, height, look, flight, frames, out_dir, no_geomorph, .. } => {
+            let request = super::FlightRequest {
+                project: &project,
+                flight: flight.as_deref().unwrap_or_default(),
+                frames,
+                out_dir: out_dir.as_deref().unwrap_or(std::path::Path::new(".")),
+                width,
+                height,
+                lod_threshold: look.lod_threshold,
+                geomorph: !no_geomorph,
+            };
+            let err = &mut *c.err;
+            let report = super::render_flight(&request, &mut |line| {
+                let _ = writeln!(err, "{line}");
+            })?;
+            c.print(report)?;
+        }
+        Command::Render { project, out: Some(out), width, height, look, swipe, no_geomorph, .. } => {
             c.note_recovery(&project);
             let request = super::RenderRequest {
                 project: &project,
                 out: &out,
+                geomorph: !no_geomorph,
                 width,
                 height,
                 view: look.view.as_deref(),

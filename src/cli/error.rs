@@ -37,6 +37,9 @@ pub enum CliError {
     /// A stroke.
     #[error(transparent)]
     Stroke(#[from] crate::edit::StrokeError),
+    /// A camera flight.
+    #[error(transparent)]
+    Flight(#[from] crate::scene::flight::FlightError),
     /// An erosion run.
     #[error(transparent)]
     Erosion(#[from] crate::erosion::layer::OperationError),

@@ -24,6 +24,7 @@ mod erode;
 mod erode_landscape;
 mod error;
 mod export;
+mod flight;
 mod geo;
 mod geometry;
 mod profile;
@@ -51,6 +52,7 @@ pub use dispatch::run;
 pub use erode::{ErodeOn, ErodeRequest, erode_command, params_of};
 pub use error::{CliError, Within};
 pub use export::{ComposeOn, ComposedExport, ComposedReport, export_composed};
+pub use flight::{FlightFrame, FlightRequest, frames_csv, render_flight};
 pub use geo::{BatchReport, GeoOperation, run_batch};
 pub use geometry::{
     AccuracyBench, accuracy_bench, accuracy_csv, accuracy_plot, cutoff_report, fitted_rule, timing_report,

@@ -31,6 +31,8 @@ pub struct RenderRequest<'a> {
     pub swipe: Option<&'a str>,
     /// What to report while the frame settles (to `render`'s `log`).
     pub trace: Trace,
+    /// Whether vertices morph between strides.
+    pub geomorph: bool,
 }
 
 /// What `render` reports while the frame settles (`TERRAFUSE_DEBUG`, `TERRAFUSE_DEBUG_QUADS` on
@@ -194,6 +196,7 @@ pub fn render(request: &RenderRequest, log: &mut dyn FnMut(&str)) -> Result<Stri
     if let Some(t) = request.lod_threshold {
         renderer.set_threshold(t);
     }
+    renderer.set_geomorph(request.geomorph);
     if let Some(s) = &swipe {
         // Each side is rendered as its own project would be, by a renderer of its own (a
         // difference layer shown on it with its colour range).

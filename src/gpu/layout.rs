@@ -61,14 +61,15 @@ mod tests {
                     above,
                     nodata,
                     difference,
-                    brush
+                    brush,
+                    morph
                 }),
             ),
             (
                 "QuadInstance",
                 "terrain.wgsl",
                 "Quad",
-                layout!(QuadInstance { anchor, corners, normals, sym, slots, params }),
+                layout!(QuadInstance { anchor, corners, normals, sym, slots, params, lod }),
             ),
             ("PatchInstance", "terrain.wgsl", "Patch", layout!(PatchInstance { quad, i0, j0, stride })),
             (

@@ -10,6 +10,7 @@ pub mod context;
 pub mod editing;
 pub mod erosion;
 mod layout;
+pub mod pops;
 pub mod renderer;
 pub mod shaders;
 pub mod shading;

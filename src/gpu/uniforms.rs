@@ -21,6 +21,7 @@ pub(crate) struct FrameUniform {
     pub(crate) nodata: [f32; 4],
     pub(crate) difference: [f32; 4],
     pub(crate) brush: [f32; 4],
+    pub(crate) morph: [f32; 4],
 }
 
 /// One quad's record for the shader (`Quad` in terrain.wgsl; keep in sync).
@@ -33,6 +34,7 @@ pub struct QuadInstance {
     pub(crate) sym: [[f32; 4]; 3],
     pub(crate) slots: [u32; 4],
     pub(crate) params: [f32; 4],
+    pub(crate) lod: [f32; 4],
 }
 
 impl QuadInstance {
@@ -78,6 +80,6 @@ pub(crate) fn rgba(c: [u8; 4]) -> [f32; 4] {
     c.map(|v| f32::from(v) / 255.0)
 }
 
-const _: () = assert!(std::mem::size_of::<FrameUniform>() == 64 + 10 * 16);
-const _: () = assert!(std::mem::size_of::<QuadInstance>() == 16 * (1 + 4 + 4 + 3 + 1 + 1));
+const _: () = assert!(std::mem::size_of::<FrameUniform>() == 64 + 11 * 16);
+const _: () = assert!(std::mem::size_of::<QuadInstance>() == 16 * (1 + 4 + 4 + 3 + 1 + 1 + 1));
 const _: () = assert!(std::mem::size_of::<PatchInstance>() == 16);

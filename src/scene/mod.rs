@@ -6,6 +6,7 @@
 
 pub mod camera;
 pub mod dataset;
+pub mod flight;
 pub mod loader;
 pub mod patches;
 pub(crate) mod quads;

@@ -16,6 +16,37 @@ pub const PATCH_CELLS: u32 = 32;
 /// The strides a patch may be drawn at, in samples, finest first.
 pub const STRIDES: [u32; 6] = [1, 2, 4, 8, 16, 32];
 
+/// Where the morph band ends: a vertex of a patch at stride s whose coarser spacing 2s covers ρ
+/// times t pixels has morphed fully to the coarser mesh at ρ ≤ 1 and not at all from ρ = 1.6 on.
+/// A patch takes stride s when ρ passes 1 at its nearest point, where its farthest vertex, at most
+/// 16 % farther (a patch spans 32t/f ≈ 0.11 of its distance at t = 1.5 and a 60° view, with its
+/// diagonal and relief), has ρ ≥ 0.86; the coarser patch it replaces had 2ρ ≥ 1.72 > 1.6 there,
+/// unmorphed: so the change draws what was drawn before.
+pub const MORPH_BAND_END: f64 = 1.6;
+
+/// How far a vertex of a patch at `stride` has morphed toward the patch's mesh at twice the
+/// stride (0 … 1): `spacing_m` the quad's sample spacing, `distance_m` the vertex's from the eye,
+/// `focal_px` the camera's focal length in pixels. The terrain shader's `morph_factor` twin.
+pub fn morph_factor(stride: u32, spacing_m: f64, distance_m: f64, focal_px: f64, threshold_px: f64) -> f64 {
+    if stride >= PATCH_CELLS {
+        return 0.0;
+    }
+    let rho = 2.0 * f64::from(stride) * spacing_m * focal_px / (threshold_px * distance_m.max(1e-6));
+    ((MORPH_BAND_END - rho) / (MORPH_BAND_END - 1.0)).clamp(0.0, 1.0)
+}
+
+/// The two samples a vertex at patch grid position (a, b) slides toward when its patch morphs to
+/// twice its stride (offsets in samples, from the vertex): along the edge for odd a or b, along the
+/// cell's diagonal for both odd; none for a vertex the coarser mesh has.
+pub fn morph_neighbours(a: u32, b: u32, stride: u32) -> Option<[(i64, i64); 2]> {
+    let (da, db) = (i64::from(a % 2), i64::from(b % 2));
+    if da + db == 0 {
+        return None;
+    }
+    let s = i64::from(stride);
+    Some([(-da * s, -db * s), (da * s, db * s)])
+}
+
 /// One patch to draw: which drawn quad, where in it, how densely.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
 pub struct Patch {

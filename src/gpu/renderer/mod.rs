@@ -23,7 +23,9 @@ use crate::project::CameraSpec;
 use crate::scene::Camera;
 use crate::scene::Scene;
 use crate::scene::loader::{CpuCache, DataKey, Loaded, Loader, SAMPLES};
-use crate::scene::patches::{PATCH_CELLS, PATCHES_PER_EDGE, PatchSelection, QuadPatches, select_patches};
+use crate::scene::patches::{
+    MORPH_BAND_END, PATCH_CELLS, PATCHES_PER_EDGE, PatchSelection, QuadPatches, select_patches,
+};
 use crate::scene::quads::{QuadCache, Source, exaggerated_range, flat_rule_for};
 use crate::scene::select::{self, SelectParams, Selection};
 use crate::scene::slots::SlotPool;
@@ -132,6 +134,8 @@ pub struct Renderer {
     /// Whether patches are culled and drawn at the stride they need (else every patch of a drawn
     /// quad at stride 1: the quads whole).
     adaptive: bool,
+    /// Whether vertices morph toward the coarser stride's mesh (only with adaptive patches).
+    geomorph: bool,
     camera: Option<Camera>,
     size: (u32, u32),
     /// The drawn difference's range from its percentile (set by the tool that computed it).
@@ -234,6 +238,7 @@ impl Renderer {
             drawn: Vec::new(),
             patches: PatchSelection::default(),
             adaptive: true,
+            geomorph: true,
             camera: None,
             size: (1, 1),
             auto_range_m: None,
@@ -245,6 +250,22 @@ impl Renderer {
     /// patch of a drawn quad at stride 1 (the quads whole, as before patches: for comparisons).
     pub fn set_adaptive_patches(&mut self, adaptive: bool) {
         self.adaptive = adaptive;
+    }
+
+    /// Whether vertices morph toward the coarser stride's mesh over the band before a patch's
+    /// stride changes (the default), so that a change of stride draws what was drawn before.
+    pub fn set_geomorph(&mut self, geomorph: bool) {
+        self.geomorph = geomorph;
+    }
+
+    /// Whether the frames morph (geomorphing on and adaptive patches).
+    pub fn geomorphs(&self) -> bool {
+        self.geomorph && self.adaptive
+    }
+
+    /// The prepared frame's image size.
+    pub fn size(&self) -> (u32, u32) {
+        self.size
     }
 
     /// The prepared frame's patches.
@@ -597,6 +618,7 @@ impl Renderer {
                 sym: [m.x_axis, m.y_axis, m.z_axis].map(|c| v4(c.as_vec3(), 0.0)),
                 slots: [Split::of(quad).code(), map_slot, height_slot, flags],
                 params: [skirt as f32, f32::from(quad.level), 0.0, (relief + roughness * exaggeration + skirt) as f32],
+                lod: [spacing as f32, 0.0, 0.0, 0.0],
             });
         }
         if !self.instances.is_empty() {
@@ -664,6 +686,12 @@ impl Renderer {
                 let rel = centre - camera.position;
                 [rel.x as f32, rel.y as f32, rel.z as f32, radius as f32]
             }),
+            morph: [
+                (camera.focal_px(height) / self.scene.detail.lod_threshold_px) as f32,
+                MORPH_BAND_END as f32,
+                if self.geomorph && self.adaptive { 1.0 } else { 0.0 },
+                0.0,
+            ],
         };
         self.queue.write_buffer(&self.frame_buffer, 0, bytemuck::bytes_of(&uniform));
     }

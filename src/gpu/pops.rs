@@ -1,0 +1,212 @@
+//! `pop_px`: how far the drawn terrain jumps on screen when the density changes between two
+//! frames (a patch's stride, or a quad split or merged), measured on the CPU in f64 from the
+//! heights the GPU drew. Both frames' densities are evaluated with the new frame's camera, so the
+//! camera's own motion is not counted: at each vertex of every patch that one frame draws and the
+//! other does not, the surface each frame shows there (the vertex, morphed as the shader morphs
+//! it, or the point of the other frame's triangle under it) is projected, and the largest
+//! distance between the two in pixels is the frame's pop. With geomorphing it is 0 up to the
+//! rounding of f64 where the morph band hides every change.
+
+use std::collections::{HashMap, HashSet};
+use std::sync::Arc;
+
+use glam::DVec3;
+
+use super::context::GpuError;
+use super::renderer::Renderer;
+use crate::ecm::geometry::surface_and_normal;
+use crate::ecm::{CubeProjection, FacePoint, QuadId};
+use crate::scene::patches::{PATCH_CELLS, PATCHES_PER_EDGE, morph_factor, morph_neighbours};
+
+/// Where a frame drew which density: per drawn quad, its sample spacing and each patch's
+/// stride (0 where the patch was culled).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct DensityLayout {
+    quads: HashMap<QuadId, (f64, [u32; 64])>,
+}
+
+impl DensityLayout {
+    /// The layout of the renderer's prepared frame.
+    pub fn of(renderer: &Renderer) -> DensityLayout {
+        let mut quads: HashMap<QuadId, (f64, [u32; 64])> = renderer
+            .drawn()
+            .iter()
+            .zip(renderer.instances())
+            .map(|(q, inst)| (*q, (f64::from(inst.lod[0]), [0; 64])))
+            .collect();
+        for p in &renderer.patches().patches {
+            if let Some(q) = renderer.drawn().get(p.quad as usize)
+                && let Some(entry) = quads.get_mut(q)
+            {
+                entry.1[(p.py * PATCHES_PER_EDGE + p.px) as usize] = p.stride;
+            }
+        }
+        DensityLayout { quads }
+    }
+
+    /// The patches drawn, as (quad, patch index, stride).
+    fn patches(&self) -> HashSet<(QuadId, usize, u32)> {
+        self.quads
+            .iter()
+            .flat_map(|(q, (_, strides))| {
+                strides.iter().enumerate().filter(|(_, s)| **s > 0).map(move |(k, s)| (*q, k, *s))
+            })
+            .collect()
+    }
+
+    /// The drawn quad that covers sample coordinates (x, y) of `quad` (0 … 256 each), and the
+    /// coordinates there: the quad itself, an ancestor or a descendant.
+    fn locate(&self, quad: QuadId, x: f64, y: f64) -> Option<(QuadId, f64, f64)> {
+        if self.quads.contains_key(&quad) {
+            return Some((quad, x, y));
+        }
+        let (mut a, mut ax, mut ay) = (quad, x, y);
+        while let Some(p) = a.parent() {
+            ax = (ax + 256.0 * f64::from(a.x % 2)) / 2.0;
+            ay = (ay + 256.0 * f64::from(a.y % 2)) / 2.0;
+            a = p;
+            if self.quads.contains_key(&a) {
+                return Some((a, ax, ay));
+            }
+        }
+        let (mut d, mut dx, mut dy) = (quad, x, y);
+        for _ in 0..8 {
+            let (cx, cy) = (u32::from(dx >= 128.0), u32::from(dy >= 128.0));
+            let children = d.children()?;
+            d = children[(cy * 2 + cx) as usize];
+            dx = dx * 2.0 - 256.0 * f64::from(cx);
+            dy = dy * 2.0 - 256.0 * f64::from(cy);
+            if self.quads.contains_key(&d) {
+                return Some((d, dx, dy));
+            }
+        }
+        None
+    }
+}
+
+/// The f64 evaluation of what a layout draws, from the renderer's composed heights.
+struct Surfaces<'a> {
+    renderer: &'a Renderer,
+    camera: DVec3,
+    focal_over_t: f64,
+    morph: bool,
+    exaggeration: f64,
+    heights: HashMap<QuadId, Option<Arc<Vec<f32>>>>,
+    positions: HashMap<(QuadId, u32, u32), Option<DVec3>>,
+}
+
+impl Surfaces<'_> {
+    /// The exact camera-relative position of sample (i, j) of a quad at its drawn height.
+    fn position(&mut self, quad: QuadId, i: u32, j: u32) -> Option<DVec3> {
+        if let Some(p) = self.positions.get(&(quad, i, j)) {
+            return *p;
+        }
+        let heights = self
+            .heights
+            .entry(quad)
+            .or_insert_with(|| match self.renderer.read_heights(quad) {
+                Ok(Some(h)) => Some(Arc::new(h)),
+                Ok(None) => Some(Arc::new(Vec::new())),
+                Err(_) => None,
+            })
+            .clone();
+        let p = heights.map(|h| {
+            let raw = h.get((j * 257 + i) as usize).copied().unwrap_or(0.0);
+            let height = if raw.is_nan() { 0.0 } else { f64::from(raw) * self.exaggeration };
+            let (x, y) = quad.sample_xy(257, i, j);
+            let (s, n) = surface_and_normal(
+                &self.renderer.scene().ellipsoid,
+                CubeProjection::Qsc,
+                FacePoint { face: quad.face, x, y },
+            );
+            (s - self.camera) + n * height
+        });
+        self.positions.insert((quad, i, j), p);
+        p
+    }
+
+    /// The vertex (a, b) of a quad's patch drawn at `stride`, morphed as the shader morphs it.
+    fn vertex(&mut self, quad: QuadId, spacing: f64, patch: (u32, u32), stride: u32, a: u32, b: u32) -> Option<DVec3> {
+        let (i, j) = (patch.0 * PATCH_CELLS + a * stride, patch.1 * PATCH_CELLS + b * stride);
+        let own = self.position(quad, i, j)?;
+        let Some([n1, n2]) = morph_neighbours(a, b, stride).filter(|_| self.morph) else { return Some(own) };
+        let m = morph_factor(stride, spacing, own.length(), self.focal_over_t, 1.0);
+        if m <= 0.0 {
+            return Some(own);
+        }
+        let at = |d: (i64, i64)| ((i64::from(i) + d.0) as u32, (i64::from(j) + d.1) as u32);
+        let (p1, p2) = (at(n1), at(n2));
+        let target = (self.position(quad, p1.0, p1.1)? + self.position(quad, p2.0, p2.1)?) * 0.5;
+        Some(own.lerp(target, m))
+    }
+
+    /// The point a layout draws at sample coordinates (x, y) of `quad`: on the triangle of the
+    /// patch mesh that covers it.
+    fn surface(&mut self, layout: &DensityLayout, quad: QuadId, x: f64, y: f64) -> Option<DVec3> {
+        let (q, x, y) = layout.locate(quad, x, y)?;
+        let (spacing, strides) = layout.quads[&q];
+        let cells = f64::from(PATCH_CELLS);
+        let (px, py) = (((x / cells) as u32).min(7), ((y / cells) as u32).min(7));
+        let stride = strides[(py * PATCHES_PER_EDGE + px) as usize];
+        if stride == 0 {
+            return None;
+        }
+        let n = PATCH_CELLS / stride;
+        let (u, v) = ((x - f64::from(px) * cells) / f64::from(stride), (y - f64::from(py) * cells) / f64::from(stride));
+        let (a, b) = ((u.floor() as u32).min(n - 1), (v.floor() as u32).min(n - 1));
+        let (fu, fv) = (u - f64::from(a), v - f64::from(b));
+        let mut corner = |da: u32, db: u32| self.vertex(q, spacing, (px, py), stride, a + da, b + db);
+        let (v00, v11) = (corner(0, 0)?, corner(1, 1)?);
+        // The cell's cut runs from (a, b) to (a+1, b+1), as the index buffers cut it.
+        Some(if fu >= fv {
+            let v10 = corner(1, 0)?;
+            v00 + (v10 - v00) * fu + (v11 - v10) * fv
+        } else {
+            let v01 = corner(0, 1)?;
+            v00 + (v11 - v01) * fu + (v01 - v00) * fv
+        })
+    }
+}
+
+/// The largest on-screen displacement (pixels) between what `old` and `new` draw where they
+/// differ, both seen from the renderer's prepared camera (`new` being its prepared frame).
+pub fn pop_px(renderer: &Renderer, old: &DensityLayout, new: &DensityLayout) -> Result<f64, GpuError> {
+    let Some(camera) = renderer.last_camera() else { return Ok(0.0) };
+    let (width, height) = renderer.size();
+    let mut surfaces = Surfaces {
+        renderer,
+        camera: camera.position,
+        focal_over_t: camera.focal_px(height) / renderer.scene().detail.lod_threshold_px,
+        morph: renderer.geomorphs(),
+        exaggeration: renderer.scene().visuals.exaggeration,
+        heights: HashMap::new(),
+        positions: HashMap::new(),
+    };
+    let (before, after) = (old.patches(), new.patches());
+    let mut worst = 0.0f64;
+    for (changed, this, other) in [(after.difference(&before), new, old), (before.difference(&after), old, new)] {
+        for &(quad, k, stride) in changed {
+            let (px, py) = (k as u32 % PATCHES_PER_EDGE, k as u32 / PATCHES_PER_EDGE);
+            let n = PATCH_CELLS / stride;
+            for b in 0..=n {
+                for a in 0..=n {
+                    let x = f64::from(px * PATCH_CELLS + a * stride);
+                    let y = f64::from(py * PATCH_CELLS + b * stride);
+                    let (Some(p), Some(q)) = (surfaces.surface(this, quad, x, y), surfaces.surface(other, quad, x, y))
+                    else {
+                        continue;
+                    };
+                    if let (Some(sp), Some(sq)) = (camera.project(p, width, height), camera.project(q, width, height)) {
+                        let on_screen = |s: (f64, f64, f64)| {
+                            (0.0..=f64::from(width)).contains(&s.0) && (0.0..=f64::from(height)).contains(&s.1)
+                        };
+                        if on_screen(sp) || on_screen(sq) {
+                            worst = worst.max(((sp.0 - sq.0).powi(2) + (sp.1 - sq.1).powi(2)).sqrt());
+                        }
+                    }
+                }
+            }
+        }
+    }
+    Ok(worst)
+}
