@@ -34,7 +34,8 @@ struct Frame {
     difference: vec4<f32>,
     // The brush's footprint: its centre relative to the camera (metres) and radius (0: none).
     brush: vec4<f32>,
-    // Geomorphing: focal length over t (pixels per pixel), the morph band's end, on (1) or off (0).
+    // Geomorphing: focal length over t (pixels per pixel), the morph band's end, on (1) or off
+    // (0), the band's start.
     morph: vec4<f32>,
 }
 
@@ -54,6 +55,9 @@ struct Quad {
     params: vec4<f32>,
     // The quad's sample spacing (its longest edge / 256, metres), unused ×3.
     lod: vec4<f32>,
+    // The height slots of the ancestors 1 … 5 levels up (NO_SLOT: none current), unused, and the
+    // quad's x and y (their low bits place it in each ancestor).
+    ancestry: array<vec4<u32>, 2>,
 }
 
 struct Patch {
@@ -133,9 +137,38 @@ fn raw_height(q: Quad, i: u32, j: u32) -> f32 {
     return heights[q.slots.z * N * N + j * N + i];
 }
 
-// The height the geometry uses (exaggerated; the no-data fill where there is none).
-fn geometry_height(q: Quad, i: u32, j: u32) -> f32 {
-    let raw = raw_height(q, i, j);
+// The data of level k above the quad's (0: its own) at its sample (i, j), a multiple of 2^k: the
+// ancestor k levels up holds it at ((i + 256·(x mod 2^k)) / 2^k, …). A patch drawn every 2^k
+// samples shows this data, which is what the ancestor would draw there, so a quad split or merged
+// draws what was drawn before. Without the ancestor's slot, the quad's own.
+fn data_index(q: Quad, i: u32, j: u32, k: u32) -> u32 {
+    var slot = q.slots.z;
+    if k > 0u && q.slots.z != NO_SLOT {
+        slot = select(q.ancestry[1].x, q.ancestry[0][min(k, 4u) - 1u], k <= 4u);
+    }
+    if slot == NO_SLOT {
+        return select(NO_SLOT, q.slots.z * N * N + j * N + i, q.slots.z != NO_SLOT);
+    }
+    if k == 0u {
+        return slot * N * N + j * N + i;
+    }
+    let m = (1u << k) - 1u;
+    let ai = (i + (N - 1u) * (q.ancestry[1].z & m)) >> k;
+    let aj = (j + (N - 1u) * (q.ancestry[1].w & m)) >> k;
+    return slot * N * N + aj * N + ai;
+}
+
+fn raw_height_at(q: Quad, i: u32, j: u32, k: u32) -> f32 {
+    let index = data_index(q, i, j, k);
+    if index == NO_SLOT {
+        return NODATA_BELOW * 2.0;
+    }
+    return heights[index];
+}
+
+// The height the geometry uses at data level k (exaggerated; the no-data fill where there is none).
+fn geometry_height_at(q: Quad, i: u32, j: u32, k: u32) -> f32 {
+    let raw = raw_height_at(q, i, j, k);
     return select(q.params.z, raw, raw > NODATA_BELOW) * frame.viewport.z;
 }
 
@@ -187,27 +220,30 @@ struct Sample {
     dh_valid: f32,
 }
 
-fn sample_at(q: Quad, i: u32, j: u32) -> Sample {
+// Sample (i, j) (a multiple of 2^k) with the data of level k above the quad's.
+fn sample_at(q: Quad, i: u32, j: u32, k: u32) -> Sample {
     var out: Sample;
-    let raw = raw_height(q, i, j);
+    let raw = raw_height_at(q, i, j, k);
     let valid = raw > NODATA_BELOW;
     out.up = ellipsoid_normal(q, i, j);
-    out.local = local_position(q, i, j, geometry_height(q, i, j));
+    out.local = local_position(q, i, j, geometry_height_at(q, i, j, k));
     out.height = select(q.params.z, raw, valid);
     out.valid = select(0.0, 1.0, valid);
-    // Tangents from the neighbouring samples (one-sided at the quad's edges): the ellipsoid
-    // point's change plus the height's change along this sample's normal (the normal's own turn
-    // over one sample, ~10⁻⁴ rad at level 0, is left out: it only tilts the shading normal).
-    let i0 = max(i, 1u) - 1u;
-    let i1 = min(i + 1u, N - 1u);
-    let j0 = max(j, 1u) - 1u;
-    let j1 = min(j + 1u, N - 1u);
-    out.along_i = (surface_point(q, i1, j) - surface_point(q, i0, j) + out.up * (geometry_height(q, i1, j) - geometry_height(q, i0, j))) / f32(i1 - i0);
-    out.along_j = (surface_point(q, i, j1) - surface_point(q, i, j0) + out.up * (geometry_height(q, i, j1) - geometry_height(q, i, j0))) / f32(j1 - j0);
+    // Tangents from the neighbouring samples of that data, 2^k apart (one-sided at the quad's
+    // edges): the ellipsoid point's change plus the height's change along this sample's normal
+    // (the normal's own turn over one sample, ~10⁻⁴ rad at level 0, is left out: it only tilts
+    // the shading normal); per sample.
+    let d = 1u << k;
+    let i0 = max(i, d) - d;
+    let i1 = min(i + d, N - 1u);
+    let j0 = max(j, d) - d;
+    let j1 = min(j + d, N - 1u);
+    out.along_i = (surface_point(q, i1, j) - surface_point(q, i0, j) + out.up * (geometry_height_at(q, i1, j, k) - geometry_height_at(q, i0, j, k))) / f32(i1 - i0);
+    out.along_j = (surface_point(q, i, j1) - surface_point(q, i, j0) + out.up * (geometry_height_at(q, i, j1, k) - geometry_height_at(q, i, j0, k))) / f32(j1 - j0);
     out.dh = 0.0;
     out.dh_valid = 0.0;
     if frame.difference.w > 0.5 && q.slots.z != NO_SLOT {
-        let dh = overlay[q.slots.z * N * N + j * N + i];
+        let dh = overlay[data_index(q, i, j, k)];
         out.dh = select(0.0, dh, dh > NODATA_BELOW);
         out.dh_valid = select(0.0, 1.0, dh > NODATA_BELOW);
     }
@@ -216,14 +252,15 @@ fn sample_at(q: Quad, i: u32, j: u32) -> Sample {
 
 // Geomorphing (CDLOD, Strugar 2009): how far a vertex of a patch at `stride` has moved toward the
 // patch's mesh at twice the stride, from its projected spacing ρ = 2·stride·spacing·focal/(t·d)
-// (the coarser mesh's spacing over t): 1 at ρ ≤ 1, where the coarser mesh would do, 0 from the
-// band's end on. CPU twin: scene::patches::morph_factor.
+// (the coarser mesh's spacing over t): 1 up to the band's start (1.1: the coarser mesh would do
+// there, with a margin for the camera's step between frames), 0 from its end on. CPU twin:
+// scene::patches::morph_factor.
 fn morph_factor(q: Quad, stride: u32, distance: f32) -> f32 {
     if frame.morph.z < 0.5 || stride >= PATCH_CELLS {
         return 0.0;
     }
     let rho = 2.0 * f32(stride) * q.lod.x * frame.morph.x / max(distance, 1e-6);
-    return clamp((frame.morph.y - rho) / (frame.morph.y - 1.0), 0.0, 1.0);
+    return clamp((frame.morph.y - rho) / (frame.morph.y - frame.morph.w), 0.0, 1.0);
 }
 
 @vertex
@@ -240,27 +277,41 @@ fn vs_main(@builtin(vertex_index) vertex: u32, @builtin(instance_index) instance
     let i = p.i0 + a * p.stride;
     let j = p.j0 + b * p.stride;
 
-    var s = sample_at(q, i, j);
-    // A vertex the coarser mesh lacks (odd a or b) slides toward the coarser mesh's point there:
-    // the midpoint of its two neighbours at twice the stride along the edge, or along the cell's
-    // diagonal (the mesh's cut) for a cell centre. At m = 1 the patch draws the coarser mesh.
+    // A patch every 2^k samples draws the data of level k above the quad's.
+    let k = firstTrailingBit(p.stride);
+    var s = sample_at(q, i, j, k);
+    // Toward twice the stride: a vertex the coarser mesh lacks (odd a or b) slides to the coarser
+    // mesh's point there, the midpoint of its two neighbours at twice the stride along the edge,
+    // or along the cell's cut for a cell centre; one it has takes that mesh's data (a level up).
+    // At m = 1 the patch draws the coarser mesh exactly.
     let da = a % 2u;
     let db = b % 2u;
-    if da + db > 0u {
-        let m = morph_factor(q, p.stride, length(q.anchor.xyz + s.local));
-        if m > 0.0 {
-            let n1 = sample_at(q, i - da * p.stride, j - db * p.stride);
-            let n2 = sample_at(q, i + da * p.stride, j + db * p.stride);
-            s.local = mix(s.local, 0.5 * (n1.local + n2.local), m);
-            s.up = normalize(mix(s.up, 0.5 * (n1.up + n2.up), m));
-            if n1.valid > 0.5 && n2.valid > 0.5 && s.valid > 0.5 {
-                s.height = mix(s.height, 0.5 * (n1.height + n2.height), m);
-            }
-            s.along_i = mix(s.along_i, 0.5 * (n1.along_i + n2.along_i), m);
-            s.along_j = mix(s.along_j, 0.5 * (n1.along_j + n2.along_j), m);
-            if n1.dh_valid > 0.5 && n2.dh_valid > 0.5 && s.dh_valid > 0.5 {
-                s.dh = mix(s.dh, 0.5 * (n1.dh + n2.dh), m);
-            }
+    let m = morph_factor(q, p.stride, length(q.anchor.xyz + s.local));
+    if m > 0.0 {
+        var t: Sample;
+        if da + db > 0u {
+            let n1 = sample_at(q, i - da * p.stride, j - db * p.stride, k + 1u);
+            let n2 = sample_at(q, i + da * p.stride, j + db * p.stride, k + 1u);
+            t.local = 0.5 * (n1.local + n2.local);
+            t.up = 0.5 * (n1.up + n2.up);
+            t.height = 0.5 * (n1.height + n2.height);
+            t.valid = min(n1.valid, n2.valid);
+            t.along_i = 0.5 * (n1.along_i + n2.along_i);
+            t.along_j = 0.5 * (n1.along_j + n2.along_j);
+            t.dh = 0.5 * (n1.dh + n2.dh);
+            t.dh_valid = min(n1.dh_valid, n2.dh_valid);
+        } else {
+            t = sample_at(q, i, j, k + 1u);
+        }
+        s.local = mix(s.local, t.local, m);
+        s.up = normalize(mix(s.up, t.up, m));
+        if t.valid > 0.5 && s.valid > 0.5 {
+            s.height = mix(s.height, t.height, m);
+        }
+        s.along_i = mix(s.along_i, t.along_i, m);
+        s.along_j = mix(s.along_j, t.along_j, m);
+        if t.dh_valid > 0.5 && s.dh_valid > 0.5 {
+            s.dh = mix(s.dh, t.dh, m);
         }
     }
     var local = s.local;

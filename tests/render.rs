@@ -13,7 +13,7 @@ use terrafuse::ecm::{CubeProjection, Face, QuadId};
 use terrafuse::gpu::{DrawMode, GpuContext, IMAGE_FORMAT, RenderedImage, Renderer};
 use terrafuse::project::{CameraSpec, Project};
 use terrafuse::scene::Scene;
-use terrafuse::scene::patches::{morph_factor, morph_neighbours};
+use terrafuse::scene::patches::{data_sample, morph_factor, morph_neighbours};
 
 fn out_dir() -> PathBuf {
     let dir = common::out_path("render");
@@ -84,44 +84,61 @@ fn check_vertex_positions(morph: bool) {
         let quad = drawn[index];
         let (i, j, stride) = (id[1], id[2], id[3] >> 2);
         let g = geometries.entry(quad).or_insert_with(|| r.reference_geometry(quad));
-        let heights = composed.entry(quad).or_insert_with(|| r.read_heights(quad).unwrap());
-        let h = |i: u32, j: u32| {
-            heights.as_ref().map_or(0.0, |hs| {
-                let v = hs[(j * 257 + i) as usize];
+        // A patch every 2^k samples shows the data k levels up (its ancestor's, where the quad
+        // has data and the ancestor is on the GPU).
+        let lv = stride.trailing_zeros();
+        for level in [0, lv, lv + 1] {
+            let (a, _, _) = data_sample(quad, 0, 0, level);
+            composed.entry(a).or_insert_with(|| r.read_heights(a).unwrap());
+        }
+        let h = |i: u32, j: u32, level: u32| {
+            let own = composed[&quad].as_ref();
+            let (a, ai, aj) = data_sample(quad, i, j, level);
+            let (hs, index) = match (own, composed[&a].as_ref()) {
+                (Some(_), Some(up)) => (Some(up), aj * 257 + ai),
+                _ => (own, j * 257 + i),
+            };
+            hs.map_or(0.0, |hs| {
+                let v = hs[index as usize];
                 if v.is_nan() { 0.0 } else { v }
             })
         };
         let frame: QuadFrame = g.frame(cam.position, f64::from(instances[index].reference_height_m()));
         let has_maps = instances[index].has_maps();
-        let cpu_at = |i: u32, j: u32| {
+        let cpu_at = |i: u32, j: u32, level: u32| {
             let (s, t) = sample_st(257, i, j);
             let maps = if has_maps { g.maps_at(i, j) } else { None };
-            vertex_f32(g.split, &frame, s as f32, t as f32, maps, h(i, j))
+            vertex_f32(g.split, &frame, s as f32, t as f32, maps, h(i, j, level))
         };
-        let truth_at =
-            |i: u32, j: u32| g.exact_position(&e, CubeProjection::Qsc, cam.position, i, j, f64::from(h(i, j)));
-        let (mut cpu, mut truth) = (cpu_at(i, j), truth_at(i, j));
+        let truth_at = |i: u32, j: u32, level: u32| {
+            g.exact_position(&e, CubeProjection::Qsc, cam.position, i, j, f64::from(h(i, j, level)))
+        };
+        let (mut cpu, mut truth) = (cpu_at(i, j, lv), truth_at(i, j, lv));
         let (a, b) = ((i % 32) / stride, (j % 32) / stride);
         let mut slack = 0.0;
-        if let Some([n1, n2]) = morph_neighbours(a, b, stride).filter(|_| morph) {
-            let q = g.corners_ecef;
-            let edge = [(q[1] - q[0]), (q[2] - q[0]), (q[3] - q[1]), (q[3] - q[2])]
-                .iter()
-                .map(|v| v.length())
-                .fold(0.0, f64::max);
-            let m = morph_factor(stride, edge / 256.0, f64::from(cpu.length()), focal_over_t, 1.0);
-            let at = |d: (i64, i64)| ((i64::from(i) + d.0) as u32, (i64::from(j) + d.1) as u32);
-            let (p1, p2) = (at(n1), at(n2));
-            let cpu_target = (cpu_at(p1.0, p1.1) + cpu_at(p2.0, p2.1)) * 0.5;
-            let truth_target = (truth_at(p1.0, p1.1) + truth_at(p2.0, p2.1)) * 0.5;
+        let q = g.corners_ecef;
+        let edge =
+            [(q[1] - q[0]), (q[2] - q[0]), (q[3] - q[1]), (q[3] - q[2])].iter().map(|v| v.length()).fold(0.0, f64::max);
+        let m =
+            if morph { morph_factor(stride, edge / 256.0, f64::from(cpu.length()), focal_over_t, 1.0) } else { 0.0 };
+        if m > 0.0 {
+            // Odd: the midpoint of the neighbours at twice the stride; even: the same sample; both
+            // with the data a level up.
+            let (p1, p2) = match morph_neighbours(a, b, stride) {
+                Some([n1, n2]) => {
+                    let at = |d: (i64, i64)| ((i64::from(i) + d.0) as u32, (i64::from(j) + d.1) as u32);
+                    (at(n1), at(n2))
+                }
+                None => ((i, j), (i, j)),
+            };
+            let cpu_target = (cpu_at(p1.0, p1.1, lv + 1) + cpu_at(p2.0, p2.1, lv + 1)) * 0.5;
+            let truth_target = (truth_at(p1.0, p1.1, lv + 1) + truth_at(p2.0, p2.1, lv + 1)) * 0.5;
             // The factor from the f32 distance on the GPU, from the f64 one here; the midpoint
             // and the blend round twice more in f32.
             slack = 1e-5 * (truth_target - truth).length() + 2.0 * truth.length() * 2f64.powi(-24);
             cpu = cpu.lerp(cpu_target, m as f32);
             truth = truth.lerp(truth_target, m);
-            if m > 0.0 {
-                morphed += 1;
-            }
+            morphed += 1;
         }
         let gpu = glam::DVec3::new(f64::from(surface[k][0]), f64::from(surface[k][1]), f64::from(surface[k][2]));
         let distance = truth.length();
@@ -336,7 +353,7 @@ fn patches_are_culled_and_strided_without_cracks_and_draw_the_same_surface() {
         }
         assert_eq!(n, 0, "{name}: {n} background pixels inside the terrain");
         // The same surface: the eye's view of each pixel's surface point moves by a small fraction
-        // of a pixel for most pixels (a pixel on a silhouette may see a farther slope instead),
+        // of a pixel for nearly all pixels (a pixel on a silhouette may see a farther slope instead),
         // and terrain and sky swap at almost no pixel.
         let (ws, wi) = (whole.surface.as_ref().unwrap(), whole.ids.as_ref().unwrap());
         let (s, i) = (adaptive.surface.as_ref().unwrap(), adaptive.ids.as_ref().unwrap());
@@ -358,7 +375,9 @@ fn patches_are_culled_and_strided_without_cracks_and_draw_the_same_surface() {
         let median = moved[moved.len() / 2];
         let over_1px = moved.iter().filter(|&&m| m > 1.0).count();
         assert!(median < 0.05, "{name}: the surface moved {median} px at the median pixel");
-        assert!(over_1px * 100 <= moved.len(), "{name}: {over_1px} of {} pixels moved > 1 px", moved.len());
+        // (Strided patches show the data of the levels above, as those quads would draw it, and
+        // morph toward the next: a few pixels along ridges move by more than one.)
+        assert!(over_1px * 100 <= 3 * moved.len(), "{name}: {over_1px} of {} pixels moved > 1 px", moved.len());
         assert!(swapped * 1000 <= ws.len(), "{name}: {swapped} pixels swap terrain and sky");
         eprintln!(
             "{name}: {} → {} triangles, strides {strides:?}, culled {} + {}, moved {median:.4} px at the median, {over_1px} pixels > 1 px, swapped {swapped}",
@@ -528,7 +547,7 @@ fn read_frames(path: &Path) -> Vec<std::collections::HashMap<String, String>> {
 
 #[test]
 fn a_flight_writes_its_frames_and_geomorphing_hides_the_changes_of_density() {
-    // Down from 40 km to 4 km over the Erzurum tile at t = 4, where level and stride changes
+    // Down from 40 km to 4 km over the Erzurum tile at t = 2, where level and stride changes
     // show: with geomorphing and without.
     let erzurum = project("erzurum");
     let flight = "39.3,40.3,40000,0,-90;39.4,40.45,4000,30,-20";
@@ -541,13 +560,13 @@ fn a_flight_writes_its_frames_and_geomorphing_hides_the_changes_of_density() {
             "--flight",
             flight,
             "--frames",
-            "8",
+            "30",
             "--width",
-            "160",
+            "320",
             "--height",
-            "128",
+            "256",
             "--lod-threshold",
-            "4",
+            "2",
             "--out-dir",
             out.to_str().unwrap(),
         ];
@@ -555,10 +574,10 @@ fn a_flight_writes_its_frames_and_geomorphing_hides_the_changes_of_density() {
         let o = terrafuse(&args, "");
         let stdout = String::from_utf8_lossy(&o.stdout).into_owned();
         assert!(o.status.success(), "{stdout}\n{}", String::from_utf8_lossy(&o.stderr));
-        assert!(stdout.contains("flight: 8 frames of 160x128 at t = 4"), "{stdout}");
-        for k in 0..8 {
+        assert!(stdout.contains("flight: 30 frames of 320x256 at t = 2"), "{stdout}");
+        for k in 0..30 {
             let png = image::open(out.join(format!("frame_{k:04}.png"))).unwrap();
-            assert_eq!((png.width(), png.height()), (160, 128));
+            assert_eq!((png.width(), png.height()), (320, 256));
         }
         let header = std::fs::read_to_string(out.join("frames.csv")).unwrap();
         assert!(
@@ -569,7 +588,7 @@ fn a_flight_writes_its_frames_and_geomorphing_hides_the_changes_of_density() {
     };
     let morphed = fly("flight-morph", &[]);
     let popping = fly("flight-pop", &["--no-geomorph"]);
-    assert_eq!(morphed.len(), 8);
+    assert_eq!(morphed.len(), 30);
     let pop = |rows: &[std::collections::HashMap<String, String>]| -> Vec<f64> {
         rows.iter().map(|r| r["pop_px"].parse().unwrap()).collect()
     };
@@ -584,7 +603,10 @@ fn a_flight_writes_its_frames_and_geomorphing_hides_the_changes_of_density() {
     }
     let worst = |v: &[f64]| v.iter().copied().fold(0.0, f64::max);
     assert!(worst(&without) > 1.0, "density changes without morphing pop by more than a pixel: {without:?}");
-    assert!(worst(&with) * 4.0 < worst(&without), "morphing hides most of it: {with:?} vs {without:?}");
+    // With it, every change of stride and level draws what was drawn before: 0 up to the rounding
+    // of the f64 evaluation (a patch spans about a tenth of its distance here, within the band's
+    // margin).
+    assert!(worst(&with) < 0.01, "morphing leaves pops: {with:?}");
     // Bad flights are refused by name.
     let o = terrafuse(
         &["render", erzurum.to_str().unwrap(), "--flight", "39,40,x,0,-90;39,40,100,0,-90", "--out-dir", "/tmp/x"],

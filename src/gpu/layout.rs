@@ -69,7 +69,7 @@ mod tests {
                 "QuadInstance",
                 "terrain.wgsl",
                 "Quad",
-                layout!(QuadInstance { anchor, corners, normals, sym, slots, params, lod }),
+                layout!(QuadInstance { anchor, corners, normals, sym, slots, params, lod, ancestry }),
             ),
             ("PatchInstance", "terrain.wgsl", "Patch", layout!(PatchInstance { quad, i0, j0, stride })),
             (

@@ -35,6 +35,7 @@ pub struct QuadInstance {
     pub(crate) slots: [u32; 4],
     pub(crate) params: [f32; 4],
     pub(crate) lod: [f32; 4],
+    pub(crate) ancestry: [[u32; 4]; 2],
 }
 
 impl QuadInstance {
@@ -81,5 +82,5 @@ pub(crate) fn rgba(c: [u8; 4]) -> [f32; 4] {
 }
 
 const _: () = assert!(std::mem::size_of::<FrameUniform>() == 64 + 11 * 16);
-const _: () = assert!(std::mem::size_of::<QuadInstance>() == 16 * (1 + 4 + 4 + 3 + 1 + 1 + 1));
+const _: () = assert!(std::mem::size_of::<QuadInstance>() == 16 * (1 + 4 + 4 + 3 + 1 + 1 + 1 + 2));
 const _: () = assert!(std::mem::size_of::<PatchInstance>() == 16);

@@ -17,12 +17,31 @@ pub const PATCH_CELLS: u32 = 32;
 pub const STRIDES: [u32; 6] = [1, 2, 4, 8, 16, 32];
 
 /// Where the morph band ends: a vertex of a patch at stride s whose coarser spacing 2s covers ρ
-/// times t pixels has morphed fully to the coarser mesh at ρ ≤ 1 and not at all from ρ = 1.6 on.
+/// times t pixels has morphed fully to the coarser mesh up to ρ = 1.1 (the band's start) and not
+/// at all from ρ = 1.6 on.
 /// A patch takes stride s when ρ passes 1 at its nearest point, where its farthest vertex, at most
 /// 16 % farther (a patch spans 32t/f ≈ 0.11 of its distance at t = 1.5 and a 60° view, with its
 /// diagonal and relief), has ρ ≥ 0.86; the coarser patch it replaces had 2ρ ≥ 1.72 > 1.6 there,
 /// unmorphed: so the change draws what was drawn before.
 pub const MORPH_BAND_END: f64 = 1.6;
+/// Where the morph band starts: up to ρ = 1.1 a vertex has morphed fully, so that a change of
+/// stride or level that ρ passed by less than 10 % since the last frame (the camera's step) still
+/// finds every vertex of the finer patch on the coarser mesh.
+pub const MORPH_BAND_START: f64 = 1.1;
+/// Levels above a quad whose data its coarser strides show (stride 32 shows the data 5 levels up).
+pub const DATA_LEVELS_UP: u32 = 5;
+
+/// The sample that holds the data a patch drawn every 2^k samples shows at sample (i, j) of
+/// `quad` (i and j multiples of 2^k): the same point in the ancestor k levels up, or the quad's
+/// own sample where it has no such ancestor. The shader's `data_index` twin.
+pub fn data_sample(quad: crate::ecm::QuadId, i: u32, j: u32, k: u32) -> (crate::ecm::QuadId, u32, u32) {
+    if k == 0 || k > u32::from(quad.level) {
+        return (quad, i, j);
+    }
+    let mask = (1u32 << k) - 1;
+    let ancestor = quad.ancestor_at(quad.level - k as u8);
+    ((ancestor), (i + 256 * (quad.x & mask)) >> k, (j + 256 * (quad.y & mask)) >> k)
+}
 
 /// How far a vertex of a patch at `stride` has morphed toward the patch's mesh at twice the
 /// stride (0 … 1): `spacing_m` the quad's sample spacing, `distance_m` the vertex's from the eye,
@@ -32,7 +51,7 @@ pub fn morph_factor(stride: u32, spacing_m: f64, distance_m: f64, focal_px: f64,
         return 0.0;
     }
     let rho = 2.0 * f64::from(stride) * spacing_m * focal_px / (threshold_px * distance_m.max(1e-6));
-    ((MORPH_BAND_END - rho) / (MORPH_BAND_END - 1.0)).clamp(0.0, 1.0)
+    ((MORPH_BAND_END - rho) / (MORPH_BAND_END - MORPH_BAND_START)).clamp(0.0, 1.0)
 }
 
 /// The two samples a vertex at patch grid position (a, b) slides toward when its patch morphs to

@@ -24,7 +24,8 @@ use crate::scene::Camera;
 use crate::scene::Scene;
 use crate::scene::loader::{CpuCache, DataKey, Loaded, Loader, SAMPLES};
 use crate::scene::patches::{
-    MORPH_BAND_END, PATCH_CELLS, PATCHES_PER_EDGE, PatchSelection, QuadPatches, select_patches,
+    DATA_LEVELS_UP, MORPH_BAND_END, MORPH_BAND_START, PATCH_CELLS, PATCHES_PER_EDGE, PatchSelection, QuadPatches,
+    select_patches,
 };
 use crate::scene::quads::{QuadCache, Source, exaggerated_range, flat_rule_for};
 use crate::scene::select::{self, SelectParams, Selection};
@@ -539,6 +540,19 @@ impl Renderer {
                 stale += 1;
             }
         }
+        // The ancestors whose data the drawn quads' coarser strides show are kept current too
+        // (after a layer changes; until then a quad shows its own data there).
+        let mut ancestors: Vec<QuadId> = selection
+            .quads
+            .iter()
+            .flat_map(|q| q.ancestors().take(DATA_LEVELS_UP as usize))
+            .filter(|a| self.heights_pool.get(*a).is_some())
+            .collect();
+        ancestors.sort_unstable();
+        ancestors.dedup();
+        for a in ancestors {
+            self.ensure_heights(a, &mut batch, &mut stats, &mut requests);
+        }
         for q in &selection.wanted {
             let has = self.cache.plan(&self.scene, *q).has_data(&self.scene.stack);
             let canonical = MapSymmetry::of(*q).canonical;
@@ -611,6 +625,7 @@ impl Renderer {
             if map_slot == NO_SLOT {
                 stats.flat_quads += 1;
             }
+            let ancestry = self.ancestry(quad);
             self.instances.push(QuadInstance {
                 anchor: v4(frame.anchor, frame.reference_height_m),
                 corners: frame.corners.map(|c| v4(c, 0.0)),
@@ -619,6 +634,7 @@ impl Renderer {
                 slots: [Split::of(quad).code(), map_slot, height_slot, flags],
                 params: [skirt as f32, f32::from(quad.level), 0.0, (relief + roughness * exaggeration + skirt) as f32],
                 lod: [spacing as f32, 0.0, 0.0, 0.0],
+                ancestry,
             });
         }
         if !self.instances.is_empty() {
@@ -648,6 +664,24 @@ impl Renderer {
         self.camera = Some(camera);
         self.size = (width, height);
         stats
+    }
+
+    /// The height slots of a quad's ancestors 1 … 5 levels up whose composition is current
+    /// (NO_SLOT otherwise), and the quad's x and y, for the shader's `data_index`.
+    fn ancestry(&mut self, quad: QuadId) -> [[u32; 4]; 2] {
+        let mut slots = [NO_SLOT; 5];
+        for (k, slot) in slots.iter_mut().enumerate() {
+            let up = k as u8 + 1;
+            if up > quad.level {
+                break;
+            }
+            let a = quad.ancestor_at(quad.level - up);
+            let plan = self.cache.plan(&self.scene, a);
+            if plan.has_data(&self.scene.stack) && self.composed.get(&a) == Some(&plan.stamp) {
+                *slot = self.heights_pool.get(a).unwrap_or(NO_SLOT);
+            }
+        }
+        [[slots[0], slots[1], slots[2], slots[3]], [slots[4], 0, quad.x, quad.y]]
     }
 
     fn write_frame(&self, camera: &Camera, width: u32, height: u32) {
@@ -690,7 +724,7 @@ impl Renderer {
                 (camera.focal_px(height) / self.scene.detail.lod_threshold_px) as f32,
                 MORPH_BAND_END as f32,
                 if self.geomorph && self.adaptive { 1.0 } else { 0.0 },
-                0.0,
+                MORPH_BAND_START as f32,
             ],
         };
         self.queue.write_buffer(&self.frame_buffer, 0, bytemuck::bytes_of(&uniform));
