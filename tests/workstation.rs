@@ -812,3 +812,40 @@ fn a_cluster_import_is_planned_followed_merged_in_two_goes_and_added_from_the_pa
     assert_eq!(stack.layers[1].spec.name, dataset);
     assert!(store.exists());
 }
+
+#[test]
+fn a_flight_is_recorded_while_flying_and_replayed_along_its_path() {
+    let dir = common::out_path("workstation-flight");
+    let p = sample_project("erzurum", &dir);
+    let mut h = harness(&p, "30km");
+    settle(&mut h);
+    // Recording: the camera joins the path as it moves, twice a second at most.
+    h.state_mut().record_flight(true);
+    h.step();
+    drag(&mut h, centre(), centre() + egui::vec2(60.0, 20.0));
+    std::thread::sleep(Duration::from_millis(600));
+    h.run_steps(2);
+    drag(&mut h, centre(), centre() + egui::vec2(-40.0, 50.0));
+    std::thread::sleep(Duration::from_millis(600));
+    h.run_steps(2);
+    h.state_mut().record_flight(false);
+    let (text, _, recording, _) = h.state().flight_state();
+    assert!(!recording);
+    let waypoints = text.split(';').count();
+    assert!(waypoints >= 3, "{waypoints} waypoints recorded: {text}");
+    assert!(terrafuse::scene::flight::Flight::parse(text, 50.0).is_ok(), "the recorded path reads back: {text}");
+    // Replaying a path: one camera a frame, ending on the last waypoint.
+    h.state_mut().set_flight("39.3,40.4,30000,0,-60;39.35,40.45,10000,30,-30", 10);
+    h.state_mut().play_flight().unwrap();
+    step_while(&mut h, 200, "the flight", |a| a.flight_state().3);
+    let c = h.state().camera();
+    assert!((c.lat - 39.35).abs() < 1e-9 && (c.lon - 40.45).abs() < 1e-9 && (c.alt - 10000.0).abs() < 1e-6, "{c:?}");
+    assert!((c.heading - 30.0).abs() < 1e-9 && (c.pitch + 30.0).abs() < 1e-9, "{c:?}");
+    // A path that does not read is refused, named.
+    h.state_mut().set_flight("39.3,40.4,30000,0,-60", 10);
+    let e = h.state_mut().play_flight().unwrap_err();
+    assert!(e.contains("at least two waypoints"), "{e}");
+    h.state_mut().set_flight("39.3,40.4,x,0,-60;39.35,40.45,10000,30,-30", 10);
+    let e = h.state_mut().play_flight().unwrap_err();
+    assert!(e.contains("waypoint 1"), "{e}");
+}

@@ -21,6 +21,7 @@ mod drainage;
 mod erosion;
 mod erosion_brush;
 pub mod file;
+mod flight;
 mod landscape;
 mod layers;
 mod legend;
@@ -107,6 +108,8 @@ pub struct App {
     erosion: erosion::ErosionTool,
     /// New, open, save as, recent projects, autosave.
     file: file::FileState,
+    /// Recording and replaying a camera flight.
+    flight: flight::FlightTool,
 }
 
 impl App {
@@ -160,6 +163,7 @@ impl App {
             difference_range: Default::default(),
             brush: Default::default(),
             erosion: Default::default(),
+            flight: Default::default(),
             swipe: None,
             swipe_request: None,
             profile: Default::default(),
@@ -677,6 +681,7 @@ impl eframe::App for App {
             }
             self.brush_keys(ui);
             self.erosion_frame(ui.ctx());
+            self.flight_frame(ui.ctx());
             if !self.drag_swipe(ui, &response, rect)
                 && !self.pick_profile(&response, view)
                 && !self.paint(ui, &response, view)

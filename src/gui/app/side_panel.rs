@@ -137,6 +137,7 @@ impl App {
             ui.label(egui::RichText::new(format!("--camera {text}")).monospace().small())
                 .on_hover_text("this camera for terrafuse render");
         });
+        self.flight_ui(ui);
         egui::CollapsingHeader::new("Detail").default_open(false).show(ui, |ui| {
             let t = self.threshold_px;
             ui.add(egui::Slider::new(&mut self.threshold_px, 0.5..=8.0).logarithmic(true).text("t, pixels per sample"));
