@@ -45,35 +45,14 @@ impl Flight {
         let mut waypoints = Vec::new();
         for (k, part) in text.split(';').map(str::trim).filter(|p| !p.is_empty()).enumerate() {
             let bad = |why: String| FlightError::Waypoint { index: k + 1, text: part.to_string(), why };
-            let values: Vec<f64> = part
-                .split(',')
-                .map(|v| v.trim().parse::<f64>().map_err(|e| bad(format!("'{}': {e}", v.trim()))))
-                .collect::<Result<_, _>>()?;
-            if !(5..=6).contains(&values.len()) {
-                return Err(bad(format!("give LAT,LON,ALT,HEADING,PITCH[,FOV], not {} values", values.len())));
-            }
-            if let Some(v) = values.iter().find(|v| !v.is_finite()) {
-                return Err(bad(format!("{v} is not a finite number")));
-            }
-            let camera = CameraSpec {
-                lat: values[0],
-                lon: values[1],
-                alt: values[2],
-                heading: values[3],
-                pitch: values[4],
-                fov: values.get(5).copied().unwrap_or(default_fov),
-            };
-            if !(-90.0..=90.0).contains(&camera.lat) {
-                return Err(bad(format!("latitude {} is outside −90…90°", camera.lat)));
+            // A waypoint is a camera as `--camera` reads it, its field of view the project's
+            // where not given; the altitude is interpolated geometrically, so it must be > 0.
+            let mut camera = CameraSpec::parse(part).map_err(|e| bad(e.to_string()))?;
+            if part.split(',').count() == 5 {
+                camera.fov = default_fov;
             }
             if camera.alt <= 0.0 {
                 return Err(bad(format!("altitude {} m must be above the ellipsoid (> 0)", camera.alt)));
-            }
-            if !(-90.0..=90.0).contains(&camera.pitch) {
-                return Err(bad(format!("pitch {} is outside −90…90°", camera.pitch)));
-            }
-            if !(1.0..=170.0).contains(&camera.fov) {
-                return Err(bad(format!("field of view {} is outside 1…170°", camera.fov)));
             }
             waypoints.push(camera);
         }
@@ -157,7 +136,7 @@ mod tests {
         assert!(err("39,40,100,0,-90").contains("at least two waypoints"));
         assert!(err("39,40,100,0,-90;39,40,x,0,-90").contains("waypoint 2 '39,40,x,0,-90': 'x'"));
         assert!(err("39,40,100,0,-90;39,40,-5,0,-90").contains("altitude -5 m"));
-        assert!(err("39,40,100,0,-90;39,40,100,0").contains("not 4 values"));
+        assert!(err("39,40,100,0,-90;39,40,100,0").contains("got 4 values"));
         assert!(err("95,40,100,0,-90;39,40,100,0,-90").contains("waypoint 1"));
         let f = Flight::parse("39,40,100,0,-90;39,40,100,0,-90", 50.0).unwrap();
         assert_eq!(f.cameras(&Ellipsoid::WGS84, 1).unwrap_err(), FlightError::Frames(1));

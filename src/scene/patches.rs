@@ -6,7 +6,7 @@
 //! as quads do, so the seams stay closed.
 
 use super::camera::Camera;
-use super::select::{Culled, QuadInfo, SelectParams, cull_box, pixels_per_sample};
+use super::select::{QuadInfo, SelectParams, cull_box, pixels_per_sample, tally};
 use crate::ecm::geometry::{QuadBounds, QuadGeometry};
 
 /// Patches along a quad's edge.
@@ -195,16 +195,9 @@ pub fn select_patches(camera: &Camera, params: &SelectParams, quads: &[QuadPatch
         for (n, bounds) in q.bounds.iter().enumerate() {
             let (px, py) = (n as u32 % PATCHES_PER_EDGE, n as u32 / PATCHES_PER_EDGE);
             let stride = if adaptive {
-                match cull_box(camera, &planes, params.occluder_m, bounds) {
-                    Some(Culled::Frustum) => {
-                        out.culled_frustum += 1;
-                        continue;
-                    }
-                    Some(Culled::Horizon) => {
-                        out.culled_horizon += 1;
-                        continue;
-                    }
-                    None => {}
+                let culled = cull_box(camera, &planes, params.occluder_m, bounds);
+                if tally(culled, &mut out.culled_frustum, &mut out.culled_horizon) {
+                    continue;
                 }
                 let info = QuadInfo { bounds: *bounds, edge_m: q.edge_m };
                 stride_for(pixels_per_sample(camera, &info, params.height), params.threshold_px)

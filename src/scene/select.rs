@@ -135,6 +135,16 @@ pub(crate) fn cull_box(
     None
 }
 
+/// Counts a box's culling into the frustum's or the horizon's tally; whether it was culled.
+pub(crate) fn tally(culled: Option<Culled>, frustum: &mut usize, horizon: &mut usize) -> bool {
+    match culled {
+        Some(Culled::Frustum) => *frustum += 1,
+        Some(Culled::Horizon) => *horizon += 1,
+        None => return false,
+    }
+    true
+}
+
 fn cull(camera: &Camera, planes: &[super::camera::Plane; 5], params: &SelectParams, info: &QuadInfo) -> Option<Culled> {
     cull_box(camera, planes, params.occluder_m, &info.bounds)
 }
@@ -160,16 +170,8 @@ pub fn select(camera: &Camera, params: &SelectParams, source: &mut impl QuadSour
     while let Some(quad) = queue.pop_front() {
         out.visited += 1;
         let info = source.info(quad);
-        match cull(camera, &planes, params, &info) {
-            Some(Culled::Frustum) => {
-                out.culled_frustum += 1;
-                continue;
-            }
-            Some(Culled::Horizon) => {
-                out.culled_horizon += 1;
-                continue;
-            }
-            None => {}
+        if tally(cull(camera, &planes, params, &info), &mut out.culled_frustum, &mut out.culled_horizon) {
+            continue;
         }
         let px = pixels_per_sample(camera, &info, params.height);
         let children = quad.children().filter(|_| px > params.threshold_px && source.refinable(quad));
