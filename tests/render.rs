@@ -386,6 +386,80 @@ fn patches_are_culled_and_strided_without_cracks_and_draw_the_same_surface() {
     }
 }
 
+#[test]
+fn every_drawn_vertex_lies_in_its_patch_box_at_its_stride() {
+    // Each patch is bounded by the heights it draws at its stride (its own data, the levels above
+    // that the stride shows and morphs toward), read from its tiles' block ranges: a box that holds
+    // every vertex drawn, and much tighter than the quad's whole range over rough terrain.
+    let views = [
+        ("erzurum", "30 km, 45°", cam(39.3, 40.42, 30_000.0, 0.0, -45.0), true),
+        ("erzurum", "6 km, oblique", cam(39.2, 40.1, 6_000.0, 40.0, -12.0), true),
+        // A brushed layer over the Moon, and an eroded layer with its drawn difference.
+        ("moon-brushing", "sculpt", cam(-7.0, 45.0, 160_000.0, 0.0, -50.0), false),
+        ("erzurum-erosion", "eroded", cam(39.385, 40.235, 7_000.0, 0.0, -50.0), false),
+    ];
+    for (project_name, name, camera, rough) in views {
+        let mut r = renderer(&project(project_name), |_| {});
+        let image = draw(&mut r, &camera, 320, 240, DrawMode::Points);
+        let (surface, ids) = (image.surface.unwrap(), image.ids.unwrap());
+        let eye = r.last_camera().unwrap().position;
+        let (mut checked, mut outside) = (0usize, Vec::new());
+        for (k, id) in ids.iter().enumerate() {
+            if id[0] == 0 || id[3] & 2 != 0 {
+                continue; // nothing drawn here, or a skirt vertex
+            }
+            let (index, i, j, stride) = ((id[0] - 1) as usize, id[1], id[2], id[3] >> 2);
+            let rel = glam::DVec3::new(f64::from(surface[k][0]), f64::from(surface[k][1]), f64::from(surface[k][2]));
+            let p = eye + rel;
+            // f32 camera-relative positions: 10⁻⁶ of the distance, and a centimetre.
+            let tolerance = 1e-6 * rel.length() + 0.01;
+            // A vertex on a patch edge belongs to the patches on both sides.
+            let sides = |a: u32| [a / 32, a.saturating_sub(1) / 32].map(|p| p.min(7));
+            let inside = sides(i).iter().any(|&px| {
+                sides(j).iter().any(|&py| {
+                    r.patch_box(index, px, py, stride).is_some_and(|b| {
+                        let local = b.axes.map(|a| (p - b.center_ecef).dot(a).abs());
+                        (0..3).all(|n| local[n] <= b.half_extents_m[n] + tolerance)
+                    })
+                })
+            });
+            checked += 1;
+            if !inside {
+                outside.push((index, i, j, stride));
+            }
+        }
+        assert!(checked > 5_000, "{name}: {checked} vertices");
+        assert!(
+            outside.is_empty(),
+            "{name}: {} of {checked} vertices outside their patch box: {:?}",
+            outside.len(),
+            &outside[..outside.len().min(5)]
+        );
+        if !rough {
+            eprintln!("{name}: {checked} vertices inside their patch boxes");
+            continue;
+        }
+        // Tighter than the quads' ranges: the median patch spans at most half its quad's range.
+        let drawn = r.drawn().to_vec();
+        let mut ratios = Vec::new();
+        for p in &r.patches().patches.clone() {
+            let quad = drawn[p.quad as usize];
+            let (lo, hi) = r.quad_height_range(quad);
+            let b = r.patch_box(p.quad as usize, p.px, p.py, p.stride).unwrap();
+            if hi - lo > 100.0 {
+                ratios.push((b.height_range_m.1 - b.height_range_m.0) / f64::from(hi - lo));
+            }
+        }
+        ratios.sort_by(f64::total_cmp);
+        assert!(ratios.len() > 20, "{name}: {} patches over rough terrain", ratios.len());
+        let median = ratios[ratios.len() / 2];
+        assert!(median < 0.5, "{name}: a patch's range is {median} of its quad's at the median");
+        eprintln!(
+            "{name}: {checked} vertices inside their patch boxes; patch span / quad span {median:.3} at the median"
+        );
+    }
+}
+
 /// Compares with `tests/reference/NAME.png`: mean difference ≤ 1 level per channel and at most
 /// 0.5 % of pixels off by more than 24 levels. A failing run writes NAME.new.png and
 /// NAME.diff.png to the test output folder's `render/`; UPDATE_SNAPSHOTS=1 writes the reference instead.

@@ -31,6 +31,8 @@ pub struct QuadHeights {
     /// Largest difference between neighbouring samples along the quad's edges, metres: how far
     /// a coarser neighbour's edge can stray from this one's (sizes the skirt).
     pub edge_roughness_m: f32,
+    /// The height ranges of its 8 × 8-cell blocks (patch bounds read them).
+    pub blocks: std::sync::Arc<super::block_ranges::BlockRanges>,
 }
 
 impl QuadHeights {
@@ -55,7 +57,8 @@ impl QuadHeights {
         if lo > hi {
             (lo, hi) = (0.0, 0.0);
         }
-        QuadHeights { grid, range_m: (lo, hi), edge_roughness_m: rough }
+        let blocks = std::sync::Arc::new(super::block_ranges::BlockRanges::new(&grid));
+        QuadHeights { grid, range_m: (lo, hi), edge_roughness_m: rough, blocks }
     }
 
     fn bytes(&self) -> usize {

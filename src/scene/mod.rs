@@ -4,6 +4,7 @@
 //! selection, the asynchronous tile loader and its cache. The renderer in [`crate::gpu`] draws a
 //! scene; `compare`, `replay` and the command line read one without a device.
 
+pub mod block_ranges;
 pub mod camera;
 pub mod dataset;
 pub mod flight;

@@ -151,37 +151,49 @@ pub fn stride_for(pixels_per_sample: f64, threshold_px: f64) -> u32 {
 }
 
 /// The boxes of a quad's 64 patches (row-major: patch (px, py) at `py * 8 + px`) from its coarse
-/// bounding geometry (whose cells must tile the patches: 17² samples give 2 × 2 a patch), for
-/// heights in `range_m`, each widened by `pad_m` (the sagitta of the surface between the coarse
-/// samples, as the quad's box is).
-pub fn patch_bounds(geometry: &QuadGeometry, range_m: (f64, f64), pad_m: f64) -> Vec<QuadBounds> {
+/// bounding geometry (whose cells must tile the patches: 17² samples give 2 × 2 a patch), each for
+/// the heights in its own range of `ranges_m`, widened by `pad_m` (the sagitta of the surface
+/// between the coarse samples, as the quad's box is).
+pub fn patch_bounds(geometry: &QuadGeometry, ranges_m: &[(f64, f64)], pad_m: f64) -> Vec<QuadBounds> {
     let cells = geometry.samples - 1;
     debug_assert_eq!(cells % PATCHES_PER_EDGE, 0, "the bounding geometry's cells must tile the patches");
+    debug_assert_eq!(ranges_m.len(), (PATCHES_PER_EDGE * PATCHES_PER_EDGE) as usize);
     let per = cells / PATCHES_PER_EDGE;
-    let mut out = Vec::with_capacity((PATCHES_PER_EDGE * PATCHES_PER_EDGE) as usize);
-    for py in 0..PATCHES_PER_EDGE {
-        for px in 0..PATCHES_PER_EDGE {
-            let mut b = QuadBounds::compute_within(
-                geometry,
-                (px * per, (px + 1) * per),
-                (py * per, (py + 1) * per),
-                range_m.0,
-                range_m.1,
-            );
-            b.half_extents_m += glam::DVec3::splat(pad_m);
-            out.push(b);
-        }
+    let mut out = Vec::with_capacity(ranges_m.len());
+    for (n, &(lo, hi)) in ranges_m.iter().enumerate() {
+        let (px, py) = (n as u32 % PATCHES_PER_EDGE, n as u32 / PATCHES_PER_EDGE);
+        let mut b =
+            QuadBounds::compute_within(geometry, (px * per, (px + 1) * per), (py * per, (py + 1) * per), lo, hi);
+        b.half_extents_m += glam::DVec3::splat(pad_m);
+        out.push(b);
     }
     out
 }
 
+/// A patch's boxes, one per stride of [`STRIDES`]: what it draws at that stride (its own data's
+/// heights, and the data of the levels above that the stride shows and morphs toward).
+pub type StrideBoxes = [QuadBounds; STRIDES.len()];
+
+/// Which of [`STRIDES`] `stride` is (its log2).
+pub fn stride_index(stride: u32) -> usize {
+    stride.trailing_zeros() as usize
+}
+
+/// The levels above a quad whose data a patch at stride 2^k draws: its own (where an ancestor is
+/// not composed yet), the level k up it shows and the level k + 1 up it morphs toward (none past
+/// the coarsest stride, which does not morph).
+pub fn levels_drawn_at(k: usize) -> impl Iterator<Item = usize> {
+    let morph = (k + 1 < STRIDES.len()).then_some(k + 1);
+    [0, k].into_iter().chain(morph)
+}
+
 /// One drawn quad as patch selection sees it: the quad's longest edge (metres) and its 64
-/// patch boxes.
+/// patches' boxes at each stride.
 pub struct QuadPatches<'a> {
     /// The quad's longest edge, metres (its sample spacing is this / 256).
     pub edge_m: f64,
-    /// The patch boxes of [`patch_bounds`].
-    pub bounds: &'a [QuadBounds],
+    /// Per patch (row-major), its boxes at each stride.
+    pub bounds: &'a [StrideBoxes],
 }
 
 /// The patches of the drawn quads (in their order) to draw: each culled on its own and at the
@@ -195,12 +207,14 @@ pub fn select_patches(camera: &Camera, params: &SelectParams, quads: &[QuadPatch
         for (n, bounds) in q.bounds.iter().enumerate() {
             let (px, py) = (n as u32 % PATCHES_PER_EDGE, n as u32 / PATCHES_PER_EDGE);
             let stride = if adaptive {
-                let culled = cull_box(camera, &planes, params.occluder_m, bounds);
+                // The stride from the patch's own surface; culled by what it draws at that stride.
+                let info = QuadInfo { bounds: bounds[0], edge_m: q.edge_m };
+                let stride = stride_for(pixels_per_sample(camera, &info, params.height), params.threshold_px);
+                let culled = cull_box(camera, &planes, params.occluder_m, &bounds[stride_index(stride)]);
                 if tally(culled, &mut out.culled_frustum, &mut out.culled_horizon) {
                     continue;
                 }
-                let info = QuadInfo { bounds: *bounds, edge_m: q.edge_m };
-                stride_for(pixels_per_sample(camera, &info, params.height), params.threshold_px)
+                stride
             } else {
                 1
             };
@@ -228,11 +242,12 @@ mod tests {
         }
     }
 
-    fn quad_patches(quad: QuadId) -> (f64, Vec<QuadBounds>) {
+    fn quad_patches(quad: QuadId) -> (f64, Vec<StrideBoxes>) {
         let g = QuadGeometry::compute(&Ellipsoid::MOON, CubeProjection::Qsc, quad, 17);
         let q = g.corners_ecef;
         let edge = (q[1] - q[0]).length().max((q[2] - q[0]).length());
-        (edge, patch_bounds(&g, (-100.0, 100.0), 1.0))
+        let boxes = patch_bounds(&g, &[(-100.0, 100.0); 64], 1.0);
+        (edge, boxes.into_iter().map(|b| [b; STRIDES.len()]).collect())
     }
 
     #[test]
@@ -251,7 +266,7 @@ mod tests {
         let quad = QuadId::root(Face::Front).children().unwrap()[3];
         let g = QuadGeometry::compute(&Ellipsoid::MOON, CubeProjection::Qsc, quad, 17);
         let whole = QuadBounds::compute(&g, -100.0, 100.0);
-        let patches = patch_bounds(&g, (-100.0, 100.0), 0.0);
+        let patches = patch_bounds(&g, &[(-100.0, 100.0); 64], 0.0);
         assert_eq!(patches.len(), 64);
         // Every sample of the coarse geometry is in the patch boxes that share it, and every
         // patch box is much smaller than the quad's.
@@ -298,7 +313,7 @@ mod tests {
         assert!(strides.len() >= 2, "near and far patches at different strides: {strides:?}");
         // Each drawn patch's stride keeps a sample at its nearest point under t, unless it is 1.
         for p in &adaptive.patches {
-            let info = QuadInfo { bounds: bounds[(p.py * 8 + p.px) as usize], edge_m };
+            let info = QuadInfo { bounds: bounds[(p.py * 8 + p.px) as usize][0], edge_m };
             let px = pixels_per_sample(&camera, &info, 512);
             assert!(p.stride == 1 || f64::from(p.stride) * px <= 1.5, "{p:?}: {px}");
             assert!(p.stride == 32 || f64::from(2 * p.stride) * px > 1.5, "{p:?} could be coarser: {px}");

@@ -131,6 +131,8 @@ pub struct Renderer {
     drawn: Vec<QuadId>,
     /// The prepared frame's patches.
     patches: PatchSelection,
+    /// The prepared frame's patch boxes at each stride, per drawn quad.
+    patch_boxes: Vec<crate::scene::quads::PatchBoxes>,
     /// Whether patches are culled and drawn at the stride they need (else every patch of a drawn
     /// quad at stride 1: the quads whole).
     adaptive: bool,
@@ -237,6 +239,7 @@ impl Renderer {
             instances: Vec::new(),
             drawn: Vec::new(),
             patches: PatchSelection::default(),
+            patch_boxes: Vec::new(),
             adaptive: true,
             geomorph: true,
             camera: None,
@@ -380,6 +383,19 @@ impl Renderer {
         &self.drawn
     }
 
+    /// The box by which the prepared frame culled patch (px, py) of its `index`-th drawn quad at
+    /// `stride`: it holds every vertex the patch draws there.
+    pub fn patch_box(&self, index: usize, px: u32, py: u32, stride: u32) -> Option<crate::ecm::geometry::QuadBounds> {
+        let k = crate::scene::patches::stride_index(stride);
+        self.patch_boxes.get(index)?.get((py * PATCHES_PER_EDGE + px) as usize)?.get(k).copied()
+    }
+
+    /// A quad's height range as quad selection bounds it (exaggerated metres).
+    pub fn quad_height_range(&mut self, quad: QuadId) -> (f32, f32) {
+        let plan = self.cache.plan(&self.scene, quad);
+        self.cache.range(&self.scene, &plan, self.scene.visuals.exaggeration)
+    }
+
     /// The per-quad values of the last prepared frame, in instance order.
     pub fn instances(&self) -> &[QuadInstance] {
         &self.instances
@@ -419,7 +435,7 @@ impl Renderer {
     fn absorb(&mut self, item: Loaded, errors: &mut Vec<String>) {
         match &item {
             Loaded::Tile(DataKey::Source(d, q), Ok(h)) => {
-                self.cache.tile_ranges.insert((*d, *q), (h.range_m.0, h.range_m.1, h.edge_roughness_m));
+                self.cache.note_tile(*d, *q, h);
             }
             Loaded::Tile(key, Err(e)) => {
                 let d = key.dataset().unwrap_or(0) as usize;
@@ -612,7 +628,7 @@ impl Renderer {
             let height_slot = if has { self.heights_pool.get(quad).unwrap_or(NO_SLOT) } else { NO_SLOT };
             let flags = u32::from(symmetry.swap) | u32::from(symmetry.flip_x) << 1 | u32::from(symmetry.flip_y) << 2;
             let edge_m = info.map_or(0.0, |i| i.edge_m);
-            patch_bounds.push((edge_m, self.cache.patch_bounds(&self.scene, quad, range, edge_m)));
+            patch_bounds.push((edge_m, self.cache.patch_bounds(&self.scene, &plan, exaggeration, edge_m)));
             let spacing = edge_m / f64::from(SAMPLES - 1);
             let r_min = e.b_m() * e.b_m() / e.a_m();
             let sag = spacing * spacing / (8.0 * r_min);
@@ -642,6 +658,7 @@ impl Renderer {
         let quads: Vec<QuadPatches> =
             patch_bounds.iter().map(|(edge_m, b)| QuadPatches { edge_m: *edge_m, bounds: b }).collect();
         self.patches = select_patches(&camera, &params, &quads, self.adaptive);
+        self.patch_boxes = patch_bounds.iter().map(|(_, b)| b.clone()).collect();
         let records: Vec<PatchInstance> = self.patches.patches.iter().map(PatchInstance::of).collect();
         if !records.is_empty() {
             self.queue.write_buffer(&self.patch_buffer, 0, bytemuck::cast_slice(&records));

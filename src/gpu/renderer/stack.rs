@@ -262,7 +262,7 @@ impl Renderer {
                     }
                     let tile = self.scene.read_layer_tile(key, &mut stores, &fields)?;
                     if let DataKey::Source(d, q) = key {
-                        self.cache.tile_ranges.insert((d, q), (tile.range_m.0, tile.range_m.1, tile.edge_roughness_m));
+                        self.cache.note_tile(d, q, &tile);
                     }
                     self.cpu.insert(Loaded::Tile(key, Ok(std::sync::Arc::new(tile))));
                     if !self.upload(key) {
