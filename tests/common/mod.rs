@@ -103,7 +103,10 @@ pub fn store_dir(dir: &std::path::Path, key: &str, settings: &str) -> PathBuf {
     if let Ok(entries) = std::fs::read_dir(dir) {
         for e in entries.flatten() {
             let file = e.file_name().to_string_lossy().into_owned();
-            if file.starts_with(&prefix) && file != name {
+            // Only this key's folders: `stores-erzurum-` must not take `stores-erzurum-erosion-…`.
+            let digest =
+                file.strip_prefix(&prefix).filter(|d| d.len() == 16 && d.bytes().all(|b| b.is_ascii_hexdigit()));
+            if digest.is_some() && file != name {
                 let _ = std::fs::remove_dir_all(e.path());
             }
         }
