@@ -7,18 +7,18 @@ use wgpu::util::DeviceExt;
 use super::context::GpuError;
 use super::targets::{DEPTH_FORMAT, ID_FORMAT, IMAGE_FORMAT, SURFACE_FORMAT};
 use super::uniforms::rgba;
-use crate::scene::patches::{PATCH_CELLS, STRIDES, triangles_at};
+use crate::scene::patches::{ALL_SIDES, PATCH_CELLS, STRIDES, triangles_at};
 
 /// The indices of a patch drawn at `stride` (see terrain.wgsl's `vs_main`): with n = 32 / stride
 /// cells a side, vertex b·(n+1) + a is the sample (a, b) of the patch's grid at that stride and
 /// (n+1)² + b·(n+1) + a the same sample lowered by the skirt depth; two triangles a cell (the
 /// diagonal from (a, b) to (a+1, b+1), as the quads were always cut), then two a cell along each
-/// side joining the edge to its lowered copy.
-pub(crate) fn patch_indices(stride: u32) -> Vec<u32> {
+/// side in `skirts` (bit 0 south, 1 east, 2 north, 3 west) joining the edge to its lowered copy.
+pub(crate) fn patch_indices(stride: u32, skirts: u8) -> Vec<u32> {
     let n = PATCH_CELLS / stride;
     let nv = n + 1;
     let low = nv * nv;
-    let mut out = Vec::with_capacity(triangles_at(stride) as usize * 3);
+    let mut out = Vec::with_capacity(triangles_at(stride, skirts) as usize * 3);
     for b in 0..n {
         for a in 0..n {
             let v00 = b * nv + a;
@@ -34,7 +34,7 @@ pub(crate) fn patch_indices(stride: u32) -> Vec<u32> {
         2 => n * nv + (n - k),
         _ => (n - k) * nv,
     };
-    for s in 0..4 {
+    for s in (0..4).filter(|s| skirts & (1 << s) != 0) {
         for k in 0..n {
             let (u, w) = (side(s, k), side(s, k + 1));
             out.extend_from_slice(&[u, w, w + low, u, w + low, u + low]);
@@ -82,15 +82,16 @@ pub(crate) struct TerrainPass {
     pub(crate) points_pipeline: wgpu::RenderPipeline,
     pub(crate) layout: wgpu::BindGroupLayout,
     pub(crate) index_buffer: wgpu::Buffer,
-    /// Per stride (in the order of [`STRIDES`]): the first index of its patch mesh and the count.
-    pub(crate) index_ranges: [(u32, u32); STRIDES.len()],
+    /// Per stride (in the order of [`STRIDES`]) and set of skirts: the first index of its patch
+    /// mesh and the count.
+    pub(crate) index_ranges: Vec<(u32, u32)>,
 }
 
 impl TerrainPass {
-    /// The index range of a patch mesh at `stride`.
-    pub(crate) fn indices_of(&self, stride: u32) -> std::ops::Range<u32> {
+    /// The index range of a patch mesh at `stride` with skirts on `skirts`.
+    pub(crate) fn indices_of(&self, stride: u32, skirts: u8) -> std::ops::Range<u32> {
         let k = STRIDES.iter().position(|&s| s == stride).unwrap_or(0);
-        let (first, count) = self.index_ranges[k];
+        let (first, count) = self.index_ranges[k * (usize::from(ALL_SIDES) + 1) + usize::from(skirts & ALL_SIDES)];
         first..first + count
     }
 }
@@ -105,11 +106,13 @@ impl TerrainPass {
         });
 
         let mut indices = Vec::new();
-        let mut index_ranges = [(0, 0); STRIDES.len()];
-        for (k, &stride) in STRIDES.iter().enumerate() {
-            let mesh = patch_indices(stride);
-            index_ranges[k] = (indices.len() as u32, mesh.len() as u32);
-            indices.extend(mesh);
+        let mut index_ranges = Vec::new();
+        for &stride in &STRIDES {
+            for skirts in 0..=ALL_SIDES {
+                let mesh = patch_indices(stride, skirts);
+                index_ranges.push((indices.len() as u32, mesh.len() as u32));
+                indices.extend(mesh);
+            }
         }
         let index_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("quad mesh"),

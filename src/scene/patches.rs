@@ -66,11 +66,27 @@ pub fn morph_neighbours(a: u32, b: u32, stride: u32) -> Option<[(i64, i64); 2]> 
     Some([(-da * s, -db * s), (da * s, db * s)])
 }
 
-/// One patch to draw: which drawn quad, where in it, how densely.
+/// The sides of a patch, as bits of [`Patch::skirts`] (and the order of the skirt ring).
+pub const SOUTH: u8 = 1;
+/// The east side (+i).
+pub const EAST: u8 = 2;
+/// The north side (+j).
+pub const NORTH: u8 = 4;
+/// The west side (−i).
+pub const WEST: u8 = 8;
+/// Every side.
+pub const ALL_SIDES: u8 = 15;
+
+/// One patch to draw: which drawn quad, where in it, how densely, and which sides hang a skirt.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
 pub struct Patch {
     /// The stride, samples (one of [`STRIDES`]); first, so that sorting groups the draws.
     pub stride: u32,
+    /// The sides with a skirt ([`SOUTH`] | [`EAST`] | [`NORTH`] | [`WEST`]): those on the quad's
+    /// edge, and those whose neighbour in the quad is drawn at another stride or not at all. Two
+    /// patches of one quad at one stride compute their shared edge's vertices identically, so
+    /// no gap can open between them.
+    pub skirts: u8,
     /// The quad's index in the frame's drawn quads.
     pub quad: u32,
     /// The patch's row and column in the quad (0 … 7).
@@ -90,17 +106,17 @@ impl Patch {
         (self.px * PATCH_CELLS, self.py * PATCH_CELLS)
     }
 
-    /// Triangles the patch draws: its grid and its skirt ring.
+    /// Triangles the patch draws: its grid and its skirts.
     pub fn triangles(&self) -> u64 {
-        triangles_at(self.stride)
+        triangles_at(self.stride, self.skirts)
     }
 }
 
-/// Triangles a patch draws at `stride`: 2n² for the grid of n cells a side, 8n for the skirt
-/// ring (two per cell along each of the four sides).
-pub fn triangles_at(stride: u32) -> u64 {
+/// Triangles a patch draws at `stride` with skirts on `skirts`: 2n² for the grid of n cells a
+/// side, 2n for each side's skirt (two per cell).
+pub fn triangles_at(stride: u32, skirts: u8) -> u64 {
     let n = u64::from(PATCH_CELLS / stride);
-    2 * n * n + 8 * n
+    2 * n * n + 2 * n * u64::from(skirts.count_ones())
 }
 
 /// The patches of one frame.
@@ -131,13 +147,14 @@ impl PatchSelection {
         counts
     }
 
-    /// The runs of patches of one stride: (stride, first, count), for one instanced draw each.
-    pub fn groups(&self) -> Vec<(u32, u32, u32)> {
-        let mut out: Vec<(u32, u32, u32)> = Vec::new();
+    /// The runs of patches of one stride and set of skirts: (stride, skirts, first, count), for
+    /// one instanced draw each.
+    pub fn groups(&self) -> Vec<(u32, u8, u32, u32)> {
+        let mut out: Vec<(u32, u8, u32, u32)> = Vec::new();
         for (k, p) in self.patches.iter().enumerate() {
             match out.last_mut() {
-                Some(g) if g.0 == p.stride => g.2 += 1,
-                _ => out.push((p.stride, k as u32, 1)),
+                Some(g) if g.0 == p.stride && g.1 == p.skirts => g.3 += 1,
+                _ => out.push((p.stride, p.skirts, k as u32, 1)),
             }
         }
         out
@@ -218,11 +235,37 @@ pub fn select_patches(camera: &Camera, params: &SelectParams, quads: &[QuadPatch
             } else {
                 1
             };
-            out.patches.push(Patch { stride, quad: k as u32, py, px });
+            out.patches.push(Patch { stride, skirts: ALL_SIDES, quad: k as u32, py, px });
         }
     }
+    hang_skirts(&mut out.patches);
     out.patches.sort_unstable();
     out
+}
+
+/// Keeps the skirts a patch needs: on the quad's edge (where another quad, drawn from other
+/// values, meets it), and toward a neighbour drawn at another stride (a T-junction) or not at all.
+fn hang_skirts(patches: &mut [Patch]) {
+    let n = PATCHES_PER_EDGE as usize;
+    let mut strides: std::collections::HashMap<u32, Vec<u32>> = std::collections::HashMap::new();
+    for p in patches.iter() {
+        strides.entry(p.quad).or_insert_with(|| vec![0; n * n])[p.py as usize * n + p.px as usize] = p.stride;
+    }
+    for p in patches.iter_mut() {
+        let grid = &strides[&p.quad];
+        let neighbour = |dx: i32, dy: i32| {
+            let (x, y) = (p.px as i32 + dx, p.py as i32 + dy);
+            let inside = (0..n as i32).contains(&x) && (0..n as i32).contains(&y);
+            inside.then(|| grid[y as usize * n + x as usize])
+        };
+        let mut skirts = 0;
+        for (side, (dx, dy)) in [(SOUTH, (0, -1)), (EAST, (1, 0)), (NORTH, (0, 1)), (WEST, (-1, 0))] {
+            if neighbour(dx, dy) != Some(p.stride) {
+                skirts |= side;
+            }
+        }
+        p.skirts = skirts;
+    }
 }
 
 #[cfg(test)]
@@ -257,8 +300,9 @@ mod tests {
         assert_eq!(stride_for(0.7, 1.5), 2);
         assert_eq!(stride_for(0.1, 1.5), 8);
         assert_eq!(stride_for(0.01, 1.5), 32, "never coarser than one cell a patch");
-        assert_eq!(triangles_at(1), 2 * 32 * 32 + 8 * 32);
-        assert_eq!(triangles_at(32), 2 + 8);
+        assert_eq!(triangles_at(1, ALL_SIDES), 2 * 32 * 32 + 8 * 32);
+        assert_eq!(triangles_at(32, ALL_SIDES), 2 + 8);
+        assert_eq!(triangles_at(1, SOUTH | WEST), 2 * 32 * 32 + 4 * 32);
     }
 
     #[test]
@@ -301,7 +345,11 @@ mod tests {
         let quads = [QuadPatches { edge_m, bounds: &bounds }];
         let full = select_patches(&camera, &params(1.5), &quads, false);
         assert_eq!(full.patches.len(), 64);
-        assert_eq!(full.triangles(), 64 * triangles_at(1));
+        // Whole: skirts only round the quad's edge (32 patch sides).
+        assert_eq!(full.triangles(), 64 * triangles_at(1, 0) + 32 * 2 * 32);
+        let corner = full.patches.iter().find(|p| (p.px, p.py) == (0, 0)).unwrap();
+        assert_eq!(corner.skirts, SOUTH | WEST);
+        assert!(full.patches.iter().any(|p| (p.px, p.py) == (3, 4) && p.skirts == 0));
         let near = select_patches(&camera, &params(1.5), &quads, true);
         assert!(near.culled_frustum > 0, "{near:?}");
         assert!(near.triangles() < full.triangles(), "{} of {}", near.triangles(), full.triangles());
@@ -320,7 +368,21 @@ mod tests {
         }
         // Sorted into one run per stride.
         let groups = adaptive.groups();
-        assert_eq!(groups.len(), strides.len());
-        assert_eq!(groups.iter().map(|g| g.2 as usize).sum::<usize>(), adaptive.patches.len());
+        let kinds: std::collections::BTreeSet<(u32, u8)> = groups.iter().map(|g| (g.0, g.1)).collect();
+        assert_eq!(kinds.len(), groups.len(), "one run per stride and set of skirts");
+        assert_eq!(groups.iter().map(|g| g.3 as usize).sum::<usize>(), adaptive.patches.len());
+        // A side without a skirt has a neighbour in the quad drawn at the same stride.
+        let at = |px: i32, py: i32| adaptive.patches.iter().find(|p| (p.px as i32, p.py as i32) == (px, py));
+        let mut bare = 0;
+        for p in &adaptive.patches {
+            for (side, (dx, dy)) in [(SOUTH, (0, -1)), (EAST, (1, 0)), (NORTH, (0, 1)), (WEST, (-1, 0))] {
+                if p.skirts & side == 0 {
+                    let n = at(p.px as i32 + dx, p.py as i32 + dy);
+                    assert_eq!(n.map(|n| n.stride), Some(p.stride), "{p:?}: side {side} bare");
+                    bare += 1;
+                }
+            }
+        }
+        assert!(bare > 0, "some sides between equal strides go without a skirt");
     }
 }

@@ -22,13 +22,13 @@ impl Renderer {
                     &self.terrain.probe_pipeline
                 });
                 pass.set_index_buffer(self.terrain.index_buffer.slice(..), wgpu::IndexFormat::Uint32);
-                for (stride, first, count) in groups {
-                    pass.draw_indexed(self.terrain.indices_of(stride), 0, first..first + count);
+                for (stride, skirts, first, count) in groups {
+                    pass.draw_indexed(self.terrain.indices_of(stride, skirts), 0, first..first + count);
                 }
             }
             DrawMode::Points => {
                 pass.set_pipeline(&self.terrain.points_pipeline);
-                for (stride, first, count) in groups {
+                for (stride, _, first, count) in groups {
                     let nv = PATCH_CELLS / stride + 1;
                     pass.draw(0..nv * nv, first..first + count);
                 }
