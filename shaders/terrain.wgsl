@@ -10,6 +10,10 @@
 // Samples per quad edge; sample spacings per patch edge.
 const N: u32 = 257u;
 const PATCH_CELLS: u32 = 32u;
+// Whether this build of the pipeline geomorphs: the renderer builds it twice and draws patches
+// none of whose vertices can morph without it (the morph's samples cost as much as the vertex's
+// own even where no lane takes the branch, on a CPU rasteriser).
+const MORPH: bool = true;
 // A height slot of no data, and the value a sample without data is stored as.
 const NODATA_BELOW: f32 = -1.0e37;
 
@@ -287,7 +291,7 @@ fn vs_main(@builtin(vertex_index) vertex: u32, @builtin(instance_index) instance
     let da = a % 2u;
     let db = b % 2u;
     let m = morph_factor(q, p.stride, length(q.anchor.xyz + s.local));
-    if m > 0.0 {
+    if MORPH && m > 0.0 {
         var t: Sample;
         if da + db > 0u {
             let n1 = sample_at(q, i - da * p.stride, j - db * p.stride, k + 1u);

@@ -77,9 +77,10 @@ pub(crate) fn bind_buffers(
 
 /// The terrain pipelines and what they share.
 pub(crate) struct TerrainPass {
-    pub(crate) pipeline: wgpu::RenderPipeline,
-    pub(crate) probe_pipeline: wgpu::RenderPipeline,
-    pub(crate) points_pipeline: wgpu::RenderPipeline,
+    /// Each pipeline [without morphing, with] (see `MORPH` in terrain.wgsl).
+    pub(crate) pipeline: [wgpu::RenderPipeline; 2],
+    pub(crate) probe_pipeline: [wgpu::RenderPipeline; 2],
+    pub(crate) points_pipeline: [wgpu::RenderPipeline; 2],
     pub(crate) layout: wgpu::BindGroupLayout,
     pub(crate) index_buffer: wgpu::Buffer,
     /// Per stride (in the order of [`STRIDES`]) and set of skirts: the first index of its patch
@@ -100,9 +101,16 @@ impl TerrainPass {
     /// The pipelines drawing into targets of `format` (the window's, or [`IMAGE_FORMAT`]).
     pub(crate) fn new(device: &wgpu::Device, format: wgpu::TextureFormat) -> Result<TerrainPass, GpuError> {
         let source = super::shaders::composed("terrain.wgsl")?;
-        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("terrain.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(source.into()),
+        let flat = source.replace("const MORPH: bool = true;", "const MORPH: bool = false;");
+        if flat == source {
+            return Err(GpuError::Targets("terrain.wgsl lacks `const MORPH: bool = true;`"));
+        }
+        // [without morphing, with]: see `MORPH` in terrain.wgsl.
+        let modules = [flat, source].map(|text| {
+            device.create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some("terrain.wgsl"),
+                source: wgpu::ShaderSource::Wgsl(text.into()),
+            })
         });
 
         let mut indices = Vec::new();
@@ -148,7 +156,8 @@ impl TerrainPass {
             bind_group_layouts: &[Some(&layout)],
             immediate_size: 0,
         });
-        let make = |label: &str,
+        let make = |module: &wgpu::ShaderModule,
+                    label: &str,
                     fragment: &str,
                     targets: &[Option<wgpu::ColorTargetState>],
                     topology: wgpu::PrimitiveTopology| {
@@ -156,7 +165,7 @@ impl TerrainPass {
                 label: Some(label),
                 layout: Some(&pipeline_layout),
                 vertex: wgpu::VertexState {
-                    module: &module,
+                    module,
                     entry_point: Some("vs_main"),
                     compilation_options: Default::default(),
                     buffers: &[],
@@ -171,7 +180,7 @@ impl TerrainPass {
                 }),
                 multisample: Default::default(),
                 fragment: Some(wgpu::FragmentState {
-                    module: &module,
+                    module,
                     entry_point: Some(fragment),
                     compilation_options: Default::default(),
                     targets,
@@ -184,9 +193,13 @@ impl TerrainPass {
             Some(wgpu::ColorTargetState { format, blend: None, write_mask: wgpu::ColorWrites::ALL })
         };
         let probe_targets = [target(IMAGE_FORMAT), target(SURFACE_FORMAT), target(ID_FORMAT)];
-        let pipeline = make("terrain", "fs_main", &[target(format)], wgpu::PrimitiveTopology::TriangleList);
-        let probe_pipeline = make("terrain probe", "fs_probe", &probe_targets, wgpu::PrimitiveTopology::TriangleList);
-        let points_pipeline = make("terrain points", "fs_probe", &probe_targets, wgpu::PrimitiveTopology::PointList);
+        let triangles = wgpu::PrimitiveTopology::TriangleList;
+        let pipeline = modules.each_ref().map(|m| make(m, "terrain", "fs_main", &[target(format)], triangles));
+        let probe_pipeline =
+            modules.each_ref().map(|m| make(m, "terrain probe", "fs_probe", &probe_targets, triangles));
+        let points_pipeline = modules
+            .each_ref()
+            .map(|m| make(m, "terrain points", "fs_probe", &probe_targets, wgpu::PrimitiveTopology::PointList));
 
         Ok(TerrainPass { pipeline, probe_pipeline, points_pipeline, layout, index_ranges, index_buffer })
     }

@@ -82,6 +82,9 @@ pub const ALL_SIDES: u8 = 15;
 pub struct Patch {
     /// The stride, samples (one of [`STRIDES`]); first, so that sorting groups the draws.
     pub stride: u32,
+    /// Whether any of its vertices may morph this frame (drawn by the pipeline that morphs;
+    /// the others by one without the morph's work).
+    pub morphs: bool,
     /// The sides with a skirt ([`SOUTH`] | [`EAST`] | [`NORTH`] | [`WEST`]): those on the quad's
     /// edge, and those whose neighbour in the quad is drawn at another stride or not at all. Two
     /// patches of one quad at one stride compute their shared edge's vertices identically, so
@@ -147,14 +150,14 @@ impl PatchSelection {
         counts
     }
 
-    /// The runs of patches of one stride and set of skirts: (stride, skirts, first, count), for
-    /// one instanced draw each.
-    pub fn groups(&self) -> Vec<(u32, u8, u32, u32)> {
-        let mut out: Vec<(u32, u8, u32, u32)> = Vec::new();
+    /// The runs of patches of one stride, set of skirts and morphing: (stride, skirts, morphs,
+    /// first, count), for one instanced draw each.
+    pub fn groups(&self) -> Vec<(u32, u8, bool, u32, u32)> {
+        let mut out: Vec<(u32, u8, bool, u32, u32)> = Vec::new();
         for (k, p) in self.patches.iter().enumerate() {
             match out.last_mut() {
-                Some(g) if g.0 == p.stride && g.1 == p.skirts => g.3 += 1,
-                _ => out.push((p.stride, p.skirts, k as u32, 1)),
+                Some(g) if g.0 == p.stride && g.1 == p.skirts && g.2 == p.morphs => g.4 += 1,
+                _ => out.push((p.stride, p.skirts, p.morphs, k as u32, 1)),
             }
         }
         out
@@ -216,8 +219,17 @@ pub struct QuadPatches<'a> {
 /// The patches of the drawn quads (in their order) to draw: each culled on its own and at the
 /// stride its nearest point needs. With `adaptive` false every patch is drawn at stride 1 and
 /// none is culled: the quads drawn whole, as before patches (for comparisons and the vertex
-/// tests that want every sample).
-pub fn select_patches(camera: &Camera, params: &SelectParams, quads: &[QuadPatches], adaptive: bool) -> PatchSelection {
+/// tests that want every sample). With `morph` (geomorphing on, adaptive patches), a patch
+/// `morphs` unless even its farthest point is past the morph band ([`morph_factor`] 0 there, so at
+/// every vertex).
+pub fn select_patches(
+    camera: &Camera,
+    params: &SelectParams,
+    quads: &[QuadPatches],
+    adaptive: bool,
+    morph: bool,
+) -> PatchSelection {
+    let focal = camera.focal_px(params.height);
     let mut out = PatchSelection::default();
     let planes = camera.frustum(params.width, params.height);
     for (k, q) in quads.iter().enumerate() {
@@ -235,7 +247,13 @@ pub fn select_patches(camera: &Camera, params: &SelectParams, quads: &[QuadPatch
             } else {
                 1
             };
-            out.patches.push(Patch { stride, skirts: ALL_SIDES, quad: k as u32, py, px });
+            let morphs = morph && adaptive && {
+                // The shader measures from f32 positions: 1 % nearer counts as morphing.
+                let b = &bounds[stride_index(stride)];
+                let far = b.corners().iter().map(|c| (*c - camera.position).length()).fold(0.0, f64::max);
+                morph_factor(stride, q.edge_m / 256.0, far * 1.01, focal, params.threshold_px) > 0.0
+            };
+            out.patches.push(Patch { stride, morphs, skirts: ALL_SIDES, quad: k as u32, py, px });
         }
     }
     hang_skirts(&mut out.patches);
@@ -343,19 +361,20 @@ mod tests {
         };
         let camera = Camera::new(&Ellipsoid::MOON, spec, 1.0);
         let quads = [QuadPatches { edge_m, bounds: &bounds }];
-        let full = select_patches(&camera, &params(1.5), &quads, false);
+        let full = select_patches(&camera, &params(1.5), &quads, false, true);
+        assert!(full.patches.iter().all(|p| !p.morphs), "whole quads do not morph");
         assert_eq!(full.patches.len(), 64);
         // Whole: skirts only round the quad's edge (32 patch sides).
         assert_eq!(full.triangles(), 64 * triangles_at(1, 0) + 32 * 2 * 32);
         let corner = full.patches.iter().find(|p| (p.px, p.py) == (0, 0)).unwrap();
         assert_eq!(corner.skirts, SOUTH | WEST);
         assert!(full.patches.iter().any(|p| (p.px, p.py) == (3, 4) && p.skirts == 0));
-        let near = select_patches(&camera, &params(1.5), &quads, true);
+        let near = select_patches(&camera, &params(1.5), &quads, true, true);
         assert!(near.culled_frustum > 0, "{near:?}");
         assert!(near.triangles() < full.triangles(), "{} of {}", near.triangles(), full.triangles());
         // From 500 km its samples cover about one pixel at the nearest corner, less beyond.
         let camera = Camera::new(&Ellipsoid::MOON, CameraSpec { alt: 500_000.0, pitch: -40.0, ..spec }, 1.0);
-        let adaptive = select_patches(&camera, &params(1.5), &quads, true);
+        let adaptive = select_patches(&camera, &params(1.5), &quads, true, true);
         assert!(adaptive.triangles() * 4 < full.triangles() * 3, "{} of {}", adaptive.triangles(), full.triangles());
         let strides: std::collections::BTreeSet<u32> = adaptive.patches.iter().map(|p| p.stride).collect();
         assert!(strides.len() >= 2, "near and far patches at different strides: {strides:?}");
@@ -368,9 +387,18 @@ mod tests {
         }
         // Sorted into one run per stride.
         let groups = adaptive.groups();
-        let kinds: std::collections::BTreeSet<(u32, u8)> = groups.iter().map(|g| (g.0, g.1)).collect();
-        assert_eq!(kinds.len(), groups.len(), "one run per stride and set of skirts");
-        assert_eq!(groups.iter().map(|g| g.3 as usize).sum::<usize>(), adaptive.patches.len());
+        let kinds: std::collections::BTreeSet<(u32, u8, bool)> = groups.iter().map(|g| (g.0, g.1, g.2)).collect();
+        assert_eq!(kinds.len(), groups.len(), "one run per stride, set of skirts and morphing");
+        assert_eq!(groups.iter().map(|g| g.4 as usize).sum::<usize>(), adaptive.patches.len());
+        // A patch that does not morph has no point inside the band: its farthest corner's
+        // factor is 0, so every vertex's is; some do and some do not.
+        let focal = camera.focal_px(512);
+        for p in adaptive.patches.iter().filter(|p| !p.morphs) {
+            let b = bounds[(p.py * 8 + p.px) as usize][stride_index(p.stride)];
+            let far = b.corners().iter().map(|c| (*c - camera.position).length()).fold(0.0, f64::max);
+            assert_eq!(morph_factor(p.stride, edge_m / 256.0, far, focal, 1.5), 0.0, "{p:?}");
+        }
+        assert!(adaptive.patches.iter().any(|p| p.morphs) && adaptive.patches.iter().any(|p| !p.morphs));
         // A side without a skirt has a neighbour in the quad drawn at the same stride.
         let at = |px: i32, py: i32| adaptive.patches.iter().find(|p| (p.px as i32, p.py as i32) == (px, py));
         let mut bare = 0;

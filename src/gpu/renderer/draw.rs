@@ -14,21 +14,20 @@ impl Renderer {
         }
         pass.set_bind_group(0, &self.bind_group, &[]);
         let groups = self.patches.groups();
-        match mode {
-            DrawMode::Colour | DrawMode::Probe => {
-                pass.set_pipeline(if mode == DrawMode::Colour {
-                    &self.terrain.pipeline
-                } else {
-                    &self.terrain.probe_pipeline
-                });
-                pass.set_index_buffer(self.terrain.index_buffer.slice(..), wgpu::IndexFormat::Uint32);
-                for (stride, skirts, first, count) in groups {
+        for (stride, skirts, morphs, first, count) in groups {
+            let m = usize::from(morphs);
+            match mode {
+                DrawMode::Colour | DrawMode::Probe => {
+                    pass.set_pipeline(if mode == DrawMode::Colour {
+                        &self.terrain.pipeline[m]
+                    } else {
+                        &self.terrain.probe_pipeline[m]
+                    });
+                    pass.set_index_buffer(self.terrain.index_buffer.slice(..), wgpu::IndexFormat::Uint32);
                     pass.draw_indexed(self.terrain.indices_of(stride, skirts), 0, first..first + count);
                 }
-            }
-            DrawMode::Points => {
-                pass.set_pipeline(&self.terrain.points_pipeline);
-                for (stride, _, first, count) in groups {
+                DrawMode::Points => {
+                    pass.set_pipeline(&self.terrain.points_pipeline[m]);
                     let nv = PATCH_CELLS / stride + 1;
                     pass.draw(0..nv * nv, first..first + count);
                 }

@@ -657,7 +657,7 @@ impl Renderer {
         }
         let quads: Vec<QuadPatches> =
             patch_bounds.iter().map(|(edge_m, b)| QuadPatches { edge_m: *edge_m, bounds: b }).collect();
-        self.patches = select_patches(&camera, &params, &quads, self.adaptive);
+        self.patches = select_patches(&camera, &params, &quads, self.adaptive, self.geomorph);
         self.patch_boxes = patch_bounds.iter().map(|(_, b)| b.clone()).collect();
         let records: Vec<PatchInstance> = self.patches.patches.iter().map(PatchInstance::of).collect();
         if !records.is_empty() {
