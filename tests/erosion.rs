@@ -46,7 +46,7 @@ fn the_gpu_steps_like_the_cpu_reference_and_keeps_every_unit() {
     let ctx = context();
     // Wet the terrain on the CPU first, so that the compared steps move water and soil.
     let grid = Grid::flat_patch(64, 48, 10.0, rough(64, 48, 8.0));
-    let params = Params { border: Border::Open, ..Params::preset("rain", EARTH_G).unwrap() };
+    let params = Params { border: Border::Open, ..Params::unscaled("rain", EARTH_G).unwrap() };
     let mut cpu = Run::new(grid, params).unwrap().with_seed(5);
     for _ in 0..40 {
         cpu.step();
@@ -89,7 +89,7 @@ fn the_gpu_conserves_exactly_under_stress_and_repeats_itself_bit_for_bit() {
         rain_m_s: 1e-2,
         evaporation_per_s: 0.0,
         border: Border::Open,
-        ..Params::preset("rain", EARTH_G).unwrap()
+        ..Params::unscaled("rain", EARTH_G).unwrap()
     };
     let start = Run::new(grid, params).unwrap().with_seed(9);
     let mut finals = Vec::new();
@@ -114,7 +114,7 @@ fn the_gpu_conserves_exactly_under_stress_and_repeats_itself_bit_for_bit() {
 fn over_long_runs_the_gpu_and_the_cpu_agree_in_budgets_and_terrain_statistics() {
     let ctx = context();
     let grid = Grid::flat_patch(48, 48, 20.0, rough(48, 48, 15.0));
-    let params = Params { border: Border::Open, ..Params::preset("river", EARTH_G).unwrap() };
+    let params = Params { border: Border::Open, ..Params::unscaled("river", EARTH_G).unwrap() };
     let mut cpu = Run::new(grid, params).unwrap().with_seed(2);
     let mut gpu = gpu_run(&ctx, &cpu);
     for _ in 0..2000 {
@@ -138,6 +138,30 @@ fn over_long_runs_the_gpu_and_the_cpu_agree_in_budgets_and_terrain_statistics() 
     assert!(near(c.3, q.3, 0.05), "water out: CPU {} GPU {}", c.3, q.3);
     assert!(near(c.4, q.4, 0.01), "simulated time: CPU {} GPU {}", c.4, q.4);
     assert_eq!(g.unexplained(), (0, 0));
+}
+
+#[test]
+fn a_time_scaled_preset_starts_steady_on_the_gpu_as_on_the_cpu_and_cuts_alike() {
+    // The `river` preset starts with its rain's steady-state water, computed on the host and
+    // uploaded with the state: the GPU's budget counts it as the CPU's does, and after 300 steps
+    // both have cut alike.
+    let ctx = context();
+    let grid = Grid::flat_patch(48, 48, 30.0, rough(48, 48, 25.0));
+    let params = Params { border: Border::Open, ..Params::preset("river", EARTH_G).unwrap() };
+    let mut cpu = Run::new(grid, params).unwrap().with_seed(4);
+    assert!(cpu.budget.start_water > 0);
+    let mut gpu = gpu_run(&ctx, &cpu);
+    for _ in 0..300 {
+        cpu.step();
+    }
+    gpu.step(300).unwrap();
+    let g = gpu.download().unwrap().clone();
+    assert_eq!(g.budget.start_water, cpu.budget.start_water);
+    assert_eq!(g.unexplained(), (0, 0), "{:?}", g.budget);
+    assert_eq!(cpu.unexplained(), (0, 0));
+    let moved = |run: &Run| run.delta_m().iter().map(|v| v.abs()).sum::<f64>() / run.grid.len() as f64;
+    let (c, q) = (moved(&cpu), moved(&g));
+    assert!(c > 1e-3 && (c - q).abs() <= 0.05 * c, "mean |Δh|: CPU {c} GPU {q}");
 }
 
 fn erode(args: &[&str]) -> std::process::Output {
@@ -243,6 +267,14 @@ fn terrafuse_erode_runs_reports_json_undoes_redoes_and_refuses_bad_input_untouch
         (vec!["--region", region, "--level", "9", "--steps", "0"], "--steps"),
         (vec!["--region", region, "--level", "9", "--steps", "5", "--set", "rain_m_s=5"], "rain_m_s"),
         (vec!["--region", region, "--level", "9", "--steps", "5", "--set", "colour=1"], "--set colour"),
+        (
+            vec!["--region", region, "--level", "9", "--steps", "5", "--set", "start=wet"],
+            "--set start: unknown variant `wet`",
+        ),
+        (
+            vec!["--region", region, "--level", "9", "--steps", "5", "--set", "capacity=abc"],
+            "--set capacity: 'abc' is not a number",
+        ),
         (vec!["--region", region, "--level", "9", "--steps", "5", "--preset", "lava"], "--preset lava"),
         (vec!["--region", region, "--level", "10", "--steps", "5"], "--level"),
     ] {
@@ -262,7 +294,7 @@ fn a_grid_past_the_binding_limit_runs_in_chunks_as_in_one_and_past_four_chunks_i
     // in one binding. A limit that would need twelve chunks is refused, naming it.
     let ctx = context();
     let grid = Grid::flat_patch(64, 48, 10.0, rough(64, 48, 8.0));
-    let params = Params { border: Border::Open, ..Params::preset("rain", EARTH_G).unwrap() };
+    let params = Params { border: Border::Open, ..Params::unscaled("rain", EARTH_G).unwrap() };
     let start = Run::new(grid, params).unwrap().with_seed(3);
     let kernel = Arc::new(ErosionKernel::new(&ctx.device).unwrap());
     let mut finals = Vec::new();

@@ -38,7 +38,7 @@ pub struct ErosionBenchSettings {
 
 fn wet_run(n: usize) -> Result<Run, CliError> {
     let grid = Grid::flat_patch(n, n, 10.0, terrain(n, 10.0));
-    let params = Params { border: Border::Open, ..Params::preset("rain", EARTH_G).ok_or("no preset")? };
+    let params = Params { border: Border::Open, ..Params::unscaled("rain", EARTH_G).ok_or("no preset")? };
     Ok(Run::new(grid, params)?)
 }
 
@@ -116,7 +116,7 @@ pub fn bench_erosion(settings: &ErosionBenchSettings) -> Result<String, CliError
     let _ = writeln!(out, "step size (128², 60 s simulated): Δt, steps, seconds, max |Δh − Δh(Δt/4)| m");
     for dt in [0.2, 0.1, 0.05] {
         let grid = Grid::flat_patch(n, n, 10.0, terrain(n, 10.0));
-        let params = Params { dt_s: dt, border: Border::Open, ..Params::preset("rain", EARTH_G).ok_or("no preset")? };
+        let params = Params { dt_s: dt, border: Border::Open, ..Params::unscaled("rain", EARTH_G).ok_or("no preset")? };
         let mut run = Run::new(grid, params)?;
         let ((), s) = timed(|| {
             while run.simulated_s < 60.0 - 1e-9 {
@@ -153,7 +153,8 @@ fn resolution_rows(out: &mut String) -> Result<(), CliError> {
                 0.1 * x + 50.0 * (x / 300.0).sin() * (y / 400.0).cos()
             })
             .collect();
-        let params = Params { dt_s: 0.1, border: Border::Open, ..Params::preset("rain", EARTH_G).ok_or("no preset")? };
+        let params =
+            Params { dt_s: 0.1, border: Border::Open, ..Params::unscaled("rain", EARTH_G).ok_or("no preset")? };
         let mut run = Run::new(Grid::flat_patch(n, n, cell, base), params)?;
         let ((), run_s) = timed(|| {
             while run.simulated_s < 120.0 - 1e-9 {

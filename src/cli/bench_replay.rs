@@ -91,7 +91,7 @@ pub fn synthetic_session(strokes: usize, steps: u64) -> Result<Project, CliError
     let side = 128.0 * crate::store::grid::spacing_m(&e, 12) / e.a_m();
     let (lat, lon) = (0.5, 45.2);
     let half = 0.5 * side.to_degrees();
-    let params = Params::preset("rain", gravity_of_body(&p.body)).ok_or("no rain preset")?;
+    let params = Params::unscaled("rain", gravity_of_body(&p.body)).ok_or("no rain preset")?;
     let run = Operation {
         region: crate::geodesy::GeoBox::new(lon - half, lat - half, lon + half, lat + half)?,
         level: 12,

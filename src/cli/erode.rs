@@ -123,6 +123,10 @@ pub fn params_of(preset: &str, body: &str, set: &[String]) -> Result<Params, Cli
     let params = Params::preset(preset, gravity_of_body(body))
         .ok_or_else(|| format!("--preset {preset}: not one of {}", Params::PRESETS.join(", ")))?;
     let mut value = serde_json::to_value(&params)?;
+    // Fields left out when they hold their default are still there to be set.
+    if let Some(object) = value.as_object_mut() {
+        object.entry("start").or_insert_with(|| serde_json::Value::String("dry".into()));
+    }
     for item in set {
         let (field, text) = item.split_once('=').ok_or_else(|| format!("--set '{item}': not FIELD=VALUE"))?;
         let object = value.as_object_mut().ok_or("parameters are not an object")?;
@@ -135,9 +139,17 @@ pub fn params_of(preset: &str, body: &str, set: &[String]) -> Result<Params, Cli
             .ok()
             .and_then(serde_json::Number::from_f64)
             .map_or_else(|| serde_json::Value::String(text.to_string()), serde_json::Value::Number);
+        if object[field].is_number() && !v.is_number() {
+            return Err(format!("--set {field}: '{text}' is not a number").into());
+        }
+        if object[field].is_string() && !v.is_string() {
+            return Err(format!("--set {field}: '{text}' is not one of its words (see docs/erosion.md)").into());
+        }
         object.insert(field.to_string(), v);
     }
-    let params: Params = serde_json::from_value(value).within("--set")?;
+    let params: Params = serde_json::from_value(value).map_err(|e| {
+        format!("--set {}: {e}", set.iter().map(|s| s.split('=').next().unwrap_or("")).collect::<Vec<_>>().join(", "))
+    })?;
     params.check().map_err(|e| format!("--set {}: {} is outside {}", e.field, e.value, e.range))?;
     Ok(params)
 }
@@ -294,10 +306,12 @@ pub fn erode_command(request: &ErodeRequest) -> Result<String, CliError> {
     );
     let _ = writeln!(
         out,
-        "budgets: rain {:.3} m³, water out {:.3} m³, soil out {:.3} m³; terrain eroded {:.3} m³, deposited {:.3} m³, change {:.3} m³; unexplained: water {:.1e}, soil {:.1e} of the total",
+        "budgets: water at the start {:.3} m³, rain {:.3} m³, water out {:.3} m³, soil out {:.3} m³, suspended at the end {:.3} m³; terrain eroded {:.3} m³, deposited {:.3} m³, change {:.3} m³; unexplained: water {:.1e}, soil {:.1e} of the total",
+        outcome.start_water_m3,
         outcome.rain_m3,
         outcome.water_out_m3,
         outcome.soil_out_m3,
+        outcome.suspended_m3,
         outcome.eroded_m3,
         outcome.deposited_m3,
         outcome.volume_change_m3,
@@ -325,6 +339,8 @@ fn json_of(o: &Outcome, device: &str, cached: Option<&std::path::Path>, path: &s
         "dt_max_s": o.dt_range_s.1,
         "dt_asked_s": o.dt_asked_s,
         "rain_m3": o.rain_m3,
+        "start_water_m3": o.start_water_m3,
+        "suspended_m3": o.suspended_m3,
         "volume_change_m3": o.volume_change_m3,
         "eroded_m3": o.eroded_m3,
         "deposited_m3": o.deposited_m3,

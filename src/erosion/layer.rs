@@ -88,6 +88,11 @@ pub struct Outcome {
     pub soil_out_m3: f64,
     /// Rain that fell, m³.
     pub rain_m3: f64,
+    /// Water the run started with (its rain at steady state, or 0), m³.
+    pub start_water_m3: f64,
+    /// Sediment the water still carries when the run stops (neither laid down nor gone out; not
+    /// part of the terrain), m³.
+    pub suspended_m3: f64,
     /// The terrain's change of volume, m³: Σ Δh × cell area over the region (exact: the fixed
     /// point's units of soil taken or laid), negative where material left the region.
     pub volume_change_m3: f64,
@@ -267,11 +272,13 @@ pub fn finish(raster: &mut EditRaster, index: usize, region: Region, run: &Run, 
         simulated_s: run.simulated_s,
         dt_range_s: run.dt_range_s,
         dt_asked_s: run.params.dt_s,
-        water_unexplained_rel: water_left.abs() as f64 / b.rain_in.max(1) as f64,
+        water_unexplained_rel: water_left.abs() as f64 / (b.start_water + b.rain_in).max(1) as f64,
         soil_unexplained_rel: soil_left.abs() as f64 / moved.max(1) as f64,
         water_out_m3: b.water_out as f64 * unit,
         soil_out_m3: b.soil_out as f64 * unit,
         rain_m3: b.rain_in as f64 * unit,
+        start_water_m3: b.start_water as f64 * unit,
+        suspended_m3: run.state.sediment.iter().sum::<i64>() as f64 * unit,
         volume_change_m3: run.state.soil.iter().sum::<i64>() as f64 * unit,
         eroded_m3: -(run.state.soil.iter().filter(|s| **s < 0).sum::<i64>() as f64) * unit,
         deposited_m3: run.state.soil.iter().filter(|s| **s > 0).sum::<i64>() as f64 * unit,
@@ -305,6 +312,8 @@ fn finish_landscape(raster: &mut EditRaster, index: usize, region: Region, run: 
         water_out_m3: 0.0,
         soil_out_m3: figures.outflow_m3,
         rain_m3: 0.0,
+        start_water_m3: 0.0,
+        suspended_m3: 0.0,
         volume_change_m3: run.change.iter().sum::<i64>() as f64 * run.unit_m3(),
         eroded_m3: figures.eroded_m3,
         deposited_m3: figures.deposited_m3,

@@ -29,6 +29,7 @@ pub mod params;
 pub mod placement;
 pub mod region;
 pub mod sim;
+pub mod start;
 
 pub use grid::Grid;
 pub use params::{Border, ParamError, Params};

@@ -58,6 +58,28 @@ pub struct Params {
     /// Borders: `closed` (walls) or `open` (water and sediment leave, counted).
     #[serde(default)]
     pub border: Border,
+    /// The water a run starts with: `dry`, or `steady` (each cell's share of the rain at steady
+    /// state, so that rivers carry from the first step; see [`super::start`]).
+    #[serde(default, skip_serializing_if = "Start::is_dry")]
+    pub start: Start,
+}
+
+/// The water a run starts with.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, schemars::JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum Start {
+    /// None.
+    #[default]
+    Dry,
+    /// The steady state of its rain: rivers and lakes full ([`super::start`]).
+    Steady,
+}
+
+impl Start {
+    /// Whether this is `dry` (the default, not written).
+    pub fn is_dry(&self) -> bool {
+        *self == Start::Dry
+    }
 }
 
 /// What a region's border does.
@@ -85,12 +107,33 @@ pub struct ParamError {
 }
 
 impl Params {
-    /// The presets: `rain` (a downpour carving gullies), `river` (little rain, strong transport),
-    /// `thermal` (sliding only: scree slopes), `gentle` (light rain, slow dissolving).
+    /// The presets: `rain` (a downpour cutting gullies and channels in a minute), `river` (the
+    /// rivers of a steady rain cutting their beds), `thermal` (sliding only: scree slopes),
+    /// `gentle` (light rain, slow dissolving, from a dry start).
+    ///
+    /// `rain` and `river` are **time-scaled**: they start from the water of their rain at steady
+    /// state ([`Start::Steady`]), so rivers carry from the first step instead of after hours of
+    /// simulated filling, carry ten times the sediment of the physical rates (`capacity` 2 against
+    /// 0.2 for the unscaled `river`), and lay none down while the water flows (`deposit_per_s` 0,
+    /// detachment-limited): a few minutes of simulated flow then cut what centuries of floods
+    /// would. [`Params::unscaled`] gives them without the scaling.
     pub const PRESETS: [&'static str; 4] = ["rain", "river", "thermal", "gentle"];
 
     /// A preset by name, on a body with gravity `gravity_m_s2`.
     pub fn preset(name: &str, gravity_m_s2: f64) -> Option<Params> {
+        let unscaled = Params::unscaled(name, gravity_m_s2)?;
+        let scaled =
+            Params { start: Start::Steady, evaporation_per_s: 0.0, capacity: 2.0, deposit_per_s: 0.0, ..unscaled };
+        Some(match name {
+            "rain" => Params { rain_m_s: 2e-4, capacity_depth_m: 1.0, ..scaled },
+            "river" => Params { rain_m_s: 1e-4, capacity_depth_m: 10.0, ..scaled },
+            _ => unscaled,
+        })
+    }
+
+    /// A preset by name with physical rates and a dry start: what `rain` and `river` were before
+    /// they were time-scaled (project format 4), and what `thermal` and `gentle` are.
+    pub fn unscaled(name: &str, gravity_m_s2: f64) -> Option<Params> {
         let base = Params {
             rain_m_s: 1e-4,
             evaporation_per_s: 0.005,
@@ -107,6 +150,7 @@ impl Params {
             dt_s: 0.5,
             cfl: 0.25,
             border: Border::Open,
+            start: Start::Dry,
         };
         Some(match name {
             "rain" => base,
@@ -117,10 +161,11 @@ impl Params {
         })
     }
 
-    /// The `rain` preset at the Earth's standard gravity: what an operation without `params`
-    /// (a stream-power run) holds, and so what is not written for one.
+    /// The unscaled `rain` preset at the Earth's standard gravity: what an operation without
+    /// `params` (a stream-power run) holds, and so what is not written for one. Fixed: a run
+    /// saved without its parameters reads back as it was saved whatever the presets become.
     pub fn standard() -> Params {
-        Params::preset("rain", 9.806_65).expect("rain is a preset")
+        Params::unscaled("rain", 9.806_65).expect("rain is a preset")
     }
 
     /// Whether these are [`Params::standard`] (skipped when saved: reading them back gives the

@@ -73,6 +73,8 @@ pub struct State {
 /// Where water and soil went, in units, since the run began.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Budget {
+    /// Water the run started with ([`super::params::Start`]).
+    pub start_water: i64,
     /// Rain added.
     pub rain_in: i64,
     /// Water evaporated.
@@ -132,9 +134,14 @@ impl Run {
         params.check()?;
         let n = grid.len();
         let unit_m3 = grid.unit_m3();
+        let water = match params.start {
+            super::params::Start::Dry => vec![0; n],
+            super::params::Start::Steady => super::start::steady_water_units(&grid, &params, unit_m3),
+        };
+        let budget = Budget { start_water: water.iter().sum(), ..Budget::default() };
         Ok(Run {
             state: State {
-                water: vec![0; n],
+                water,
                 sediment: vec![0; n],
                 soil: vec![0; n],
                 flux_m3_s: vec![[0.0; 8]; n],
@@ -142,7 +149,7 @@ impl Run {
             },
             grid,
             params,
-            budget: Budget::default(),
+            budget,
             steps: 0,
             simulated_s: 0.0,
             seed: 0,
@@ -195,7 +202,7 @@ impl Run {
     pub fn unexplained(&self) -> (i64, i64) {
         let (water, soil) = self.totals();
         let b = &self.budget;
-        (water - (b.rain_in - b.evaporated - b.water_out), soil + b.soil_out)
+        (water - (b.start_water + b.rain_in - b.evaporated - b.water_out), soil + b.soil_out)
     }
 
     /// The CFL bound on the step at the current state, seconds (∞ when nothing moves).

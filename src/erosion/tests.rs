@@ -3,7 +3,7 @@ use super::params::{Border, EARTH_G, Params};
 use super::sim::Run;
 
 fn params() -> Params {
-    Params::preset("rain", EARTH_G).unwrap()
+    Params::unscaled("rain", EARTH_G).unwrap()
 }
 
 /// A deterministic rough terrain: waves and a PCG jitter, metres.

@@ -471,7 +471,7 @@ impl GpuRun {
             }
         }
         self.host.steps += u64::from(self.pending);
-        self.host.budget = budget_of(&control);
+        self.host.budget = budget_of(&control, self.host.budget.start_water);
         self.pending = 0;
         // The log restarts.
         self.queue.write_buffer(&self.buffers.control, 8, bytemuck::bytes_of(&0u32));
@@ -511,7 +511,7 @@ impl GpuRun {
         self.report_read = None;
         Some(Report {
             steps: u64::from(control.step),
-            budget: budget_of(&control),
+            budget: budget_of(&control, self.host.budget.start_water),
             next_dt_s: f64::from(control.dt),
             cfl_bound_s: f64::from(control.bound),
             max_speed_m_s: f64::from(control.max_speed),
@@ -520,8 +520,10 @@ impl GpuRun {
     }
 }
 
-fn budget_of(control: &Control) -> Budget {
+/// The budget the control block holds, with the water the run started with (the host's).
+fn budget_of(control: &Control, start_water: i64) -> Budget {
     Budget {
+        start_water,
         rain_in: from_u32_pair(control.totals[0]),
         evaporated: from_u32_pair(control.totals[1]),
         water_out: from_u32_pair(control.totals[2]),
