@@ -567,6 +567,8 @@ fn the_erosion_section_starts_steps_runs_keeps_undoes_and_brushes_a_run() {
     h.get_by_label("Erosion").click_accesskit();
     h.run_steps(2);
     h.state_mut().set_erosion(6, 2000.0);
+    // The default preset (rain) is time-scaled, and the section says so.
+    assert!(h.query_by_label_contains("time-scaled").is_some(), "the preset's scaling is not shown");
     h.get_by_label("start").click_accesskit();
     h.run_steps(2);
     assert_eq!(h.state().erosion_progress(), Some((0, 6)), "{}", h.state().message());
@@ -594,6 +596,7 @@ fn the_erosion_section_starts_steps_runs_keeps_undoes_and_brushes_a_run() {
     assert!(h.state().unsaved());
     let kept = h.state().project().layers.iter().find(|l| l.name == "erosion").unwrap().runs()[2].clone();
     assert_eq!((kept.steps, kept.level, kept.seed), (6, 10, 1));
+    assert_eq!(kept.params.start, terrafuse::erosion::params::Start::Steady, "the rain preset starts steady");
     settle(&mut h);
     h.render().unwrap().save(dir.join("eroded.png")).unwrap(); // for people, not compared
     // Undo and redo among the runs.

@@ -192,6 +192,13 @@ impl ErosionTool {
                 ui.selectable_value(&mut t.preset, p.to_string(), p);
             }
         });
+        if let Some(p) = Params::preset(&t.preset, 9.81).filter(|p| !p.start.is_dry()) {
+            ui.label(format!(
+                "time-scaled: starts with its rain's rivers full, transport {}× the physical rate, no deposition while water flows",
+                p.capacity / Params::unscaled("river", 9.81).map_or(p.capacity, |u| u.capacity)
+            ))
+            .on_hover_text("a few minutes of flow cut what centuries of floods would (docs/erosion.md)");
+        }
         ui.add(egui::Slider::new(&mut t.half_m, 100.0..=100_000.0).logarithmic(true).text("region half-size m"));
         ui.horizontal(|ui| {
             let mut auto = t.level.is_none();
@@ -264,7 +271,8 @@ impl ErosionTool {
             };
             ui.label(format!("Δt {dt:.4} s (CFL bound {bound:.4} s), |v| ≤ {speed:.2} m/s, depth ≤ {depth:.3} m"));
             ui.label(format!(
-                "rain {:.1} m³, evaporated {:.1} m³, out {:.1} m³ of water, {:.3} m³ of soil",
+                "water at the start {:.1} m³, rain {:.1} m³, evaporated {:.1} m³, out {:.1} m³ of water, {:.3} m³ of soil",
+                budget.start_water as f64 * unit,
                 budget.rain_in as f64 * unit,
                 budget.evaporated as f64 * unit,
                 budget.water_out as f64 * unit,
