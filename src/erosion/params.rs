@@ -64,6 +64,12 @@ pub struct Params {
     pub start: Start,
 }
 
+/// The sediment capacity of the unscaled `river` preset.
+const RIVER_CAPACITY: f64 = 0.2;
+
+/// How many times the physical transport the time-scaled presets (`rain`, `river`) carry.
+pub const TRANSPORT_SCALE: f64 = 10.0;
+
 /// The water a run starts with.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(rename_all = "snake_case")]
@@ -122,8 +128,13 @@ impl Params {
     /// A preset by name, on a body with gravity `gravity_m_s2`.
     pub fn preset(name: &str, gravity_m_s2: f64) -> Option<Params> {
         let unscaled = Params::unscaled(name, gravity_m_s2)?;
-        let scaled =
-            Params { start: Start::Steady, evaporation_per_s: 0.0, capacity: 2.0, deposit_per_s: 0.0, ..unscaled };
+        let scaled = Params {
+            start: Start::Steady,
+            evaporation_per_s: 0.0,
+            capacity: RIVER_CAPACITY * TRANSPORT_SCALE,
+            deposit_per_s: 0.0,
+            ..unscaled
+        };
         Some(match name {
             "rain" => Params { rain_m_s: 2e-4, capacity_depth_m: 1.0, ..scaled },
             "river" => Params { rain_m_s: 1e-4, capacity_depth_m: 10.0, ..scaled },
@@ -154,7 +165,7 @@ impl Params {
         };
         Some(match name {
             "rain" => base,
-            "river" => Params { rain_m_s: 2e-5, capacity: 0.2, evaporation_per_s: 0.001, ..base },
+            "river" => Params { rain_m_s: 2e-5, capacity: RIVER_CAPACITY, evaporation_per_s: 0.001, ..base },
             "thermal" => Params { rain_m_s: 0.0, capacity: 0.0, thermal_per_s: 0.5, talus_deg: 33.0, ..base },
             "gentle" => Params { rain_m_s: 2e-5, dissolve_per_s: 0.1, deposit_per_s: 0.2, ..base },
             _ => return None,

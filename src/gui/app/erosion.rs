@@ -192,10 +192,10 @@ impl ErosionTool {
                 ui.selectable_value(&mut t.preset, p.to_string(), p);
             }
         });
-        if let Some(p) = Params::preset(&t.preset, 9.81).filter(|p| !p.start.is_dry()) {
+        if Params::preset(&t.preset, 9.81).is_some_and(|p| !p.start.is_dry()) {
             ui.label(format!(
                 "time-scaled: starts with its rain's rivers full, transport {}× the physical rate, no deposition while water flows",
-                p.capacity / Params::unscaled("river", 9.81).map_or(p.capacity, |u| u.capacity)
+                crate::erosion::params::TRANSPORT_SCALE
             ))
             .on_hover_text("a few minutes of flow cut what centuries of floods would (docs/erosion.md)");
         }
