@@ -209,6 +209,18 @@ fn bad_input_is_refused_by_name() {
             "--region: south 95 and north 96",
         ),
         (vec!["compare", p, "blurred", "srtm", "--level", "20"], "--level: 20 is more than 4 levels below"),
+        (
+            vec!["coregister", p, "blurred", "--to", "srtm", "--pipeline", "nuth_kaab,deramp:5"],
+            "--pipeline: 'deramp:5': the order must be 1, 2 or 3",
+        ),
+        (
+            vec!["coregister", p, "blurred", "--to", "srtm", "--stable", "glaciers.geojson"],
+            "glaciers.geojson: no such file (and no layer of that name in the project)",
+        ),
+        (
+            vec!["coregister", p, "blurred", "--to", "srtm", "--pipeline", "deramp:1", "--apply"],
+            "--apply: deramp:1 cannot be stored in a layer yet",
+        ),
     ] {
         let out = terrafuse(&args, "");
         assert!(!out.status.success(), "{args:?} succeeded");
@@ -273,35 +285,8 @@ fn a_known_shift_is_recovered_at_least_as_closely_as_xdem_recovers_it() {
     let ours_error = (ours["east_m"].as_f64().unwrap() - e).hypot(ours["north_m"].as_f64().unwrap() - n);
     assert!(ours["converged"].as_bool().unwrap());
 
-    let tm = "+proj=tmerc +lon_0=40.42 +lat_0=39.6 +k=1 +ellps=WGS84 +units=m";
     for name in ["ref", "moved"] {
-        let (from, to) = (dir.join(format!("{name}.tif")), dir.join(format!("{name}_tm.tif")));
-        common::run_tool(
-            "gdalwarp",
-            &[
-                "-q",
-                "-overwrite",
-                "-t_srs",
-                tm,
-                "-tr",
-                "90",
-                "90",
-                "-te",
-                "-17000",
-                "-22000",
-                "17000",
-                "22000",
-                "-r",
-                "bilinear",
-                "-dstnodata",
-                "-9999",
-                "-ot",
-                "Float32",
-                from.to_str().unwrap(),
-                to.to_str().unwrap(),
-            ],
-            "",
-        );
+        warp_to_local_tm(&dir, name);
     }
     let python = repo_path(".venv-ref/bin/python");
     let out = std::process::Command::new(&python)
@@ -332,6 +317,176 @@ fn a_known_shift_is_recovered_at_least_as_closely_as_xdem_recovers_it() {
     let (nmad_before, nmad_after) = (before["nmad_m"].as_f64().unwrap(), after["nmad_m"].as_f64().unwrap());
     println!("NMAD before {nmad_before:.3} m, after applying {nmad_after:.3} m");
     assert!(nmad_before > 5.0 && nmad_after < 1.0, "{nmad_before} → {nmad_after}");
+}
+
+/// Warps `DIR/NAME.tif` (bilinear, 90 m) to a transverse Mercator centred at 40.42°E 39.6°N, so
+/// its x and y are east and north at the centre, scale 1: `DIR/NAME_tm.tif`, for xDEM.
+fn warp_to_local_tm(dir: &Path, name: &str) {
+    let tm = "+proj=tmerc +lon_0=40.42 +lat_0=39.6 +k=1 +ellps=WGS84 +units=m";
+    let (from, to) = (dir.join(format!("{name}.tif")), dir.join(format!("{name}_tm.tif")));
+    common::run_tool(
+        "gdalwarp",
+        &[
+            "-q",
+            "-overwrite",
+            "-t_srs",
+            tm,
+            "-tr",
+            "90",
+            "90",
+            "-te",
+            "-17000",
+            "-22000",
+            "17000",
+            "22000",
+            "-r",
+            "bilinear",
+            "-dstnodata",
+            "-9999",
+            "-ot",
+            "Float32",
+            from.to_str().unwrap(),
+            to.to_str().unwrap(),
+        ],
+        "",
+    );
+}
+
+/// Runs a script of tests/reference in `.venv-ref` and reads the JSON it prints.
+fn reference_script(script: &str, args: &[&str]) -> serde_json::Value {
+    let out = std::process::Command::new(repo_path(".venv-ref/bin/python"))
+        .arg(repo_path(&format!("tests/reference/{script}")))
+        .args(args)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{script}: {}", String::from_utf8_lossy(&out.stderr));
+    if out.stdout.is_empty() {
+        return serde_json::Value::Null;
+    }
+    serde_json::from_slice(&out.stdout).unwrap()
+}
+
+#[test]
+fn a_known_ramp_and_elevation_bias_are_recovered_and_the_ramp_agrees_with_xdems_deramp() {
+    // The SRTM tile with a plane of 0.5 m/km east and −0.3 m/km north (and 2 m at 40.42°E
+    // 39.6°N) added, and a copy with 1 cm per metre of elevation above 2000 m added.
+    let dir = common::out_path("compare/pipeline");
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let source = repo_path("projects/data/earth_srtm3_demcompare_N39E040.tif");
+    std::fs::copy(&source, dir.join("ref.tif")).unwrap();
+    let (c0, ge, gn) = (2.0, 0.5, -0.3);
+    let biased = |name: &str, bias: [f64; 5]| {
+        let out = dir.join(format!("{name}.tif"));
+        let args: Vec<String> = [source.to_str().unwrap(), out.to_str().unwrap(), "40.42", "39.6"]
+            .iter()
+            .map(|s| s.to_string())
+            .chain(bias.iter().map(|v| v.to_string()))
+            .collect();
+        reference_script("biased_copy.py", &args.iter().map(String::as_str).collect::<Vec<_>>());
+    };
+    biased("ramp", [c0, ge, gn, 0.0, 0.0]);
+    biased("elev", [0.0, 0.0, 0.0, 0.01, 2000.0]);
+    let project = r#"{"format": "terrafuse-project", "version": 2, "body": "wgs84", "layers": [
+        {"name": "ref", "kind": "dataset", "store": "ref.gpkg", "source": {"files": ["ref.tif"]}},
+        {"name": "ramp", "kind": "dataset", "store": "ramp.gpkg", "source": {"files": ["ramp.tif"]}},
+        {"name": "elev", "kind": "dataset", "store": "elev.gpkg", "source": {"files": ["elev.tif"]}}]}"#;
+    let p = dir.join("pipeline.json");
+    std::fs::write(&p, project).unwrap();
+    let region = "40.22,39.4,40.62,39.8";
+    let coreg = |a: &str, pipeline: &str| -> serde_json::Value {
+        let out = run(&[
+            "coregister",
+            p.to_str().unwrap(),
+            a,
+            "--to",
+            "ref",
+            "--region",
+            region,
+            "--pipeline",
+            pipeline,
+            "--json",
+        ]);
+        serde_json::from_str(&out).unwrap()
+    };
+
+    // The ramp: its gradient to 0.2 %, its value at the frame's origin to 1 cm, nothing left.
+    let ramp = coreg("ramp", "deramp:1");
+    let step = &ramp["steps"][0];
+    assert_eq!(step["name"], "deramp");
+    let c: Vec<f64> = step["coefficients"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
+    let origin = [step["origin_deg"][0].as_f64().unwrap(), step["origin_deg"][1].as_f64().unwrap()];
+    let (e0, n0) = metres_of_degrees(origin[0] - 40.42, origin[1] - 39.6, 39.6);
+    let at_origin = c0 + ge * e0 / 1000.0 + gn * n0 / 1000.0;
+    println!("deramp: {c:?} about {origin:?}; known {at_origin:.4} {ge} {gn}");
+    assert!((c[1] - ge).abs() < 0.002 * ge.abs() && (c[2] - gn).abs() < 0.002 * gn.abs(), "{c:?}");
+    assert!((c[0] - at_origin).abs() < 0.01, "{} vs {at_origin}", c[0]);
+    assert!(ramp["after"]["nmad_m"].as_f64().unwrap() < 0.02, "{}", ramp["after"]);
+    assert!(ramp["before"]["nmad_m"].as_f64().unwrap() > 1.0, "{}", ramp["before"]);
+
+    // The elevation bias: every bin's median within half a bin's bias of the law, nothing left.
+    let elev = coreg("elev", "terrain_bias:elevation");
+    let bins = elev["steps"][0]["bins"].as_array().unwrap();
+    let width = bins[1][0].as_f64().unwrap() - bins[0][0].as_f64().unwrap();
+    for b in bins {
+        let (h, bias) = (b[0].as_f64().unwrap(), b[1].as_f64().unwrap());
+        assert!((bias - 0.01 * (h - 2000.0)).abs() <= 0.01 * width * 0.5 + 1e-3, "bin at {h} m: {bias}");
+    }
+    let (before, after) =
+        (elev["steps"][0]["before"]["nmad_m"].as_f64().unwrap(), elev["after"]["nmad_m"].as_f64().unwrap());
+    println!("terrain_bias:elevation: {} bins of {width:.1} m, NMAD {before:.3} → {after:.4} m", bins.len());
+    assert!(before > 1.0 && after < 0.02, "{before} → {after}");
+
+    // Outlines of unstable terrain: a polygon over the box's western half is left out (its
+    // samples get the same bias, so the plane is found from the eastern half alone).
+    let outlines = dir.join("unstable.geojson");
+    std::fs::write(
+        &outlines,
+        r#"{"type": "FeatureCollection", "features": [{"type": "Feature", "properties": {}, "geometry":
+        {"type": "Polygon", "coordinates": [[[40.2, 39.3], [40.42, 39.3], [40.42, 39.9], [40.2, 39.9], [40.2, 39.3]]]}}]}"#,
+    )
+    .unwrap();
+    let out = run(&[
+        "coregister",
+        p.to_str().unwrap(),
+        "ramp",
+        "--to",
+        "ref",
+        "--region",
+        region,
+        "--pipeline",
+        "deramp:1",
+        "--stable",
+        outlines.to_str().unwrap(),
+        "--json",
+    ]);
+    let east_only: serde_json::Value = serde_json::from_str(&out).unwrap();
+    let (stable, all) = (east_only["stable_count"].as_u64().unwrap(), ramp["stable_count"].as_u64().unwrap());
+    assert!(stable > all * 4 / 10 && stable < all * 6 / 10, "{stable} of {all}");
+    assert!(east_only["stable"].as_str().unwrap().contains("unstable.geojson"));
+    let c2 = &east_only["steps"][0]["coefficients"];
+    assert!((c2[1].as_f64().unwrap() - ge).abs() < 0.004 * ge, "{c2}");
+    assert!(east_only["after"]["nmad_m"].as_f64().unwrap() < 0.03, "{}", east_only["after"]);
+
+    // xDEM's Deramp(1) on the same pair warped to a local transverse Mercator: the same gradient
+    // within 1 % (both near the known one; the warp's bilinear smoothing is the same on both).
+    for name in ["ref", "ramp"] {
+        warp_to_local_tm(&dir, name);
+    }
+    let x = reference_script(
+        "xdem_deramp.py",
+        &[dir.join("ref_tm.tif").to_str().unwrap(), dir.join("ramp_tm.tif").to_str().unwrap(), "1"],
+    );
+    let (xe, xn) = (
+        (x["east_10km"].as_f64().unwrap() - x["centre"].as_f64().unwrap()) / 10.0,
+        (x["north_10km"].as_f64().unwrap() - x["centre"].as_f64().unwrap()) / 10.0,
+    );
+    println!(
+        "gradient m/km: known {ge} {gn}, Terrafuse {:.5} {:.5}, xDEM {xe:.5} {xn:.5} ({:.2} s)",
+        c[1], c[2], x["seconds"]
+    );
+    assert!((c[1] - xe).abs() < 0.01 * ge.abs() && (c[2] - xn).abs() < 0.01 * gn.abs(), "xDEM {xe} {xn}");
+    assert!((x["centre"].as_f64().unwrap() - c0).abs() < 0.05, "xDEM at the centre: {}", x["centre"]);
 }
 
 #[test]

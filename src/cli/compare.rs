@@ -6,7 +6,10 @@ use super::{CliError, Within};
 use std::fmt::Write as _;
 use std::path::PathBuf;
 
-use crate::compare::{CompareOptions, Comparison, CoregOptions, Coregistration, Weighting, compare, coregister};
+use crate::compare::pipeline::{Correction, step_name};
+use crate::compare::{
+    CompareOptions, Comparison, CoregOptions, Coregistration, Stable, Step, Weighting, compare, coregister,
+};
 use crate::geodesy::GeoBox;
 use crate::project::Project;
 
@@ -137,10 +140,18 @@ pub struct CoregRequest {
     /// Only inside WEST,SOUTH,EAST,NORTH (degrees).
     #[arg(long, allow_hyphen_values = true)]
     pub region: Option<String>,
+    /// The bias corrections, in order: nuth_kaab, vertical, deramp:ORDER (1–3),
+    /// terrain_bias:elevation|max_curvature|slope, directional:AZIMUTH (degrees from north).
+    #[arg(long, default_value = "nuth_kaab")]
+    pub pipeline: String,
+    /// Fit on stable terrain only: a layer (where it has data) or a vector file of unstable
+    /// terrain (polygons left out, e.g. glacier outlines).
+    #[arg(long)]
+    pub stable: Option<String>,
     /// Write the result into the project: A's shift_m and offset_m.
     #[arg(long)]
     pub apply: bool,
-    /// Print JSON (east_m, north_m, up_m, iterations, before, after).
+    /// Print JSON (east_m, north_m, up_m, iterations, steps, before, after).
     #[arg(long)]
     pub json: bool,
 }
@@ -149,7 +160,18 @@ pub struct CoregRequest {
 pub fn coregister_command(request: &CoregRequest) -> Result<String, CliError> {
     let region = parse_region(request.region.as_deref())?;
     let mut project = Project::load(&request.project)?;
-    let opts = CoregOptions { level: request.level, region, ..CoregOptions::default() };
+    let pipeline = Step::parse_list(&request.pipeline)?;
+    if request.apply
+        && let Some(step) = pipeline.iter().find(|s| !matches!(s, Step::NuthKaab | Step::Vertical))
+    {
+        return Err(CliError::from(format!(
+            "--apply: {} cannot be stored in a layer yet; only nuth_kaab and vertical can (as shift_m and offset_m)",
+            step_name(step)
+        )));
+    }
+    let names: Vec<&str> = project.layers.iter().map(|l| l.name.as_str()).collect();
+    let stable = request.stable.as_deref().map(|s| Stable::parse(&names, s));
+    let opts = CoregOptions { level: request.level, region, pipeline, stable, ..CoregOptions::default() };
     let c = coregister(&project, &request.a, &request.b, &opts).within(request.project.display())?;
     if request.apply {
         let layer = project.layers.iter_mut().find(|l| l.name == request.a).ok_or("the layer vanished")?;
@@ -163,14 +185,61 @@ pub fn coregister_command(request: &CoregRequest) -> Result<String, CliError> {
     Ok(coreg_table(&c, request.apply))
 }
 
+/// A correction in a line.
+fn describe(c: &Correction) -> String {
+    match c {
+        Correction::NuthKaab { east_m, north_m, up_m } => {
+            format!("move east {east_m:+.3} m, north {north_m:+.3} m, up {up_m:+.3} m")
+        }
+        Correction::Vertical { up_m } => format!("raise {up_m:+.3} m"),
+        Correction::Deramp { order, coefficients, origin_deg } => format!(
+            "order {order} about {:.4}°E {:.4}°N, coefficients (m/km^k) {}",
+            origin_deg[0],
+            origin_deg[1],
+            coefficients.iter().map(|c| format!("{c:+.4}")).collect::<Vec<_>>().join(" ")
+        ),
+        Correction::TerrainBias { attribute, bins } => {
+            let range =
+                bins.iter().map(|b| b[1]).fold((f64::INFINITY, f64::NEG_INFINITY), |r, v| (r.0.min(v), r.1.max(v)));
+            format!("{} bins of {attribute:?}, bias {:+.3} … {:+.3} m", bins.len(), range.0, range.1)
+        }
+        Correction::Directional { azimuth_deg, offset_m, sinusoids, .. } => format!(
+            "along {azimuth_deg}°: offset {offset_m:+.3} m{}",
+            sinusoids
+                .iter()
+                .map(|s| format!(", {:.3} m at {:.0} m wavelength", s.amplitude_m, s.wavelength_m))
+                .collect::<String>()
+        ),
+    }
+}
+
 fn coreg_table(c: &Coregistration, applied: bool) -> String {
     let mut out = String::new();
-    let _ = writeln!(out, "{} onto {} at level {} ({:.1} m samples), Nuth & Kääb:", c.a, c.b, c.level, c.spacing_m);
-    for (k, [e, n, bias]) in c.steps.iter().enumerate() {
+    let _ = writeln!(
+        out,
+        "{} onto {} at level {} ({:.1} m samples), pipeline {}:",
+        c.a,
+        c.b,
+        c.level,
+        c.spacing_m,
+        c.pipeline.join(",")
+    );
+    if let Some(stable) = &c.stable {
+        let _ = writeln!(out, "stable terrain: {stable}, {} samples", c.stable_count);
+    }
+    for (name, step) in c.pipeline.iter().zip(&c.steps) {
+        let _ = writeln!(out, "  {name}: {}", describe(&step.correction));
+        for (k, [e, n, bias]) in step.moves.iter().flatten().enumerate() {
+            let _ = writeln!(
+                out,
+                "    iteration {:>2}: step east {e:+.3} m, north {n:+.3} m (vertical bias {bias:+.3} m)",
+                k + 1
+            );
+        }
         let _ = writeln!(
             out,
-            "  iteration {:>2}: step east {e:+.3} m, north {n:+.3} m (vertical bias {bias:+.3} m)",
-            k + 1
+            "    stable terrain: NMAD {:.3} → {:.3} m, median {:+.3} → {:+.3} m",
+            step.before.nmad_m, step.after.nmad_m, step.before.median_m, step.after.median_m
         );
     }
     let state = if c.converged { "converged" } else { "NOT converged (the last step was over the tolerance)" };

@@ -1,4 +1,5 @@
-//! Co-registration of layer A onto layer B by Nuth & Kääb (2011), on the ellipsoid.
+//! The Nuth & Kääb (2011) step of a co-registration pipeline, on the ellipsoid, and the
+//! reference's samples every step fits on (position, slope, aspect, maximal curvature, area).
 //!
 //! Where A is B displaced by s (A(p) = B(p − s)), dh = A − B ≈ −∇B·s, so with B's slope α and
 //! aspect ψ (the azimuth of its downhill direction), dh / tan α = s_e·sin ψ + s_n·cos ψ: a cosine of
@@ -15,16 +16,12 @@
 use crate::maths::median;
 use glam::DVec3;
 use rayon::prelude::*;
-use serde::Serialize;
 
 use super::CompareError;
 use super::mosaic::Mosaic;
-use super::sample::{gradient, operand_scene, overlap_quads, quad_points};
-use super::stats::{Diff, Stats, stats};
+use super::sample::{gradient, quad_points};
 use crate::ecm::QuadId;
 use crate::geodesy::GeoBox;
-use crate::layers::Operand;
-use crate::project::Project;
 use crate::scene::Scene;
 use crate::scene::shifted::{local_axes, locate};
 use crate::store::grid::{GRID, spacing_m};
@@ -36,18 +33,9 @@ const BINS: usize = 72;
 /// Samples a bin needs to enter the fit.
 const MIN_PER_BIN: usize = 10;
 
-/// How to co-register.
-#[derive(Clone, Debug)]
-pub struct CoregOptions {
-    /// The level (default: one finer than the finest level of the coarser dataset. A is sampled
-    /// between its samples by bilinear interpolation, which smooths it; at the data's own level B
-    /// is not, and the unequal smoothing biases the fit. On a grid twice as fine three samples of
-    /// B in four are bilinear interpolations too, so both sides are smoothed alike: measured on
-    /// a synthetic shift, 0.12 m error instead of 0.38 m, where keeping only every other sample
-    /// of the finer grid gives 0.38 m again; BENCHMARKS.md).
-    pub level: Option<u8>,
-    /// Only inside this box: west, south, east, north, degrees.
-    pub region: Option<GeoBox>,
+/// How Nuth & Kääb iterates.
+#[derive(Clone, Copy, Debug)]
+pub struct NuthKaabOptions {
     /// Most iterations.
     pub max_iterations: u32,
     /// Stop when a step is under this fraction of a sample spacing.
@@ -56,89 +44,74 @@ pub struct CoregOptions {
     pub min_slope_deg: f64,
 }
 
-impl Default for CoregOptions {
-    fn default() -> CoregOptions {
-        CoregOptions { level: None, region: None, max_iterations: 10, tolerance_px: 0.001, min_slope_deg: 1.0 }
+impl Default for NuthKaabOptions {
+    fn default() -> NuthKaabOptions {
+        NuthKaabOptions { max_iterations: 10, tolerance_px: 0.001, min_slope_deg: 1.0 }
     }
 }
 
-/// What co-registration found (field names are the JSON's: scripts rely on them).
-#[derive(Clone, Debug, Serialize)]
-pub struct Coregistration {
-    /// The layer moved.
-    pub a: String,
-    /// The reference.
-    pub b: String,
-    /// The level worked at.
-    pub level: u8,
-    /// Its mean sample spacing, metres.
-    pub spacing_m: f64,
-    /// Move A east by this much, metres (local frame of each sample).
+/// What Nuth & Kääb found.
+#[derive(Clone, Debug)]
+pub(super) struct NuthKaabRun {
+    /// The move of A, east and north metres (the start plus every step).
     pub east_m: f64,
-    /// Move A north by this much, metres.
+    /// North.
     pub north_m: f64,
-    /// Raise A by this much, metres.
-    pub up_m: f64,
-    /// Iterations made.
-    pub iterations: u32,
+    /// Each iteration's step: east, north (metres) and the vertical bias removed.
+    pub moves: Vec<[f64; 3]>,
     /// Whether the last step was under the tolerance.
     pub converged: bool,
-    /// Each iteration's step: east, north (metres) and the vertical bias removed.
-    pub steps: Vec<[f64; 3]>,
-    /// Statistics of A − B before (cell-area weighted).
-    pub before: Stats,
-    /// Statistics of A′ − B after.
-    pub after: Stats,
+    /// A(p − c) − B at every reference sample for the move found.
+    pub dh: Vec<Option<f64>>,
 }
 
 /// A sample of the reference.
 #[derive(Clone, Copy)]
-struct RefSample {
-    p: DVec3,
-    b: f64,
+pub(super) struct RefSample {
+    pub p: DVec3,
+    /// B there, metres.
+    pub b: f64,
     /// Its quad and grid position there (the mosaic's level is B's sampling level).
-    quad: QuadId,
-    u: f64,
-    v: f64,
+    pub quad: QuadId,
+    pub u: f64,
+    pub v: f64,
     /// Grid units per metre east and north: (du, dv) = to_grid · (de, dn), from the grid's
     /// central differences at the sample.
     to_grid: [[f64; 2]; 2],
-    tan_slope: f64,
+    pub tan_slope: f64,
     aspect: f64,
-    area: f64,
+    /// B's maximal curvature (Shary 1995, as xDEM's `max_curvature`), 100/m; NaN where a
+    /// neighbour has no data.
+    pub max_curvature: f64,
+    /// The cell's area, m².
+    pub area: f64,
 }
 
-/// Co-registers layer `a` onto layer `b` of a project.
-pub fn coregister(project: &Project, a: &str, b: &str, opts: &CoregOptions) -> Result<Coregistration, CompareError> {
-    if a == b {
-        return Err(CompareError::Option {
-            option: "--to".into(),
-            problem: format!("'{a}' co-registered onto itself"),
-        });
-    }
-    let (scene, _) = Scene::open(project)?;
-    let alone = |name: &str| operand_scene(&scene, project, &Operand::Layer(name.into()));
-    let (scene_a, scene_b) = (alone(a)?, alone(b)?);
-    let (finest, _) = overlap_quads(&scene_a, &scene_b, None, opts.region).map(|(l, q)| (l, q.len()))?;
-    let (level, quads) = overlap_quads(&scene_a, &scene_b, Some(opts.level.unwrap_or(finest + 1)), opts.region)?;
-    let ellipsoid = scene_b.ellipsoid;
-    let reference = reference_samples(&scene_b, &quads, opts.region)?;
-    if reference.is_empty() {
-        return Err(CompareError::Option { option: "A, B".into(), problem: "the layers do not overlap".into() });
-    }
-    let mut mosaic = Mosaic::new(scene_a, level);
-    let spacing = spacing_m(&ellipsoid, level);
+/// Moves A onto B by Nuth & Kääb from a start (east, north metres), fitting on the samples
+/// `stable` keeps, with `prior` (a bias per sample, metres) taken off dh first.
+pub(super) fn nuth_kaab(
+    mosaic: &mut Mosaic,
+    reference: &[RefSample],
+    stable: &[bool],
+    prior: &[f64],
+    start: (f64, f64),
+    opts: &NuthKaabOptions,
+) -> Result<NuthKaabRun, CompareError> {
+    let spacing = spacing_m(&mosaic.ellipsoid(), mosaic.level());
     let min_tan = opts.min_slope_deg.to_radians().tan();
-    let (mut c_e, mut c_n) = (0.0, 0.0);
-    let mut steps = Vec::new();
+    let (mut c_e, mut c_n) = start;
+    let mut moves = Vec::new();
     let mut converged = false;
-    let before = differences(&mut mosaic, &reference, 0.0, 0.0)?;
-    let mut dh = before.clone();
+    let mut dh = differences(mosaic, reference, c_e, c_n)?;
+    let kept = |dh: &[Option<f64>]| -> Vec<Option<f64>> {
+        dh.iter().zip(stable).zip(prior).map(|((d, &s), p)| d.filter(|_| s).map(|d| d - p)).collect()
+    };
     for _ in 0..opts.max_iterations.max(1) {
-        let bias = median(dh.iter().flatten().copied().collect());
+        let here = kept(&dh);
+        let bias = median(here.iter().flatten().copied().collect());
         // dh / tan α per aspect bin.
         let mut bins: Vec<Vec<f64>> = vec![Vec::new(); BINS];
-        for (d, r) in dh.iter().zip(&reference) {
+        for (d, r) in here.iter().zip(reference) {
             let Some(d) = d else { continue };
             if r.tan_slope < min_tan || !r.aspect.is_finite() {
                 continue;
@@ -153,41 +126,19 @@ pub fn coregister(project: &Project, a: &str, b: &str, opts: &CoregOptions) -> R
         // A now sits s from B: move it back by s.
         c_e -= s_e;
         c_n -= s_n;
-        steps.push([-s_e, -s_n, bias]);
-        dh = differences(&mut mosaic, &reference, c_e, c_n)?;
+        moves.push([-s_e, -s_n, bias]);
+        dh = differences(mosaic, reference, c_e, c_n)?;
         if s_e.hypot(s_n) < opts.tolerance_px * spacing {
             converged = true;
             break;
         }
     }
-    let up = -median(dh.iter().flatten().copied().collect());
-    let diffs = |dh: &[Option<f64>], up: f64| -> Vec<Diff> {
-        dh.iter()
-            .zip(&reference)
-            .filter_map(|(d, r)| {
-                d.map(|d| Diff { dh_m: d + up, weight: r.area, slope_deg: r.tan_slope.atan().to_degrees() })
-            })
-            .collect()
-    };
-    Ok(Coregistration {
-        a: a.into(),
-        b: b.into(),
-        level,
-        spacing_m: spacing,
-        east_m: c_e,
-        north_m: c_n,
-        up_m: up,
-        iterations: steps.len() as u32,
-        converged,
-        steps,
-        before: stats(&diffs(&before, 0.0), 0),
-        after: stats(&diffs(&dh, up), 0),
-    })
+    Ok(NuthKaabRun { east_m: c_e, north_m: c_n, moves, converged, dh })
 }
 
 /// B's samples over the overlap (each quad's cells 0..256 once, as in `sample`), with the local
 /// frame, slope and aspect.
-fn reference_samples(
+pub(super) fn reference_samples(
     scene_b: &Scene,
     quads: &[QuadId],
     region: Option<GeoBox>,
@@ -235,6 +186,7 @@ fn reference_samples(
                                 to_grid,
                                 tan_slope: g_e.hypot(g_n),
                                 aspect: (-g_e).atan2(-g_n),
+                                max_curvature: max_curvature(&points, h, i, j, east, north),
                                 area,
                             })
                         })
@@ -251,7 +203,7 @@ fn reference_samples(
 /// is found in the sample's own quad through the grid's local axes (a shift of d moves it off by
 /// the grid's curvature, ≈ d²/2R: 0.02 m for 500 m on Earth, 4·10⁻⁴ of a level-10 sample), and
 /// located exactly (inverse projection) only where it leaves that quad.
-fn differences(
+pub(super) fn differences(
     mosaic: &mut Mosaic,
     reference: &[RefSample],
     c_e: f64,
@@ -286,6 +238,46 @@ fn differences(
             (!a.is_nan()).then_some(a - r.b)
         })
         .collect())
+}
+
+/// The maximal curvature of B at sample (i, j) (Shary 1995; xDEM's `max_curvature`, 100/m):
+/// the quadric z = r x²/2 + s x y + t y²/2 + p x + q y + c fitted by least squares to the sample
+/// and its eight neighbours in the tangent plane's east and north metres (so a sheared grid near a
+/// cube corner is measured as it lies), then H + √(H² − K) from the mean curvature H and the
+/// Gaussian curvature K; 0 where the fit is flat, NaN where a neighbour has no data. On the
+/// quad's border the window is the one of the nearest sample inside (its curvature).
+fn max_curvature(points: &[(DVec3, f64, f64)], h: &[f32], i: usize, j: usize, east: DVec3, north: DVec3) -> f64 {
+    let (i, j) = (i.clamp(1, N - 2), j.clamp(1, N - 2));
+    let centre = points[j * N + i].0;
+    let mut normal = vec![vec![0.0; 6]; 6];
+    let mut rhs = vec![0.0; 6];
+    for dj in 0..3 {
+        for di in 0..3 {
+            let k = (j + dj - 1) * N + i + di - 1;
+            let z = f64::from(h[k]);
+            if z.is_nan() {
+                return f64::NAN;
+            }
+            let d = points[k].0 - centre;
+            let (x, y) = (d.dot(east), d.dot(north));
+            let row = [0.5 * x * x, x * y, 0.5 * y * y, x, y, 1.0];
+            for a in 0..6 {
+                rhs[a] += row[a] * z;
+                for b in 0..6 {
+                    normal[a][b] += row[a] * row[b];
+                }
+            }
+        }
+    }
+    let Some(c) = super::bias::solve(normal, rhs) else { return f64::NAN };
+    let (r, s, t, p, q) = (c[0], c[1], c[2], c[3], c[4]);
+    if p == 0.0 && q == 0.0 {
+        return 0.0;
+    }
+    let w = 1.0 + p * p + q * q;
+    let mean = -((1.0 + q * q) * r - 2.0 * p * q * s + (1.0 + p * p) * t) / (2.0 * w.powf(1.5));
+    let gauss = (r * t - s * s) / (w * w);
+    100.0 * (mean + (mean * mean - gauss).max(0.0).sqrt())
 }
 
 /// Fits median(bin) = s_n·cos ψ + s_e·sin ψ + c over the aspect bins with enough samples, by

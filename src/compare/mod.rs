@@ -3,22 +3,30 @@
 //! the reference's slope, and their statistics (`stats`).
 //!
 //! - [`stats`]: weighted statistics, histogram and slope classes (the JSON of `terrafuse compare`);
-//! - [`coreg`]: Nuth & Kääb co-registration on the ellipsoid;
+//! - [`pipeline`]: co-registration as a pipeline of bias corrections (`coregister --pipeline`);
+//! - [`coreg`]: its Nuth & Kääb step on the ellipsoid, and the reference's samples;
+//! - [`bias`]: the other steps' models (vertical, deramp, terrain bias, directional);
+//! - [`stable`]: where the corrections are fitted (a layer's coverage, or outlines left out);
 //! - [`profile`]: every visible layer's elevation along a geodesic;
 //! - [`sample`]: the overlap's samples: each layer composed alone with the CPU reference, cell areas
 //!   and slopes on the ellipsoid.
 
+pub mod bias;
 pub mod coreg;
 mod mosaic;
+pub mod pipeline;
 pub mod profile;
 pub mod sample;
+pub mod stable;
 pub mod stats;
 
-pub use coreg::{CoregOptions, Coregistration, coregister};
+pub use coreg::NuthKaabOptions;
+pub use pipeline::{CoregOptions, Coregistration, Step, coregister};
 pub use profile::{Profile, ProfileOptions, profile};
 pub use sample::{
     CompareOptions, Comparison, Weighting, compare, compare_operands, difference_range, open_operand, operand,
 };
+pub use stable::Stable;
 pub use stats::{Diff, Histogram, SlopeClass, Stats};
 
 /// A comparison that cannot be made, in words that name the layer, option or file.
@@ -37,6 +45,14 @@ pub enum CompareError {
     Option {
         /// The option, as the command line spells it.
         option: String,
+        /// What is wrong.
+        problem: String,
+    },
+    /// A file named on the command line cannot be used.
+    #[error("{}: {problem}", path.display())]
+    File {
+        /// The file.
+        path: std::path::PathBuf,
         /// What is wrong.
         problem: String,
     },

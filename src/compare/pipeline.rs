@@ -1,0 +1,579 @@
+//! Co-registration as a pipeline of bias corrections (`terrafuse coregister --pipeline`), as
+//! xDEM chains `NuthKaab() + Deramp(…)`: each step is fitted to what the steps before it left of
+//! dh = A − B on stable terrain and taken off A, in the order given.
+//!
+//! A corrected is A′(p) = A(p − c) + up − Σ bias_k(p): Nuth & Kääb moves A by c (east, north
+//! metres) and sets the vertical offset `up` (the median it removes); `vertical` adds to `up`;
+//! `deramp`, `terrain_bias` and `directional` are functions of the reference sample p (its
+//! position in a local east-north frame at the samples' centroid, or B's elevation, slope or
+//! maximal curvature there) summed into the bias. A Nuth & Kääb step after others fits the shift
+//! with their biases already taken off, so their order matters as it does in xDEM.
+//!
+//! The statistics of each step are over the stable samples; those of the whole run over every
+//! sample (as `compare` counts them).
+
+use serde::{Deserialize, Serialize};
+
+use super::CompareError;
+use super::bias::{Binned, Polynomial, Sinusoid, Sinusoids, vertical};
+use super::coreg::{NuthKaabOptions, RefSample, differences, nuth_kaab, reference_samples};
+use super::mosaic::Mosaic;
+use super::sample::{operand_scene, overlap_quads};
+use super::stable::{Outlines, Stable};
+use super::stats::{Diff, Stats, stats};
+use crate::ecm::QuadId;
+use crate::geodesy::{GeoBox, Geodetic, ecef_from_geodetic, geodetic_from_ecef};
+use crate::layers::Operand;
+use crate::maths::median;
+use crate::project::Project;
+use crate::scene::Scene;
+use crate::scene::shifted::local_axes;
+use crate::store::grid::{GRID, spacing_m};
+
+/// Samples along a quad edge.
+const N: usize = GRID as usize;
+
+/// One step of a pipeline, as `--pipeline` names it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Step {
+    /// `nuth_kaab`: the horizontal shift and vertical offset (Nuth & Kääb 2011).
+    NuthKaab,
+    /// `vertical`: the median offset.
+    Vertical,
+    /// `deramp:ORDER`: a polynomial of order 1–3 in local east and north.
+    Deramp(u8),
+    /// `terrain_bias:ATTRIBUTE`: dh binned by an attribute of B.
+    TerrainBias(Attribute),
+    /// `directional:AZIMUTH`: a sum of sinusoids along an azimuth, degrees clockwise from north.
+    Directional(f64),
+}
+
+/// An attribute of the reference that a terrain bias is binned by.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, schemars::JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum Attribute {
+    /// B's elevation, metres.
+    Elevation,
+    /// B's maximal curvature, 100/m (xDEM's `max_curvature`).
+    MaxCurvature,
+    /// B's slope, degrees.
+    Slope,
+}
+
+impl Step {
+    /// Parses one step (`deramp:2`, `terrain_bias:elevation`, `directional:30` …).
+    pub fn parse(text: &str) -> Result<Step, String> {
+        let (name, arg) = match text.split_once(':') {
+            Some((n, a)) => (n.trim(), Some(a.trim())),
+            None => (text.trim(), None),
+        };
+        let need = |what: &str| arg.ok_or_else(|| format!("'{name}' needs {what} ('{name}:…')"));
+        let step = match name {
+            "nuth_kaab" => Step::NuthKaab,
+            "vertical" => Step::Vertical,
+            "deramp" => match need("an order 1–3")?.parse::<u8>() {
+                Ok(order @ 1..=3) => Step::Deramp(order),
+                _ => return Err(format!("'{text}': the order must be 1, 2 or 3")),
+            },
+            "terrain_bias" => Step::TerrainBias(match need("an attribute")? {
+                "elevation" => Attribute::Elevation,
+                "max_curvature" => Attribute::MaxCurvature,
+                "slope" => Attribute::Slope,
+                other => {
+                    return Err(format!("'{other}' is not an attribute (elevation, max_curvature or slope)"));
+                }
+            }),
+            "directional" => match need("an azimuth in degrees")?.parse::<f64>() {
+                Ok(az) if az.is_finite() => Step::Directional(az.rem_euclid(360.0)),
+                _ => return Err(format!("'{text}': the azimuth must be a number of degrees")),
+            },
+            other => {
+                return Err(format!(
+                    "'{other}' is not a step (nuth_kaab, vertical, deramp:ORDER, terrain_bias:ATTRIBUTE, directional:AZIMUTH)"
+                ));
+            }
+        };
+        if arg.is_some() && matches!(step, Step::NuthKaab | Step::Vertical) {
+            return Err(format!("'{name}' takes no argument"));
+        }
+        Ok(step)
+    }
+
+    /// Parses `--pipeline`'s comma-separated steps.
+    pub fn parse_list(text: &str) -> Result<Vec<Step>, CompareError> {
+        let steps: Result<Vec<Step>, String> = text.split(',').map(Step::parse).collect();
+        let problem = |problem: String| CompareError::Option { option: "--pipeline".into(), problem };
+        let steps = steps.map_err(problem)?;
+        if steps.is_empty() {
+            return Err(problem("names no step".into()));
+        }
+        Ok(steps)
+    }
+}
+
+/// How to co-register.
+#[derive(Clone, Debug)]
+pub struct CoregOptions {
+    /// The level (default: one finer than the finest level of the coarser dataset. A is sampled
+    /// between its samples by bilinear interpolation, which smooths it; at the data's own level B
+    /// is not, and the unequal smoothing biases the fit. On a grid twice as fine three samples of
+    /// B in four are bilinear interpolations too, so both sides are smoothed alike: measured on
+    /// a synthetic shift, 0.12 m error instead of 0.38 m, where keeping only every other sample
+    /// of the finer grid gives 0.38 m again; BENCHMARKS.md).
+    pub level: Option<u8>,
+    /// Only inside this box: west, south, east, north, degrees.
+    pub region: Option<GeoBox>,
+    /// The steps, in order (default: Nuth & Kääb alone).
+    pub pipeline: Vec<Step>,
+    /// Where the corrections are fitted (default: everywhere).
+    pub stable: Option<Stable>,
+    /// How Nuth & Kääb iterates.
+    pub nuth_kaab: NuthKaabOptions,
+}
+
+impl Default for CoregOptions {
+    fn default() -> CoregOptions {
+        CoregOptions {
+            level: None,
+            region: None,
+            pipeline: vec![Step::NuthKaab],
+            stable: None,
+            nuth_kaab: NuthKaabOptions::default(),
+        }
+    }
+}
+
+/// A step's fitted correction (field names are the JSON's: scripts rely on them). Biases are
+/// what A is too high by, taken off it.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
+#[serde(tag = "name", rename_all = "snake_case")]
+pub enum Correction {
+    /// Moves A east and north and raises it (metres).
+    NuthKaab {
+        /// East, metres.
+        east_m: f64,
+        /// North, metres.
+        north_m: f64,
+        /// Up, metres.
+        up_m: f64,
+    },
+    /// Raises A (metres).
+    Vertical {
+        /// Up, metres.
+        up_m: f64,
+    },
+    /// A polynomial bias of local east and north kilometres from `origin_deg`.
+    Deramp {
+        /// The local frame's origin: longitude, latitude, degrees.
+        origin_deg: [f64; 2],
+        /// The order, 1–3.
+        order: u8,
+        /// The coefficients, metres per km^(i + j), in the order of `Polynomial::terms`
+        /// (1, e, n, e², e·n, n², e³, e²·n, e·n², n³).
+        coefficients: Vec<f64>,
+    },
+    /// A bias binned by an attribute of B, linear between bin centres.
+    TerrainBias {
+        /// The attribute.
+        attribute: Attribute,
+        /// (attribute at the bin's centre, bias there in metres), ascending.
+        bins: Vec<[f64; 2]>,
+    },
+    /// A bias that is a sum of sinusoids of the distance along an azimuth.
+    Directional {
+        /// The local frame's origin: longitude, latitude, degrees.
+        origin_deg: [f64; 2],
+        /// Degrees clockwise from north.
+        azimuth_deg: f64,
+        /// The constant, metres.
+        offset_m: f64,
+        /// The sinusoids of the distance from the origin along the azimuth.
+        sinusoids: Vec<Sinusoid>,
+    },
+}
+
+/// A local east-north tangent frame.
+#[derive(Clone, Copy, Debug)]
+struct Frame {
+    origin: glam::DVec3,
+    east: glam::DVec3,
+    north: glam::DVec3,
+    origin_deg: [f64; 2],
+}
+
+impl Frame {
+    fn at(ellipsoid: &crate::geodesy::Ellipsoid, origin_deg: [f64; 2]) -> Frame {
+        let g = Geodetic::from_degrees(origin_deg[1], origin_deg[0], 0.0);
+        let (east, north) = local_axes(g.lon_rad, g.lat_rad);
+        Frame { origin: ecef_from_geodetic(ellipsoid, g), east, north, origin_deg }
+    }
+
+    /// East and north metres of a point.
+    fn local(&self, p: glam::DVec3) -> (f64, f64) {
+        let d = p - self.origin;
+        (d.dot(self.east), d.dot(self.north))
+    }
+}
+
+/// What a bias needs of a sample: where it is and B's attributes there.
+pub(super) struct At {
+    /// East and north metres in the frame of the correction's origin.
+    pub east_m: f64,
+    /// North.
+    pub north_m: f64,
+    /// B, metres.
+    pub elevation_m: f64,
+    /// B's slope, degrees.
+    pub slope_deg: f64,
+    /// B's maximal curvature, 100/m.
+    pub max_curvature: f64,
+}
+
+impl Correction {
+    /// The bias at a sample, metres (0 for the steps that move or raise A, and where the
+    /// attribute a terrain bias needs is unknown).
+    fn bias(&self, at: &At) -> f64 {
+        match self {
+            Correction::NuthKaab { .. } | Correction::Vertical { .. } => 0.0,
+            Correction::Deramp { order, coefficients, .. } => {
+                Polynomial { order: *order, coefficients: coefficients.clone() }
+                    .at(at.east_m / 1000.0, at.north_m / 1000.0)
+            }
+            Correction::TerrainBias { attribute, bins } => {
+                let x = attribute_of(*attribute, at);
+                if x.is_finite() { Binned { bins: bins.clone() }.at(x) } else { 0.0 }
+            }
+            Correction::Directional { azimuth_deg, offset_m, sinusoids, .. } => {
+                let (s, c) = azimuth_deg.to_radians().sin_cos();
+                Sinusoids { offset_m: *offset_m, sinusoids: sinusoids.clone() }.at(at.east_m * s + at.north_m * c)
+            }
+        }
+    }
+}
+
+fn attribute_of(attribute: Attribute, at: &At) -> f64 {
+    match attribute {
+        Attribute::Elevation => at.elevation_m,
+        Attribute::Slope => at.slope_deg,
+        Attribute::MaxCurvature => at.max_curvature,
+    }
+}
+
+/// One step of a run (field names are the JSON's: scripts rely on them).
+#[derive(Clone, Debug, Serialize)]
+pub struct StepResult {
+    /// The correction fitted (its `name` is the step's).
+    #[serde(flatten)]
+    pub correction: Correction,
+    /// Nuth & Kääb's iterations: each step east, north (metres) and the vertical bias removed.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub moves: Option<Vec<[f64; 3]>>,
+    /// Nuth & Kääb: whether the last step was under the tolerance.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub converged: Option<bool>,
+    /// Statistics of dh on stable terrain before the step.
+    pub before: Stats,
+    /// And after it.
+    pub after: Stats,
+}
+
+/// What co-registration found (field names are the JSON's: scripts rely on them).
+#[derive(Clone, Debug, Serialize)]
+pub struct Coregistration {
+    /// The layer moved.
+    pub a: String,
+    /// The reference.
+    pub b: String,
+    /// The level worked at.
+    pub level: u8,
+    /// Its mean sample spacing, metres.
+    pub spacing_m: f64,
+    /// The steps as asked for.
+    pub pipeline: Vec<String>,
+    /// Move A east by this much, metres (local frame of each sample; Nuth & Kääb's).
+    pub east_m: f64,
+    /// Move A north by this much, metres.
+    pub north_m: f64,
+    /// Raise A by this much, metres (Nuth & Kääb's and `vertical`'s together).
+    pub up_m: f64,
+    /// Nuth & Kääb's iterations, all its steps together.
+    pub iterations: u32,
+    /// Whether every Nuth & Kääb step converged (true without one).
+    pub converged: bool,
+    /// Where stable terrain was taken from (absent: everywhere).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub stable: Option<String>,
+    /// Samples on stable terrain.
+    pub stable_count: u64,
+    /// Each step: its correction and the statistics on stable terrain before and after it.
+    pub steps: Vec<StepResult>,
+    /// Statistics of A − B over every sample before (cell-area weighted).
+    pub before: Stats,
+    /// Statistics of A′ − B after the whole pipeline.
+    pub after: Stats,
+}
+
+/// Co-registers layer `a` onto layer `b` of a project by the pipeline of `opts`.
+pub fn coregister(project: &Project, a: &str, b: &str, opts: &CoregOptions) -> Result<Coregistration, CompareError> {
+    if a == b {
+        return Err(CompareError::Option {
+            option: "--to".into(),
+            problem: format!("'{a}' co-registered onto itself"),
+        });
+    }
+    if opts.pipeline.is_empty() {
+        return Err(CompareError::Option { option: "--pipeline".into(), problem: "names no step".into() });
+    }
+    let (scene, _) = Scene::open(project)?;
+    let alone = |name: &str| operand_scene(&scene, project, &Operand::Layer(name.into()));
+    let (scene_a, scene_b) = (alone(a)?, alone(b)?);
+    let (finest, _) = overlap_quads(&scene_a, &scene_b, None, opts.region).map(|(l, q)| (l, q.len()))?;
+    let (level, quads) = overlap_quads(&scene_a, &scene_b, Some(opts.level.unwrap_or(finest + 1)), opts.region)?;
+    let ellipsoid = scene_b.ellipsoid;
+    let reference = reference_samples(&scene_b, &quads, opts.region)?;
+    if reference.is_empty() {
+        return Err(CompareError::Option { option: "A, B".into(), problem: "the layers do not overlap".into() });
+    }
+    let stable = stable_mask(&scene, project, &quads, &reference, opts.stable.as_ref())?;
+    let frame = Frame::at(&ellipsoid, centroid_deg(&ellipsoid, &reference));
+    let at: Vec<At> = reference
+        .iter()
+        .map(|r| {
+            let (east_m, north_m) = frame.local(r.p);
+            At {
+                east_m,
+                north_m,
+                elevation_m: r.b,
+                slope_deg: r.tan_slope.atan().to_degrees(),
+                max_curvature: r.max_curvature,
+            }
+        })
+        .collect();
+    let mut mosaic = Mosaic::new(scene_a, level);
+    let raw_before = differences(&mut mosaic, &reference, 0.0, 0.0)?;
+    let mut raw = raw_before.clone();
+    let (mut shift, mut up) = ((0.0, 0.0), 0.0);
+    let mut bias = vec![0.0; reference.len()];
+    let (mut iterations, mut converged) = (0u32, true);
+    let mut steps = Vec::new();
+    for step in &opts.pipeline {
+        let residual = |raw: &[Option<f64>], up: f64, bias: &[f64]| -> Vec<Option<f64>> {
+            raw.iter().zip(bias).map(|(d, b)| d.map(|d| d + up - b)).collect()
+        };
+        let before = stable_stats(&residual(&raw, up, &bias), &reference, &stable);
+        // The stable samples with a residual: index, value, weight.
+        let fit_set = |res: &[Option<f64>]| -> Vec<(usize, f64, f64)> {
+            res.iter()
+                .enumerate()
+                .filter(|(k, d)| stable[*k] && d.is_some())
+                .map(|(k, d)| (k, d.unwrap_or(0.0), reference[k].area))
+                .collect()
+        };
+        let too_few = |what: &str| CompareError::Option {
+            option: "--pipeline".into(),
+            problem: format!("{what}: too few stable samples with data on both sides to fit it"),
+        };
+        let (mut moves, mut step_converged) = (None, None);
+        let correction = match *step {
+            Step::NuthKaab => {
+                let prior: Vec<f64> = bias.iter().map(|b| b - up).collect();
+                let run = nuth_kaab(&mut mosaic, &reference, &stable, &prior, shift, &opts.nuth_kaab)?;
+                raw = run.dh;
+                let left: Vec<f64> = fit_set(&residual(&raw, 0.0, &bias)).into_iter().map(|s| s.1).collect();
+                let new_up = -median(left);
+                let c = Correction::NuthKaab {
+                    east_m: run.east_m - shift.0,
+                    north_m: run.north_m - shift.1,
+                    up_m: new_up - up,
+                };
+                iterations += run.moves.len() as u32;
+                converged &= run.converged;
+                (moves, step_converged) = (Some(run.moves), Some(run.converged));
+                (shift, up) = ((run.east_m, run.north_m), new_up);
+                c
+            }
+            Step::Vertical => {
+                let set = fit_set(&residual(&raw, up, &bias));
+                let (dh, w): (Vec<f64>, Vec<f64>) = set.iter().map(|s| (s.1, s.2)).unzip();
+                let m = vertical(&dh, &w);
+                if !m.is_finite() {
+                    return Err(too_few("vertical"));
+                }
+                up -= m;
+                Correction::Vertical { up_m: -m }
+            }
+            Step::Deramp(order) => {
+                let set = fit_set(&residual(&raw, up, &bias));
+                let e: Vec<f64> = set.iter().map(|s| at[s.0].east_m / 1000.0).collect();
+                let n: Vec<f64> = set.iter().map(|s| at[s.0].north_m / 1000.0).collect();
+                let (dh, w): (Vec<f64>, Vec<f64>) = set.iter().map(|s| (s.1, s.2)).unzip();
+                let p = Polynomial::fit(order, &e, &n, &dh, &w).ok_or_else(|| too_few("deramp"))?;
+                Correction::Deramp { origin_deg: frame.origin_deg, order, coefficients: p.coefficients }
+            }
+            Step::TerrainBias(attribute) => {
+                let set: Vec<(usize, f64, f64)> = fit_set(&residual(&raw, up, &bias))
+                    .into_iter()
+                    .filter(|s| attribute_of(attribute, &at[s.0]).is_finite())
+                    .collect();
+                let x: Vec<f64> = set.iter().map(|s| attribute_of(attribute, &at[s.0])).collect();
+                let (dh, w): (Vec<f64>, Vec<f64>) = set.iter().map(|s| (s.1, s.2)).unzip();
+                let b = Binned::fit(&x, &dh, &w, super::bias::BINS).ok_or_else(|| too_few("terrain_bias"))?;
+                Correction::TerrainBias { attribute, bins: b.bins }
+            }
+            Step::Directional(azimuth_deg) => {
+                let set = fit_set(&residual(&raw, up, &bias));
+                let (s, c) = azimuth_deg.to_radians().sin_cos();
+                let x: Vec<f64> = set.iter().map(|k| at[k.0].east_m * s + at[k.0].north_m * c).collect();
+                let (dh, w): (Vec<f64>, Vec<f64>) = set.iter().map(|s| (s.1, s.2)).unzip();
+                let extent = x.iter().fold(0.0f64, |m, v| m.max(v.abs())) * 2.0;
+                let bins = ((extent / (4.0 * spacing_m(&ellipsoid, level))) as usize).clamp(100, 1000);
+                let fit = Sinusoids::fit(&x, &dh, &w, bins).ok_or_else(|| too_few("directional"))?;
+                Correction::Directional {
+                    origin_deg: frame.origin_deg,
+                    azimuth_deg,
+                    offset_m: fit.offset_m,
+                    sinusoids: fit.sinusoids,
+                }
+            }
+        };
+        for (b, at) in bias.iter_mut().zip(&at) {
+            *b += correction.bias(at);
+        }
+        let after = stable_stats(&residual(&raw, up, &bias), &reference, &stable);
+        steps.push(StepResult { correction, moves, converged: step_converged, before, after });
+    }
+    let all = vec![true; reference.len()];
+    let after: Vec<Option<f64>> = raw.iter().zip(&bias).map(|(d, b)| d.map(|d| d + up - b)).collect();
+    Ok(Coregistration {
+        a: a.into(),
+        b: b.into(),
+        level,
+        spacing_m: spacing_m(&ellipsoid, level),
+        pipeline: opts.pipeline.iter().map(step_name).collect(),
+        east_m: shift.0,
+        north_m: shift.1,
+        up_m: up,
+        iterations,
+        converged,
+        stable: opts.stable.as_ref().map(Stable::describe),
+        stable_count: stable.iter().filter(|&&s| s).count() as u64,
+        steps,
+        before: stable_stats(&raw_before, &reference, &all),
+        after: stable_stats(&after, &reference, &all),
+    })
+}
+
+/// How `--pipeline` spells a step.
+pub fn step_name(step: &Step) -> String {
+    match step {
+        Step::NuthKaab => "nuth_kaab".into(),
+        Step::Vertical => "vertical".into(),
+        Step::Deramp(order) => format!("deramp:{order}"),
+        Step::TerrainBias(a) => format!(
+            "terrain_bias:{}",
+            match a {
+                Attribute::Elevation => "elevation",
+                Attribute::MaxCurvature => "max_curvature",
+                Attribute::Slope => "slope",
+            }
+        ),
+        Step::Directional(az) => format!("directional:{az}"),
+    }
+}
+
+/// Statistics of the samples `keep` holds that have a difference.
+fn stable_stats(dh: &[Option<f64>], reference: &[RefSample], keep: &[bool]) -> Stats {
+    let diffs: Vec<Diff> = dh
+        .iter()
+        .zip(reference)
+        .zip(keep)
+        .filter(|(_, k)| **k)
+        .filter_map(|((d, r), _)| {
+            d.map(|d| Diff { dh_m: d, weight: r.area, slope_deg: r.tan_slope.atan().to_degrees() })
+        })
+        .collect();
+    stats(&diffs, 0)
+}
+
+/// The area-weighted centroid of the samples on the ellipsoid: longitude, latitude, degrees.
+fn centroid_deg(ellipsoid: &crate::geodesy::Ellipsoid, reference: &[RefSample]) -> [f64; 2] {
+    let (sum, w) = reference.iter().fold((glam::DVec3::ZERO, 0.0), |(s, w), r| (s + r.p * r.area, w + r.area));
+    let g = geodetic_from_ecef(ellipsoid, sum / w.max(f64::MIN_POSITIVE));
+    [g.lon_rad.to_degrees(), g.lat_rad.to_degrees()]
+}
+
+/// Which samples are stable: all without `stable`; where a layer has data; or outside outlines.
+fn stable_mask(
+    scene: &Scene,
+    project: &Project,
+    quads: &[QuadId],
+    reference: &[RefSample],
+    stable: Option<&Stable>,
+) -> Result<Vec<bool>, CompareError> {
+    let mask = match stable {
+        None => return Ok(vec![true; reference.len()]),
+        Some(Stable::Layer(name)) => {
+            let layer = operand_scene(scene, project, &Operand::Layer(name.clone()))?;
+            let mut has_data = std::collections::HashMap::new();
+            for chunk in quads.chunks(16) {
+                for (q, grid) in layer.compose_cpu(chunk)? {
+                    has_data.insert(q, grid.iter().map(|v| !v.is_nan()).collect::<Vec<bool>>());
+                }
+            }
+            reference
+                .iter()
+                .map(|r| has_data.get(&r.quad).is_some_and(|g| g[r.v as usize * N + r.u as usize]))
+                .collect::<Vec<bool>>()
+        }
+        Some(Stable::Outlines(path)) => {
+            let outlines = Outlines::read(path, &scene.ellipsoid)?;
+            reference
+                .iter()
+                .map(|r| {
+                    let g = geodetic_from_ecef(&scene.ellipsoid, r.p);
+                    !outlines.contains(g.lon_rad.to_degrees(), g.lat_rad.to_degrees())
+                })
+                .collect()
+        }
+    };
+    if !mask.iter().any(|&s| s) {
+        let what = stable.map(Stable::describe).unwrap_or_default();
+        return Err(CompareError::Option {
+            option: "--stable".into(),
+            problem: format!("{what} leaves no sample of the overlap as stable terrain"),
+        });
+    }
+    Ok(mask)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn steps_parse_as_the_command_line_spells_them_and_bad_ones_say_why() {
+        let steps = Step::parse_list("nuth_kaab,vertical,deramp:2,terrain_bias:max_curvature,directional:-30").unwrap();
+        assert_eq!(
+            steps,
+            vec![
+                Step::NuthKaab,
+                Step::Vertical,
+                Step::Deramp(2),
+                Step::TerrainBias(Attribute::MaxCurvature),
+                Step::Directional(330.0)
+            ]
+        );
+        assert_eq!(steps.iter().map(step_name).collect::<Vec<_>>()[3], "terrain_bias:max_curvature");
+        for (bad, says) in [
+            ("deramp:4", "the order must be 1, 2 or 3"),
+            ("deramp", "needs an order"),
+            ("terrain_bias:aspect", "'aspect' is not an attribute"),
+            ("directional:north", "the azimuth must be a number"),
+            ("vertical:2", "takes no argument"),
+            ("nuth-kaab", "'nuth-kaab' is not a step"),
+        ] {
+            let e = Step::parse_list(bad).unwrap_err().to_string();
+            assert!(e.starts_with("--pipeline: ") && e.contains(says), "{bad}: {e}");
+        }
+    }
+}
