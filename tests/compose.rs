@@ -197,6 +197,65 @@ fn datasets_with_scale_offset_valid_range_and_feathers_compose_on_the_gpu_as_on_
 }
 
 #[test]
+fn a_dataset_with_bias_corrections_composes_on_the_gpu_as_on_the_cpu() {
+    // SRTM around Erzurum with each kind of correction `coregister --apply` writes: a cubic ramp
+    // fitted on ±25 km about 40.4°E 39.6°N (held beyond, so the quads farther out test the
+    // hold), a bias binned by the layer's own elevation, and two sinusoids along 30°.
+    use terrafuse::layers::correction::{Attribute, Bias, Sinusoid};
+    let mut p = Project::load(&erzurum()).unwrap();
+    let plain = p.layers[0].clone();
+    let mut corrected = plain.clone();
+    corrected.as_dataset_mut().unwrap().correction = vec![
+        Bias::Deramp {
+            origin_deg: [40.4, 39.6],
+            order: 3,
+            coefficients: vec![0.5, 0.2, -0.3, 0.01, -0.02, 0.005, 1e-4, -2e-4, 3e-4, -1e-4],
+            box_km: [-25.0, -25.0, 25.0, 25.0],
+        },
+        Bias::TerrainBias {
+            attribute: Attribute::Elevation,
+            bins: (0..12).map(|k| [1500.0 + 150.0 * f64::from(k), 2.0 * (f64::from(k) * 0.7).sin()]).collect(),
+        },
+        Bias::Directional {
+            origin_deg: [40.4, 39.6],
+            azimuth_deg: 30.0,
+            offset_m: 0.1,
+            sinusoids: vec![
+                Sinusoid { wavelength_m: 3000.0, amplitude_m: 2.0, phase_rad: 0.4 },
+                Sinusoid { wavelength_m: 800.0, amplitude_m: 0.8, phase_rad: -1.2 },
+            ],
+            range_m: [-30_000.0, 30_000.0],
+        },
+    ];
+    p.layers = vec![corrected];
+    let mut r = renderer(&p);
+    let e = Ellipsoid::WGS84;
+    let quads: Vec<QuadId> = [(39.6, 40.4, 9u8), (39.3, 40.1, 10), (39.9, 40.7, 10), (39.6, 40.3, 11), (39.0, 40.4, 8)]
+        .iter()
+        .map(|&(lat, lon, level)| quad_at(&e, lat, lon, level))
+        .collect();
+    let (worst, with_data) = gpu_against_cpu(&mut r, &quads, &store_tiles);
+    assert!(with_data > 4 * 257 * 257);
+    // As the plain datasets' test (heights in f32, ≈ 2·10⁻⁴ m per operation), plus the
+    // corrections in f32: east and north from O to ≈ 4 mm at 60 km, moving the ramp (≤ 5 m/km at
+    // the box's edge) by 2·10⁻⁵ m and the sinusoids' phase by 3·10⁻⁵ rad (6·10⁻⁵ m at 2 m): 0.01 m.
+    println!("GPU − CPU with corrections: worst {worst:.2e} m over {with_data} samples");
+    assert!(worst < 0.01, "worst GPU − CPU difference {worst} m");
+    // The corrections change the heights by metres (this compares something).
+    let scene = r.scene();
+    let q = quads[0];
+    let plan = scene.plan(q);
+    let (raw, _) = store_tiles(scene, q, 0);
+    let tiles = |_: usize| LayerTiles { raw: raw.as_deref(), edge_m: None };
+    let with = compose_quad(&scene.stack, &plan, &tiles);
+    let mut bare = scene.stack.clone();
+    bare.set(0, plain).unwrap();
+    let without = compose_quad(&bare, &plan, &tiles);
+    let moved = with.iter().zip(&without).map(|(a, b)| f64::from((a - b).abs())).fold(0.0, f64::max);
+    assert!(moved > 1.0, "the corrections moved the heights by at most {moved} m");
+}
+
+#[test]
 fn a_difference_of_a_shifted_layer_and_a_composed_group_composes_on_the_gpu_as_on_the_cpu() {
     // Erzurum: the SRTM tile shown under fBm detail; the blurred and shifted copy hidden, moved
     // 300 m east by its shift. The difference draws blurred alone minus the group srtm + detail,

@@ -136,6 +136,30 @@ fn bad_project_files_are_refused_naming_the_file_the_field_and_the_problem() {
             "layers[1]: layer 'erosion': runs[0].steps: 1000000000",
         ),
         (
+            "correction-of-a-constant",
+            with_layers(
+                "moon",
+                r#"{"name": "c", "kind": "constant", "height_m": 0, "correction": [{"name": "terrain_bias", "attribute": "elevation", "bins": [[0, 0], [1, 1]]}]}"#,
+            ),
+            "layer 'c': correction: is not a field of a constant layer",
+        ),
+        (
+            "ramp-with-too-many-coefficients",
+            with_layers(
+                "moon",
+                r#"{"name": "d", "kind": "dataset", "store": "d.gpkg", "correction": [{"name": "deramp", "origin_deg": [0, 0], "order": 1, "coefficients": [1, 2, 3, 4], "box_km": [-1, -1, 1, 1]}]}"#,
+            ),
+            "layers[0]: layer 'd': correction: deramp:1: has 4 coefficients, its order has 3 terms",
+        ),
+        (
+            "unknown-bias",
+            with_layers(
+                "moon",
+                r#"{"name": "d", "kind": "dataset", "store": "d.gpkg", "correction": [{"name": "tilt", "deg": 3}]}"#,
+            ),
+            "layers[0].correction[0].name: unknown variant `tilt`, expected one of `deramp`, `terrain_bias`, `directional`",
+        ),
+        (
             "absurd-opacity",
             with_layers("moon", r#"{"name": "c", "kind": "constant", "height_m": 0, "opacity": 7}"#),
             "layers[0]: layer 'c': opacity: 7 must lie in [0, 1]",

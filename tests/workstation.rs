@@ -365,6 +365,41 @@ fn the_compare_section_shows_statistics_and_applies_a_coregistration() {
     let range_after = wait_for_range(&mut h);
     assert!(range_after < range_before / 2.0, "{range_before} m to {range_after} m");
     h.render().unwrap().save(dir.join("difference.png")).unwrap(); // for people, not compared
+    // A pipeline: each step's line; applied, the ramp joins the layer's correction.
+    type_into(&mut h, "pipeline", "nuth_kaab,deramp:1");
+    h.get_by_label("co-register").click_accesskit();
+    h.step();
+    wait_for_compare(&mut h);
+    let r = h.state().compare_panel().coregistration().expect("a co-registration");
+    assert_eq!(r.pipeline, ["nuth_kaab", "deramp:1"]);
+    assert_eq!(r.steps.len(), 2);
+    h.run_steps(2);
+    h.get_by_label("apply to blurred").click_accesskit();
+    h.run_steps(2);
+    let blurred = h.state().stack().layers.iter().find(|l| l.spec.name == "blurred").unwrap().spec.clone();
+    let correction: Vec<String> = blurred.as_dataset().unwrap().correction.iter().map(|b| b.step_name()).collect();
+    assert_eq!(correction, ["deramp:1"]);
+    assert!(h.state().message().ends_with("corrected by deramp:1"), "{}", h.state().message());
+    // The layers panel lists it, and takes it off again.
+    h.get_by_label_contains("correction 1: deramp:1");
+    h.get_by_label("remove correction 1").click_accesskit();
+    h.run_steps(2);
+    let blurred = h.state().stack().layers.iter().find(|l| l.spec.name == "blurred").unwrap().spec.clone();
+    assert!(blurred.as_dataset().unwrap().correction.is_empty());
+    // A bias a layer cannot hold is fitted and shown, with why it cannot be applied.
+    type_into(&mut h, "pipeline", "terrain_bias:slope");
+    h.get_by_label("co-register").click_accesskit();
+    h.step();
+    wait_for_compare(&mut h);
+    h.run_steps(2);
+    assert!(h.query_by_label("apply to blurred").is_none(), "a slope bias cannot be applied");
+    h.get_by_label_contains("cannot apply: layer 'blurred': correction: terrain_bias:slope");
+    type_into(&mut h, "pipeline", "nuth_kaab,deramp:7");
+    h.get_by_label("co-register").click_accesskit();
+    h.step();
+    wait_for_compare(&mut h);
+    h.run_steps(2);
+    h.get_by_label_contains("--pipeline: 'deramp:7': the order must be 1, 2 or 3");
     // "show difference" puts another difference layer on top; it is the one drawn.
     h.get_by_label("show difference").click_accesskit();
     h.run_steps(2);

@@ -65,7 +65,7 @@ struct Octave {
 @group(0) @binding(1) var<storage, read> job_layers: array<JobLayer>;
 @group(0) @binding(2) var<storage, read> octaves: array<Octave>;
 // Extent edges: segments (two entries each, relative to the job's O) and ring vertices
-// (longitude, latitude in radians).
+// (longitude, latitude in radians); datasets' bias corrections (see `correction`).
 @group(0) @binding(3) var<storage, read> shapes: array<vec4<f32>>;
 @group(0) @binding(4) var<storage, read> sources: array<f32>;
 @group(0) @binding(5) var<storage, read> map_o: array<f32>;
@@ -195,6 +195,82 @@ fn extent_mask(l: JobLayer, job: Job, local: vec3<f32>, lon: f32, lat: f32) -> f
     return smoothstep(0.0, 1.0, d / feather);
 }
 
+// layers::correction::binned_at: linear between bin centres (two bins to an entry), the end
+// bins' values beyond them.
+fn binned_at(first: u32, count: u32, x: f32) -> f32 {
+    var prev = shapes[first].xy;
+    if x < prev.x {
+        return prev.y;
+    }
+    for (var b = 1u; b < count; b++) {
+        let entry = shapes[first + b / 2u];
+        let q = select(entry.xy, entry.zw, b % 2u == 1u);
+        if x < q.x {
+            return prev.y + (x - prev.x) / (q.x - prev.x) * (q.y - prev.y);
+        }
+        prev = q;
+    }
+    return prev.y;
+}
+
+// layers::correction::polynomial_at: the terms by total degree, then falling power of east;
+// the coefficients four to an entry from `first`.
+fn polynomial_at(first: u32, order: u32, e: f32, n: f32) -> f32 {
+    let ep = array<f32, 4>(1.0, e, e * e, e * e * e);
+    let np = array<f32, 4>(1.0, n, n * n, n * n * n);
+    var sum = 0.0;
+    var t = 0u;
+    for (var d = 0u; d <= order; d++) {
+        for (var j = 0u; j <= d; j++) {
+            sum += shapes[first + t / 4u][t % 4u] * ep[d - j] * np[j];
+            t++;
+        }
+    }
+    return sum;
+}
+
+// layers::correction::Correction::at: the sum of a dataset layer's biases at a sample (`local`
+// from O) where its scaled value is `value` (an elevation bias reads it as the biases before it
+// left it). Entries from l.noise.y (see push_correction in
+// src/gpu/compose.rs): a head (code, count, sin, cos of the azimuth), for the biases of position
+// the frame ((east, e₀), (north, n₀)), then the terms. Sinusoids are evaluated on the fraction
+// of turns (x / λ + phase / 2π), so that sin sees an argument within one turn.
+fn correction(l: JobLayer, local: vec3<f32>, value: f32) -> f32 {
+    var k = l.noise.y;
+    var sum = 0.0;
+    for (var b = 0u; b < l.noise.z; b++) {
+        let head = shapes[k];
+        let code = u32(head.x);
+        let count = u32(head.y);
+        if code == BIAS_ELEVATION {
+            sum += binned_at(k + 1u, count, value - sum);
+            k += 1u + (count + 1u) / 2u;
+            continue;
+        }
+        let east = shapes[k + 1u];
+        let north = shapes[k + 2u];
+        let e = east.w + dot(local, east.xyz);
+        let n = north.w + dot(local, north.xyz);
+        let terms = shapes[k + 3u];
+        if code == BIAS_DERAMP {
+            let ek = clamp(e / 1000.0, terms.x, terms.z);
+            let nk = clamp(n / 1000.0, terms.y, terms.w);
+            sum += polynomial_at(k + 4u, count, ek, nk);
+            k += 4u + ((count + 1u) * (count + 2u) / 2u + 3u) / 4u;
+        } else {
+            let x = clamp(e * head.z + n * head.w, terms.y, terms.z);
+            var s = terms.x;
+            for (var q = 0u; q < count; q++) {
+                let w = shapes[k + 4u + q];
+                s += w.y * sin(TAU * fract(x / w.x + w.z));
+            }
+            sum += s;
+            k += 4u + count;
+        }
+    }
+    return sum;
+}
+
 // layers::noise::{octave_weights, fractal}.
 fn procedural(l: JobLayer, job: Job, local: vec3<f32>, data_spacing: f32, data_coverage: f32) -> f32 {
     var sum = 0.0;
@@ -288,7 +364,10 @@ fn compose_layers(job: Job, first: u32, count: u32, i: u32, j: u32, local: vec3<
                 base = l.extra.x;
             }
         }
-        let v = base * l.value.z + l.value.w;
+        var v = base * l.value.z + l.value.w;
+        if l.head.x == KIND_STORE_TILE && l.noise.z > 0u && valid {
+            v -= correction(l, local, v);
+        }
         valid = valid && v >= l.range.x && v <= l.range.y;
         var alpha = 0.0;
         if valid {

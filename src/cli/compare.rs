@@ -6,11 +6,12 @@ use super::{CliError, Within};
 use std::fmt::Write as _;
 use std::path::PathBuf;
 
-use crate::compare::pipeline::{Correction, step_name};
+use crate::compare::pipeline::{Attribute, Correction, step_name};
 use crate::compare::{
     CompareOptions, Comparison, CoregOptions, Coregistration, Stable, Step, Weighting, compare, coregister,
 };
 use crate::geodesy::GeoBox;
+use crate::layers::correction::Bias;
 use crate::project::Project;
 
 /// What `terrafuse compare` was asked.
@@ -148,7 +149,8 @@ pub struct CoregRequest {
     /// terrain (polygons left out, e.g. glacier outlines).
     #[arg(long)]
     pub stable: Option<String>,
-    /// Write the result into the project: A's shift_m and offset_m.
+    /// Write the result into the project: the shift and raise into A's shift_m and offset_m,
+    /// the deramp, terrain and directional biases after its correction.
     #[arg(long)]
     pub apply: bool,
     /// Print JSON (east_m, north_m, up_m, iterations, steps, before, after).
@@ -162,10 +164,11 @@ pub fn coregister_command(request: &CoregRequest) -> Result<String, CliError> {
     let mut project = Project::load(&request.project)?;
     let pipeline = Step::parse_list(&request.pipeline)?;
     if request.apply
-        && let Some(step) = pipeline.iter().find(|s| !matches!(s, Step::NuthKaab | Step::Vertical))
+        && let Some(step) = pipeline.iter().find(|s| matches!(s, Step::TerrainBias(a) if *a != Attribute::Elevation))
     {
         return Err(CliError::from(format!(
-            "--apply: {} cannot be stored in a layer yet; only nuth_kaab and vertical can (as shift_m and offset_m)",
+            "--apply: {} cannot be stored in a layer: a layer's terrain bias reads only its own elevation \
+             (slope and curvature need the neighbouring samples, which composition does not read)",
             step_name(step)
         )));
     }
@@ -175,8 +178,7 @@ pub fn coregister_command(request: &CoregRequest) -> Result<String, CliError> {
     let c = coregister(&project, &request.a, &request.b, &opts).within(request.project.display())?;
     if request.apply {
         let layer = project.layers.iter_mut().find(|l| l.name == request.a).ok_or("the layer vanished")?;
-        layer.shift_by(c.east_m, c.north_m)?;
-        layer.offset_m += c.up_m;
+        c.apply_to(layer)?;
         project.save(&request.project)?;
     }
     if request.json {
@@ -192,18 +194,18 @@ fn describe(c: &Correction) -> String {
             format!("move east {east_m:+.3} m, north {north_m:+.3} m, up {up_m:+.3} m")
         }
         Correction::Vertical { up_m } => format!("raise {up_m:+.3} m"),
-        Correction::Deramp { order, coefficients, origin_deg } => format!(
+        Correction::Bias(Bias::Deramp { order, coefficients, origin_deg, .. }) => format!(
             "order {order} about {:.4}°E {:.4}°N, coefficients (m/km^k) {}",
             origin_deg[0],
             origin_deg[1],
             coefficients.iter().map(|c| format!("{c:+.4}")).collect::<Vec<_>>().join(" ")
         ),
-        Correction::TerrainBias { attribute, bins } => {
+        Correction::Bias(Bias::TerrainBias { attribute, bins }) => {
             let range =
                 bins.iter().map(|b| b[1]).fold((f64::INFINITY, f64::NEG_INFINITY), |r, v| (r.0.min(v), r.1.max(v)));
-            format!("{} bins of {attribute:?}, bias {:+.3} … {:+.3} m", bins.len(), range.0, range.1)
+            format!("{} bins of {}, bias {:+.3} … {:+.3} m", bins.len(), attribute.name(), range.0, range.1)
         }
-        Correction::Directional { azimuth_deg, offset_m, sinusoids, .. } => format!(
+        Correction::Bias(Bias::Directional { azimuth_deg, offset_m, sinusoids, .. }) => format!(
             "along {azimuth_deg}°: offset {offset_m:+.3} m{}",
             sinusoids
                 .iter()
@@ -242,12 +244,13 @@ fn coreg_table(c: &Coregistration, applied: bool) -> String {
             step.before.nmad_m, step.after.nmad_m, step.before.median_m, step.after.median_m
         );
     }
-    let state = if c.converged { "converged" } else { "NOT converged (the last step was over the tolerance)" };
-    let _ = writeln!(
-        out,
-        "move {} east {:+.3} m, north {:+.3} m, up {:+.3} m ({state}, {} iterations)",
-        c.a, c.east_m, c.north_m, c.up_m, c.iterations
-    );
+    let state = match (c.iterations, c.converged) {
+        (0, _) => String::new(),
+        (n, true) => format!(" (converged, {n} iterations)"),
+        (n, false) => format!(" (NOT converged: the last step was over the tolerance; {n} iterations)"),
+    };
+    let _ =
+        writeln!(out, "move {} east {:+.3} m, north {:+.3} m, up {:+.3} m{state}", c.a, c.east_m, c.north_m, c.up_m);
     for (name, s) in [("before", &c.before), ("after", &c.after)] {
         let _ = writeln!(
             out,

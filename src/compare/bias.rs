@@ -1,5 +1,6 @@
 //! The bias models of a co-registration pipeline, fitted to the differences dh = A − B on stable
-//! terrain and subtracted from A: pure functions of samples, deterministic (sums in sample order,
+//! terrain and subtracted from A (evaluated as a layer's `correction` evaluates them,
+//! [`crate::layers::correction`]): pure functions of samples, deterministic (sums in sample order,
 //! medians by selection, no random starts).
 //!
 //! - [`vertical`]: the weighted median of dh (xDEM's `VerticalShift`).
@@ -15,6 +16,8 @@
 use serde::{Deserialize, Serialize};
 
 use super::stats::weighted_quantile;
+pub use crate::layers::correction::{MAX_SINUSOIDS, Sinusoid};
+use crate::layers::correction::{binned_at, polynomial_at, polynomial_terms, sinusoids_at};
 
 /// The weighted median of `dh` (weights `w`); NaN for no samples.
 pub fn vertical(dh: &[f64], w: &[f64]) -> f64 {
@@ -36,7 +39,7 @@ pub struct Polynomial {
 impl Polynomial {
     /// The exponents (i of east, j of north) of each term: by total degree, then falling i.
     pub fn terms(order: u8) -> Vec<[u8; 2]> {
-        (0..=order).flat_map(|d| (0..=d).rev().map(move |i| [i, d - i])).collect()
+        polynomial_terms(order)
     }
 
     /// Fits the polynomial of `order` to dh at (east, north) kilometres by weighted least squares;
@@ -64,11 +67,7 @@ impl Polynomial {
 
     /// The value at (east, north) kilometres.
     pub fn at(&self, east_km: f64, north_km: f64) -> f64 {
-        Polynomial::terms(self.order)
-            .iter()
-            .zip(&self.coefficients)
-            .map(|(t, c)| c * east_km.powi(i32::from(t[0])) * north_km.powi(i32::from(t[1])))
-            .sum()
+        polynomial_at(self.order, &self.coefficients, east_km, north_km)
     }
 }
 
@@ -146,32 +145,10 @@ impl Binned {
 
     /// The correction at `x`: linear between bin centres, the end bins' values beyond them.
     pub fn at(&self, x: f64) -> f64 {
-        let b = &self.bins;
-        let k = b.partition_point(|p| p[0] <= x);
-        if k == 0 {
-            return b[0][1];
-        }
-        if k == b.len() {
-            return b[k - 1][1];
-        }
-        let (p, q) = (b[k - 1], b[k]);
-        p[1] + (x - p[0]) / (q[0] - p[0]) * (q[1] - p[1])
+        binned_at(&self.bins, x)
     }
 }
 
-/// One sinusoid of a directional bias: amplitude · sin(2π·x / wavelength + phase).
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
-pub struct Sinusoid {
-    /// Wavelength along the azimuth, metres.
-    pub wavelength_m: f64,
-    /// Amplitude, metres.
-    pub amplitude_m: f64,
-    /// Phase at x = 0, radians.
-    pub phase_rad: f64,
-}
-
-/// Most sinusoids of a directional bias (xDEM's `DirectionalBias` default `max_nb_frequencies`).
-pub const MAX_SINUSOIDS: usize = 3;
 /// Wavelengths searched per sinusoid, log-spaced from two bins to the whole extent.
 const WAVELENGTHS: usize = 400;
 /// A sinusoid is kept only if it removes at least this share of the binned variance left.
@@ -247,12 +224,7 @@ impl Sinusoids {
 
     /// The value at x metres along the azimuth.
     pub fn at(&self, x: f64) -> f64 {
-        self.offset_m
-            + self
-                .sinusoids
-                .iter()
-                .map(|s| s.amplitude_m * (std::f64::consts::TAU * x / s.wavelength_m + s.phase_rad).sin())
-                .sum::<f64>()
+        sinusoids_at(self.offset_m, &self.sinusoids, x)
     }
 }
 

@@ -5,29 +5,34 @@
 //! A corrected is A′(p) = A(p − c) + up − Σ bias_k(p): Nuth & Kääb moves A by c (east, north
 //! metres) and sets the vertical offset `up` (the median it removes); `vertical` adds to `up`;
 //! `deramp`, `terrain_bias` and `directional` are functions of the reference sample p (its
-//! position in a local east-north frame at the samples' centroid, or B's elevation, slope or
-//! maximal curvature there) summed into the bias. A Nuth & Kääb step after others fits the shift
+//! position in a local east-north frame at the samples' centroid, B's slope or maximal curvature
+//! there, or A's elevation there as the steps before left it) summed into the bias. A terrain
+//! bias by elevation is binned by A's corrected elevation rather than B's (xDEM fits it by the
+//! reference's and applies it by the DEM's own, which differ by dh: 0.1 m at 10 m of dh and
+//! 1 cm/m), because that is what the layer reads when it applies the correction, so the fit's
+//! statistics are what the corrected layer shows. A Nuth & Kääb step after others fits the shift
 //! with their biases already taken off, so their order matters as it does in xDEM.
 //!
 //! The statistics of each step are over the stable samples; those of the whole run over every
 //! sample (as `compare` counts them).
 
-use serde::{Deserialize, Serialize};
+use serde::Serialize;
 
 use super::CompareError;
-use super::bias::{Binned, Polynomial, Sinusoid, Sinusoids, vertical};
+use super::bias::{Binned, Polynomial, Sinusoids, vertical};
 use super::coreg::{NuthKaabOptions, RefSample, differences, nuth_kaab, reference_samples};
 use super::mosaic::Mosaic;
 use super::sample::{operand_scene, overlap_quads};
 use super::stable::{Outlines, Stable};
 use super::stats::{Diff, Stats, stats};
 use crate::ecm::QuadId;
-use crate::geodesy::{GeoBox, Geodetic, ecef_from_geodetic, geodetic_from_ecef};
-use crate::layers::Operand;
+use crate::geodesy::{GeoBox, geodetic_from_ecef};
+pub use crate::layers::correction::Attribute;
+use crate::layers::correction::{Bias, Frame};
+use crate::layers::{LayerError, LayerSpec, Operand};
 use crate::maths::median;
 use crate::project::Project;
 use crate::scene::Scene;
-use crate::scene::shifted::local_axes;
 use crate::store::grid::{GRID, spacing_m};
 
 /// Samples along a quad edge.
@@ -46,18 +51,6 @@ pub enum Step {
     TerrainBias(Attribute),
     /// `directional:AZIMUTH`: a sum of sinusoids along an azimuth, degrees clockwise from north.
     Directional(f64),
-}
-
-/// An attribute of the reference that a terrain bias is binned by.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, schemars::JsonSchema)]
-#[serde(rename_all = "snake_case")]
-pub enum Attribute {
-    /// B's elevation, metres.
-    Elevation,
-    /// B's maximal curvature, 100/m (xDEM's `max_curvature`).
-    MaxCurvature,
-    /// B's slope, degrees.
-    Slope,
 }
 
 impl Step {
@@ -143,9 +136,9 @@ impl Default for CoregOptions {
     }
 }
 
-/// A step's fitted correction (field names are the JSON's: scripts rely on them). Biases are
-/// what A is too high by, taken off it.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
+/// A step's fitted correction (field names are the JSON's: scripts rely on them): a move and
+/// raise of A, or a bias taken off it (as a layer's `correction` stores it).
+#[derive(Clone, Debug, PartialEq, Serialize)]
 #[serde(tag = "name", rename_all = "snake_case")]
 pub enum Correction {
     /// Moves A east and north and raises it (metres).
@@ -162,66 +155,18 @@ pub enum Correction {
         /// Up, metres.
         up_m: f64,
     },
-    /// A polynomial bias of local east and north kilometres from `origin_deg`.
-    Deramp {
-        /// The local frame's origin: longitude, latitude, degrees.
-        origin_deg: [f64; 2],
-        /// The order, 1–3.
-        order: u8,
-        /// The coefficients, metres per km^(i + j), in the order of `Polynomial::terms`
-        /// (1, e, n, e², e·n, n², e³, e²·n, e·n², n³).
-        coefficients: Vec<f64>,
-    },
-    /// A bias binned by an attribute of B, linear between bin centres.
-    TerrainBias {
-        /// The attribute.
-        attribute: Attribute,
-        /// (attribute at the bin's centre, bias there in metres), ascending.
-        bins: Vec<[f64; 2]>,
-    },
-    /// A bias that is a sum of sinusoids of the distance along an azimuth.
-    Directional {
-        /// The local frame's origin: longitude, latitude, degrees.
-        origin_deg: [f64; 2],
-        /// Degrees clockwise from north.
-        azimuth_deg: f64,
-        /// The constant, metres.
-        offset_m: f64,
-        /// The sinusoids of the distance from the origin along the azimuth.
-        sinusoids: Vec<Sinusoid>,
-    },
+    /// A bias of position or of the terrain (deramp, terrain_bias, directional; its own `name`).
+    #[serde(untagged)]
+    Bias(Bias),
 }
 
-/// A local east-north tangent frame.
-#[derive(Clone, Copy, Debug)]
-struct Frame {
-    origin: glam::DVec3,
-    east: glam::DVec3,
-    north: glam::DVec3,
-    origin_deg: [f64; 2],
-}
-
-impl Frame {
-    fn at(ellipsoid: &crate::geodesy::Ellipsoid, origin_deg: [f64; 2]) -> Frame {
-        let g = Geodetic::from_degrees(origin_deg[1], origin_deg[0], 0.0);
-        let (east, north) = local_axes(g.lon_rad, g.lat_rad);
-        Frame { origin: ecef_from_geodetic(ellipsoid, g), east, north, origin_deg }
-    }
-
-    /// East and north metres of a point.
-    fn local(&self, p: glam::DVec3) -> (f64, f64) {
-        let d = p - self.origin;
-        (d.dot(self.east), d.dot(self.north))
-    }
-}
-
-/// What a bias needs of a sample: where it is and B's attributes there.
+/// What a bias reads at a reference sample: where it is and B's attributes there.
 pub(super) struct At {
-    /// East and north metres in the frame of the correction's origin.
+    /// East metres in the frame of the pipeline's origin.
     pub east_m: f64,
     /// North.
     pub north_m: f64,
-    /// B, metres.
+    /// A's elevation as the steps before left it, metres (NaN where A has no data).
     pub elevation_m: f64,
     /// B's slope, degrees.
     pub slope_deg: f64,
@@ -229,33 +174,23 @@ pub(super) struct At {
     pub max_curvature: f64,
 }
 
-impl Correction {
-    /// The bias at a sample, metres (0 for the steps that move or raise A, and where the
-    /// attribute a terrain bias needs is unknown).
-    fn bias(&self, at: &At) -> f64 {
-        match self {
-            Correction::NuthKaab { .. } | Correction::Vertical { .. } => 0.0,
-            Correction::Deramp { order, coefficients, .. } => {
-                Polynomial { order: *order, coefficients: coefficients.clone() }
-                    .at(at.east_m / 1000.0, at.north_m / 1000.0)
-            }
-            Correction::TerrainBias { attribute, bins } => {
-                let x = attribute_of(*attribute, at);
-                if x.is_finite() { Binned { bins: bins.clone() }.at(x) } else { 0.0 }
-            }
-            Correction::Directional { azimuth_deg, offset_m, sinusoids, .. } => {
-                let (s, c) = azimuth_deg.to_radians().sin_cos();
-                Sinusoids { offset_m: *offset_m, sinusoids: sinusoids.clone() }.at(at.east_m * s + at.north_m * c)
-            }
+impl At {
+    fn attribute(&self, attribute: Attribute) -> f64 {
+        match attribute {
+            Attribute::Elevation => self.elevation_m,
+            Attribute::Slope => self.slope_deg,
+            Attribute::MaxCurvature => self.max_curvature,
         }
     }
 }
 
-fn attribute_of(attribute: Attribute, at: &At) -> f64 {
-    match attribute {
-        Attribute::Elevation => at.elevation_m,
-        Attribute::Slope => at.slope_deg,
-        Attribute::MaxCurvature => at.max_curvature,
+impl Correction {
+    /// The bias at a sample (0 for the steps that move or raise A).
+    fn bias(&self, at: &At) -> f64 {
+        match self {
+            Correction::NuthKaab { .. } | Correction::Vertical { .. } => 0.0,
+            Correction::Bias(b) => b.at(at.east_m, at.north_m, |a| at.attribute(a)),
+        }
     }
 }
 
@@ -313,6 +248,40 @@ pub struct Coregistration {
     pub after: Stats,
 }
 
+impl Coregistration {
+    /// The biases the pipeline fitted (its deramp, terrain and directional steps), in order.
+    pub fn biases(&self) -> Vec<Bias> {
+        let bias = |s: &StepResult| match &s.correction {
+            Correction::Bias(b) => Some(b.clone()),
+            _ => None,
+        };
+        self.steps.iter().filter_map(bias).collect()
+    }
+
+    /// Writes the result into A's layer: the shift into `shift_m`, the raise into `offset_m`,
+    /// the biases after its `correction`. An error naming the field for a layer that is not a
+    /// dataset, or a bias a layer cannot hold (a terrain bias by slope or curvature); the spec is
+    /// unchanged then.
+    pub fn apply_to(&self, spec: &mut LayerSpec) -> Result<(), LayerError> {
+        let mut out = spec.clone();
+        out.shift_by(self.east_m, self.north_m)?;
+        out.offset_m += self.up_m;
+        let biases = self.biases();
+        if !biases.is_empty() {
+            let (name, kind) = (out.name.clone(), out.kind());
+            for b in &biases {
+                b.check().map_err(|problem| LayerError::field(&name, "correction", problem))?;
+            }
+            let d = out.as_dataset_mut().ok_or_else(|| {
+                LayerError::field(&name, "correction", format!("corrects a dataset; a {} layer has none", kind.name()))
+            })?;
+            d.correction.extend(biases);
+        }
+        *spec = out;
+        Ok(())
+    }
+}
+
 /// Co-registers layer `a` onto layer `b` of a project by the pipeline of `opts`.
 pub fn coregister(project: &Project, a: &str, b: &str, opts: &CoregOptions) -> Result<Coregistration, CompareError> {
     if a == b {
@@ -335,8 +304,9 @@ pub fn coregister(project: &Project, a: &str, b: &str, opts: &CoregOptions) -> R
         return Err(CompareError::Option { option: "A, B".into(), problem: "the layers do not overlap".into() });
     }
     let stable = stable_mask(&scene, project, &quads, &reference, opts.stable.as_ref())?;
-    let frame = Frame::at(&ellipsoid, centroid_deg(&ellipsoid, &reference));
-    let at: Vec<At> = reference
+    let origin_deg = centroid_deg(&ellipsoid, &reference);
+    let frame = Frame::at(&ellipsoid, origin_deg);
+    let mut at: Vec<At> = reference
         .iter()
         .map(|r| {
             let (east_m, north_m) = frame.local(r.p);
@@ -361,6 +331,12 @@ pub fn coregister(project: &Project, a: &str, b: &str, opts: &CoregOptions) -> R
             raw.iter().zip(bias).map(|(d, b)| d.map(|d| d + up - b)).collect()
         };
         let before = stable_stats(&residual(&raw, up, &bias), &reference, &stable);
+        // A's elevation as the steps before left it (B + what is left of dh; unknown where A has
+        // no data): what a terrain bias by elevation is fitted against, and what the layer reads
+        // when it applies one.
+        for ((a, r), d) in at.iter_mut().zip(&reference).zip(residual(&raw, up, &bias)) {
+            a.elevation_m = d.map_or(f64::NAN, |d| r.b + d);
+        }
         // The stable samples with a residual: index, value, weight.
         let fit_set = |res: &[Option<f64>]| -> Vec<(usize, f64, f64)> {
             res.iter()
@@ -408,17 +384,20 @@ pub fn coregister(project: &Project, a: &str, b: &str, opts: &CoregOptions) -> R
                 let n: Vec<f64> = set.iter().map(|s| at[s.0].north_m / 1000.0).collect();
                 let (dh, w): (Vec<f64>, Vec<f64>) = set.iter().map(|s| (s.1, s.2)).unzip();
                 let p = Polynomial::fit(order, &e, &n, &dh, &w).ok_or_else(|| too_few("deramp"))?;
-                Correction::Deramp { origin_deg: frame.origin_deg, order, coefficients: p.coefficients }
+                // Held beyond the overlap's box, not extrapolated.
+                let (lo, hi) = bounds(at.iter().map(|a| [a.east_m / 1000.0, a.north_m / 1000.0]));
+                let box_km = [lo[0], lo[1], hi[0], hi[1]];
+                Correction::Bias(Bias::Deramp { origin_deg, order, coefficients: p.coefficients, box_km })
             }
             Step::TerrainBias(attribute) => {
                 let set: Vec<(usize, f64, f64)> = fit_set(&residual(&raw, up, &bias))
                     .into_iter()
-                    .filter(|s| attribute_of(attribute, &at[s.0]).is_finite())
+                    .filter(|s| at[s.0].attribute(attribute).is_finite())
                     .collect();
-                let x: Vec<f64> = set.iter().map(|s| attribute_of(attribute, &at[s.0])).collect();
+                let x: Vec<f64> = set.iter().map(|s| at[s.0].attribute(attribute)).collect();
                 let (dh, w): (Vec<f64>, Vec<f64>) = set.iter().map(|s| (s.1, s.2)).unzip();
                 let b = Binned::fit(&x, &dh, &w, super::bias::BINS).ok_or_else(|| too_few("terrain_bias"))?;
-                Correction::TerrainBias { attribute, bins: b.bins }
+                Correction::Bias(Bias::TerrainBias { attribute, bins: b.bins })
             }
             Step::Directional(azimuth_deg) => {
                 let set = fit_set(&residual(&raw, up, &bias));
@@ -428,12 +407,14 @@ pub fn coregister(project: &Project, a: &str, b: &str, opts: &CoregOptions) -> R
                 let extent = x.iter().fold(0.0f64, |m, v| m.max(v.abs())) * 2.0;
                 let bins = ((extent / (4.0 * spacing_m(&ellipsoid, level))) as usize).clamp(100, 1000);
                 let fit = Sinusoids::fit(&x, &dh, &w, bins).ok_or_else(|| too_few("directional"))?;
-                Correction::Directional {
-                    origin_deg: frame.origin_deg,
+                let (lo, hi) = bounds(at.iter().map(|a| [a.east_m * s + a.north_m * c; 2]));
+                Correction::Bias(Bias::Directional {
+                    origin_deg,
                     azimuth_deg,
                     offset_m: fit.offset_m,
                     sinusoids: fit.sinusoids,
-                }
+                    range_m: [lo[0], hi[0]],
+                })
             }
         };
         for (b, at) in bias.iter_mut().zip(&at) {
@@ -469,16 +450,16 @@ pub fn step_name(step: &Step) -> String {
         Step::NuthKaab => "nuth_kaab".into(),
         Step::Vertical => "vertical".into(),
         Step::Deramp(order) => format!("deramp:{order}"),
-        Step::TerrainBias(a) => format!(
-            "terrain_bias:{}",
-            match a {
-                Attribute::Elevation => "elevation",
-                Attribute::MaxCurvature => "max_curvature",
-                Attribute::Slope => "slope",
-            }
-        ),
+        Step::TerrainBias(a) => format!("terrain_bias:{}", a.name()),
         Step::Directional(az) => format!("directional:{az}"),
     }
+}
+
+/// The smallest and largest of each coordinate.
+fn bounds(points: impl Iterator<Item = [f64; 2]>) -> ([f64; 2], [f64; 2]) {
+    points.fold(([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]), |(lo, hi), p| {
+        ([lo[0].min(p[0]), lo[1].min(p[1])], [hi[0].max(p[0]), hi[1].max(p[1])])
+    })
 }
 
 /// Statistics of the samples `keep` holds that have a difference.

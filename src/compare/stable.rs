@@ -55,7 +55,8 @@ impl Outlines {
         if !path.exists() {
             return Err(fail("no such file (and no layer of that name in the project)".into()));
         }
-        let ds = gdal::Dataset::open(path).map_err(|e| fail(format!("GDAL/OGR cannot read it: {e}")))?;
+        let ds = gdal::Dataset::open(path)
+            .map_err(|_| fail("is not a vector file GDAL/OGR can read (polygons of unstable terrain)".into()))?;
         let target = crate::store::source::body_geographic(body).map_err(|e| fail(format!("the body's CRS: {e}")))?;
         let mut out = Outlines::default();
         for mut layer in ds.layers() {

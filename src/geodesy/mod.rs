@@ -151,6 +151,13 @@ pub fn normal_from_geodetic(lat_rad: f64, lon_rad: f64) -> DVec3 {
     DVec3::new(cos_lat * cos_lon, cos_lat * sin_lon, sin_lat)
 }
 
+/// The local east and north unit vectors (ECEF) at a longitude and latitude (radians).
+pub fn local_axes(lon: f64, lat: f64) -> (DVec3, DVec3) {
+    let (sl, cl) = lon.sin_cos();
+    let (sp, cp) = lat.sin_cos();
+    (DVec3::new(-sl, cl, 0.0), DVec3::new(-sp * cl, -sp * sl, cp))
+}
+
 /// Geocentric latitude ψ (radians) of the surface point at geodetic latitude φ:
 /// tan ψ = (b²/a²) tan φ. This is the ECM's shift from the ellipsoid to the sphere (the
 /// longitude is unchanged); it is exact for points at zero height.

@@ -32,6 +32,16 @@ pub mod blend {
     pub const MEAN: u32 = 4;
 }
 
+/// A dataset layer's bias correction (the head of its entry in the compose kernel's `shapes`).
+pub mod bias {
+    /// A polynomial of local east and north.
+    pub const DERAMP: u32 = 0;
+    /// Binned by the layer's elevation.
+    pub const ELEVATION: u32 = 1;
+    /// Sinusoids along an azimuth.
+    pub const DIRECTIONAL: u32 = 2;
+}
+
 /// A brush tool (`Tile.head.z` of the stroke kernel).
 pub mod tool {
     /// Raise by the strength.
@@ -62,10 +72,10 @@ pub mod falloff {
     pub const TIP: u32 = 3;
 }
 
-/// The codes as WGSL constants (`KIND_STORE_TILE`, `BLEND_OVER`, `TOOL_RAISE`, `FALLOFF_SMOOTH`,
+/// The codes as WGSL constants (`KIND_STORE_TILE`, `BLEND_OVER`, `BIAS_DERAMP`, `TOOL_RAISE`, `FALLOFF_SMOOTH`,
 /// `NO_SLOT`, …).
 pub fn wgsl() -> String {
-    let groups: [(&str, &[(&str, u32)]); 4] = [
+    let groups: [(&str, &[(&str, u32)]); 5] = [
         (
             "KIND",
             &[
@@ -85,6 +95,7 @@ pub fn wgsl() -> String {
                 ("MEAN", blend::MEAN),
             ],
         ),
+        ("BIAS", &[("DERAMP", bias::DERAMP), ("ELEVATION", bias::ELEVATION), ("DIRECTIONAL", bias::DIRECTIONAL)]),
         (
             "TOOL",
             &[

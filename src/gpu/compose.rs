@@ -203,8 +203,12 @@ impl ComposeBatch {
             extra[0] = h as f32;
         }
         if spec.is_data() {
-            // The edge slot where the noise head would be, the feather where the gain would.
+            // The edge slot where the noise head would be, the feather where the gain would; the
+            // bias corrections' first entry in `shapes` and their count after it.
             noise_head[0] = slots.1;
+            noise_head[1] = self.shapes.len() as u32;
+            noise_head[2] = layer.correction.biases.len() as u32;
+            push_correction(&mut self.shapes, &layer.correction, origin);
             extra[1] = spec.feather_edge_m() as f32;
             if layer.data_spacing_m.is_finite() {
                 extra[2] = layer.data_spacing_m as f32;
@@ -220,6 +224,55 @@ impl ComposeBatch {
             range: [lo, hi, spec.feather_m as f32, lon_min],
             extra,
         });
+    }
+}
+
+/// A dataset layer's bias corrections as the kernel's `correction` reads them from `shapes`: per
+/// bias a head (code, count, sin and cos of the azimuth); for a ramp or sinusoids its frame
+/// relative to the quad's origin O ((east, e₀), (north, n₀), e₀ and n₀ the east and north metres
+/// of O, so a sample at O + x is at e₀ + east·x), then its terms: a ramp's box (km) and
+/// coefficients four to an entry, the sinusoids' (offset, range) and one entry each (wavelength,
+/// amplitude, phase / 2π), an elevation bias's bins two to an entry.
+fn push_correction(shapes: &mut Vec<[f32; 4]>, correction: &crate::layers::correction::Correction, origin: DVec3) {
+    use crate::layers::correction::Bias;
+    let frame = |shapes: &mut Vec<[f32; 4]>, f: &Option<crate::layers::correction::Frame>| {
+        // Every bias of position has one (`Correction::new`).
+        let (east, north, (e0, n0)) =
+            f.map_or((DVec3::ZERO, DVec3::ZERO, (0.0, 0.0)), |f| (f.east, f.north, f.local(origin)));
+        shapes.push(v4(east, e0 as f32));
+        shapes.push(v4(north, n0 as f32));
+    };
+    for (bias, f) in &correction.biases {
+        match bias {
+            Bias::Deramp { order, coefficients, box_km, .. } => {
+                shapes.push([codes::bias::DERAMP as f32, f32::from(*order), 0.0, 0.0]);
+                frame(shapes, f);
+                shapes.push(box_km.map(|v| v as f32));
+                for c in coefficients.chunks(4) {
+                    let mut entry = [0.0f32; 4];
+                    entry.iter_mut().zip(c).for_each(|(e, c)| *e = *c as f32);
+                    shapes.push(entry);
+                }
+            }
+            Bias::TerrainBias { bins, .. } => {
+                shapes.push([codes::bias::ELEVATION as f32, bins.len() as f32, 0.0, 0.0]);
+                for pair in bins.chunks(2) {
+                    let mut entry = [0.0f32; 4];
+                    entry.iter_mut().zip(pair.as_flattened()).for_each(|(e, v)| *e = *v as f32);
+                    shapes.push(entry);
+                }
+            }
+            Bias::Directional { azimuth_deg, offset_m, sinusoids, range_m, .. } => {
+                let (s, c) = azimuth_deg.to_radians().sin_cos();
+                shapes.push([codes::bias::DIRECTIONAL as f32, sinusoids.len() as f32, s as f32, c as f32]);
+                frame(shapes, f);
+                shapes.push([*offset_m as f32, range_m[0] as f32, range_m[1] as f32, 0.0]);
+                for q in sinusoids {
+                    let turns = q.phase_rad / std::f64::consts::TAU;
+                    shapes.push([q.wavelength_m as f32, q.amplitude_m as f32, turns as f32, 0.0]);
+                }
+            }
+        }
     }
 }
 

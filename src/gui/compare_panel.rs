@@ -1,11 +1,12 @@
 //! The *Compare* section: statistics of A − B (as `terrafuse compare` prints them: the numbers,
-//! the histogram, the slope classes) and Nuth & Kääb co-registration of A onto B with an *apply*
-//! button, each computed on a thread while the view keeps drawing.
+//! the histogram, the slope classes) and co-registration of A onto B by a pipeline of bias
+//! corrections (as `terrafuse coregister --pipeline`; Nuth & Kääb alone by default) with each
+//! step's result and an *apply* button, each computed on a thread while the view keeps drawing.
 
 use crate::gui::GuiError;
 use std::thread::JoinHandle;
 
-use crate::compare::{CompareOptions, Comparison, CoregOptions, Coregistration, compare, coregister};
+use crate::compare::{CompareOptions, Comparison, CoregOptions, Coregistration, Step, compare, coregister};
 use crate::project::Project;
 
 /// What the panel asks of the window.
@@ -19,15 +20,8 @@ pub enum CompareAction {
         /// B.
         b: String,
     },
-    /// Move layer `layer` by `shift_m` more and raise it by `up_m` (a co-registration applied).
-    Apply {
-        /// The layer.
-        layer: String,
-        /// East, north, metres.
-        shift_m: [f64; 2],
-        /// Metres.
-        up_m: f64,
-    },
+    /// Apply a co-registration to its layer A (`Coregistration::apply_to`).
+    Apply(Box<Coregistration>),
 }
 
 /// The section's state.
@@ -35,6 +29,8 @@ pub enum CompareAction {
 pub struct ComparePanel {
     a: String,
     b: String,
+    /// The pipeline as `--pipeline` spells it (empty: `nuth_kaab`).
+    pipeline: String,
     comparing: Option<JoinHandle<Result<Comparison, GuiError>>>,
     coregistering: Option<JoinHandle<Result<Coregistration, GuiError>>>,
     comparison: Option<Result<Comparison, GuiError>>,
@@ -100,6 +96,18 @@ impl ComparePanel {
                 }
             });
         });
+        ui.horizontal(|ui| {
+            let label = ui.label("pipeline");
+            ui.add(
+                egui::TextEdit::singleline(&mut self.pipeline)
+                    .hint_text("nuth_kaab")
+                    .desired_width(320.0),
+            )
+            .labelled_by(label.id)
+            .on_hover_text(
+                "steps, comma-separated: nuth_kaab, vertical, deramp:1-3, terrain_bias:elevation|max_curvature|slope, directional:AZIMUTH",
+            );
+        });
         let mut action = CompareAction::None;
         ui.horizontal(|ui| {
             let idle = !self.busy() && self.a != self.b;
@@ -107,11 +115,18 @@ impl ComparePanel {
                 let (p, a, b) = (project.clone(), self.a.clone(), self.b.clone());
                 self.comparing = Some(std::thread::spawn(move || Ok(compare(&p, &a, &b, &CompareOptions::default())?)));
             }
-            if ui.add_enabled(idle, egui::Button::new("co-register")).on_hover_text("Nuth & Kääb: A onto B").clicked()
+            if ui
+                .add_enabled(idle, egui::Button::new("co-register"))
+                .on_hover_text("A onto B by the pipeline below (Nuth & Kääb alone when empty)")
+                .clicked()
             {
                 let (p, a, b) = (project.clone(), self.a.clone(), self.b.clone());
-                self.coregistering =
-                    Some(std::thread::spawn(move || Ok(coregister(&p, &a, &b, &CoregOptions::default())?)));
+                let text =
+                    if self.pipeline.trim().is_empty() { "nuth_kaab".to_string() } else { self.pipeline.clone() };
+                self.coregistering = Some(std::thread::spawn(move || {
+                    let opts = CoregOptions { pipeline: Step::parse_list(&text)?, ..CoregOptions::default() };
+                    Ok(coregister(&p, &a, &b, &opts)?)
+                }));
             }
             if ui
                 .add_enabled(self.a != self.b, egui::Button::new("show difference"))
@@ -143,16 +158,28 @@ impl ComparePanel {
                     c.iterations,
                     if c.converged { "" } else { ", not converged" }
                 ));
+                for (name, step) in c.pipeline.iter().zip(&c.steps) {
+                    ui.monospace(format!(
+                        "{name:<26} NMAD {:.2} -> {:.2} m, median {:+.2} -> {:+.2} m",
+                        step.before.nmad_m, step.after.nmad_m, step.before.median_m, step.after.median_m
+                    ));
+                }
                 ui.label(format!(
                     "NMAD {:.2} m to {:.2} m, RMSE {:.2} m to {:.2} m",
                     c.before.nmad_m, c.after.nmad_m, c.before.rmse_m, c.after.rmse_m
                 ));
-                if ui
+                // What applying would write, tried on a copy of A: a layer that cannot hold it says why.
+                let storable = project.layers.iter().find(|l| l.name == c.a).map(|l| c.apply_to(&mut l.clone()));
+                if let Some(Err(e)) = storable {
+                    ui.label(format!("cannot apply: {e}"));
+                } else if ui
                     .button(format!("apply to {}", c.a))
-                    .on_hover_text("adds the shift to its shift_m and the offset to its offset_m")
+                    .on_hover_text(
+                        "adds the shift to its shift_m, the raise to its offset_m, the biases to its correction",
+                    )
                     .clicked()
                 {
-                    action = CompareAction::Apply { layer: c.a.clone(), shift_m: [c.east_m, c.north_m], up_m: c.up_m };
+                    action = CompareAction::Apply(Box::new(c.clone()));
                     self.coregistration = None;
                 }
             }

@@ -217,6 +217,19 @@ fn layer_settings_ui(ui: &mut egui::Ui, spec: &mut LayerSpec) {
             })
             .response
             .on_hover_text("move the dataset east and north (what terrafuse coregister --apply writes)");
+            // Each bias correction in a line (each removable), as coregister --apply wrote it.
+            let mut removed = None;
+            for (k, bias) in d.correction.iter().enumerate() {
+                ui.horizontal(|ui| {
+                    ui.label(format!("correction {}: {} (up to {:.2} m)", k + 1, bias.step_name(), bias.bound_m()));
+                    if ui.small_button(format!("remove correction {}", k + 1)).clicked() {
+                        removed = Some(k);
+                    }
+                });
+            }
+            if let Some(k) = removed {
+                d.correction.remove(k);
+            }
         }
     }
 }

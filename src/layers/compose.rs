@@ -2,8 +2,9 @@
 //! `shaders/compose/compose.wgsl` (keep in sync), in f64, deterministic (each sample alone; rows
 //! in parallel with rayon, which changes no result).
 //!
-//! Per sample each planned layer gives a value v (raw × scale + offset; no data where the raw
-//! value is NaN or v is outside `valid_range_m`) and a coverage α = opacity × extent mask × edge
+//! Per sample each planned layer gives a value v (raw × scale + offset, less a dataset's bias
+//! corrections ([`super::correction`]); no data where the raw value is NaN or v is outside
+//! `valid_range_m`) and a coverage α = opacity × extent mask × edge
 //! mask (datasets fading in from their no-data edge, [`edge`]); a
 //! layer with α = 0 at a sample leaves it unchanged. The running height h starts as no data and
 //! each layer folds in by its blend mode ([`fold`]); consecutive `mean` layers are gathered and
@@ -140,7 +141,9 @@ pub fn layer_sample(
         // Never planned: it changes no height.
         ValueSource::Nothing => f64::NAN,
     };
-    let value = base * spec.scale + spec.offset_m;
+    let scaled = base * spec.scale + spec.offset_m;
+    // A dataset's bias corrections, of its position and its own (scaled) height.
+    let value = if layer.correction.is_empty() { scaled } else { scaled - layer.correction.at(at.ecef, scaled) };
     let valid = !value.is_nan() && spec.valid_range_m.is_none_or(|[lo, hi]| value >= lo && value <= hi);
     if !valid {
         return LayerSample { value: 0.0, alpha: 0.0 };
@@ -212,12 +215,13 @@ fn apply(state: &mut Running, blend: BlendMode, value: f64, alpha: f64, spacing_
 pub fn compose_quad<'a>(stack: &Stack, plan: &QuadPlan, tiles: &dyn Fn(usize) -> LayerTiles<'a>) -> Vec<f32> {
     let n = SAMPLES as usize;
     let tiles: Vec<LayerTiles> = (0..plan.layers.len()).map(tiles).collect();
-    // Only masks near an extent's edge and noise read the sample's position: a plan without them
-    // (datasets and constants inside or without extents) skips the inverse projection.
-    let positioned = plan
-        .layers
-        .iter()
-        .any(|l| matches!(l.mask, MaskPlan::Partial(_)) || stack.layers[l.index].spec.noise().is_some());
+    // Only masks near an extent's edge, noise and bias corrections read the sample's position: a
+    // plan without them (datasets and constants inside or without extents) skips the inverse
+    // projection.
+    let positioned = plan.layers.iter().any(|l| {
+        let layer = &stack.layers[l.index];
+        matches!(l.mask, MaskPlan::Partial(_)) || layer.spec.noise().is_some() || !layer.correction.is_empty()
+    });
     let mut out = vec![f32::NAN; n * n];
     out.par_chunks_mut(n).enumerate().for_each(|(j, row)| {
         for (i, h) in row.iter_mut().enumerate() {

@@ -9,11 +9,13 @@
 //! - [`stack`]: the stack in memory, each layer's identity and revision, per-quad plans (which
 //!   layers a quad reads, their masks, its cache stamp);
 //! - [`extent`]: extents and feathered masks in metres on the ellipsoid;
+//! - [`correction`]: a dataset's bias corrections (ramps, binned and directional biases);
 //! - [`edge`]: distances to a dataset's own no-data edge, for `feather_edge_m`;
 //! - [`noise`]: fBm and ridged multifractal on the ECEF position, with a split f64/f32 lattice;
 //! - [`compose`]: the blend formulas, per-sample and per-quad composition, height bounds.
 
 pub mod compose;
+pub mod correction;
 pub mod edge;
 pub mod extent;
 pub mod kind;

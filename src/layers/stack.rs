@@ -8,6 +8,7 @@ use crate::ecm::points::quad_ball;
 use glam::DVec3;
 
 use super::LayerError;
+use super::correction::Correction;
 use super::extent::{Extent, Relation};
 use super::noise;
 use super::spec::{BlendMode, LayerSpec, Operand};
@@ -26,6 +27,8 @@ pub struct Layer {
     pub revision: u64,
     /// The compiled extent.
     pub extent: Option<Extent>,
+    /// Dataset layers: the bias corrections placed on the body (empty: none).
+    pub correction: Correction,
     /// Dataset layers: the raw value range of the data (before scale and offset), metres.
     pub raw_range_m: (f64, f64),
     /// Dataset layers: the sample spacing of the dataset's finest level, metres (∞ otherwise).
@@ -65,7 +68,8 @@ impl Layer {
         // An edit or erosion layer's raw range is its deltas' (recorded like a dataset's).
         let raw = self.spec.raw_range_m(dataset_raw_m);
         let (a, b) = (raw.0 * self.spec.scale + self.spec.offset_m, raw.1 * self.spec.scale + self.spec.offset_m);
-        let (lo, hi) = (a.min(b), a.max(b));
+        let bias = self.correction.bound_m();
+        let (lo, hi) = (a.min(b) - bias, a.max(b) + bias);
         match self.spec.valid_range_m {
             Some([vlo, vhi]) => (lo.max(vlo), hi.min(vhi)),
             None => (lo, hi),
@@ -219,9 +223,12 @@ impl Stack {
         self.layers.iter().rposition(|l| !l.spec.gives_heights() && l.spec.visible && l.spec.opacity > 0.0)
     }
 
-    fn compile(&self, spec: &LayerSpec) -> Result<Option<Extent>, LayerError> {
+    /// Checks a spec and places its extent and correction on the body.
+    fn compile(&self, spec: &LayerSpec) -> Result<(Option<Extent>, Correction), LayerError> {
         spec.check(self.ellipsoid.a_m())?;
-        Ok(spec.extent.as_ref().map(|e| Extent::new(e, spec.feather_m, &self.ellipsoid)))
+        let extent = spec.extent.as_ref().map(|e| Extent::new(e, spec.feather_m, &self.ellipsoid));
+        let biases = spec.as_dataset().map_or(&[][..], |d| &d.correction);
+        Ok((extent, Correction::new(biases, &self.ellipsoid)))
     }
 
     /// Inserts a layer at `index` (0: bottom). Names must stay unique; a difference's operands
@@ -235,7 +242,7 @@ impl Stack {
         if self.layers.iter().any(|l| l.spec.name == spec.name) {
             return Err(LayerError::field(&spec.name, "name", "is used by another layer".into()));
         }
-        let extent = self.compile(&spec)?;
+        let (extent, correction) = self.compile(&spec)?;
         let uid = self.next_uid;
         self.next_uid += 1;
         let layer = Layer {
@@ -243,6 +250,7 @@ impl Stack {
             uid,
             revision: 1,
             extent,
+            correction,
             raw_range_m: (0.0, 0.0),
             data_spacing_m: f64::INFINITY,
             stored_level: None,
@@ -256,7 +264,7 @@ impl Stack {
         if self.layers.iter().enumerate().any(|(k, l)| k != index && l.spec.name == spec.name) {
             return Err(LayerError::field(&spec.name, "name", "is used by another layer".into()));
         }
-        let extent = self.compile(&spec)?;
+        let (extent, correction) = self.compile(&spec)?;
         self.check_operands(&spec)?;
         let old = &self.layers[index].spec.name;
         if *old != spec.name
@@ -272,6 +280,7 @@ impl Stack {
         if layer.spec != spec {
             layer.spec = spec;
             layer.extent = extent;
+            layer.correction = correction;
             layer.revision += 1;
         }
         Ok(())

@@ -241,7 +241,8 @@ impl QuadCache {
     /// A bound on the height difference between neighbouring samples along the quad's edges,
     /// metres (sizes the skirt): the sum over the plan's layers of what each can change there:
     /// a dataset its tile's edge roughness (its range before the tile arrives), noise its
-    /// slope bound over one sample, a feathered mask its value span × the mask's slope.
+    /// slope bound over one sample, a dataset's corrections their change over one sample, a
+    /// feathered mask its value span × the mask's slope.
     pub(crate) fn roughness(&self, scene: &Scene, plan: &QuadPlan, spacing_m: f64) -> f64 {
         let mut total = 0.0;
         for (k, planned) in plan.layers.iter().enumerate() {
@@ -258,6 +259,8 @@ impl QuadCache {
                 (ValueSource::Deltas, _) if hi >= lo => hi - lo,
                 _ => 0.0,
             } * spec.opacity;
+            // A dataset's corrections change between samples too.
+            total += layer.correction.step_bound_m(spacing_m, hi - lo) * spec.opacity;
             if let (MaskPlan::Partial(_), true) = (&planned.mask, spec.feather_m > 0.0) {
                 total += (hi - lo).abs().max(hi.abs()) * (1.5 * spacing_m / spec.feather_m).min(1.0);
             }

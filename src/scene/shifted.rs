@@ -19,12 +19,7 @@ use crate::store::{Store, StoreError};
 
 const N: usize = GRID as usize;
 
-/// The local east and north unit vectors (ECEF) at a longitude and latitude (radians).
-pub fn local_axes(lon: f64, lat: f64) -> (DVec3, DVec3) {
-    let (sl, cl) = lon.sin_cos();
-    let (sp, cp) = lat.sin_cos();
-    (DVec3::new(-sl, cl, 0.0), DVec3::new(-sp * cl, -sp * sl, cp))
-}
+pub use crate::geodesy::local_axes;
 
 /// The quad of `level` holding the point above or below `p` on the ellipsoid, and the point's
 /// grid coordinates in it (u, v ∈ [0, 256]).

@@ -234,9 +234,7 @@ impl App {
     /// The comparison panel, its profile and the swipe.
     fn compare_tab(&mut self, ui: &mut egui::Ui) {
         match self.compare.ui(ui, &self.project) {
-            crate::gui::compare_panel::CompareAction::Apply { layer, shift_m, up_m } => {
-                self.apply_coregistration(&layer, shift_m, up_m);
-            }
+            crate::gui::compare_panel::CompareAction::Apply(c) => self.apply_coregistration(&c),
             crate::gui::compare_panel::CompareAction::ShowDifference { a, b } => {
                 let spec = crate::gui::difference_ui::new_layer(&self.project, &a, &b);
                 match self.insert_layer(spec) {
@@ -290,21 +288,26 @@ impl App {
         ui.label(egui::RichText::new(&self.device).small());
     }
 
-    /// Moves layer `layer` by `shift_m` more and raises it by `up_m` (a co-registration applied).
-    fn apply_coregistration(&mut self, layer: &str, shift_m: [f64; 2], up_m: f64) {
-        let Some(index) = self.project.layers.iter().position(|l| l.name == layer) else { return };
+    /// Applies a co-registration to its layer A: shift, raise and biases (`Coregistration::apply_to`).
+    fn apply_coregistration(&mut self, c: &crate::compare::Coregistration) {
+        let Some(index) = self.project.layers.iter().position(|l| l.name == c.a) else { return };
         let mut spec = self.project.layers[index].clone();
-        if spec.shift_by(shift_m[0], shift_m[1]).is_err() {
+        if let Err(e) = c.apply_to(&mut spec) {
+            self.message = e.to_string();
             return;
         }
-        spec.offset_m += up_m;
         match self.renderer.update_layer(index, spec.clone()) {
             Ok(()) => {
                 self.project.layers[index] = spec;
                 self.dirty = true;
                 self.mark_unsaved();
-                self.message =
-                    format!("moved '{layer}' east {:+.2} m, north {:+.2} m, up {:+.2} m", shift_m[0], shift_m[1], up_m);
+                let biases = c.biases().iter().map(|b| b.step_name()).collect::<Vec<_>>();
+                let corrected =
+                    if biases.is_empty() { String::new() } else { format!(", corrected by {}", biases.join(", ")) };
+                self.message = format!(
+                    "moved '{}' east {:+.2} m, north {:+.2} m, up {:+.2} m{corrected}",
+                    c.a, c.east_m, c.north_m, c.up_m
+                );
             }
             Err(e) => self.message = e.to_string(),
         }

@@ -47,6 +47,8 @@ pub(super) struct LayerRecord {
     #[serde(default)]
     shift_m: Option<[f64; 2]>,
     #[serde(default)]
+    correction: Option<Vec<crate::layers::correction::Bias>>,
+    #[serde(default)]
     store: Option<PathBuf>,
     #[serde(default)]
     dataset: Option<String>,
@@ -72,7 +74,7 @@ impl LayerKind {
     /// The fields only this kind has (beside the common ones).
     pub fn own_fields(self) -> &'static [&'static str] {
         match self {
-            LayerKind::Dataset => &["store", "dataset", "source", "shift_m", "feather_edge_m"],
+            LayerKind::Dataset => &["store", "dataset", "source", "shift_m", "feather_edge_m", "correction"],
             LayerKind::Procedural => &["noise"],
             LayerKind::Constant => &["height_m"],
             LayerKind::Difference => &["of", "style"],
@@ -94,6 +96,7 @@ impl TryFrom<LayerRecord> for LayerSpec {
             ("source", r.source.is_some()),
             ("shift_m", r.shift_m.is_some_and(|s| s != [0.0, 0.0])),
             ("feather_edge_m", r.feather_edge_m.is_some_and(|f| f != 0.0)),
+            ("correction", r.correction.as_ref().is_some_and(|c| !c.is_empty())),
             ("height_m", r.height_m.is_some()),
             ("noise", r.noise.is_some()),
             ("of", r.of.is_some()),
@@ -116,6 +119,7 @@ impl TryFrom<LayerRecord> for LayerSpec {
                 source: r.source,
                 shift_m: r.shift_m.unwrap_or([0.0, 0.0]),
                 feather_edge_m: r.feather_edge_m.unwrap_or(0.0),
+                correction: r.correction.unwrap_or_default(),
             }),
             LayerKind::Procedural => LayerPayload::Procedural(ProceduralLayer {
                 noise: r.noise.ok_or_else(|| missing("noise", "its noise settings"))?,

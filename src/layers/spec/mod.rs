@@ -11,7 +11,7 @@
 //! ```
 //!
 //! Every layer has the common fields ([`LayerSpec`]) and its kind's own ([`LayerPayload`]: `store`,
-//! `dataset`, `source`, `shift_m`, `feather_edge_m` for datasets, `height_m` for constants,
+//! `dataset`, `source`, `shift_m`, `feather_edge_m`, `correction` for datasets, `height_m` for constants,
 //! `noise` for procedural layers, `of` and `style` for differences, `strokes` for edit layers,
 //! `runs` for erosion layers), so a constant with strokes cannot be written down; a file that
 //! has one is refused by name when it is read ([`file`]). [`LayerSpec::check`] checks what a type
@@ -339,6 +339,11 @@ pub struct DatasetLayer {
     /// surface, metres (0: no fade; see [`super::edge`]).
     #[serde(default, skip_serializing_if = "is_zero")]
     pub feather_edge_m: f64,
+    /// Bias corrections taken off the layer's value, in order (what `terrafuse coregister
+    /// --pipeline … --apply` writes for its deramp, terrain and directional steps; see
+    /// docs/comparison.md).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub correction: Vec<super::correction::Bias>,
 }
 
 /// A procedural layer's own fields.
@@ -486,6 +491,7 @@ impl LayerSpec {
                 source: None,
                 shift_m: [0.0, 0.0],
                 feather_edge_m: 0.0,
+                correction: Vec::new(),
             }),
         )
     }
@@ -915,6 +921,9 @@ fn check_dataset(d: &DatasetLayer, radius_m: f64) -> Result<(), (&'static str, S
             "shift_m",
             format!("{:?} must be [east, north] in metres, each within ±{MAX_SHIFT_M}", d.shift_m),
         ));
+    }
+    for bias in &d.correction {
+        bias.check().map_err(|problem| ("correction", problem))?;
     }
     Ok(())
 }
