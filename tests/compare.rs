@@ -214,6 +214,11 @@ fn bad_input_is_refused_by_name() {
             "--pipeline: 'deramp:5': the order must be 1, 2 or 3",
         ),
         (
+            vec!["compare", p, "blurred", "srtm", "--uncertainty", "--area", "glaciers.geojson"],
+            "glaciers.geojson: no such file (and no layer of that name in the project)",
+        ),
+        (vec!["compare", p, "blurred", "srtm", "--area", "srtm"], "--uncertainty"),
+        (
             vec!["coregister", p, "blurred", "--to", "srtm", "--stable", "glaciers.geojson"],
             "glaciers.geojson: no such file (and no layer of that name in the project)",
         ),
@@ -829,4 +834,145 @@ fn an_applied_pipeline_is_what_compare_export_and_replay_see() {
     run(&["replay", project, "--record"]);
     run(&["replay", project, "--check"]);
     run(&["replay", project, "--gpu", "--check"]);
+}
+
+#[test]
+fn the_uncertainty_of_a_mean_change_agrees_with_xdems_spatial_statistics() {
+    // The bundled pair, co-registered (so dh is what is left after the shift: the blur), over
+    // the 0.3° box the pipeline tests use.
+    use terrafuse::compare::{UncertaintyOptions, uncertainty};
+    let dir = common::out_path("compare/uncertainty");
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let p = sample_project("erzurum-compare", &dir);
+    let region = "40.3,39.45,40.6,39.75";
+    run(&["coregister", p.to_str().unwrap(), "blurred", "--to", "srtm", "--region", region, "--apply"]);
+    let project = Project::load(&p).unwrap();
+    let opts = UncertaintyOptions {
+        region: Some(region.parse::<terrafuse::geodesy::GeoBox>().unwrap()),
+        keep_samples: true,
+        ..UncertaintyOptions::default()
+    };
+    let u = uncertainty(&project, "blurred", "srtm", &opts).unwrap();
+    let h = &u.heteroscedasticity;
+    let mut csv = String::from("east_m,north_m,dh_m,slope_deg,max_curvature,area_m2,stable,in_area,sigma_m\n");
+    for s in &u.samples {
+        csv += &format!(
+            "{},{},{},{},{},{},{},{},{}\n",
+            s.east_m,
+            s.north_m,
+            s.dh_m,
+            s.slope_deg,
+            s.max_curvature,
+            s.area_m2,
+            u8::from(s.stable),
+            u8::from(s.in_area),
+            h.sigma_m(s.slope_deg, s.max_curvature)
+        );
+    }
+    let (samples, model) = (dir.join("samples.csv"), dir.join("model.json"));
+    std::fs::write(&samples, csv).unwrap();
+    std::fs::write(&model, serde_json::to_string(&u).unwrap()).unwrap();
+    let lags = [500.0, 2000.0, 8000.0];
+    let disks_m2 = [2.5e5, 1e6, 4e6];
+    let list = |v: &[f64]| v.iter().map(|x| x.to_string()).collect::<Vec<_>>().join(",");
+    let x = reference_script(
+        "xdem_uncertainty.py",
+        &[samples.to_str().unwrap(), model.to_str().unwrap(), &list(&lags), &list(&disks_m2)],
+    );
+    println!(
+        "mean dh {:+.3} ± {:.4} m (xDEM's σ {:.4} m), volume {:+.3e} ± {:.3e} m³ over {:.1} km²; mean error {:.3} m \
+         (xDEM's model {:.3} m); N_eff {:.1} (xDEM {:.1}); xDEM {:.1} s",
+        u.mean_dh_m,
+        u.mean_dh_sigma_m,
+        x["sigma_mean_m"].as_f64().unwrap(),
+        u.volume_m3,
+        u.volume_sigma_m3,
+        u.area_m2 / 1e6,
+        u.mean_error_m,
+        x["mean_error_m"].as_f64().unwrap(),
+        u.effective_samples,
+        x["neff"].as_f64().unwrap(),
+        x["seconds"].as_f64().unwrap()
+    );
+    println!("variogram: ours {:?}, xDEM {}", u.variogram.models, x["models"]);
+
+    // The binned NMAD: the same samples in the same bins, area-weighted here, counted by xDEM
+    // (the cells' areas differ by < 0.1 % in the box): within 2 %.
+    let mut compared = 0;
+    for (i, row) in h.nmad_m.iter().enumerate() {
+        for (j, ours) in row.iter().enumerate() {
+            if let (Some(ours), Some(theirs)) = (ours, x["nmad_m"][i][j].as_f64()) {
+                assert!((ours / theirs - 1.0).abs() < 0.02, "bin {i},{j}: {ours} vs xDEM {theirs}");
+                compared += 1;
+            }
+        }
+    }
+    assert!(compared >= 50, "{compared} bins compared");
+    // The error models (a quadrature model here, xDEM's interpolated table) over the area: 10 %.
+    let theirs = x["mean_error_m"].as_f64().unwrap();
+    assert!((u.mean_error_m / theirs - 1.0).abs() < 0.1, "mean error {} vs xDEM {theirs}", u.mean_error_m);
+    // The empirical variograms (the same lag bins; our pairs drawn by hash, xDEM's at random)
+    // within 10 % wherever both have 1000 pairs.
+    let empirical = x["empirical"].as_array().unwrap();
+    for bin in &u.variogram.bins {
+        let theirs = empirical.iter().find(|r| (r[0].as_f64().unwrap() / bin.lag_m - 1.0).abs() < 1e-6);
+        if let Some(r) = theirs.filter(|r| r[2].as_u64().unwrap() >= 1000 && bin.pairs >= 1000) {
+            let g = r[1].as_f64().unwrap();
+            assert!((bin.gamma / g - 1.0).abs() < 0.1, "γ at {} m: {} vs xDEM {g}", bin.lag_m, bin.gamma);
+        }
+    }
+    // The fitted models (each to its own empirical variogram) at three lags within 10 %, and the
+    // σ of a mean over disks of 0.25, 1 and 4 km² (xDEM's neff_circular_approx_numerical, the same
+    // mean error): within 10 %. Over the whole 858 km² box the σ hangs on the long range, which
+    // these data hardly fix (xDEM's own fits to random draws of pairs give 11–34 km and a σ of
+    // 0.38–1.05 m; docs/comparison.md): printed above, not asserted.
+    let ours_model = terrafuse::compare::variogram::VariogramModel { models: u.variogram.models.clone() };
+    for (k, lag) in lags.iter().enumerate() {
+        let (a, b) = (ours_model.gamma(*lag), x["gamma_at"][k].as_f64().unwrap());
+        assert!((a / b - 1.0).abs() < 0.1, "γ({lag} m): {a} vs xDEM {b}");
+    }
+    let in_area = u.samples.iter().filter(|s| s.in_area && s.dh_m.is_finite());
+    let (sum, n) = in_area.fold((0.0, 0usize), |(sum, n), s| (sum + h.sigma_m(s.slope_deg, s.max_curvature), n + 1));
+    for (k, area) in disks_m2.iter().enumerate() {
+        let ours = sum / n as f64 / terrafuse::compare::variogram::neff_disk(&ours_model, *area).sqrt();
+        let theirs = x["sigma_disks_m"][k].as_f64().unwrap();
+        println!("σ of a mean over {:.2} km²: {ours:.4} m, xDEM {theirs:.4} m", area / 1e6);
+        assert!((ours / theirs - 1.0).abs() < 0.1, "σ over {area} m²: {ours} vs xDEM {theirs}");
+    }
+    // The command line: `--uncertainty --json` adds the object scripts read; `--area` polygons
+    // keep their inside (a 0.1° box in the middle here).
+    let outline = dir.join("glacier.geojson");
+    std::fs::write(
+        &outline,
+        r#"{"type": "FeatureCollection", "features": [{"type": "Feature", "properties": {}, "geometry":
+        {"type": "Polygon", "coordinates": [[[40.4, 39.55], [40.5, 39.55], [40.5, 39.65], [40.4, 39.65], [40.4, 39.55]]]}}]}"#,
+    )
+    .unwrap();
+    let json: serde_json::Value = serde_json::from_str(&run(&[
+        "compare",
+        p.to_str().unwrap(),
+        "blurred",
+        "srtm",
+        "--region",
+        region,
+        "--uncertainty",
+        "--area",
+        outline.to_str().unwrap(),
+        "--json",
+    ]))
+    .unwrap();
+    let v = &json["uncertainty"];
+    for field in ["mean_dh_m", "mean_dh_sigma_m", "volume_m3", "volume_sigma_m3", "area_m2"] {
+        assert!(v[field].as_f64().is_some(), "{field}: {v}");
+    }
+    assert!(v["variogram"]["models"][0]["range_m"].as_f64().is_some() && v["heteroscedasticity"]["nmad_m"].is_array());
+    // 0.1° × 0.1° at 39.6°N: 8.6 km × 11.1 km.
+    let km2 = v["area_m2"].as_f64().unwrap() / 1e6;
+    assert!((km2 - 95.2).abs() < 2.0, "{km2} km²");
+    assert!(v["area"].as_str().unwrap().contains("inside the polygons of"));
+
+    // The volume is the mean times the area, and its σ the mean's.
+    assert!((u.volume_m3 - u.mean_dh_m * u.area_m2).abs() <= 1e-6 * u.volume_m3.abs().max(1.0));
+    assert!((u.volume_sigma_m3 - u.mean_dh_sigma_m * u.area_m2).abs() <= 1e-6 * u.volume_sigma_m3);
 }

@@ -400,6 +400,16 @@ fn the_compare_section_shows_statistics_and_applies_a_coregistration() {
     wait_for_compare(&mut h);
     h.run_steps(2);
     h.get_by_label_contains("--pipeline: 'deramp:7': the order must be 1, 2 or 3");
+    // The uncertainty of the mean change: its numbers, the binned error and the variogram.
+    h.get_by_label("uncertainty").click_accesskit();
+    h.step();
+    wait_for_compare(&mut h);
+    h.run_steps(2);
+    let u = h.state().compare_panel().uncertainty().expect("an uncertainty");
+    assert!(u.mean_dh_sigma_m > 0.0 && u.volume_sigma_m3 > 0.0 && !u.variogram.models.is_empty());
+    h.get_by_label_contains(&format!("mean dh {:+.3} ± {:.3} m (1σ)", u.mean_dh_m, u.mean_dh_sigma_m));
+    h.get_by_label_contains("variogram of dh / σ: spherical ranges");
+    h.render().unwrap().save(dir.join("uncertainty.png")).unwrap(); // for people, not compared
     // "show difference" puts another difference layer on top; it is the one drawn.
     h.get_by_label("show difference").click_accesskit();
     h.run_steps(2);

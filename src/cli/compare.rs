@@ -10,6 +10,7 @@ use crate::compare::pipeline::{Attribute, Correction, step_name};
 use crate::compare::{
     CompareOptions, Comparison, CoregOptions, Coregistration, Stable, Step, Weighting, compare, coregister,
 };
+use crate::compare::{Uncertainty, UncertaintyOptions, uncertainty};
 use crate::geodesy::GeoBox;
 use crate::layers::correction::Bias;
 use crate::project::Project;
@@ -39,6 +40,18 @@ pub struct CompareRequest {
     /// Also write every sample (lon_deg, lat_deg, dh_m, area_m2, slope_deg) as CSV.
     #[arg(long)]
     pub samples: Option<PathBuf>,
+    /// Also propagate the errors (Hugonnet et al. 2022): the mean dh and the volume change over
+    /// the area with their 1σ, the binned error and the variogram (`uncertainty` in the JSON).
+    #[arg(long)]
+    pub uncertainty: bool,
+    /// With --uncertainty: the area of the mean and volume, a layer (where it has data) or a
+    /// vector file of polygons (inside them); default: every sample with data.
+    #[arg(long, requires = "uncertainty")]
+    pub area: Option<String>,
+    /// With --uncertainty: fit the error model on stable terrain only, a layer (where it has
+    /// data) or a vector file of unstable terrain (polygons left out).
+    #[arg(long, requires = "uncertainty")]
+    pub stable: Option<String>,
 }
 
 /// Parses `--region WEST,SOUTH,EAST,NORTH`.
@@ -65,10 +78,70 @@ pub fn compare_command(request: &CompareRequest) -> Result<String, CliError> {
         }
         crate::files::write_atomic(path, csv.as_bytes()).map_err(CliError::file(path, "cannot write"))?;
     }
+    let uncertainty = if request.uncertainty {
+        let names: Vec<&str> = project.layers.iter().map(|l| l.name.as_str()).collect();
+        let opts = UncertaintyOptions {
+            level: Some(c.level),
+            region,
+            stable: request.stable.as_deref().map(|s| Stable::parse(&names, s)),
+            area: request.area.as_deref().map(|s| Stable::parse(&names, s)),
+            keep_samples: false,
+        };
+        Some(uncertainty(&project, &request.a, &request.b, &opts).within(request.project.display())?)
+    } else {
+        None
+    };
     if request.json {
-        return Ok(serde_json::to_string_pretty(&c)? + "\n");
+        let mut json = serde_json::to_value(&c)?;
+        if let (Some(u), Some(object)) = (&uncertainty, json.as_object_mut()) {
+            object.insert("uncertainty".into(), serde_json::to_value(u)?);
+        }
+        return Ok(serde_json::to_string_pretty(&json)? + "\n");
     }
-    Ok(table(&c))
+    Ok(table(&c) + &uncertainty.map(|u| uncertainty_table(&u)).unwrap_or_default())
+}
+
+/// The uncertainty as text: the mean and volume with their 1σ, the model and the variogram.
+pub fn uncertainty_table(u: &Uncertainty) -> String {
+    let mut out = String::new();
+    let area = u.area.as_deref().unwrap_or("every sample with data");
+    let _ = writeln!(out, "uncertainty over {area} ({:.3} km²):", u.area_m2 / 1e6);
+    let _ = writeln!(
+        out,
+        "  mean dh {:+.3} ± {:.3} m (1σ), volume change {:+.4e} ± {:.4e} m³ (1σ)",
+        u.mean_dh_m, u.mean_dh_sigma_m, u.volume_m3, u.volume_sigma_m3
+    );
+    let h = &u.heteroscedasticity;
+    let _ = writeln!(
+        out,
+        "  error model: σ = {:.3} × √({:.3}² + ({:.3} tan slope)² + ({:.3} curvature)²) m; mean σ {:.3} m over the area",
+        h.scale, h.base_m, h.slope_m, h.curvature_m, u.mean_error_m
+    );
+    let models: Vec<String> =
+        u.variogram.models.iter().map(|m| format!("range {:.0} m sill {:.3}", m.range_m, m.psill)).collect();
+    let _ = writeln!(
+        out,
+        "  spatial correlation: {} ({} effective samples); fitted on {} stable samples{}",
+        models.join(" + "),
+        u.effective_samples.round(),
+        u.stable_count,
+        u.stable.as_deref().map(|s| format!(", {s}")).unwrap_or_default()
+    );
+    let _ = writeln!(out, "  NMAD of dh (m) by slope (rows, degrees) and maximal curvature (columns, 100/m):");
+    let edges = |e: &[f64], k: usize| format!("{:.2}–{:.2}", e[k], e[k + 1]);
+    let _ = write!(out, "{:>14}", "");
+    for j in 0..h.max_curvature_edges.len() - 1 {
+        let _ = write!(out, "{:>12}", edges(&h.max_curvature_edges, j));
+    }
+    let _ = writeln!(out);
+    for (i, row) in h.nmad_m.iter().enumerate() {
+        let _ = write!(out, "{:>14}", edges(&h.slope_edges_deg, i));
+        for v in row {
+            let _ = write!(out, "{:>12}", v.map_or("–".to_string(), |v| format!("{v:.3}")));
+        }
+        let _ = writeln!(out);
+    }
+    out
 }
 
 /// The statistics as a table.
@@ -259,7 +332,10 @@ fn coreg_table(c: &Coregistration, applied: bool) -> String {
         );
     }
     if applied {
-        let _ = writeln!(out, "applied: {}'s shift_m and offset_m updated in the project", c.a);
+        let biases: Vec<String> = c.biases().iter().map(|b| b.step_name()).collect();
+        let corrected =
+            if biases.is_empty() { String::new() } else { format!(", {} added to its correction", biases.join(", ")) };
+        let _ = writeln!(out, "applied: {}'s shift_m and offset_m updated in the project{corrected}", c.a);
     }
     out
 }

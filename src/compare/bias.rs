@@ -104,6 +104,41 @@ pub(super) fn solve(mut a: Vec<Vec<f64>>, mut b: Vec<f64>) -> Option<Vec<f64>> {
     Some(x)
 }
 
+/// Weighted least squares of y ≈ Σ c_k · x_k with every c_k ≥ 0 (`rows`: the x_k, y, weight), for
+/// a few unknowns: every subset of them free and the rest at 0, the feasible solution with the
+/// least residual. The coefficients and that residual; None when no subset is solvable.
+pub(super) fn nonnegative_least_squares(rows: &[(Vec<f64>, f64, f64)]) -> Option<(Vec<f64>, f64)> {
+    let m = rows.first()?.0.len();
+    let mut best: Option<(Vec<f64>, f64)> = None;
+    for mask in 1..(1u32 << m) {
+        let free: Vec<usize> = (0..m).filter(|k| mask & (1 << k) != 0).collect();
+        let mut normal = vec![vec![0.0; free.len()]; free.len()];
+        let mut rhs = vec![0.0; free.len()];
+        for (x, y, w) in rows {
+            for (i, &fi) in free.iter().enumerate() {
+                rhs[i] += w * x[fi] * y;
+                for (j, &fj) in free.iter().enumerate() {
+                    normal[i][j] += w * x[fi] * x[fj];
+                }
+            }
+        }
+        let Some(sol) = solve(normal, rhs) else { continue };
+        if sol.iter().any(|&c| c < 0.0) {
+            continue;
+        }
+        let mut c = vec![0.0; m];
+        for (i, &fi) in free.iter().enumerate() {
+            c[fi] = sol[i];
+        }
+        let residual: f64 =
+            rows.iter().map(|(x, y, w)| w * (y - x.iter().zip(&c).map(|(x, c)| x * c).sum::<f64>()).powi(2)).sum();
+        if best.as_ref().is_none_or(|b| residual < b.1) {
+            best = Some((c, residual));
+        }
+    }
+    best
+}
+
 /// Bins of a binned correction (xDEM's `TerrainBias` default).
 pub const BINS: usize = 100;
 /// Samples a bin needs to count.
@@ -265,7 +300,7 @@ fn residual(x: &[f64], y: &[f64], wavelengths: &[f64], fit: &[f64]) -> f64 {
 }
 
 /// The minimum of `f` on [a, b] by golden-section search (60 steps: the bracket shrinks 10¹²-fold).
-fn golden_section(mut a: f64, mut b: f64, f: impl Fn(f64) -> f64) -> f64 {
+pub(super) fn golden_section(mut a: f64, mut b: f64, f: impl Fn(f64) -> f64) -> f64 {
     let g = (5f64.sqrt() - 1.0) / 2.0;
     let (mut c, mut d) = (b - g * (b - a), a + g * (b - a));
     let (mut fc, mut fd) = (f(c), f(d));

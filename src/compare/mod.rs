@@ -7,6 +7,8 @@
 //! - [`coreg`]: its Nuth & Kääb step on the ellipsoid, and the reference's samples;
 //! - [`bias`]: the other steps' models (vertical, deramp, terrain bias, directional);
 //! - [`stable`]: where the corrections are fitted (a layer's coverage, or outlines left out);
+//! - [`uncertainty`]: the error model, its spatial correlation ([`variogram`]) and the 1σ of a
+//!   mean elevation change and a volume change (Hugonnet et al. 2022);
 //! - [`profile`]: every visible layer's elevation along a geodesic;
 //! - [`sample`]: the overlap's samples: each layer composed alone with the CPU reference, cell areas
 //!   and slopes on the ellipsoid.
@@ -19,6 +21,8 @@ pub mod profile;
 pub mod sample;
 pub mod stable;
 pub mod stats;
+pub mod uncertainty;
+pub mod variogram;
 
 pub use coreg::NuthKaabOptions;
 pub use pipeline::{CoregOptions, Coregistration, Step, coregister};
@@ -28,6 +32,7 @@ pub use sample::{
 };
 pub use stable::Stable;
 pub use stats::{Diff, Histogram, SlopeClass, Stats};
+pub use uncertainty::{Uncertainty, UncertaintyOptions, uncertainty};
 
 /// A comparison that cannot be made, in words that name the layer, option or file.
 #[derive(Debug, thiserror::Error)]

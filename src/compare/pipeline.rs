@@ -23,7 +23,7 @@ use super::bias::{Binned, Polynomial, Sinusoids, vertical};
 use super::coreg::{NuthKaabOptions, RefSample, differences, nuth_kaab, reference_samples};
 use super::mosaic::Mosaic;
 use super::sample::{operand_scene, overlap_quads};
-use super::stable::{Outlines, Stable};
+use super::stable::Stable;
 use super::stats::{Diff, Stats, stats};
 use crate::ecm::QuadId;
 use crate::geodesy::{GeoBox, geodetic_from_ecef};
@@ -33,10 +33,7 @@ use crate::layers::{LayerError, LayerSpec, Operand};
 use crate::maths::median;
 use crate::project::Project;
 use crate::scene::Scene;
-use crate::store::grid::{GRID, spacing_m};
-
-/// Samples along a quad edge.
-const N: usize = GRID as usize;
+use crate::store::grid::spacing_m;
 
 /// One step of a pipeline, as `--pipeline` names it.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -477,51 +474,26 @@ fn stable_stats(dh: &[Option<f64>], reference: &[RefSample], keep: &[bool]) -> S
 }
 
 /// The area-weighted centroid of the samples on the ellipsoid: longitude, latitude, degrees.
-fn centroid_deg(ellipsoid: &crate::geodesy::Ellipsoid, reference: &[RefSample]) -> [f64; 2] {
+pub(super) fn centroid_deg(ellipsoid: &crate::geodesy::Ellipsoid, reference: &[RefSample]) -> [f64; 2] {
     let (sum, w) = reference.iter().fold((glam::DVec3::ZERO, 0.0), |(s, w), r| (s + r.p * r.area, w + r.area));
     let g = geodetic_from_ecef(ellipsoid, sum / w.max(f64::MIN_POSITIVE));
     [g.lon_rad.to_degrees(), g.lat_rad.to_degrees()]
 }
 
 /// Which samples are stable: all without `stable`; where a layer has data; or outside outlines.
-fn stable_mask(
+pub(super) fn stable_mask(
     scene: &Scene,
     project: &Project,
     quads: &[QuadId],
     reference: &[RefSample],
     stable: Option<&Stable>,
 ) -> Result<Vec<bool>, CompareError> {
-    let mask = match stable {
-        None => return Ok(vec![true; reference.len()]),
-        Some(Stable::Layer(name)) => {
-            let layer = operand_scene(scene, project, &Operand::Layer(name.clone()))?;
-            let mut has_data = std::collections::HashMap::new();
-            for chunk in quads.chunks(16) {
-                for (q, grid) in layer.compose_cpu(chunk)? {
-                    has_data.insert(q, grid.iter().map(|v| !v.is_nan()).collect::<Vec<bool>>());
-                }
-            }
-            reference
-                .iter()
-                .map(|r| has_data.get(&r.quad).is_some_and(|g| g[r.v as usize * N + r.u as usize]))
-                .collect::<Vec<bool>>()
-        }
-        Some(Stable::Outlines(path)) => {
-            let outlines = Outlines::read(path, &scene.ellipsoid)?;
-            reference
-                .iter()
-                .map(|r| {
-                    let g = geodetic_from_ecef(&scene.ellipsoid, r.p);
-                    !outlines.contains(g.lon_rad.to_degrees(), g.lat_rad.to_degrees())
-                })
-                .collect()
-        }
-    };
+    let Some(stable) = stable else { return Ok(vec![true; reference.len()]) };
+    let mask = stable.select(scene, project, quads, reference, false)?;
     if !mask.iter().any(|&s| s) {
-        let what = stable.map(Stable::describe).unwrap_or_default();
         return Err(CompareError::Option {
             option: "--stable".into(),
-            problem: format!("{what} leaves no sample of the overlap as stable terrain"),
+            problem: format!("{} leaves no sample of the overlap as stable terrain", stable.describe()),
         });
     }
     Ok(mask)

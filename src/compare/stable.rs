@@ -1,7 +1,9 @@
 //! Stable terrain: the samples a co-registration fits its corrections on, where the ground did
 //! not change. Either a layer's coverage (stable where that layer has data: a mask layer of
 //! bedrock, say) or a vector file GDAL/OGR reads with polygons of *unstable* terrain (glacier
-//! outlines, landslides), left out, as xDEM's `inlier_mask = ~outlines` does.
+//! outlines, landslides), left out, as xDEM's `inlier_mask = ~outlines` does. The same selection
+//! gives the area an uncertainty is propagated over (`compare --uncertainty --area`), with the
+//! polygons' insides kept instead.
 //!
 //! Polygons are read in any CRS GDAL knows and transformed to the body's geographic CRS; a point
 //! is inside by the even-odd rule over every ring of a polygon (so holes are stable), in
@@ -12,7 +14,14 @@ use std::path::{Path, PathBuf};
 use gdal::vector::LayerAccess;
 
 use super::CompareError;
-use crate::geodesy::Ellipsoid;
+use super::coreg::RefSample;
+use super::sample::operand_scene;
+use crate::ecm::QuadId;
+use crate::geodesy::{Ellipsoid, geodetic_from_ecef};
+use crate::layers::Operand;
+use crate::project::Project;
+use crate::scene::Scene;
+use crate::store::grid::GRID;
 
 /// Where stable terrain is.
 #[derive(Clone, Debug, PartialEq)]
@@ -34,6 +43,54 @@ impl Stable {
         match self {
             Stable::Layer(name) => format!("layer '{name}' (where it has data)"),
             Stable::Outlines(path) => format!("outside the polygons of {}", path.display()),
+        }
+    }
+
+    /// How the JSON names it as an area (`--area`).
+    pub fn describe_area(&self) -> String {
+        match self {
+            Stable::Layer(name) => format!("layer '{name}' (where it has data)"),
+            Stable::Outlines(path) => format!("inside the polygons of {}", path.display()),
+        }
+    }
+}
+
+impl Stable {
+    /// Per reference sample, whether the selection holds it: where the layer has data, or inside
+    /// the outlines (`inside`) or outside them (stable terrain).
+    pub(super) fn select(
+        &self,
+        scene: &Scene,
+        project: &Project,
+        quads: &[QuadId],
+        reference: &[RefSample],
+        inside: bool,
+    ) -> Result<Vec<bool>, CompareError> {
+        match self {
+            Stable::Layer(name) => {
+                let layer = operand_scene(scene, project, &Operand::Layer(name.clone()))?;
+                let mut has_data = std::collections::HashMap::new();
+                for chunk in quads.chunks(16) {
+                    for (q, grid) in layer.compose_cpu(chunk)? {
+                        has_data.insert(q, grid.iter().map(|v| !v.is_nan()).collect::<Vec<bool>>());
+                    }
+                }
+                let n = GRID as usize;
+                Ok(reference
+                    .iter()
+                    .map(|r| has_data.get(&r.quad).is_some_and(|g| g[r.v as usize * n + r.u as usize]))
+                    .collect())
+            }
+            Stable::Outlines(path) => {
+                let outlines = Outlines::read(path, &scene.ellipsoid)?;
+                Ok(reference
+                    .iter()
+                    .map(|r| {
+                        let g = geodetic_from_ecef(&scene.ellipsoid, r.p);
+                        outlines.contains(g.lon_rad.to_degrees(), g.lat_rad.to_degrees()) == inside
+                    })
+                    .collect())
+            }
         }
     }
 }

@@ -1,12 +1,16 @@
 //! The *Compare* section: statistics of A − B (as `terrafuse compare` prints them: the numbers,
 //! the histogram, the slope classes) and co-registration of A onto B by a pipeline of bias
 //! corrections (as `terrafuse coregister --pipeline`; Nuth & Kääb alone by default) with each
-//! step's result and an *apply* button, each computed on a thread while the view keeps drawing.
+//! step's result and an *apply* button, and the uncertainty of the mean change
+//! ([`super::uncertainty_ui`]), each computed on a thread while the view keeps drawing.
 
 use crate::gui::GuiError;
 use std::thread::JoinHandle;
 
-use crate::compare::{CompareOptions, Comparison, CoregOptions, Coregistration, Step, compare, coregister};
+use crate::compare::{
+    CompareOptions, Comparison, CoregOptions, Coregistration, Step, Uncertainty, UncertaintyOptions, compare,
+    coregister, uncertainty,
+};
 use crate::project::Project;
 
 /// What the panel asks of the window.
@@ -33,8 +37,10 @@ pub struct ComparePanel {
     pipeline: String,
     comparing: Option<JoinHandle<Result<Comparison, GuiError>>>,
     coregistering: Option<JoinHandle<Result<Coregistration, GuiError>>>,
+    estimating: Option<JoinHandle<Result<Uncertainty, GuiError>>>,
     comparison: Option<Result<Comparison, GuiError>>,
     coregistration: Option<Result<Coregistration, GuiError>>,
+    uncertainty: Option<Result<Uncertainty, GuiError>>,
 }
 
 impl ComparePanel {
@@ -45,7 +51,12 @@ impl ComparePanel {
 
     /// Whether a computation runs.
     pub fn busy(&self) -> bool {
-        self.comparing.is_some() || self.coregistering.is_some()
+        self.comparing.is_some() || self.coregistering.is_some() || self.estimating.is_some()
+    }
+
+    /// The last uncertainty, if any.
+    pub fn uncertainty(&self) -> Option<&Uncertainty> {
+        self.uncertainty.as_ref().and_then(|r| r.as_ref().ok())
     }
 
     /// The last statistics, if any.
@@ -69,6 +80,11 @@ impl ComparePanel {
         {
             self.coregistration =
                 Some(h.join().unwrap_or_else(|_| Err("the co-registration failed unexpectedly".into())));
+        }
+        if self.estimating.as_ref().is_some_and(|h| h.is_finished())
+            && let Some(h) = self.estimating.take()
+        {
+            self.uncertainty = Some(h.join().unwrap_or_else(|_| Err("the uncertainty failed unexpectedly".into())));
         }
     }
 
@@ -129,6 +145,17 @@ impl ComparePanel {
                 }));
             }
             if ui
+                .add_enabled(idle, egui::Button::new("uncertainty"))
+                .on_hover_text(
+                    "the mean dh and the volume change over the overlap with their 1σ (Hugonnet et al. 2022)",
+                )
+                .clicked()
+            {
+                let (p, a, b) = (project.clone(), self.a.clone(), self.b.clone());
+                self.estimating =
+                    Some(std::thread::spawn(move || Ok(uncertainty(&p, &a, &b, &UncertaintyOptions::default())?)));
+            }
+            if ui
                 .add_enabled(self.a != self.b, egui::Button::new("show difference"))
                 .on_hover_text("a difference layer A - B on top of the stack: red where A is lower, blue higher")
                 .clicked()
@@ -142,6 +169,13 @@ impl ComparePanel {
         });
         match &self.comparison {
             Some(Ok(c)) => comparison_ui(ui, c),
+            Some(Err(e)) => {
+                ui.colored_label(egui::Color32::LIGHT_RED, e.to_string());
+            }
+            None => {}
+        }
+        match &self.uncertainty {
+            Some(Ok(u)) => super::uncertainty_ui::uncertainty_ui(ui, u),
             Some(Err(e)) => {
                 ui.colored_label(egui::Color32::LIGHT_RED, e.to_string());
             }

@@ -10,6 +10,7 @@ mod error;
 pub mod layers_panel;
 pub mod navigate;
 pub mod recent;
+pub mod uncertainty_ui;
 pub mod viewport;
 
 pub use error::GuiError;
