@@ -26,7 +26,8 @@ struct Frame {
     sun: vec4<f32>,
     // isoline interval, offset (metres), major every k (0: none), isolines on (1) or off (0).
     iso: vec4<f32>,
-    // minor width, major width, minimum width (pixels), unused.
+    // minor width, major width, minimum width (pixels), what the ramp colours (0 height, 1 slope,
+    // 2 aspect).
     iso_width: vec4<f32>,
     // sRGB colours 0–1 with alpha: isolines, below the ramp, above it, no data.
     iso_colour: vec4<f32>,
@@ -383,7 +384,18 @@ fn shade(in: VertexOut, fw_iso: f32, fw_dh: f32, fw_brush: f32) -> vec4<f32> {
     if in.valid < 0.5 {
         return frame.nodata;
     }
-    let base = ramp_colour(in.height);
+    // The ramp over the height, or the slope or aspect of the surface as drawn (iso_width.w).
+    var value = in.height;
+    if frame.iso_width.w > 0.5 {
+        let up = normalize(in.up);
+        var n = normalize(cross(in.along_i, in.along_j));
+        if dot(n, up) < 0.0 {
+            n = -n;
+        }
+        let sa = slope_aspect(n, up, frame.viewport.z);
+        value = select(sa.x, sa.y, frame.iso_width.w > 1.5);
+    }
+    let base = ramp_colour(value);
     var colour = srgb_to_linear(base.rgb);
     if frame.difference.w > 0.5 {
         // dh draped over the ramp by the layer's opacity; where A or B has no data, the ramp in grey.

@@ -5,10 +5,11 @@
 //! reference, with [`edit`] and [`erosion`]) → [`scene`] (what is drawn, loaded and selected, on
 //! the CPU) → [`gpu`] (the renderer and its kernels) →
 //! [`compare`], [`project`], [`replay`] → the workstation ([`gui`]) and the command line
-//! ([`cli`]). `ARCHITECTURE.md` draws the module graph and the path data take through it.
+//! ([`cli`]); [`attributes`] (terrain attributes of a height raster) sits beside [`geodesy`]. `ARCHITECTURE.md` draws the module graph and the path data take through it.
 
 #![warn(missing_docs)]
 
+pub mod attributes;
 pub mod cli;
 pub mod colour;
 pub mod compare;

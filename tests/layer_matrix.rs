@@ -185,6 +185,8 @@ fn export_on(project: &Path, level: Option<u8>, on: ComposeOn) -> (u8, Vec<f32>)
         level,
         compose_on: on,
         difference: None,
+        attribute: None,
+        layer: None,
     })
     .unwrap_or_else(|e| panic!("{}: {e}", project.display()));
     let raw = out.with_extension("raw");
@@ -488,6 +490,8 @@ fn profile_samples_what_export_samples_on_the_same_line() {
             level: None,
             compose_on: ComposeOn::Cpu,
             difference: None,
+            attribute: None,
+            layer: None,
         })
         .unwrap();
         let raw = out.with_extension("raw");

@@ -788,7 +788,7 @@ fn datasets_fill_each_other_and_show_below_their_finest_level() {
 
 #[test]
 fn hillshade_and_isolines_on_the_gpu_are_their_cpu_twins() {
-    use terrafuse::gpu::shading::{ShadingProbe, hillshade, isoline_coverage, probe};
+    use terrafuse::gpu::shading::{ShadingProbe, hillshade, isoline_coverage, probe, slope_aspect};
     let ctx = GpuContext::headless().unwrap();
     let mut rng = 0x1234_5678u32;
     let mut next = || {
@@ -804,11 +804,11 @@ fn hillshade_and_isolines_on_the_gpu_are_their_cpu_twins() {
             up: [up.x, up.y, up.z, 0.0],
             sun: [next() * std::f32::consts::TAU, 0.05 + next() * 1.5, next(), 0.0],
             iso: [next() * 40.0 - 20.0, 0.002 + next() * 0.3, 0.2 + next() * 3.0, 1.0],
-            spacing: [if next() < 0.5 { 1.0 } else { 5.0 }, 0.0, 0.0, 0.0],
+            spacing: [if next() < 0.5 { 1.0 } else { 5.0 }, 0.5 + 4.0 * next(), 0.0, 0.0],
         });
     }
     let gpu = probe(&ctx, &probes).unwrap();
-    let (mut worst_shade, mut worst_iso) = (0f32, 0f32);
+    let (mut worst_shade, mut worst_iso, mut worst_slope, mut worst_aspect) = (0f32, 0f32, 0f32, 0f32);
     for (p, g) in probes.iter().zip(&gpu) {
         let v = |a: [f32; 4]| glam::Vec3::new(a[0], a[1], a[2]);
         let shade = hillshade(v(p.normal), v(p.up), p.sun[0], p.sun[1], p.sun[2]);
@@ -816,12 +816,23 @@ fn hillshade_and_isolines_on_the_gpu_are_their_cpu_twins() {
         // Relative to the value: the GPU's sin, cos and division may differ by a few ulps.
         worst_shade = worst_shade.max((g[0] - shade).abs() / shade.abs().max(1.0));
         worst_iso = worst_iso.max((g[1] - iso).abs());
+        let [slope, aspect] = slope_aspect(v(p.normal), v(p.up), p.spacing[1]);
+        worst_slope = worst_slope.max((g[2] - slope).abs());
+        // Aspect turns freely on the flat: compared where the slope passes 1°.
+        if slope > 1.0 {
+            let d = (g[3] - aspect).abs();
+            worst_aspect = worst_aspect.max(d.min(360.0 - d));
+        }
     }
     // Tolerances: WGSL's sin/cos on lavapipe and GPUs are accurate to ~2⁻¹⁶ absolute over the
     // sun's angles; coverage is a clamp of differences of values of order 10³ pixels.
     assert!(worst_shade < 1e-4, "hillshade: GPU − CPU up to {worst_shade}");
     assert!(worst_iso < 2e-3, "isoline coverage: GPU − CPU up to {worst_iso}");
-    eprintln!("shading probe: hillshade within {worst_shade:.2e}, isolines within {worst_iso:.2e}");
+    // Slope and aspect: atan and atan2 to a few ulps of degrees (≤ 360 · 2⁻²⁰ near 360°).
+    assert!(worst_slope < 1e-3 && worst_aspect < 2e-2, "slope {worst_slope}°, aspect {worst_aspect}°");
+    eprintln!(
+        "shading probe: hillshade within {worst_shade:.2e}, isolines within {worst_iso:.2e}, slope {worst_slope:.2e}°, aspect {worst_aspect:.2e}°"
+    );
 }
 
 #[test]
@@ -876,4 +887,65 @@ fn hillshade_of_a_plane_is_gdaldems() {
     );
     let ours = 1.0 + 254.0 * f64::from(factor) * altitude_deg.to_radians().sin();
     assert!((ours - gdal).abs() <= 1.0, "ours {ours:.2} vs gdaldem {gdal}");
+}
+
+#[test]
+fn colour_by_slope_and_aspect_draws_a_planes_slope_and_aspect_whatever_the_exaggeration() {
+    // A plane rising 0.35 m/m west and 0.2 m/m north (z = 1500 − 0.35·east + 0.2·north in the
+    // local metres of 40.1°E 39.6°N), seen from straight above with lighting and isolines off
+    // and heights exaggerated twice: its slope is atan(√(0.35² + 0.2²)) = 21.96° and it faces
+    // east-south-east, 119.7°, whatever the exaggeration.
+    let dir = common::scratch("colour-by-slope");
+    let (ge, gn) = (-0.35f64, 0.2f64);
+    let (m_lat, m_lon) = (111_034.0f64, 111_320.0 * 39.6f64.to_radians().cos());
+    let mut xyz = String::new();
+    for j in 0..=200 {
+        for i in 0..=200 {
+            let (lon, lat) = (40.0 + 0.001 * f64::from(i), 39.7 - 0.001 * f64::from(j));
+            let z = 1500.0 + ge * (lon - 40.1) * m_lon + gn * (lat - 39.6) * m_lat;
+            xyz.push_str(&format!("{lon:.3} {lat:.3} {z:.4}\n"));
+        }
+    }
+    std::fs::write(dir.join("plane.xyz"), xyz).unwrap();
+    common::run_tool(
+        "gdal_translate",
+        &[
+            "-q",
+            "-a_srs",
+            "EPSG:4326",
+            "-ot",
+            "Float32",
+            dir.join("plane.xyz").to_str().unwrap(),
+            dir.join("plane.tif").to_str().unwrap(),
+        ],
+        "",
+    );
+    let slope = ge.hypot(gn).atan().to_degrees();
+    let aspect = (-ge).atan2(-gn).to_degrees().rem_euclid(360.0);
+    for (by, range, value) in [("slope", [0.0, 45.0], slope), ("aspect", [0.0, 360.0], aspect)] {
+        let project = format!(
+            r#"{{"format": "terrafuse-project", "version": 4, "body": "wgs84",
+            "layers": [{{"name": "plane", "kind": "dataset", "store": "plane.gpkg", "source": {{"files": ["plane.tif"]}}}}],
+            "visuals": {{"colour_map": {{"preset": "hypsometric", "range_m": [{}, {}], "by": "{by}"}},
+              "isolines": {{"enabled": false}}, "lighting": {{"enabled": false}}, "exaggeration": 2.0}},
+            "views": {{"top": {{"lat": 39.6, "lon": 40.1, "alt": 6000.0, "heading": 0.0, "pitch": -90.0, "fov": 40.0}}}},
+            "default_view": "top"}}"#,
+            range[0], range[1]
+        );
+        let p = dir.join(format!("{by}.json"));
+        std::fs::write(&p, project).unwrap();
+        let out = dir.join(format!("{by}.png"));
+        let args = ["render", p.to_str().unwrap(), "--out", out.to_str().unwrap(), "--width", "200", "--height", "150"];
+        let run = common::terrafuse(&args, "");
+        assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+        let image = image::open(&out).unwrap().to_rgba8();
+        let ramp = terrafuse::colour::Ramp::preset("hypsometric", (range[0], range[1]), [0, 0, 0, 255]).unwrap();
+        let want = ramp.colour_at(value);
+        for (x, y) in [(100, 75), (60, 50), (140, 100)] {
+            let got = image.get_pixel(x, y).0;
+            let worst = (0..3).map(|c| (f64::from(got[c]) - want[c]).abs()).fold(0.0, f64::max);
+            // The ramp changes by ≤ 6 units a degree here; the f32 normal is good to 0.1°.
+            assert!(worst <= 3.0, "{by} at ({x}, {y}): {got:?}, the ramp at {value:.2}° is {want:?}");
+        }
+    }
 }

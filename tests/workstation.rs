@@ -178,6 +178,18 @@ fn the_workstation_draws_probes_navigates_and_saves() {
     let saved = Project::load(&project).unwrap();
     assert_eq!(saved.visuals.colour_map.preset, "grey");
     assert_eq!(saved.views.get("tycho-again"), Some(&tycho), "the saved view is kept");
+    // Colour by slope: the ramp's range becomes 0–45°, and, saved, `by` is in the file.
+    let colour_by = || (egui::accesskit::Role::ComboBox, "colour by");
+    h.get_by_role_and_label(colour_by().0, colour_by().1).click_accesskit();
+    h.run_steps(2);
+    h.get_by_label("slope").click();
+    h.run_steps(2);
+    assert_eq!(h.state().renderer_visuals().colour_map.by, terrafuse::project::ColourBy::Slope);
+    assert_eq!(h.state().renderer_ramp_range(), (0.0, 45.0));
+    settle(&mut h);
+    h.get_by_label("save project *").click_accesskit();
+    h.step();
+    assert_eq!(Project::load(&project).unwrap().visuals.colour_map.by, terrafuse::project::ColourBy::Slope);
 
     // The layers panel: hiding the (only) layer takes it out of the renderer's stack at once
     // and, saved, is in the project file; shown again, the terrain comes back. (The view is not

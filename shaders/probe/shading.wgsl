@@ -10,12 +10,13 @@ struct Probe {
     sun: vec4<f32>,
     // x, fw, width, min_width
     iso: vec4<f32>,
-    // spacing_factor, unused ×3
+    // spacing_factor, vertical exaggeration, unused ×2
     spacing: vec4<f32>,
 }
 
 @group(0) @binding(0) var<storage, read> probes: array<Probe>;
-@group(0) @binding(1) var<storage, read_write> results: array<vec2<f32>>;
+// hillshade, isoline coverage, slope, aspect
+@group(0) @binding(1) var<storage, read_write> results: array<vec4<f32>>;
 
 @compute @workgroup_size(64)
 fn probe(@builtin(global_invocation_id) id: vec3<u32>) {
@@ -26,5 +27,6 @@ fn probe(@builtin(global_invocation_id) id: vec3<u32>) {
     let p = probes[k];
     let shade = hillshade(p.normal.xyz, p.up.xyz, p.sun.x, p.sun.y, p.sun.z);
     let iso = isoline_coverage(p.iso.x, p.iso.y, p.iso.z, p.iso.w, p.spacing.x);
-    results[k] = vec2<f32>(shade, iso);
+    let sa = slope_aspect(p.normal.xyz, p.up.xyz, p.spacing.y);
+    results[k] = vec4<f32>(shade, iso, sa.x, sa.y);
 }

@@ -46,6 +46,24 @@ fn hillshade(n: vec3<f32>, up: vec3<f32>, azimuth: f32, elevation: f32, strength
     return (1.0 - strength) + strength * lit;
 }
 
+// The slope (degrees, of the true heights: the exaggerated normal's tangent over `exaggeration`)
+// and aspect (degrees clockwise from north, the way the slope faces) of a surface normal `n`
+// over the ellipsoid normal `up` (gpu::shading::slope_aspect).
+fn slope_aspect(n: vec3<f32>, up: vec3<f32>, exaggeration: f32) -> vec2<f32> {
+    var east = cross(vec3<f32>(0.0, 0.0, 1.0), up);
+    if length(east) < 1e-6 {
+        east = vec3<f32>(0.0, 1.0, 0.0);
+    }
+    east = normalize(east);
+    let north = cross(up, east);
+    // The normal leans downslope.
+    let level = n - dot(n, up) * up;
+    let slope = atan(length(level) / max(dot(n, up), 1e-6) / max(exaggeration, 1e-6));
+    var aspect = degrees(atan2(dot(level, east), dot(level, north)));
+    aspect = aspect - 360.0 * floor(aspect / 360.0);
+    return vec2<f32>(degrees(slope), aspect);
+}
+
 // ColorBrewer's RdBu, 11 classes, red to blue (sRGB 0–1): src/colour.rs DIVERGING.
 const DIVERGING: array<vec3<f32>, 11> = array<vec3<f32>, 11>(
     vec3<f32>(0.403921569, 0.0, 0.121568627),

@@ -113,6 +113,14 @@ pub enum Command {
         /// A,B: write layer A − layer B (each composed alone) instead of the stack.
         #[arg(long)]
         difference: Option<String>,
+        /// Write a terrain attribute of the composed heights instead of the heights: slope,
+        /// aspect, hillshade, curvature, planform_curvature, profile_curvature, tpi, tri or
+        /// roughness (xDEM's definitions, in true metres on the ellipsoid).
+        #[arg(long)]
+        attribute: Option<String>,
+        /// Compose this layer alone (as compare takes it) instead of the visible stack.
+        #[arg(long, conflicts_with = "difference")]
+        layer: Option<String>,
     },
     /// Compare layer A with layer B (the reference) of a project: statistics of A − B over
     /// their overlap at one level, weighted by each sample's cell area on the ellipsoid, by slope

@@ -120,7 +120,7 @@ pub fn run(command: Command, c: &mut Console) -> Result<u8, CliError> {
             ProjectCommand::Schema { markdown: false } => c.print(crate::project::Project::schema())?,
             ProjectCommand::Schema { markdown: true } => c.print(crate::project::reference::markdown())?,
         },
-        Command::Export { project, out, raster, level, compose, difference } => {
+        Command::Export { project, out, raster, level, compose, difference, attribute, layer } => {
             let (crs, bounds, resolution) = raster.parse()?;
             let difference = match difference.as_deref().map(|d| d.split(',').map(str::trim).collect::<Vec<_>>()) {
                 None => None,
@@ -128,11 +128,31 @@ pub fn run(command: Command, c: &mut Console) -> Result<u8, CliError> {
                 Some(v) => return Err(format!("--difference {}: give two different layers A,B", v.join(",")).into()),
             };
             let compose_on = if compose == "cpu" { super::ComposeOn::Cpu } else { super::ComposeOn::Gpu };
-            let opts = super::ComposedExport { project, out, crs, bounds, resolution, level, compose_on, difference };
+            let attribute = attribute
+                .map(|name| {
+                    crate::attributes::Attribute::parse(&name).ok_or_else(|| {
+                        let names: Vec<&str> = crate::attributes::Attribute::ALL.iter().map(|a| a.name()).collect();
+                        format!("--attribute {name}: not an attribute ({})", names.join(", "))
+                    })
+                })
+                .transpose()?;
+            let opts = super::ComposedExport {
+                project,
+                out,
+                crs,
+                bounds,
+                resolution,
+                level,
+                compose_on,
+                difference,
+                attribute,
+                layer,
+            };
             let report = super::export_composed(&opts)?;
             c.print(format_args!(
-                "wrote {} ({}×{} pixels, level {}, {} quads composed on the {}, {} pixels with data)\n",
+                "wrote {}{} ({}×{} pixels, level {}, {} quads composed on the {}, {} pixels with data)\n",
                 opts.out.display(),
+                attribute.map(|a| format!(": {} in {}", a.name(), a.unit())).unwrap_or_default(),
                 report.size.0,
                 report.size.1,
                 report.level,

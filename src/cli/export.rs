@@ -5,6 +5,7 @@
 //! The quads are composed on the GPU (the renderer's pass) or with the CPU reference.
 
 use super::{CliError, Within};
+use crate::attributes::Attribute;
 use std::collections::{BTreeSet, HashMap};
 use std::path::PathBuf;
 
@@ -45,6 +46,10 @@ pub struct ComposedExport {
     /// Write A − B of these two layers (each composed alone, as `compare` takes them) instead of
     /// the stack: the difference raster.
     pub difference: Option<(String, String)>,
+    /// Write this terrain attribute of the heights instead of the heights.
+    pub attribute: Option<Attribute>,
+    /// Compose this layer alone instead of the visible stack.
+    pub layer: Option<String>,
 }
 
 /// What was written.
@@ -105,13 +110,16 @@ pub fn export_composed(opts: &ComposedExport) -> Result<ComposedReport, CliError
         .collect();
     let quads: Vec<QuadId> = cells.iter().flatten().map(|c| c.0).collect::<BTreeSet<_>>().into_iter().collect();
 
+    let alone = |name: &str| {
+        let operand = crate::layers::Operand::Layer(name.into());
+        crate::compare::sample::operand_scene(&scene, &project, &operand).within(opts.project.display())
+    };
     let (grids, composer) = match &opts.difference {
-        None => compose_grids(scene, &quads, opts.compose_on)?,
+        None => match &opts.layer {
+            None => compose_grids(scene, &quads, opts.compose_on)?,
+            Some(name) => compose_grids(alone(name)?, &quads, opts.compose_on)?,
+        },
         Some((a, b)) => {
-            let alone = |name: &str| {
-                let operand = crate::layers::Operand::Layer(name.into());
-                crate::compare::sample::operand_scene(&scene, &project, &operand).within(opts.project.display())
-            };
             let (mut grids, composer) = compose_grids(alone(a)?, &quads, opts.compose_on)?;
             let (minus, _) = compose_grids(alone(b)?, &quads, opts.compose_on)?;
             for (q, g) in grids.iter_mut() {
@@ -139,17 +147,35 @@ pub fn export_composed(opts: &ComposedExport) -> Result<ComposedReport, CliError
             h as f32
         })
         .collect();
-    let valid = data.iter().filter(|v| !v.is_nan()).count() as u64;
-    let layers: Vec<String> = match &opts.difference {
-        Some((a, b)) => vec![format!("{a} - {b} (difference)")],
-        None => project.layers.iter().filter(|l| l.visible).map(|l| l.name.clone()).collect(),
+    // A terrain attribute of the heights, with each pixel's steps measured on the body.
+    let data = match opts.attribute {
+        None => data,
+        Some(a) => {
+            let (w, h) = raster.size;
+            let axes = crate::attributes::pixel_axes(&body, w, h, &points);
+            match opts.compose_on {
+                ComposeOn::Cpu => crate::attributes::attribute_raster(a, w, h, &data, &axes),
+                ComposeOn::Gpu => {
+                    crate::gpu::attributes::attribute_raster(&GpuContext::headless()?, a, w, h, &data, &axes)?
+                }
+            }
+        }
     };
-    let metadata = [
+    let valid = data.iter().filter(|v| !v.is_nan()).count() as u64;
+    let layers: Vec<String> = match (&opts.difference, &opts.layer) {
+        (Some((a, b)), _) => vec![format!("{a} - {b} (difference)")],
+        (None, Some(name)) => vec![format!("{name} (alone)")],
+        (None, None) => project.layers.iter().filter(|l| l.visible).map(|l| l.name.clone()).collect(),
+    };
+    let mut metadata = vec![
         ("TERRAFUSE_PROJECT", opts.project.to_string_lossy().into_owned()),
         ("TERRAFUSE_LAYERS", layers.join(",")),
         ("TERRAFUSE_LEVEL", level.to_string()),
         ("TERRAFUSE_COMPOSED_ON", composer.clone()),
     ];
+    if let Some(a) = opts.attribute {
+        metadata.push(("TERRAFUSE_ATTRIBUTE", format!("{} ({})", a.name(), a.unit())));
+    }
     raster.write(&opts.out, &metadata, data)?;
     Ok(ComposedReport { size: raster.size, level, quads: quads.len(), valid, composer })
 }

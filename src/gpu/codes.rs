@@ -42,6 +42,30 @@ pub mod bias {
     pub const DIRECTIONAL: u32 = 2;
 }
 
+/// A terrain attribute (`Params.size.z` of the attributes kernel), in `attributes::Attribute::ALL`
+/// order: the kernel tells the gradient ones by `<= HILLSHADE` and the curvatures by
+/// `<= PROFILE_CURVATURE`.
+pub mod attribute {
+    /// Degrees.
+    pub const SLOPE: u32 = 0;
+    /// Degrees from north.
+    pub const ASPECT: u32 = 1;
+    /// 1–255.
+    pub const HILLSHADE: u32 = 2;
+    /// 100/m.
+    pub const CURVATURE: u32 = 3;
+    /// 100/m.
+    pub const PLANFORM_CURVATURE: u32 = 4;
+    /// 100/m.
+    pub const PROFILE_CURVATURE: u32 = 5;
+    /// Metres.
+    pub const TPI: u32 = 6;
+    /// Metres.
+    pub const TRI: u32 = 7;
+    /// Metres.
+    pub const ROUGHNESS: u32 = 8;
+}
+
 /// A brush tool (`Tile.head.z` of the stroke kernel).
 pub mod tool {
     /// Raise by the strength.
@@ -75,7 +99,7 @@ pub mod falloff {
 /// The codes as WGSL constants (`KIND_STORE_TILE`, `BLEND_OVER`, `BIAS_DERAMP`, `TOOL_RAISE`, `FALLOFF_SMOOTH`,
 /// `NO_SLOT`, …).
 pub fn wgsl() -> String {
-    let groups: [(&str, &[(&str, u32)]); 5] = [
+    let groups: [(&str, &[(&str, u32)]); 6] = [
         (
             "KIND",
             &[
@@ -96,6 +120,20 @@ pub fn wgsl() -> String {
             ],
         ),
         ("BIAS", &[("DERAMP", bias::DERAMP), ("ELEVATION", bias::ELEVATION), ("DIRECTIONAL", bias::DIRECTIONAL)]),
+        (
+            "ATTRIBUTE",
+            &[
+                ("SLOPE", attribute::SLOPE),
+                ("ASPECT", attribute::ASPECT),
+                ("HILLSHADE", attribute::HILLSHADE),
+                ("CURVATURE", attribute::CURVATURE),
+                ("PLANFORM_CURVATURE", attribute::PLANFORM_CURVATURE),
+                ("PROFILE_CURVATURE", attribute::PROFILE_CURVATURE),
+                ("TPI", attribute::TPI),
+                ("TRI", attribute::TRI),
+                ("ROUGHNESS", attribute::ROUGHNESS),
+            ],
+        ),
         (
             "TOOL",
             &[

@@ -7,6 +7,7 @@
 mod tests {
     use std::mem::{offset_of, size_of};
 
+    use super::super::attributes::AttributeParams;
     use super::super::compose::{ComposeJob, JobLayer, OctaveOrigin};
     use super::super::erosion::{Control, GpuParams};
     use super::super::shading::ShadingProbe;
@@ -130,6 +131,7 @@ mod tests {
                 layout!(Control { dt, step, batch_step, _pad, totals, bound, max_speed, max_depth, _pad2 }),
             ),
             ("ShadingProbe", "probe/shading.wgsl", "Probe", layout!(ShadingProbe { normal, up, sun, iso, spacing })),
+            ("AttributeParams", "attributes/attributes.wgsl", "Params", layout!(AttributeParams { size, light })),
         ];
         for (rust, file, wgsl, (size, fields)) in &cases {
             let (span, members) = wgsl_layout(file, wgsl);

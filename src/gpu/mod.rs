@@ -1,7 +1,8 @@
 //! The GPU side: what talks to wgpu. The device (headless or a window's), the frame targets, the
-//! terrain, compose, brush and erosion pipelines that mirror their CPU references, and the
+//! terrain, compose, brush, erosion and terrain-attribute pipelines that mirror their CPU references, and the
 //! renderer that draws a [`crate::scene::Scene`].
 
+pub mod attributes;
 pub mod brush;
 pub mod codes;
 pub mod compose;

@@ -1,5 +1,6 @@
 //! The CPU twins of the per-pixel shading in `shaders/shared/shading.wgsl`, written in f32 and in
-//! the shader's order: hillshade and isoline coverage. [`probe`] evaluates the shader's own
+//! the shader's order: hillshade, isoline coverage, and the slope and aspect the ramp colours
+//! when a project asks for them. [`probe`] evaluates the shader's own
 //! functions on the device for a list of inputs, so that a test compares the two.
 
 use bytemuck::{Pod, Zeroable};
@@ -23,6 +24,23 @@ pub fn hillshade(n: Vec3, up: Vec3, azimuth: f32, elevation: f32, strength: f32)
     let sun = elevation.cos() * (azimuth.sin() * east + azimuth.cos() * north) + elevation.sin() * up;
     let lit = n.dot(sun).max(0.0) / elevation.sin().max(1e-3);
     (1.0 - strength) + strength * lit
+}
+
+/// The slope (degrees, of the true heights: the exaggerated normal's tangent over
+/// `exaggeration`) and aspect (degrees clockwise from north, the way the slope faces) of a
+/// surface normal `n` over the ellipsoid normal `up`: what the ramp colours when a project's
+/// colour map is `by` slope or aspect.
+pub fn slope_aspect(n: Vec3, up: Vec3, exaggeration: f32) -> [f32; 2] {
+    let mut east = Vec3::Z.cross(up);
+    if east.length() < 1e-6 {
+        east = Vec3::Y;
+    }
+    east = east.normalize();
+    let north = up.cross(east);
+    let level = n - n.dot(up) * up;
+    let slope = (level.length() / n.dot(up).max(1e-6) / exaggeration.max(1e-6)).atan();
+    let aspect = level.dot(east).atan2(level.dot(north)).to_degrees();
+    [slope.to_degrees(), aspect - 360.0 * (aspect / 360.0).floor()]
 }
 
 /// Coverage (0–1) of an isoline at a pixel. `x`: height in units of the interval (lines at
@@ -52,18 +70,19 @@ pub struct ShadingProbe {
     pub sun: [f32; 4],
     /// Isoline x, fw, width and min_width.
     pub iso: [f32; 4],
-    /// Isoline spacing factor, unused ×3.
+    /// Isoline spacing factor, vertical exaggeration (slope), unused ×2.
     pub spacing: [f32; 4],
 }
 
-/// The shader's hillshade and isoline coverage for each probe, evaluated on the device.
-pub fn probe(ctx: &GpuContext, probes: &[ShadingProbe]) -> Result<Vec<[f32; 2]>, GpuError> {
+/// The shader's hillshade, isoline coverage, slope and aspect for each probe, evaluated on the
+/// device.
+pub fn probe(ctx: &GpuContext, probes: &[ShadingProbe]) -> Result<Vec<[f32; 4]>, GpuError> {
     let device = &ctx.device;
     let module = shader_module(device, "probe/shading.wgsl")?;
     let layout = storage_layout(device, "shading probe", &[true, false]);
     let pipeline = compute_pipeline(device, "shading probe", &layout, &module, "probe");
     let input = storage_buffer(device, "probes", bytemuck::cast_slice(probes), wgpu::BufferUsages::empty());
-    let bytes = (probes.len().max(1) * 8) as u64;
+    let bytes = (probes.len().max(1) * 16) as u64;
     let output = storage_buffer(device, "results", &vec![0u8; bytes as usize], wgpu::BufferUsages::COPY_SRC);
     let read = device.create_buffer(&wgpu::BufferDescriptor {
         label: Some("results read"),
@@ -94,7 +113,7 @@ pub fn probe(ctx: &GpuContext, probes: &[ShadingProbe]) -> Result<Vec<[f32; 2]>,
         .poll(wgpu::PollType::wait_indefinitely())
         .map_err(|e| GpuError::Readback(format!("the GPU did not finish: {e}")))?;
     let data = read.slice(..).get_mapped_range().map_err(|e| GpuError::Readback(e.to_string()))?;
-    let values: &[[f32; 2]] = bytemuck::cast_slice(&data);
+    let values: &[[f32; 4]] = bytemuck::cast_slice(&data);
     Ok(values[..probes.len()].to_vec())
 }
 

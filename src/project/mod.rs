@@ -41,7 +41,7 @@ pub use self::camera::CameraSpec;
 pub use self::checks::CheckSpec;
 pub use self::migrate::DatasetSpec;
 pub use self::settings::{
-    ColourMapSpec, ComparisonSpec, DetailSpec, IsolineSpec, LightingSpec, ProfileLine, SwipeSpec, Visuals,
+    ColourBy, ColourMapSpec, ComparisonSpec, DetailSpec, IsolineSpec, LightingSpec, ProfileLine, SwipeSpec, Visuals,
 };
 use crate::geodesy::Ellipsoid;
 use crate::layers::LayerSpec;

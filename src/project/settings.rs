@@ -22,6 +22,50 @@ pub struct ColourMapSpec {
     /// Colour where there is no data, sRGB bytes with alpha.
     #[serde(default = "default_nodata_colour")]
     pub nodata_colour: [u8; 4],
+    /// What the ramp colours: the height (default), or the slope or aspect of the terrain as
+    /// drawn, per pixel (degrees; `range_m` is then in degrees too).
+    #[serde(default, skip_serializing_if = "ColourBy::is_height")]
+    pub by: ColourBy,
+}
+
+/// What the colour ramp is a function of.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, schemars::JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum ColourBy {
+    /// The height, metres.
+    #[default]
+    Height,
+    /// The slope, degrees (of the true heights, whatever the exaggeration).
+    Slope,
+    /// The aspect, degrees clockwise from north (the way the slope faces).
+    Aspect,
+}
+
+impl ColourBy {
+    /// Every choice, with its name.
+    pub const ALL: [(ColourBy, &'static str); 3] =
+        [(ColourBy::Height, "height"), (ColourBy::Slope, "slope"), (ColourBy::Aspect, "aspect")];
+
+    fn is_height(&self) -> bool {
+        *self == ColourBy::Height
+    }
+
+    /// The range the ramp spans by default: the data's heights, 0–45° of slope, 0–360° of aspect.
+    pub fn default_range(self, data_range_m: (f64, f64)) -> (f64, f64) {
+        match self {
+            ColourBy::Height => data_range_m,
+            ColourBy::Slope => (0.0, 45.0),
+            ColourBy::Aspect => (0.0, 360.0),
+        }
+    }
+
+    /// The unit of its values.
+    pub fn unit(self) -> &'static str {
+        match self {
+            ColourBy::Height => "m",
+            ColourBy::Slope | ColourBy::Aspect => "°",
+        }
+    }
 }
 
 fn default_preset() -> String {
@@ -34,7 +78,13 @@ fn default_nodata_colour() -> [u8; 4] {
 
 impl Default for ColourMapSpec {
     fn default() -> ColourMapSpec {
-        ColourMapSpec { preset: default_preset(), file: None, range_m: None, nodata_colour: default_nodata_colour() }
+        ColourMapSpec {
+            preset: default_preset(),
+            file: None,
+            range_m: None,
+            nodata_colour: default_nodata_colour(),
+            by: ColourBy::Height,
+        }
     }
 }
 

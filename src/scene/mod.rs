@@ -643,7 +643,7 @@ pub fn stack_range(stack: &Stack) -> (f64, f64) {
 /// preset, over its range or, without one, the data's height range.
 pub fn resolve_ramp(project: &Project, cm: &ColourMapSpec, data_range_m: (f64, f64)) -> Result<Ramp, SceneError> {
     let range = if data_range_m.1 > data_range_m.0 { data_range_m } else { (0.0, 1.0) };
-    let range = cm.range_m.map_or(range, |[a, b]| (a, b));
+    let range = cm.range_m.map_or(cm.by.default_range(range), |[a, b]| (a, b));
     Ok(match &cm.file {
         Some(file) => Ramp::from_file(&project.resolve(file), range, cm.nodata_colour)?,
         None => Ramp::preset(&cm.preset, range, cm.nodata_colour)?,

@@ -42,7 +42,7 @@ impl Renderer {
                 iso.major_every as f32,
                 if iso.enabled { 1.0 } else { 0.0 },
             ],
-            iso_width: [iso.width_px, iso.major_width_px, iso.min_width_px, 0.0],
+            iso_width: [iso.width_px, iso.major_width_px, iso.min_width_px, colour_by_code(v.colour_map.by)],
             iso_colour: rgba(iso.colour),
             below: rgba(self.scene.ramp.below),
             above: rgba(self.scene.ramp.above),
@@ -67,5 +67,14 @@ impl Renderer {
             ],
         };
         self.queue.write_buffer(&self.frame_buffer, 0, bytemuck::bytes_of(&uniform));
+    }
+}
+
+/// The terrain shader's code of what the ramp colours (`Frame.iso_width.w`).
+fn colour_by_code(by: crate::project::ColourBy) -> f32 {
+    match by {
+        crate::project::ColourBy::Height => 0.0,
+        crate::project::ColourBy::Slope => 1.0,
+        crate::project::ColourBy::Aspect => 2.0,
     }
 }

@@ -255,6 +255,16 @@ impl App {
         &self.renderer.scene().stack
     }
 
+    /// The visuals the renderer draws with.
+    pub fn renderer_visuals(&self) -> &crate::project::Visuals {
+        &self.renderer.scene().visuals
+    }
+
+    /// The range the renderer's colour ramp spans (metres, or degrees by slope or aspect).
+    pub fn renderer_ramp_range(&self) -> (f64, f64) {
+        self.renderer.scene().ramp.range_m()
+    }
+
     /// The probe under the cursor (or at the centre without one) of the last frame.
     pub fn hit(&self) -> Option<super::viewport::Hit> {
         self.viewport.as_ref().and_then(|v| v.hits[0])

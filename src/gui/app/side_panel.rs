@@ -168,15 +168,31 @@ impl App {
                     }
                 }
             });
-            let data = self.renderer.scene().range_m;
+            let by_name = |by: crate::project::ColourBy| {
+                crate::project::ColourBy::ALL.iter().find(|(b, _)| *b == by).map_or("height", |(_, n)| *n)
+            };
+            egui::ComboBox::from_label("colour by").selected_text(by_name(v.colour_map.by)).show_ui(ui, |ui| {
+                for (by, name) in crate::project::ColourBy::ALL {
+                    if ui.selectable_label(v.colour_map.by == by, name).clicked() && v.colour_map.by != by {
+                        v.colour_map.by = by;
+                        v.colour_map.range_m = None;
+                    }
+                }
+            });
+            let data = v.colour_map.by.default_range(self.renderer.scene().range_m);
+            let unit = format!(" {}", v.colour_map.by.unit());
             let mut range = v.colour_map.range_m.unwrap_or([data.0, data.1]);
             ui.horizontal(|ui| {
                 ui.label("range");
-                let low = ui.add(egui::DragValue::new(&mut range[0]).speed(10.0).suffix(" m"));
-                low.on_hover_text("the height of the ramp's first colour");
-                let high = ui.add(egui::DragValue::new(&mut range[1]).speed(10.0).suffix(" m"));
-                high.on_hover_text("the height of the ramp's last colour");
-                if ui.small_button("data").on_hover_text("the datasets' height range").clicked() {
+                let low = ui.add(egui::DragValue::new(&mut range[0]).speed(1.0).suffix(&unit));
+                low.on_hover_text("the value of the ramp's first colour");
+                let high = ui.add(egui::DragValue::new(&mut range[1]).speed(1.0).suffix(&unit));
+                high.on_hover_text("the value of the ramp's last colour");
+                if ui
+                    .small_button("data")
+                    .on_hover_text("the default range (the datasets' heights, 0–45°, 0–360°)")
+                    .clicked()
+                {
                     range = [data.0, data.1];
                 }
             });
