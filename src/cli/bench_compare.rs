@@ -1,7 +1,9 @@
 //! `terrafuse bench compare`: the time of the comparison statistics and of co-registration on the
 //! bundled Erzurum pair and on a synthetic 4096² pair with a known shift, beside xDEM's time on
 //! the same data in the same run (its rasters warped to a transverse Mercator centred on the area,
-//! as the tests do), and both tools' co-registration error against the known shift.
+//! as the tests do), and both tools' co-registration error against the known shift; and on the
+//! Erzurum pair the bias-correction pipelines and the uncertainty beside xDEM's, with their peak
+//! memory ([`super::bench_pipelines`]).
 
 use super::CliError;
 use super::bench_harness::timed;
@@ -162,6 +164,8 @@ pub fn bench_compare(settings: &CompareBenchSettings) -> Result<String, CliError
             let _ = writeln!(report, "Erzurum, xDEM: not run: {}", crate::errors::chain(&e));
         }
     }
+    // The pipelines and the uncertainty, each in a process of its own (peak memory).
+    report.push_str(&super::bench_pipelines::pipelines_table(settings, &ref_tm, &moved_tm)?);
     // 2. The synthetic pair with a known shift.
     let (dlon, dlat) = (0.0004, -0.0003);
     let (pair, made_s) = timed(|| synthetic_pair(&settings.out, settings.size, dlon, dlat));

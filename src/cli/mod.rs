@@ -13,6 +13,7 @@ mod bench_compose;
 mod bench_erosion;
 mod bench_harness;
 mod bench_landscape;
+mod bench_pipelines;
 mod bench_render;
 mod bench_replay;
 mod bench_shards;

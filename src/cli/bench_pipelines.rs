@@ -1,0 +1,120 @@
+//! The bias-correction pipelines and the uncertainty of `terrafuse bench compare`: each run as a
+//! process of its own (Terrafuse's `coregister --pipeline` and `compare --uncertainty`, xDEM's
+//! same workflow through `tests/reference/xdem_bench_pipeline.py`), so that each one's peak
+//! resident memory is its own: read from `/proc/PID/status` (VmHWM) while each child runs (a
+//! child's own `getrusage` would count the pages it shared with this process when forked). xDEM's
+//! seconds are its script's own (reading the rasters and the workflow, not Python's start-up).
+
+use std::fmt::Write as _;
+use std::io::Read as _;
+use std::path::Path;
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+use super::CliError;
+use super::bench_compare::CompareBenchSettings;
+
+/// The workflows: a label, Terrafuse's arguments after the project, xDEM's workflow name.
+const WORKFLOWS: [(&str, &[&str], &str); 3] = [
+    (
+        "nuth_kaab,deramp:1",
+        &["coregister", "blurred", "--to", "srtm", "--pipeline", "nuth_kaab,deramp:1", "--json"],
+        "nuth_kaab+deramp",
+    ),
+    (
+        "nuth_kaab,terrain_bias:elevation",
+        &["coregister", "blurred", "--to", "srtm", "--pipeline", "nuth_kaab,terrain_bias:elevation", "--json"],
+        "nuth_kaab+terrain_bias",
+    ),
+    ("uncertainty of the mean dh", &["compare", "blurred", "srtm", "--uncertainty", "--json"], "uncertainty"),
+];
+
+/// Runs a command to its end; its standard output, seconds, and the last peak resident memory
+/// read while it ran (bytes; 0 where /proc is not there).
+fn run_measured(mut command: Command) -> Result<(String, f64, u64), CliError> {
+    let start = Instant::now();
+    let mut child = command.stdout(Stdio::piped()).stderr(Stdio::piped()).spawn().map_err(|e| e.to_string())?;
+    let status_path = format!("/proc/{}/status", child.id());
+    let mut peak = 0u64;
+    // Both pipes drained while it runs, so that a talkative child never blocks on a full one.
+    let drain = |pipe: Option<Box<dyn std::io::Read + Send>>| {
+        std::thread::spawn(move || {
+            let mut text = String::new();
+            if let Some(mut p) = pipe {
+                let _ = p.read_to_string(&mut text);
+            }
+            text
+        })
+    };
+    let stdout = drain(child.stdout.take().map(|p| Box::new(p) as Box<dyn std::io::Read + Send>));
+    let stderr = drain(child.stderr.take().map(|p| Box::new(p) as Box<dyn std::io::Read + Send>));
+    loop {
+        if let Ok(status) = std::fs::read_to_string(&status_path) {
+            let hwm = status.lines().find(|l| l.starts_with("VmHWM:"));
+            if let Some(kb) = hwm.and_then(|l| l.split_whitespace().nth(1)?.parse::<u64>().ok()) {
+                peak = peak.max(kb * 1024);
+            }
+        }
+        if child.try_wait().map_err(|e| e.to_string())?.is_some() {
+            break;
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let status = child.wait().map_err(|e| e.to_string())?;
+    let (stdout, stderr) = (stdout.join().unwrap_or_default(), stderr.join().unwrap_or_default());
+    if !status.success() {
+        return Err(format!("{command:?}: {stderr}").into());
+    }
+    Ok((stdout, start.elapsed().as_secs_f64(), peak))
+}
+
+/// The table: each workflow by Terrafuse on the Erzurum project and by xDEM on its pair warped
+/// to `reference_tm` and `moved_tm`.
+pub(super) fn pipelines_table(
+    settings: &CompareBenchSettings,
+    reference_tm: &Path,
+    moved_tm: &Path,
+) -> Result<String, CliError> {
+    let exe = std::env::current_exe().map_err(|e| format!("this program's path: {e}"))?;
+    let mut out = String::new();
+    let _ = writeln!(
+        out,
+        "{:<34} {:<10} {:>9} {:>10} {:>22}",
+        "workflow (Erzurum pair)", "tool", "seconds", "peak MiB", "NMAD after / σ mean m"
+    );
+    for (label, args, workflow) in WORKFLOWS {
+        let mut command = Command::new(&exe);
+        command.arg(args[0]).arg(&settings.project).args(&args[1..]);
+        let (json, seconds, peak) = run_measured(command)?;
+        let v: serde_json::Value = serde_json::from_str(&json)?;
+        let value = v["after"]["nmad_m"].as_f64().or_else(|| v["uncertainty"]["mean_dh_sigma_m"].as_f64());
+        let _ = writeln!(
+            out,
+            "{label:<34} {:<10} {seconds:>9.2} {:>10.0} {:>22.4}",
+            "Terrafuse",
+            peak as f64 / 1048576.0,
+            value.unwrap_or(f64::NAN)
+        );
+        let mut python = Command::new(&settings.python);
+        python.arg(settings.reference_dir.join("xdem_bench_pipeline.py")).arg(reference_tm).arg(moved_tm).arg(workflow);
+        match run_measured(python) {
+            Ok((json, _, peak)) => {
+                let x: serde_json::Value = serde_json::from_str(&json)?;
+                let value = x["nmad_after_m"].as_f64().or_else(|| x["sigma_mean_m"].as_f64());
+                let _ = writeln!(
+                    out,
+                    "{:<34} {:<10} {:>9.2} {:>10.0} {:>22.4}",
+                    "",
+                    "xDEM",
+                    x["seconds"].as_f64().unwrap_or(f64::NAN),
+                    peak as f64 / 1048576.0,
+                    value.unwrap_or(f64::NAN)
+                );
+            }
+            Err(e) => {
+                let _ = writeln!(out, "{:<34} xDEM not run: {}", "", crate::errors::chain(&e));
+            }
+        }
+    }
+    Ok(out)
+}
