@@ -1005,3 +1005,63 @@ fn the_uncertainty_of_a_mean_change_agrees_with_xdems_spatial_statistics() {
     assert!((u.volume_m3 - u.mean_dh_m * u.area_m2).abs() <= 1e-6 * u.volume_m3.abs().max(1.0));
     assert!((u.volume_sigma_m3 - u.mean_dh_sigma_m * u.area_m2).abs() <= 1e-6 * u.volume_sigma_m3);
 }
+
+#[test]
+fn a_known_along_track_sinusoid_is_recovered_and_xdems_directional_bias_is_measured_beside_it() {
+    // The SRTM tile with 2 m at a 3 km wavelength along 30° added: `directional:30` finds it,
+    // and takes it off. xDEM 0.2.3's DirectionalBias on the same pair warped to the local
+    // transverse Mercator is run beside it and printed (with its defaults it fits a ≈ 27 km
+    // wavelength of ≈ 1 cm at every angle tried and leaves the 2 m: docs/comparison.md).
+    let dir = common::out_path("compare/directional");
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let source = repo_path("projects/data/earth_srtm3_demcompare_N39E040.tif");
+    std::fs::copy(&source, dir.join("ref.tif")).unwrap();
+    let out = dir.join("wavy.tif");
+    reference_script(
+        "biased_copy.py",
+        &[source.to_str().unwrap(), out.to_str().unwrap(), "40.42", "39.6", "0", "0", "0", "0", "0", "2", "3000", "30"],
+    );
+    let p = dir.join("directional.json");
+    std::fs::write(
+        &p,
+        r#"{"format": "terrafuse-project", "version": 2, "body": "wgs84", "layers": [
+        {"name": "ref", "kind": "dataset", "store": "ref.gpkg", "source": {"files": ["ref.tif"]}},
+        {"name": "wavy", "kind": "dataset", "store": "wavy.gpkg", "source": {"files": ["wavy.tif"]}}]}"#,
+    )
+    .unwrap();
+    let region = "40.22,39.4,40.62,39.8";
+    let json: serde_json::Value = serde_json::from_str(&run(&[
+        "coregister",
+        p.to_str().unwrap(),
+        "wavy",
+        "--to",
+        "ref",
+        "--region",
+        region,
+        "--pipeline",
+        "directional:30",
+        "--json",
+    ]))
+    .unwrap();
+    let step = &json["steps"][0];
+    let s = &step["sinusoids"][0];
+    let (amplitude, wavelength) = (s["amplitude_m"].as_f64().unwrap(), s["wavelength_m"].as_f64().unwrap());
+    let (before, after) = (json["before"]["nmad_m"].as_f64().unwrap(), json["after"]["nmad_m"].as_f64().unwrap());
+    println!("directional:30: {amplitude:.4} m at {wavelength:.1} m; NMAD {before:.3} → {after:.4} m");
+    assert!((amplitude - 2.0).abs() < 0.04, "amplitude {amplitude}");
+    assert!((wavelength - 3000.0).abs() < 30.0, "wavelength {wavelength}");
+    assert!(before > 1.5 && after < 0.1, "NMAD {before} → {after}");
+    for name in ["ref", "wavy"] {
+        warp_to_local_tm(&dir, name);
+    }
+    let x = reference_script(
+        "xdem_directional.py",
+        &[dir.join("ref_tm.tif").to_str().unwrap(), dir.join("wavy_tm.tif").to_str().unwrap(), "30"],
+    );
+    println!(
+        "xDEM DirectionalBias(angle=60): {} → NMAD {:.3} m ({:.1} s)",
+        x["fit_params"], x["nmad_after"], x["seconds"]
+    );
+    assert!(after < x["nmad_after"].as_f64().unwrap(), "xDEM leaves {}", x["nmad_after"]);
+}
