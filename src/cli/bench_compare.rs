@@ -165,7 +165,13 @@ pub fn bench_compare(settings: &CompareBenchSettings) -> Result<String, CliError
         }
     }
     // The pipelines and the uncertainty, each in a process of its own (peak memory).
-    report.push_str(&super::bench_pipelines::pipelines_table(settings, &ref_tm, &moved_tm)?);
+    report.push_str(&super::bench_pipelines::pipelines_table(&super::bench_pipelines::PipelineBench {
+        project: &settings.project,
+        python: &settings.python,
+        reference_dir: &settings.reference_dir,
+        reference_tm: &ref_tm,
+        moved_tm: &moved_tm,
+    })?);
     // 2. The synthetic pair with a known shift.
     let (dlon, dlat) = (0.0004, -0.0003);
     let (pair, made_s) = timed(|| synthetic_pair(&settings.out, settings.size, dlon, dlat));

@@ -12,7 +12,6 @@ use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 use super::CliError;
-use super::bench_compare::CompareBenchSettings;
 
 /// The workflows: a label, Terrafuse's arguments after the project, xDEM's workflow name.
 const WORKFLOWS: [(&str, &[&str], &str); 3] = [
@@ -68,13 +67,23 @@ fn run_measured(mut command: Command) -> Result<(String, f64, u64), CliError> {
     Ok((stdout, start.elapsed().as_secs_f64(), peak))
 }
 
-/// The table: each workflow by Terrafuse on the Erzurum project and by xDEM on its pair warped
-/// to `reference_tm` and `moved_tm`.
-pub(super) fn pipelines_table(
-    settings: &CompareBenchSettings,
-    reference_tm: &Path,
-    moved_tm: &Path,
-) -> Result<String, CliError> {
+/// Where the workflows run: the Erzurum project, the Python with xDEM and the folder of its
+/// scripts, and the pair warped for xDEM.
+pub(super) struct PipelineBench<'a> {
+    /// The Erzurum comparison project.
+    pub project: &'a Path,
+    /// `.venv-ref/bin/python`.
+    pub python: &'a Path,
+    /// `tests/reference`.
+    pub reference_dir: &'a Path,
+    /// The reference, warped to a transverse Mercator.
+    pub reference_tm: &'a Path,
+    /// The moved raster, warped the same way.
+    pub moved_tm: &'a Path,
+}
+
+/// The table: each workflow by Terrafuse on the Erzurum project and by xDEM on its warped pair.
+pub(super) fn pipelines_table(bench: &PipelineBench) -> Result<String, CliError> {
     let exe = std::env::current_exe().map_err(|e| format!("this program's path: {e}"))?;
     let mut out = String::new();
     let _ = writeln!(
@@ -84,7 +93,7 @@ pub(super) fn pipelines_table(
     );
     for (label, args, workflow) in WORKFLOWS {
         let mut command = Command::new(&exe);
-        command.arg(args[0]).arg(&settings.project).args(&args[1..]);
+        command.arg(args[0]).arg(bench.project).args(&args[1..]);
         let (json, seconds, peak) = run_measured(command)?;
         let v: serde_json::Value = serde_json::from_str(&json)?;
         let value = v["after"]["nmad_m"].as_f64().or_else(|| v["uncertainty"]["mean_dh_sigma_m"].as_f64());
@@ -95,8 +104,9 @@ pub(super) fn pipelines_table(
             peak as f64 / 1048576.0,
             value.unwrap_or(f64::NAN)
         );
-        let mut python = Command::new(&settings.python);
-        python.arg(settings.reference_dir.join("xdem_bench_pipeline.py")).arg(reference_tm).arg(moved_tm).arg(workflow);
+        let mut python = Command::new(bench.python);
+        let script = bench.reference_dir.join("xdem_bench_pipeline.py");
+        python.arg(script).arg(bench.reference_tm).arg(bench.moved_tm).arg(workflow);
         match run_measured(python) {
             Ok((json, _, peak)) => {
                 let x: serde_json::Value = serde_json::from_str(&json)?;
