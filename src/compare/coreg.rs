@@ -32,6 +32,10 @@ const N: usize = GRID as usize;
 const BINS: usize = 72;
 /// Samples a bin needs to enter the fit.
 const MIN_PER_BIN: usize = 10;
+/// Stable samples the iterations fit on at most (xDEM's `NuthKaab` subsamples 5·10⁵ too): the
+/// first in PCG hash order, so the run is the same every time; the differences it returns are
+/// over every sample.
+pub const FIT_SAMPLES: usize = 500_000;
 
 /// How Nuth & Kääb iterates.
 #[derive(Clone, Copy, Debug)]
@@ -88,7 +92,8 @@ pub(super) struct RefSample {
 }
 
 /// Moves A onto B by Nuth & Kääb from a start (east, north metres), fitting on the samples
-/// `stable` keeps, with `prior` (a bias per sample, metres) taken off dh first.
+/// `stable` keeps (at most [`FIT_SAMPLES`] of them), with `prior` (a bias per sample, metres)
+/// taken off dh first; the differences it returns are over every sample.
 pub(super) fn nuth_kaab(
     mosaic: &mut Mosaic,
     reference: &[RefSample],
@@ -102,16 +107,24 @@ pub(super) fn nuth_kaab(
     let (mut c_e, mut c_n) = start;
     let mut moves = Vec::new();
     let mut converged = false;
-    let mut dh = differences(mosaic, reference, c_e, c_n)?;
-    let kept = |dh: &[Option<f64>]| -> Vec<Option<f64>> {
-        dh.iter().zip(stable).zip(prior).map(|((d, &s), p)| d.filter(|_| s).map(|d| d - p)).collect()
-    };
+    // The samples fitted on: the stable ones, at most FIT_SAMPLES of them.
+    let mut fit: Vec<usize> = (0..reference.len()).filter(|&k| stable[k]).collect();
+    if fit.len() > FIT_SAMPLES {
+        fit.sort_unstable_by_key(|&k| (crate::maths::pcg(k as u32), k));
+        fit.truncate(FIT_SAMPLES);
+        fit.sort_unstable();
+    }
+    let subset: Vec<RefSample> = fit.iter().map(|&k| reference[k]).collect();
+    let prior: Vec<f64> = fit.iter().map(|&k| prior[k]).collect();
+    let mut dh = differences(mosaic, &subset, c_e, c_n)?;
+    let kept =
+        |dh: &[Option<f64>]| -> Vec<Option<f64>> { dh.iter().zip(&prior).map(|(d, p)| d.map(|d| d - p)).collect() };
     for _ in 0..opts.max_iterations.max(1) {
         let here = kept(&dh);
         let bias = median(here.iter().flatten().copied().collect());
         // dh / tan α per aspect bin.
         let mut bins: Vec<Vec<f64>> = vec![Vec::new(); BINS];
-        for (d, r) in here.iter().zip(reference) {
+        for (d, r) in here.iter().zip(&subset) {
             let Some(d) = d else { continue };
             if r.tan_slope < min_tan || !r.aspect.is_finite() {
                 continue;
@@ -127,21 +140,24 @@ pub(super) fn nuth_kaab(
         c_e -= s_e;
         c_n -= s_n;
         moves.push([-s_e, -s_n, bias]);
-        dh = differences(mosaic, reference, c_e, c_n)?;
+        dh = differences(mosaic, &subset, c_e, c_n)?;
         if s_e.hypot(s_n) < opts.tolerance_px * spacing {
             converged = true;
             break;
         }
     }
+    let dh = differences(mosaic, reference, c_e, c_n)?;
     Ok(NuthKaabRun { east_m: c_e, north_m: c_n, moves, converged, dh })
 }
 
 /// B's samples over the overlap (each quad's cells 0..256 once, as in `sample`), with the local
-/// frame, slope and aspect.
+/// frame, slope and aspect, and B's maximal curvature where `curvature` asks for it (a 6 × 6
+/// least-squares fit per sample: a third of the time; NaN without it).
 pub(super) fn reference_samples(
     scene_b: &Scene,
     quads: &[QuadId],
     region: Option<GeoBox>,
+    curvature: bool,
 ) -> Result<Vec<RefSample>, CompareError> {
     let e = scene_b.ellipsoid;
     let mut out = Vec::new();
@@ -186,7 +202,11 @@ pub(super) fn reference_samples(
                                 to_grid,
                                 tan_slope: g_e.hypot(g_n),
                                 aspect: (-g_e).atan2(-g_n),
-                                max_curvature: max_curvature(&points, h, i, j, east, north),
+                                max_curvature: if curvature {
+                                    max_curvature(&points, h, i, j, east, north)
+                                } else {
+                                    f64::NAN
+                                },
                                 area,
                             })
                         })

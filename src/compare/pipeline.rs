@@ -296,7 +296,8 @@ pub fn coregister(project: &Project, a: &str, b: &str, opts: &CoregOptions) -> R
     let (finest, _) = overlap_quads(&scene_a, &scene_b, None, opts.region).map(|(l, q)| (l, q.len()))?;
     let (level, quads) = overlap_quads(&scene_a, &scene_b, Some(opts.level.unwrap_or(finest + 1)), opts.region)?;
     let ellipsoid = scene_b.ellipsoid;
-    let reference = reference_samples(&scene_b, &quads, opts.region)?;
+    let curvature = opts.pipeline.contains(&Step::TerrainBias(Attribute::MaxCurvature));
+    let reference = reference_samples(&scene_b, &quads, opts.region, curvature)?;
     if reference.is_empty() {
         return Err(CompareError::Option { option: "A, B".into(), problem: "the layers do not overlap".into() });
     }

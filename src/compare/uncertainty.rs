@@ -169,7 +169,7 @@ pub fn uncertainty(
     let (scene_a, scene_b) = (alone(a)?, alone(b)?);
     let (level, quads) = overlap_quads(&scene_a, &scene_b, opts.level, opts.region)?;
     let ellipsoid = scene_b.ellipsoid;
-    let reference = reference_samples(&scene_b, &quads, opts.region)?;
+    let reference = reference_samples(&scene_b, &quads, opts.region, true)?;
     let too_few = |what: &str| CompareError::Option {
         option: "--uncertainty".into(),
         problem: format!("too few stable samples with data on both sides to fit {what}"),
