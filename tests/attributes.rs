@@ -94,42 +94,18 @@ fn a_bad_attribute_is_refused_by_name() {
     let dir = common::out_path("attributes-bad");
     std::fs::create_dir_all(&dir).unwrap();
     let p = sample_project("erzurum-compare", &dir);
-    let out = terrafuse(
-        &[
-            "export",
-            p.to_str().unwrap(),
-            dir.join("x.tif").to_str().unwrap(),
-            "--crs",
-            "EPSG:4326",
-            "--bounds",
-            "40.3,39.5,40.4,39.6",
-            "--resolution",
-            "0.001",
-            "--attribute",
-            "slopes",
-        ],
-        "",
-    );
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert!(!out.status.success() && err.contains("--attribute slopes: not an attribute (slope, aspect"), "{err}");
-    let out = terrafuse(
-        &[
-            "export",
-            p.to_str().unwrap(),
-            dir.join("x.tif").to_str().unwrap(),
-            "--crs",
-            "EPSG:4326",
-            "--bounds",
-            "40.3,39.5,40.4,39.6",
-            "--resolution",
-            "0.001",
-            "--layer",
-            "nowhere",
-        ],
-        "",
-    );
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert!(!out.status.success() && err.contains("'nowhere'"), "{err}");
+    let x = dir.join("x.tif");
+    let export = |extra: [&str; 2]| {
+        let mut args = vec!["export", p.to_str().unwrap(), x.to_str().unwrap(), "--crs", "EPSG:4326"];
+        args.extend(["--bounds", "40.3,39.5,40.4,39.6", "--resolution", "0.001"]);
+        args.extend(extra);
+        let out = terrafuse(&args, "");
+        (out.status.success(), String::from_utf8_lossy(&out.stderr).into_owned())
+    };
+    let (ok, err) = export(["--attribute", "slopes"]);
+    assert!(!ok && err.contains("--attribute slopes: not an attribute (slope, aspect"), "{err}");
+    let (ok, err) = export(["--layer", "nowhere"]);
+    assert!(!ok && err.contains("'nowhere'"), "{err}");
 }
 
 #[test]

@@ -757,30 +757,36 @@ fn the_difference_raster_agrees_with_gdals_difference_of_the_sources() {
     assert!(v[2].abs() < 0.5 && v[3] < 3.0, "mean {} m, median |Δ| {} m", v[2], v[3]);
 }
 
+/// A fresh folder `compare/FOLDER` with the project `FOLDER.json` of two layers: `ref`, the
+/// bundled SRTM tile, and `name`, a copy with the biases `tests/reference/biased_copy.py` adds
+/// (its arguments after LON0 LAT0, which are 40.42°E 39.6°N). The folder and the project.
+fn biased_pair(folder: &str, name: &str, bias: &[&str]) -> (PathBuf, PathBuf) {
+    let dir = common::out_path(&format!("compare/{folder}"));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let source = repo_path("projects/data/earth_srtm3_demcompare_N39E040.tif");
+    std::fs::copy(&source, dir.join("ref.tif")).unwrap();
+    let out = dir.join(format!("{name}.tif"));
+    let mut args = vec![source.to_str().unwrap(), out.to_str().unwrap(), "40.42", "39.6"];
+    args.extend_from_slice(bias);
+    reference_script("biased_copy.py", &args);
+    let p = dir.join(format!("{folder}.json"));
+    let project = format!(
+        r#"{{"format": "terrafuse-project", "version": 2, "body": "wgs84", "layers": [
+        {{"name": "ref", "kind": "dataset", "store": "ref.gpkg", "source": {{"files": ["ref.tif"]}}}},
+        {{"name": "{name}", "kind": "dataset", "store": "{name}.gpkg", "source": {{"files": ["{name}.tif"]}}}}]}}"#
+    );
+    std::fs::write(&p, project).unwrap();
+    (dir, p)
+}
+
 #[test]
 fn an_applied_pipeline_is_what_compare_export_and_replay_see() {
     // The SRTM tile with a plane of 0.5 m/km east and −0.3 m/km north and 1 cm per metre of
     // elevation above 2000 m, corrected by `--apply`: the layer then holds the ramp and the
     // elevation bias, and every consumer sees the corrected layer (compare's NMAD falls as the
     // co-registration said, the GPU's export and replay agree with the CPU reference).
-    let dir = common::out_path("compare/applied");
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    let source = repo_path("projects/data/earth_srtm3_demcompare_N39E040.tif");
-    std::fs::copy(&source, dir.join("ref.tif")).unwrap();
-    let out = dir.join("both.tif");
-    reference_script(
-        "biased_copy.py",
-        &[source.to_str().unwrap(), out.to_str().unwrap(), "40.42", "39.6", "2", "0.5", "-0.3", "0.01", "2000"],
-    );
-    let p = dir.join("applied.json");
-    std::fs::write(
-        &p,
-        r#"{"format": "terrafuse-project", "version": 2, "body": "wgs84", "layers": [
-        {"name": "ref", "kind": "dataset", "store": "ref.gpkg", "source": {"files": ["ref.tif"]}},
-        {"name": "both", "kind": "dataset", "store": "both.gpkg", "source": {"files": ["both.tif"]}}]}"#,
-    )
-    .unwrap();
+    let (dir, p) = biased_pair("applied", "both", &["2", "0.5", "-0.3", "0.01", "2000"]);
     let (project, region) = (p.to_str().unwrap(), "40.22,39.4,40.62,39.8");
     let nmad = |json: &str| serde_json::from_str::<serde_json::Value>(json).unwrap()["nmad_m"].as_f64().unwrap();
     let before = nmad(&run(&["compare", project, "both", "ref", "--region", region, "--json"]));
@@ -1012,24 +1018,7 @@ fn a_known_along_track_sinusoid_is_recovered_and_xdems_directional_bias_is_measu
     // and takes it off. xDEM 0.2.3's DirectionalBias on the same pair warped to the local
     // transverse Mercator is run beside it and printed (with its defaults it fits a ≈ 27 km
     // wavelength of ≈ 1 cm at every angle tried and leaves the 2 m: docs/comparison.md).
-    let dir = common::out_path("compare/directional");
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    let source = repo_path("projects/data/earth_srtm3_demcompare_N39E040.tif");
-    std::fs::copy(&source, dir.join("ref.tif")).unwrap();
-    let out = dir.join("wavy.tif");
-    reference_script(
-        "biased_copy.py",
-        &[source.to_str().unwrap(), out.to_str().unwrap(), "40.42", "39.6", "0", "0", "0", "0", "0", "2", "3000", "30"],
-    );
-    let p = dir.join("directional.json");
-    std::fs::write(
-        &p,
-        r#"{"format": "terrafuse-project", "version": 2, "body": "wgs84", "layers": [
-        {"name": "ref", "kind": "dataset", "store": "ref.gpkg", "source": {"files": ["ref.tif"]}},
-        {"name": "wavy", "kind": "dataset", "store": "wavy.gpkg", "source": {"files": ["wavy.tif"]}}]}"#,
-    )
-    .unwrap();
+    let (dir, p) = biased_pair("directional", "wavy", &["0", "0", "0", "0", "0", "2", "3000", "30"]);
     let region = "40.22,39.4,40.62,39.8";
     let json: serde_json::Value = serde_json::from_str(&run(&[
         "coregister",

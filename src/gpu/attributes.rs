@@ -6,8 +6,9 @@
 use bytemuck::{Pod, Zeroable};
 
 use super::codes;
-use super::compute::{compute_pipeline, shader_module, storage_buffer, storage_layout};
+use super::compute::{compute_pipeline, read_mapped, readback_buffer, shader_module, storage_buffer, storage_layout};
 use super::context::{GpuContext, GpuError};
+use super::terrain::bind_buffers;
 use crate::attributes::{Attribute, LIGHT_ALTITUDE_DEG, LIGHT_AZIMUTH_DEG, PixelAxes};
 
 /// No data in the kernel's buffers (its `NODATA`).
@@ -66,22 +67,8 @@ pub fn attribute_raster(
     let z = storage("attribute heights", bytemuck::cast_slice(&z));
     let a = storage("attribute axes", bytemuck::cast_slice(&a));
     let output = storage_buffer(device, "attribute", &vec![0u8; bytes as usize], wgpu::BufferUsages::COPY_SRC);
-    let read = device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some("attribute read"),
-        size: bytes,
-        usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
-        mapped_at_creation: false,
-    });
-    let entries: Vec<wgpu::BindGroupEntry> = [&params, &z, &a, &output]
-        .iter()
-        .enumerate()
-        .map(|(k, b)| wgpu::BindGroupEntry { binding: k as u32, resource: b.as_entire_binding() })
-        .collect();
-    let bind = device.create_bind_group(&wgpu::BindGroupDescriptor {
-        label: Some("attributes"),
-        layout: &layout,
-        entries: &entries,
-    });
+    let read = readback_buffer(device, "attribute read", bytes);
+    let bind = bind_buffers(device, &layout, "attributes", &[&params, &z, &a, &output]);
     let mut encoder = device.create_command_encoder(&Default::default());
     {
         let mut pass = encoder
@@ -92,11 +79,6 @@ pub fn attribute_raster(
     }
     encoder.copy_buffer_to_buffer(&output, 0, &read, 0, bytes);
     ctx.queue.submit([encoder.finish()]);
-    read.slice(..).map_async(wgpu::MapMode::Read, |_| {});
-    device
-        .poll(wgpu::PollType::wait_indefinitely())
-        .map_err(|e| GpuError::Readback(format!("the GPU did not finish: {e}")))?;
-    let data = read.slice(..).get_mapped_range().map_err(|e| GpuError::Readback(e.to_string()))?;
-    let values: &[f32] = bytemuck::cast_slice(&data);
+    let values: Vec<f32> = read_mapped(device, &read)?;
     Ok(values[..heights.len()].iter().map(|&v| if v < -1.0e37 { f32::NAN } else { v }).collect())
 }

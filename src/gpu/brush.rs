@@ -13,7 +13,7 @@ use super::codes;
 use bytemuck::{Pod, Zeroable};
 use glam::DVec3;
 
-use super::compute::{compute_pipeline, shader_module, storage_buffer, storage_layout};
+use super::compute::{compute_pipeline, read_mapped, readback_buffer, shader_module, storage_buffer, storage_layout};
 use super::context::{GpuContext, GpuError};
 use super::terrain::bind_buffers;
 use crate::ecm::QuadId;
@@ -265,12 +265,7 @@ impl GpuRasteriser<'_> {
         let delta_buffer = storage("stroke delta", bytemuck::cast_slice(&delta), wgpu::BufferUsages::COPY_SRC);
         let ext_buffer = storage("stroke ext", bytemuck::cast_slice(&ext), none);
         let bytes = (delta.len() * 4) as u64;
-        let read = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("stroke read"),
-            size: bytes,
-            usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
-            mapped_at_creation: false,
-        });
+        let read = readback_buffer(device, "stroke read", bytes);
         let bind = bind_buffers(
             device,
             &self.kernel.layout,
@@ -288,12 +283,7 @@ impl GpuRasteriser<'_> {
         }
         encoder.copy_buffer_to_buffer(&delta_buffer, 0, &read, 0, bytes);
         self.queue.submit([encoder.finish()]);
-        read.slice(..).map_async(wgpu::MapMode::Read, |_| {});
-        device
-            .poll(wgpu::PollType::wait_indefinitely())
-            .map_err(|e| GpuError::Readback(format!("the GPU did not finish: {e}")))?;
-        let data = read.slice(..).get_mapped_range().map_err(|e| GpuError::Readback(e.to_string()))?;
-        let values: &[f32] = bytemuck::cast_slice(&data);
+        let values: Vec<f32> = read_mapped(device, &read)?;
         for (k, (_, tile)) in tiles.iter_mut().enumerate() {
             tile.copy_from_slice(&values[k * N * N..(k + 1) * N * N]);
         }

@@ -1,6 +1,6 @@
 //! What the compute passes share (composition, the brush's stroke kernel): a WGSL module from
-//! `shaders/`, a bind group layout of storage buffers, a pipeline per entry point, and storage
-//! buffers made from data.
+//! `shaders/`, a bind group layout of storage buffers, a pipeline per entry point, storage
+//! buffers made from data, and reading a result back.
 
 use wgpu::util::DeviceExt;
 
@@ -68,6 +68,27 @@ pub(crate) fn compute_pipeline_with(
         compilation_options: wgpu::PipelineCompilationOptions { constants, ..Default::default() },
         cache: None,
     })
+}
+
+/// A buffer of `bytes` to copy a result into and map for reading.
+pub(crate) fn readback_buffer(device: &wgpu::Device, label: &str, bytes: u64) -> wgpu::Buffer {
+    device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some(label),
+        size: bytes,
+        usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+        mapped_at_creation: false,
+    })
+}
+
+/// The contents of a [`readback_buffer`] whose copy has been submitted: maps it and waits for the
+/// GPU.
+pub(crate) fn read_mapped<T: bytemuck::Pod>(device: &wgpu::Device, read: &wgpu::Buffer) -> Result<Vec<T>, GpuError> {
+    read.slice(..).map_async(wgpu::MapMode::Read, |_| {});
+    device
+        .poll(wgpu::PollType::wait_indefinitely())
+        .map_err(|e| GpuError::Readback(format!("the GPU did not finish: {e}")))?;
+    let data = read.slice(..).get_mapped_range().map_err(|e| GpuError::Readback(e.to_string()))?;
+    Ok(bytemuck::cast_slice(&data).to_vec())
 }
 
 /// A storage buffer holding `bytes` (bindings may not be empty: 32 zero bytes stand in), with

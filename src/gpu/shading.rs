@@ -6,7 +6,7 @@
 use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
 
-use super::compute::{compute_pipeline, shader_module, storage_buffer, storage_layout};
+use super::compute::{compute_pipeline, read_mapped, readback_buffer, shader_module, storage_buffer, storage_layout};
 use super::context::{GpuContext, GpuError};
 
 /// Hillshade factor: 1 on flat ground, brighter on slopes facing the sun, darker away from it.
@@ -84,12 +84,7 @@ pub fn probe(ctx: &GpuContext, probes: &[ShadingProbe]) -> Result<Vec<[f32; 4]>,
     let input = storage_buffer(device, "probes", bytemuck::cast_slice(probes), wgpu::BufferUsages::empty());
     let bytes = (probes.len().max(1) * 16) as u64;
     let output = storage_buffer(device, "results", &vec![0u8; bytes as usize], wgpu::BufferUsages::COPY_SRC);
-    let read = device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some("results read"),
-        size: bytes,
-        usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
-        mapped_at_creation: false,
-    });
+    let read = readback_buffer(device, "results read", bytes);
     let bind = device.create_bind_group(&wgpu::BindGroupDescriptor {
         label: Some("shading probe"),
         layout: &layout,
@@ -108,13 +103,9 @@ pub fn probe(ctx: &GpuContext, probes: &[ShadingProbe]) -> Result<Vec<[f32; 4]>,
     }
     encoder.copy_buffer_to_buffer(&output, 0, &read, 0, bytes);
     ctx.queue.submit([encoder.finish()]);
-    read.slice(..).map_async(wgpu::MapMode::Read, |_| {});
-    device
-        .poll(wgpu::PollType::wait_indefinitely())
-        .map_err(|e| GpuError::Readback(format!("the GPU did not finish: {e}")))?;
-    let data = read.slice(..).get_mapped_range().map_err(|e| GpuError::Readback(e.to_string()))?;
-    let values: &[[f32; 4]] = bytemuck::cast_slice(&data);
-    Ok(values[..probes.len()].to_vec())
+    let mut values: Vec<[f32; 4]> = read_mapped(device, &read)?;
+    values.truncate(probes.len());
+    Ok(values)
 }
 
 #[cfg(test)]

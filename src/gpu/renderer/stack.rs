@@ -139,21 +139,11 @@ impl Renderer {
     fn read_slot(&self, buffer: &wgpu::Buffer, quad: QuadId) -> Result<Option<Vec<f32>>, GpuError> {
         let Some(slot) = self.heights_pool.get(quad) else { return Ok(None) };
         let bytes = u64::from(SAMPLES * SAMPLES) * 4;
-        let read = self.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("heights read"),
-            size: bytes,
-            usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
-            mapped_at_creation: false,
-        });
+        let read = crate::gpu::compute::readback_buffer(&self.device, "heights read", bytes);
         let mut encoder = self.device.create_command_encoder(&Default::default());
         encoder.copy_buffer_to_buffer(buffer, u64::from(slot) * bytes, &read, 0, bytes);
         self.queue.submit([encoder.finish()]);
-        read.slice(..).map_async(wgpu::MapMode::Read, |_| {});
-        self.device
-            .poll(wgpu::PollType::wait_indefinitely())
-            .map_err(|e| GpuError::Readback(format!("the GPU did not finish: {e}")))?;
-        let data = read.slice(..).get_mapped_range().map_err(|e| GpuError::Readback(e.to_string()))?;
-        let values: &[f32] = bytemuck::cast_slice(&data);
+        let values: Vec<f32> = crate::gpu::compute::read_mapped(&self.device, &read)?;
         Ok(Some(values.iter().map(|&v| if v < -1e37 { f32::NAN } else { v }).collect()))
     }
 
