@@ -31,7 +31,12 @@ impl App {
                     let c = ramp.colour_at(h);
                     [c[0], c[1], c[2]]
                 };
-                ("elevation (m)".to_string(), first, last, Box::new(colour))
+                let title = match scene.visuals.colour_map.by {
+                    crate::project::ColourBy::Height => "elevation (m)",
+                    crate::project::ColourBy::Slope => "slope (°)",
+                    crate::project::ColourBy::Aspect => "aspect (° from north)",
+                };
+                (title.to_string(), first, last, Box::new(colour))
             }
         };
         let margin = 8.0;
