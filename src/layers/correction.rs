@@ -112,13 +112,18 @@ pub fn polynomial_terms(order: u8) -> Vec<[u8; 2]> {
     (0..=order).flat_map(|d| (0..=d).rev().map(move |i| [i, d - i])).collect()
 }
 
-/// Σ c_k · e^i · n^j over the terms of `order` (east and north in kilometres).
+/// Σ c_k · e^i · n^j over the terms of `order` (east and north in kilometres), in the order of
+/// [`polynomial_terms`] (without building them: it runs per sample when a layer is composed).
 pub fn polynomial_at(order: u8, coefficients: &[f64], east_km: f64, north_km: f64) -> f64 {
-    polynomial_terms(order)
-        .iter()
-        .zip(coefficients)
-        .map(|(t, c)| c * east_km.powi(i32::from(t[0])) * north_km.powi(i32::from(t[1])))
-        .sum()
+    let mut sum = 0.0;
+    let mut k = 0;
+    for d in 0..=i32::from(order) {
+        for i in (0..=d).rev() {
+            sum += coefficients.get(k).copied().unwrap_or(0.0) * east_km.powi(i) * north_km.powi(d - i);
+            k += 1;
+        }
+    }
+    sum
 }
 
 /// A binned function at `x`: linear between bin centres, the end bins' values beyond them.
