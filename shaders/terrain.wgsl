@@ -2,9 +2,13 @@
 // spacings of a quad, drawn every stride samples). Vertex stage: the camera-centric
 // single-precision reconstruction P = A′ + (patch + oₑ + h₀·δn + (h − h₀)·nₑ) with skirts;
 // fragment stage: colour ramp, isolines and hillshade computed per pixel from the elevation, and
-// the drawn difference layer's dh in a diverging colour map with its own isolines.
+// the drawn difference layer's dh in a diverging colour map with its own isolines. The ramp
+// colours the height or a terrain attribute: slope, aspect and hillshade per pixel from the
+// shading normal, the window attributes (curvatures, TPI, TRI, roughness) per vertex from the
+// 3 × 3 window of the data it draws.
 //!include shared/ecm.wgsl
 //!include shared/shading.wgsl
+//!include shared/attributes.wgsl
 //!include generated/codes.wgsl
 
 // Samples per quad edge; sample spacings per patch edge.
@@ -26,8 +30,8 @@ struct Frame {
     sun: vec4<f32>,
     // isoline interval, offset (metres), major every k (0: none), isolines on (1) or off (0).
     iso: vec4<f32>,
-    // minor width, major width, minimum width (pixels), what the ramp colours (0 height, 1 slope,
-    // 2 aspect).
+    // minor width, major width, minimum width (pixels), what the ramp colours (0 height, else 1 +
+    // the attribute's ATTRIBUTE_* code: 1 slope, 2 aspect, 3 hillshade, 4 curvature, …).
     iso_width: vec4<f32>,
     // sRGB colours 0–1 with alpha: isolines, below the ramp, above it, no data.
     iso_colour: vec4<f32>,
@@ -112,6 +116,9 @@ struct VertexOut {
     // The drawn difference A − B (metres) and 1 where it has data.
     @location(8) dh: f32,
     @location(9) dh_valid: f32,
+    // The window attribute the ramp colours and 1 where its window has data.
+    @location(10) attr: f32,
+    @location(11) attr_valid: f32,
 }
 
 fn map_value(which: u32, slot: u32, c: vec2<u32>) -> vec3<f32> {
@@ -223,6 +230,116 @@ struct Sample {
     along_j: vec3<f32>,
     dh: f32,
     dh_valid: f32,
+    attr: f32,
+    attr_valid: f32,
+}
+
+// The attribute the ramp colours (ATTRIBUTE_*), or none (the height).
+fn coloured_attribute() -> u32 {
+    return select(NO_SLOT, u32(frame.iso_width.w + 0.5) - 1u, frame.iso_width.w > 0.5);
+}
+
+// The stored height of the data k levels above the quad's (0: its own) at that level's sample
+// (a, b), which may lie outside the quad but inside its ancestor (NODATA_BELOW·2 where none).
+fn ancestor_height(q: Quad, k: u32, a: u32, b: u32) -> f32 {
+    var slot = q.slots.z;
+    if k > 0u {
+        slot = select(q.ancestry[1].x, q.ancestry[0][min(k, 4u) - 1u], k <= 4u);
+    }
+    if slot == NO_SLOT {
+        return NODATA_BELOW * 2.0;
+    }
+    return heights[slot * N * N + b * N + a];
+}
+
+// Whether the data k ≤ 5 levels above the quad's is held (k = 0: the quad's own).
+fn held(q: Quad, k: u32) -> bool {
+    if k == 0u {
+        return q.slots.z != NO_SLOT;
+    }
+    return k <= 5u && select(q.ancestry[1].x, q.ancestry[0][min(k, 4u) - 1u], k <= 4u) != NO_SLOT;
+}
+
+// The window attribute `code` of the data k levels above the quad's at that level's sample
+// (a, b), with the centre's axes at that level, and 1 where all nine samples have data (0, 0
+// where one has none). At the ancestor's edges the window moves inside it, so that the value
+// there is the neighbouring sample's. CPU reference: attributes::attribute_at of the same window
+// (tests/render.rs: a dome's curvature).
+fn level_window(q: Quad, k: u32, a: u32, b: u32, axes: vec4<f32>, code: u32) -> vec2<f32> {
+    let ca = clamp(a, 1u, N - 2u);
+    let cb = clamp(b, 1u, N - 2u);
+    var z: array<f32, 9>;
+    var ok = true;
+    // Row 0 at the top: b + 1.
+    for (var m = 0u; m < 9u; m++) {
+        let h = ancestor_height(q, k, ca + m % 3u - 1u, cb + 1u - m / 3u);
+        ok = ok && h > NODATA_BELOW;
+        z[m] = h;
+    }
+    if !ok {
+        return vec2<f32>(0.0, 0.0);
+    }
+    return vec2<f32>(attribute_at(code, z, axes, HILLSHADE_LIGHT), 1.0);
+}
+
+// The window attribute of the data k levels above the quad's at the point of its sample (i, j):
+// bilinear between the windows of the four samples of that level around it.
+fn level_attribute(q: Quad, i: u32, j: u32, k: u32, axes: vec4<f32>, code: u32) -> vec2<f32> {
+    let m = (1u << k) - 1u;
+    // (i, j) in the ancestor's samples: an integer part and a fraction.
+    let gi = i + (N - 1u) * (q.ancestry[1].z & m);
+    let gj = j + (N - 1u) * (q.ancestry[1].w & m);
+    let a = gi >> k;
+    let b = gj >> k;
+    let f = vec2<f32>(f32(gi & m), f32(gj & m)) / f32(1u << k);
+    let scaled = axes * f32(1u << k);
+    var sum = vec2<f32>(0.0, 0.0);
+    for (var c = 0u; c < 4u; c++) {
+        let w = select(1.0 - f.x, f.x, (c & 1u) == 1u) * select(1.0 - f.y, f.y, c >= 2u);
+        if w > 0.0 {
+            let v = level_window(q, k, min(a + (c & 1u), N - 1u), min(b + c / 2u, N - 1u), scaled, code);
+            sum += vec2<f32>(w * v.x, select(0.0, w, v.y > 0.5));
+        }
+    }
+    // Valid only where every window that counts is.
+    return vec2<f32>(sum.x, select(0.0, 1.0, sum.y > 0.999));
+}
+
+// The window attribute `code` (curvatures, TPI, TRI, roughness) at sample (i, j), at distance
+// `distance` from the camera, and 1 where its windows have data. The attribute is a function of
+// the place and the camera, not of the quad or stride that draws it: it is taken at the level
+// whose samples cover the level-of-detail threshold there (which the quads drawn there are never
+// coarser than), continuous between the two levels around it, so no quad or patch boundary
+// shows and nothing pops as the camera moves. Its windows step over that level's samples (the
+// steps along i and j measured on the ellipsoid); its heights are the true ones, whatever the
+// exaggeration. Data more than five levels up is not held: the attribute is then that level's.
+fn window_attribute(q: Quad, i: u32, j: u32, distance: f32, code: u32) -> vec2<f32> {
+    if q.slots.z == NO_SLOT {
+        return vec2<f32>(0.0, 0.0);
+    }
+    let i0 = max(i, 1u) - 1u;
+    let i1 = min(i + 1u, N - 1u);
+    let j0 = max(j, 1u) - 1u;
+    let j1 = min(j + 1u, N - 1u);
+    // The steps along i and j in an orthonormal frame of the tangent plane (x along i).
+    let x = (surface_point(q, i1, j) - surface_point(q, i0, j)) / f32(i1 - i0);
+    let y = (surface_point(q, i, j1) - surface_point(q, i, j0)) / f32(j1 - j0);
+    let ex = normalize(x);
+    let axes = vec4<f32>(length(x), 0.0, dot(y, ex), length(y - ex * dot(y, ex)));
+    // Levels up to the one whose sample spans the threshold here.
+    let up = clamp(log2(max(distance / (length(x) * frame.morph.x), 1.0)), 0.0, 5.0);
+    // Down to the nearest level held (an ancestor whose composition is not current is not).
+    var k0 = u32(min(floor(up), q.params.y));
+    while k0 > 0u && !held(q, k0) {
+        k0 -= 1u;
+    }
+    let t = select(clamp(up - f32(k0), 0.0, 1.0), 0.0, k0 + 1u > u32(min(floor(up) + 1.0, q.params.y)) || !held(q, k0 + 1u));
+    var v = level_attribute(q, i, j, k0, axes, code);
+    if t > 0.0 {
+        let w = level_attribute(q, i, j, k0 + 1u, axes, code);
+        v = vec2<f32>(mix(v.x, w.x, t), min(v.y, w.y));
+    }
+    return v;
 }
 
 // Sample (i, j) (a multiple of 2^k) with the data of level k above the quad's.
@@ -251,6 +368,14 @@ fn sample_at(q: Quad, i: u32, j: u32, k: u32) -> Sample {
         let dh = overlay[data_index(q, i, j, k)];
         out.dh = select(0.0, dh, dh > NODATA_BELOW);
         out.dh_valid = select(0.0, 1.0, dh > NODATA_BELOW);
+    }
+    out.attr = 0.0;
+    out.attr_valid = 0.0;
+    let code = coloured_attribute();
+    if code != NO_SLOT && code >= ATTRIBUTE_CURVATURE {
+        let w = window_attribute(q, i, j, length(q.anchor.xyz + out.local), code);
+        out.attr = w.x;
+        out.attr_valid = w.y;
     }
     return out;
 }
@@ -305,6 +430,8 @@ fn vs_main(@builtin(vertex_index) vertex: u32, @builtin(instance_index) instance
             t.along_j = 0.5 * (n1.along_j + n2.along_j);
             t.dh = 0.5 * (n1.dh + n2.dh);
             t.dh_valid = min(n1.dh_valid, n2.dh_valid);
+            t.attr = 0.5 * (n1.attr + n2.attr);
+            t.attr_valid = min(n1.attr_valid, n2.attr_valid);
         } else {
             t = sample_at(q, i, j, k + 1u);
         }
@@ -317,6 +444,9 @@ fn vs_main(@builtin(vertex_index) vertex: u32, @builtin(instance_index) instance
         s.along_j = mix(s.along_j, t.along_j, m);
         if t.dh_valid > 0.5 && s.dh_valid > 0.5 {
             s.dh = mix(s.dh, t.dh, m);
+        }
+        if t.attr_valid > 0.5 && s.attr_valid > 0.5 {
+            s.attr = mix(s.attr, t.attr, m);
         }
     }
     var local = s.local;
@@ -339,6 +469,8 @@ fn vs_main(@builtin(vertex_index) vertex: u32, @builtin(instance_index) instance
     out.sample = vec3<u32>(i, j, select(0u, 1u, skirt) | (p.stride << 1u));
     out.dh = s.dh;
     out.dh_valid = s.dh_valid;
+    out.attr = s.attr;
+    out.attr_valid = s.attr_valid;
     return out;
 }
 
@@ -384,18 +516,30 @@ fn shade(in: VertexOut, fw_iso: f32, fw_dh: f32, fw_brush: f32) -> vec4<f32> {
     if in.valid < 0.5 {
         return frame.nodata;
     }
-    // The ramp over the height, or the slope or aspect of the surface as drawn (iso_width.w).
+    // The ramp over the height, or over an attribute of the surface as drawn (iso_width.w):
+    // slope, aspect and hillshade from the shading normal, the others from the vertices' windows.
     var value = in.height;
-    if frame.iso_width.w > 0.5 {
+    var base = frame.nodata;
+    let code = coloured_attribute();
+    if code == NO_SLOT {
+        base = ramp_colour(value);
+    } else if code >= ATTRIBUTE_CURVATURE {
+        if in.attr_valid > 0.5 {
+            base = ramp_colour(in.attr);
+        }
+    } else {
         let up = normalize(in.up);
         var n = normalize(cross(in.along_i, in.along_j));
         if dot(n, up) < 0.0 {
             n = -n;
         }
         let sa = slope_aspect(n, up, frame.viewport.z);
-        value = select(sa.x, sa.y, frame.iso_width.w > 1.5);
+        value = select(sa.x, sa.y, code == ATTRIBUTE_ASPECT);
+        if code == ATTRIBUTE_HILLSHADE {
+            value = hillshade_value(radians(sa.x), sa.y, HILLSHADE_LIGHT);
+        }
+        base = ramp_colour(value);
     }
-    let base = ramp_colour(value);
     var colour = srgb_to_linear(base.rgb);
     if frame.difference.w > 0.5 {
         // dh draped over the ramp by the layer's opacity; where A or B has no data, the ramp in grey.

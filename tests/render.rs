@@ -949,3 +949,82 @@ fn colour_by_slope_and_aspect_draws_a_planes_slope_and_aspect_whatever_the_exagg
         }
     }
 }
+
+#[test]
+fn colour_by_curvature_draws_a_domes_curvature_per_vertex_whatever_the_exaggeration() {
+    // A dome of radius R = 20 km, z = 1500 − (e² + n²)/(2R) in the local metres of 40.1°E 39.6°N,
+    // imported with cubic resampling (exact for a quadratic): its curvature −2(z_xx + z_yy) is
+    // 4/R per metre, 0.02 per 100 m, at every sample whatever the spacing drawn, and the ramp
+    // (viridis over 0–0.04) shows it in its middle; a plane's TPI and curvature are 0.
+    let dir = common::scratch("colour-by-curvature");
+    let r = 20_000.0f64;
+    let (m_lat, m_lon) = (111_034.0f64, 111_320.0 * 39.6f64.to_radians().cos());
+    let mut dome = String::new();
+    let mut plane = String::new();
+    for j in 0..=200 {
+        for i in 0..=200 {
+            let (lon, lat) = (40.0 + 0.001 * f64::from(i), 39.7 - 0.001 * f64::from(j));
+            let (e, n) = ((lon - 40.1) * m_lon, (lat - 39.6) * m_lat);
+            dome.push_str(&format!("{lon:.3} {lat:.3} {:.5}\n", 1500.0 - (e * e + n * n) / (2.0 * r)));
+            plane.push_str(&format!("{lon:.3} {lat:.3} {:.5}\n", 1500.0 - 0.35 * e + 0.2 * n));
+        }
+    }
+    let viridis = |range: [f64; 2]| terrafuse::colour::Ramp::preset("viridis", (range[0], range[1]), [0, 0, 0, 255]);
+    for (name, xyz, by, range, want, tolerance) in [
+        ("dome", &dome, "curvature", [0.0, 0.04], 400.0 / r, 0.02 * 400.0 / r),
+        ("plane", &plane, "curvature", [-0.04, 0.04], 0.0, 2e-4),
+        ("plane", &plane, "tpi", [-0.1, 0.1], 0.0, 5e-3),
+    ] {
+        std::fs::write(dir.join(format!("{name}.xyz")), xyz).unwrap();
+        let tif = dir.join(format!("{name}.tif"));
+        let xyz = dir.join(format!("{name}.xyz"));
+        common::run_tool(
+            "gdal_translate",
+            &["-q", "-a_srs", "EPSG:4326", "-ot", "Float32", xyz.to_str().unwrap(), tif.to_str().unwrap()],
+            "",
+        );
+        let store = dir.join(format!("{name}.gpkg"));
+        if !store.exists() {
+            let args = ["import", tif.to_str().unwrap(), "--store", store.to_str().unwrap(), "--resampling", "cubic"];
+            let run = common::terrafuse(&[&args[..], &["--body", "wgs84", "--quiet"]].concat(), "");
+            assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+        }
+        let project = format!(
+            r#"{{"format": "terrafuse-project", "version": 4, "body": "wgs84",
+            "layers": [{{"name": "{name}", "kind": "dataset", "store": "{name}.gpkg"}}],
+            "visuals": {{"colour_map": {{"preset": "viridis", "range_m": [{}, {}], "by": "{by}"}},
+              "isolines": {{"enabled": false}}, "lighting": {{"enabled": false}}, "exaggeration": 2.0}},
+            "views": {{"top": {{"lat": 39.6, "lon": 40.1, "alt": 6000.0, "heading": 0.0, "pitch": -90.0, "fov": 40.0}}}},
+            "default_view": "top"}}"#,
+            range[0], range[1]
+        );
+        let p = dir.join(format!("{name}-{by}.json"));
+        std::fs::write(&p, project).unwrap();
+        let out = dir.join(format!("{name}-{by}.png"));
+        let args = ["render", p.to_str().unwrap(), "--out", out.to_str().unwrap(), "--width", "200", "--height", "150"];
+        let run = common::terrafuse(&args, "");
+        assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+        let image = image::open(&out).unwrap().to_rgba8();
+        let ramp = viridis(range).unwrap();
+        // The value whose ramp colour is nearest the pixel's (viridis is one-to-one).
+        let value_of = |rgb: [u8; 4]| {
+            (0..=4000)
+                .map(|k| range[0] + (range[1] - range[0]) * f64::from(k) / 4000.0)
+                .min_by(|a, b| {
+                    let d = |v: f64| {
+                        let c = ramp.colour_at(v);
+                        (0..3).map(|m| (c[m] - f64::from(rgb[m])).powi(2)).sum::<f64>()
+                    };
+                    d(*a).total_cmp(&d(*b))
+                })
+                .unwrap()
+        };
+        for (x, y) in [(100, 75), (30, 20), (170, 130), (60, 110)] {
+            let got = value_of(image.get_pixel(x, y).0);
+            assert!(
+                (got - want).abs() <= tolerance + (range[1] - range[0]) / 250.0,
+                "{name} {by} at ({x}, {y}): {got:.5}, want {want:.5}"
+            );
+        }
+    }
+}

@@ -180,6 +180,13 @@ fn the_workstation_draws_probes_navigates_and_saves() {
     assert_eq!(saved.views.get("tycho-again"), Some(&tycho), "the saved view is kept");
     // Colour by slope: the ramp's range becomes 0–45°, and, saved, `by` is in the file.
     let colour_by = || (egui::accesskit::Role::ComboBox, "colour by");
+    // Every attribute of `export --attribute` is there: TPI's ramp spans ±5 m by default.
+    h.get_by_role_and_label(colour_by().0, colour_by().1).click_accesskit();
+    h.run_steps(2);
+    h.get_by_label("tpi").click();
+    h.run_steps(2);
+    assert_eq!(h.state().renderer_visuals().colour_map.by, terrafuse::project::ColourBy::Tpi);
+    assert_eq!(h.state().renderer_ramp_range(), (-5.0, 5.0));
     h.get_by_role_and_label(colour_by().0, colour_by().1).click_accesskit();
     h.run_steps(2);
     h.get_by_label("slope").click();

@@ -23,8 +23,8 @@ pub(crate) struct AttributeParams {
     pub(crate) light: [f32; 4],
 }
 
-/// The kernel's code of an attribute.
-fn code(attribute: Attribute) -> u32 {
+/// The kernels' code of an attribute (the attributes kernel's and the terrain's colour layer's).
+pub(crate) fn code(attribute: Attribute) -> u32 {
     match attribute {
         Attribute::Slope => codes::attribute::SLOPE,
         Attribute::Aspect => codes::attribute::ASPECT,

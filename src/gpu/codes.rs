@@ -97,7 +97,7 @@ pub mod falloff {
 }
 
 /// The codes as WGSL constants (`KIND_STORE_TILE`, `BLEND_OVER`, `BIAS_DERAMP`, `TOOL_RAISE`, `FALLOFF_SMOOTH`,
-/// `NO_SLOT`, …).
+/// `NO_SLOT`, …) and the hillshade attribute's light, `HILLSHADE_LIGHT`.
 pub fn wgsl() -> String {
     let groups: [(&str, &[(&str, u32)]); 6] = [
         (
@@ -158,6 +158,12 @@ pub fn wgsl() -> String {
     ];
     let mut out = String::from("// Generated from src/gpu/codes.rs.\n");
     out.push_str(&format!("const NO_SLOT: u32 = {NO_SLOT}u;\n"));
+    // The light of the hillshade attribute (azimuth, altitude), radians.
+    let light = [crate::attributes::LIGHT_AZIMUTH_DEG, crate::attributes::LIGHT_ALTITUDE_DEG].map(f64::to_radians);
+    out.push_str(&format!(
+        "const HILLSHADE_LIGHT: vec2<f32> = vec2<f32>({:?}, {:?});\n",
+        light[0] as f32, light[1] as f32
+    ));
     for (group, codes) in groups {
         for (name, value) in codes {
             out.push_str(&format!("const {group}_{name}: u32 = {value}u;\n"));

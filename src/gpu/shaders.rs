@@ -11,6 +11,7 @@ pub const FILES: &[(&str, &str)] = &[
     ("shared/shading.wgsl", include_str!("../../shaders/shared/shading.wgsl")),
     ("shared/noise.wgsl", include_str!("../../shaders/shared/noise.wgsl")),
     ("shared/hash.wgsl", include_str!("../../shaders/shared/hash.wgsl")),
+    ("shared/attributes.wgsl", include_str!("../../shaders/shared/attributes.wgsl")),
     ("compose/compose.wgsl", include_str!("../../shaders/compose/compose.wgsl")),
     ("edit/stroke.wgsl", include_str!("../../shaders/edit/stroke.wgsl")),
     ("erosion/erosion.wgsl", include_str!("../../shaders/erosion/erosion.wgsl")),

@@ -5,6 +5,8 @@ use std::path::PathBuf;
 
 use serde::{Deserialize, Serialize};
 
+use crate::attributes::Attribute;
+
 /// The colour map: a preset or a user's ramp file, over a height range.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
@@ -22,48 +24,112 @@ pub struct ColourMapSpec {
     /// Colour where there is no data, sRGB bytes with alpha.
     #[serde(default = "default_nodata_colour")]
     pub nodata_colour: [u8; 4],
-    /// What the ramp colours: the height (default), or the slope or aspect of the terrain as
-    /// drawn, per pixel (degrees; `range_m` is then in degrees too).
+    /// What the ramp colours: the height (default), or a terrain attribute of the surface as
+    /// drawn (`range_m` is then in the attribute's unit).
     #[serde(default, skip_serializing_if = "ColourBy::is_height")]
     pub by: ColourBy,
 }
 
-/// What the colour ramp is a function of.
+/// What the colour ramp is a function of: the height, or a terrain attribute of the surface as
+/// drawn, with the definitions of `export --attribute` ([`Attribute`]).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum ColourBy {
     /// The height, metres.
     #[default]
     Height,
-    /// The slope, degrees (of the true heights, whatever the exaggeration).
+    /// The slope, degrees (of the true heights, whatever the exaggeration), per pixel.
     Slope,
-    /// The aspect, degrees clockwise from north (the way the slope faces).
+    /// The aspect, degrees clockwise from north (the way the slope faces), per pixel.
     Aspect,
+    /// The hillshade, 1–255, lit from 315° at 45°, per pixel.
+    Hillshade,
+    /// The curvature, 100/m, per vertex from the 3 × 3 window of the data drawn.
+    Curvature,
+    /// The planform curvature, 100/m, per vertex.
+    PlanformCurvature,
+    /// The profile curvature, 100/m, per vertex.
+    ProfileCurvature,
+    /// The topographic position index, metres, per vertex.
+    Tpi,
+    /// The terrain ruggedness index, metres, per vertex.
+    Tri,
+    /// The roughness, metres, per vertex.
+    Roughness,
 }
 
 impl ColourBy {
-    /// Every choice, with its name.
-    pub const ALL: [(ColourBy, &'static str); 3] =
-        [(ColourBy::Height, "height"), (ColourBy::Slope, "slope"), (ColourBy::Aspect, "aspect")];
+    /// Every choice, with its name (an attribute's is `export --attribute`'s).
+    pub const ALL: [(ColourBy, &'static str); 10] = [
+        (ColourBy::Height, "height"),
+        (ColourBy::Slope, "slope"),
+        (ColourBy::Aspect, "aspect"),
+        (ColourBy::Hillshade, "hillshade"),
+        (ColourBy::Curvature, "curvature"),
+        (ColourBy::PlanformCurvature, "planform_curvature"),
+        (ColourBy::ProfileCurvature, "profile_curvature"),
+        (ColourBy::Tpi, "tpi"),
+        (ColourBy::Tri, "tri"),
+        (ColourBy::Roughness, "roughness"),
+    ];
 
     fn is_height(&self) -> bool {
         *self == ColourBy::Height
     }
 
-    /// The range the ramp spans by default: the data's heights, 0–45° of slope, 0–360° of aspect.
+    /// Its name.
+    pub fn name(self) -> &'static str {
+        ColourBy::ALL.iter().find(|(b, _)| *b == self).map_or("height", |(_, n)| n)
+    }
+
+    /// The attribute it colours; None for the height.
+    pub fn attribute(self) -> Option<Attribute> {
+        match self {
+            ColourBy::Height => None,
+            other => Attribute::parse(other.name()),
+        }
+    }
+
+    /// The range the ramp spans by default: the data's heights, 0–45° of slope, 0–360° of aspect,
+    /// hillshade's 1–255, and for the window attributes a span that shows the relief of a DEM of
+    /// tens of metres (they scale with the sample spacing drawn; set `range_m` for another).
     pub fn default_range(self, data_range_m: (f64, f64)) -> (f64, f64) {
         match self {
             ColourBy::Height => data_range_m,
             ColourBy::Slope => (0.0, 45.0),
             ColourBy::Aspect => (0.0, 360.0),
+            ColourBy::Hillshade => (1.0, 255.0),
+            ColourBy::Curvature => (-2.0, 2.0),
+            ColourBy::PlanformCurvature | ColourBy::ProfileCurvature => (-1.0, 1.0),
+            ColourBy::Tpi => (-5.0, 5.0),
+            ColourBy::Tri => (0.0, 30.0),
+            ColourBy::Roughness => (0.0, 50.0),
         }
     }
 
     /// The unit of its values.
     pub fn unit(self) -> &'static str {
         match self {
-            ColourBy::Height => "m",
+            ColourBy::Height | ColourBy::Tpi | ColourBy::Tri | ColourBy::Roughness => "m",
             ColourBy::Slope | ColourBy::Aspect => "°",
+            ColourBy::Hillshade => "",
+            ColourBy::Curvature | ColourBy::PlanformCurvature | ColourBy::ProfileCurvature => "1/(100 m)",
+        }
+    }
+
+    /// The legend's title: what the ramp shows, with its unit.
+    pub fn title(self) -> &'static str {
+        match self {
+            ColourBy::Height => "elevation (m)",
+            ColourBy::Slope => "slope (°)",
+            ColourBy::Aspect => "aspect (° from north)",
+            ColourBy::Hillshade => "hillshade (1–255)",
+            ColourBy::Curvature => "curvature (1/(100 m))",
+            ColourBy::PlanformCurvature => "planform curvature (1/(100 m))",
+            ColourBy::ProfileCurvature => "profile curvature (1/(100 m))",
+            ColourBy::Tpi => "TPI (m)",
+            ColourBy::Tri => "TRI (m)",
+            ColourBy::Roughness => "roughness (m)",
         }
     }
 }
@@ -243,4 +309,20 @@ pub struct ProfileLine {
     pub from: [f64; 2],
     /// End, `[lat, lon]` degrees.
     pub to: [f64; 2],
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_colour_but_the_height_is_the_attribute_of_its_name() {
+        for (by, name) in ColourBy::ALL {
+            assert_eq!(by.name(), name);
+            assert_eq!(by.attribute().map(Attribute::name), (by != ColourBy::Height).then_some(name));
+            let json = serde_json::to_string(&by).unwrap();
+            assert_eq!(json, format!("\"{name}\""));
+        }
+        assert_eq!(Attribute::ALL.len() + 1, ColourBy::ALL.len());
+    }
 }

@@ -70,11 +70,8 @@ impl Renderer {
     }
 }
 
-/// The terrain shader's code of what the ramp colours (`Frame.iso_width.w`).
+/// The terrain shader's code of what the ramp colours (`Frame.iso_width.w`): 0 the height, else 1
+/// plus the attribute's code.
 fn colour_by_code(by: crate::project::ColourBy) -> f32 {
-    match by {
-        crate::project::ColourBy::Height => 0.0,
-        crate::project::ColourBy::Slope => 1.0,
-        crate::project::ColourBy::Aspect => 2.0,
-    }
+    by.attribute().map_or(0.0, |a| (1 + crate::gpu::attributes::code(a)) as f32)
 }

@@ -11,6 +11,12 @@ const STEPS: usize = 48;
 /// The sRGB colour (0–255) of a value on the legend's scale.
 type ColourOf = Box<dyn Fn(f64) -> [f64; 3]>;
 
+/// A value at the end of the legend, with the decimals its span needs (a curvature's ±0.5 too).
+fn label(value: f64, span: f64) -> String {
+    let decimals = if span.abs() >= 10.0 { 0 } else { (1.0 - span.abs().max(1e-6).log10()).ceil() as usize };
+    format!("{value:.decimals$}")
+}
+
 impl App {
     /// Paints the legend in `view` and records where it is (physical pixels) for the screenshot
     /// report.
@@ -31,11 +37,7 @@ impl App {
                     let c = ramp.colour_at(h);
                     [c[0], c[1], c[2]]
                 };
-                let title = match scene.visuals.colour_map.by {
-                    crate::project::ColourBy::Height => "elevation (m)",
-                    crate::project::ColourBy::Slope => "slope (°)",
-                    crate::project::ColourBy::Aspect => "aspect (° from north)",
-                };
+                let title = scene.visuals.colour_map.by.title();
                 (title.to_string(), first, last, Box::new(colour))
             }
         };
@@ -60,8 +62,8 @@ impl App {
             painter.rect_filled(cell, 0.0, egui::Color32::from_rgb(r, g, b));
         }
         let below = bar.bottom() + 2.0;
-        painter.text(egui::pos2(bar.left(), below), egui::Align2::LEFT_TOP, format!("{low:.0}"), font.clone(), text);
-        painter.text(egui::pos2(bar.right(), below), egui::Align2::RIGHT_TOP, format!("{high:.0}"), font, text);
+        painter.text(egui::pos2(bar.left(), below), egui::Align2::LEFT_TOP, label(low, high - low), font.clone(), text);
+        painter.text(egui::pos2(bar.right(), below), egui::Align2::RIGHT_TOP, label(high, high - low), font, text);
         let ppp = ui.ctx().pixels_per_point();
         let outer = frame.expand(1.0);
         self.legend_px = Some(egui::Rect::from_min_max(

@@ -168,10 +168,7 @@ impl App {
                     }
                 }
             });
-            let by_name = |by: crate::project::ColourBy| {
-                crate::project::ColourBy::ALL.iter().find(|(b, _)| *b == by).map_or("height", |(_, n)| *n)
-            };
-            egui::ComboBox::from_label("colour by").selected_text(by_name(v.colour_map.by)).show_ui(ui, |ui| {
+            egui::ComboBox::from_label("colour by").selected_text(v.colour_map.by.name()).show_ui(ui, |ui| {
                 for (by, name) in crate::project::ColourBy::ALL {
                     if ui.selectable_label(v.colour_map.by == by, name).clicked() && v.colour_map.by != by {
                         v.colour_map.by = by;
@@ -184,13 +181,15 @@ impl App {
             let mut range = v.colour_map.range_m.unwrap_or([data.0, data.1]);
             ui.horizontal(|ui| {
                 ui.label("range");
-                let low = ui.add(egui::DragValue::new(&mut range[0]).speed(1.0).suffix(&unit));
+                // A hundredth of the default span a point dragged (1 m of a 100 m relief, 0.04 of a curvature's ±2).
+                let speed = (data.1 - data.0).abs().max(1e-3) / 100.0;
+                let low = ui.add(egui::DragValue::new(&mut range[0]).speed(speed).suffix(&unit));
                 low.on_hover_text("the value of the ramp's first colour");
-                let high = ui.add(egui::DragValue::new(&mut range[1]).speed(1.0).suffix(&unit));
+                let high = ui.add(egui::DragValue::new(&mut range[1]).speed(speed).suffix(&unit));
                 high.on_hover_text("the value of the ramp's last colour");
                 if ui
                     .small_button("data")
-                    .on_hover_text("the default range (the datasets' heights, 0–45°, 0–360°)")
+                    .on_hover_text("the default range (the datasets' heights, 0–45° of slope, 0–360° of aspect, …)")
                     .clicked()
                 {
                     range = [data.0, data.1];
