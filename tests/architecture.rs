@@ -25,7 +25,10 @@ const ALLOWED: &[(&str, &[&str])] = &[
     ("edit", &["errors", "files", "maths", "geodesy", "ecm", "store"]),
     ("erosion", &["errors", "files", "maths", "geodesy", "ecm", "store", "edit"]),
     ("layers", &["errors", "files", "maths", "geodesy", "ecm", "store", "edit", "erosion"]),
-    ("project", &["errors", "files", "maths", "colour", "geodesy", "attributes", "ecm", "store", "edit", "erosion", "layers"]),
+    (
+        "project",
+        &["errors", "files", "maths", "colour", "geodesy", "attributes", "ecm", "store", "edit", "erosion", "layers"],
+    ),
     (
         "scene",
         &["errors", "files", "maths", "colour", "geodesy", "ecm", "store", "edit", "erosion", "layers", "project"],
