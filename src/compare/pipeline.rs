@@ -328,7 +328,11 @@ pub fn coregister(project: &Project, a: &str, b: &str, opts: &CoregOptions) -> R
         let residual = |raw: &[Option<f64>], up: f64, bias: &[f64]| -> Vec<Option<f64>> {
             raw.iter().zip(bias).map(|(d, b)| d.map(|d| d + up - b)).collect()
         };
-        let before = stable_stats(&residual(&raw, up, &bias), &reference, &stable);
+        // What the step before left (each step's `after` is the next one's `before`).
+        let before = match steps.last() {
+            Some(StepResult { after, .. }) => after.clone(),
+            None => stable_stats(&residual(&raw, up, &bias), &reference, &stable),
+        };
         // A's elevation as the steps before left it (B + what is left of dh; unknown where A has
         // no data): what a terrain bias by elevation is fitted against, and what the layer reads
         // when it applies one.
@@ -423,6 +427,13 @@ pub fn coregister(project: &Project, a: &str, b: &str, opts: &CoregOptions) -> R
     }
     let all = vec![true; reference.len()];
     let after: Vec<Option<f64>> = raw.iter().zip(&bias).map(|(d, b)| d.map(|d| d + up - b)).collect();
+    // Over every sample: the first step's `before` and the last one's `after` where every sample
+    // is stable.
+    let everywhere = stable.iter().all(|&s| s);
+    let (before, after) = match (steps.first(), steps.last()) {
+        (Some(first), Some(last)) if everywhere => (first.before.clone(), last.after.clone()),
+        _ => (stable_stats(&raw_before, &reference, &all), stable_stats(&after, &reference, &all)),
+    };
     Ok(Coregistration {
         a: a.into(),
         b: b.into(),
@@ -437,8 +448,8 @@ pub fn coregister(project: &Project, a: &str, b: &str, opts: &CoregOptions) -> R
         stable: opts.stable.as_ref().map(Stable::describe),
         stable_count: stable.iter().filter(|&&s| s).count() as u64,
         steps,
-        before: stable_stats(&raw_before, &reference, &all),
-        after: stable_stats(&after, &reference, &all),
+        before,
+        after,
     })
 }
 

@@ -1,7 +1,8 @@
 //! Statistics of elevation differences dh = A − B, each sample weighted (by its cell's area on
 //! the ellipsoid, or 1 to count samples as xDEM and demcompare do): count, mean, median, standard
 //! deviation, RMSE, NMAD, min, max, LE90, the 90th percentile of |dh|, a histogram, and the same
-//! per slope class. Deterministic: sums in f64 in sample order, quantiles from one sort.
+//! per slope class. Deterministic: sums in f64 in sample order, quantiles from one stable (radix)
+//! sort and the absolute deviations merged from it.
 //!
 //! Weighted quantiles generalise numpy's default (linear interpolation between order statistics,
 //! sample k of n at p = k/(n − 1)): sorted by value, sample k sits at p_k = (W_k − w_0)/(W − w_0)
@@ -111,6 +112,75 @@ pub fn weighted_quantile(sorted: &[(f64, f64)], p: f64) -> f64 {
     }
 }
 
+/// The differences' (value, weight) pairs sorted by value, stably (ties keep the samples' order).
+fn sorted_pairs(diffs: &[Diff]) -> Vec<(f64, f64)> {
+    radix_sorted(diffs.iter().map(|d| (d.dh_m, d.weight)).collect())
+}
+
+/// Pairs sorted by their first value in `f64::total_cmp`'s order, stably: a least-significant-
+/// digit radix sort on the value's bits made monotonic (six passes of 11 bits), in O(n); what
+/// `sort_by(|a, b| a.0.total_cmp(&b.0))` gives, several times faster on millions of samples.
+fn radix_sorted(mut pairs: Vec<(f64, f64)>) -> Vec<(f64, f64)> {
+    const BITS: u32 = 11;
+    const BUCKETS: usize = 1 << BITS;
+    // total_cmp's order as an unsigned one: negatives flipped whole, positives' sign bit set.
+    let key = |x: f64| {
+        let b = x.to_bits();
+        if b >> 63 == 1 { !b } else { b | (1 << 63) }
+    };
+    let mut other = pairs.clone();
+    for pass in 0..64u32.div_ceil(BITS) {
+        let shift = pass * BITS;
+        let digit = |x: f64| ((key(x) >> shift) as usize) & (BUCKETS - 1);
+        let mut start = vec![0usize; BUCKETS + 1];
+        for p in &pairs {
+            start[digit(p.0) + 1] += 1;
+        }
+        // A pass where every value shares the digit moves nothing.
+        if start.contains(&pairs.len()) {
+            continue;
+        }
+        for b in 0..BUCKETS {
+            start[b + 1] += start[b];
+        }
+        for p in &pairs {
+            let d = digit(p.0);
+            other[start[d]] = *p;
+            start[d] += 1;
+        }
+        std::mem::swap(&mut pairs, &mut other);
+    }
+    pairs
+}
+
+/// |x − c| with the weights of values sorted ascending, sorted ascending: the values below c
+/// taken back from c merged with those from c on, in O(n) instead of a sort. The order is the
+/// one a stable sort of |x − c| in value order gives: equal distances in value order (a run of
+/// them below c keeps its own order), those below c before those above.
+fn folded(sorted: &[(f64, f64)], c: f64) -> Vec<(f64, f64)> {
+    let split = sorted.partition_point(|p| p.0 < c);
+    let (below, above) = sorted.split_at(split);
+    let distance = |x: f64| (x - c).abs();
+    let mut out = Vec::with_capacity(sorted.len());
+    let (mut end, mut j) = (below.len(), 0);
+    while end > 0 {
+        // The run of equal distances ending at `end` (distances fall along `below`).
+        let d = distance(below[end - 1].0);
+        let mut start = end - 1;
+        while start > 0 && distance(below[start - 1].0) == d {
+            start -= 1;
+        }
+        while j < above.len() && distance(above[j].0) < d {
+            out.push((distance(above[j].0), above[j].1));
+            j += 1;
+        }
+        out.extend(below[start..end].iter().map(|&(x, w)| (distance(x), w)));
+        end = start;
+    }
+    out.extend(above[j..].iter().map(|&(x, w)| (distance(x), w)));
+    out
+}
+
 /// The statistics of `diffs` (weights > 0), with `nodata_count` recorded as given.
 pub fn stats(diffs: &[Diff], nodata_count: u64) -> Stats {
     let mut s = Stats { count: diffs.len() as u64, nodata_count, ..Stats::default() };
@@ -132,13 +202,10 @@ pub fn stats(diffs: &[Diff], nodata_count: u64) -> Stats {
     }
     let mean = wx / w;
     let var = diffs.iter().map(|d| d.weight * (d.dh_m - mean).powi(2)).sum::<f64>() / w;
-    let mut sorted: Vec<(f64, f64)> = diffs.iter().map(|d| (d.dh_m, d.weight)).collect();
-    sorted.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let sorted = sorted_pairs(diffs);
     let median = weighted_quantile(&sorted, 0.5);
-    let mut deviations: Vec<(f64, f64)> = sorted.iter().map(|&(x, w)| ((x - median).abs(), w)).collect();
-    deviations.sort_by(|a, b| a.0.total_cmp(&b.0));
-    let mut magnitudes: Vec<(f64, f64)> = sorted.iter().map(|&(x, w)| (x.abs(), w)).collect();
-    magnitudes.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let deviations = folded(&sorted, median);
+    let magnitudes = folded(&sorted, 0.0);
     s.weight_sum = w;
     s.mean_m = mean;
     s.median_m = median;
@@ -158,8 +225,7 @@ pub fn histogram(diffs: &[Diff], bins: usize) -> Histogram {
     if diffs.is_empty() {
         return Histogram::default();
     }
-    let mut sorted: Vec<(f64, f64)> = diffs.iter().map(|d| (d.dh_m, d.weight)).collect();
-    sorted.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let sorted = sorted_pairs(diffs);
     let (mut lo, mut hi) = (weighted_quantile(&sorted, 0.005), weighted_quantile(&sorted, 0.995));
     if hi <= lo {
         (lo, hi) = (lo - 0.5, lo + 0.5);
@@ -255,5 +321,51 @@ mod tests {
         assert_eq!(h.edges_m.len(), HISTOGRAM_BINS + 1);
         let empty = stats(&[], 3);
         assert!(empty.mean_m.is_nan() && empty.count == 0 && empty.nodata_count == 3);
+    }
+
+    #[test]
+    fn folding_a_sorted_list_orders_it_as_sorting_the_distances_stably_would() {
+        // Ties of every kind: equal values, equal distances on both sides of c, values at c, and
+        // distances that round to the same number from different values.
+        let mut values: Vec<(f64, f64)> = Vec::new();
+        for k in 0..400u32 {
+            let x = f64::from(crate::maths::pcg(k) % 41) / 4.0 - 5.0;
+            values.push((x, f64::from(k % 7 + 1)));
+        }
+        values.extend([(1e-17, 2.0), (2e-17, 3.0), (0.0, 5.0), (-0.0, 4.0)]);
+        values.sort_by(|a, b| a.0.total_cmp(&b.0));
+        for c in [0.0, 0.25, 1.0, -2.5, 1.0 + 1e-16, 100.0, -100.0] {
+            let mut want: Vec<(f64, f64)> = values.iter().map(|&(x, w)| ((x - c).abs(), w)).collect();
+            want.sort_by(|a, b| a.0.total_cmp(&b.0));
+            let got = folded(&values, c);
+            assert_eq!(got.len(), want.len());
+            for (g, w) in got.iter().zip(&want) {
+                assert_eq!((g.0.to_bits(), g.1.to_bits()), (w.0.to_bits(), w.1.to_bits()), "c = {c}");
+            }
+        }
+    }
+
+    #[test]
+    fn the_radix_sort_orders_as_a_stable_sort_by_total_order_does() {
+        let mut pairs: Vec<(f64, f64)> = (0..5000u32)
+            .map(|k| {
+                let h = crate::maths::pcg(k);
+                let x = match h % 5 {
+                    0 => f64::from(h % 13) - 6.0,
+                    1 => f64::from_bits(u64::from(h) << 20) * if h & 1 == 0 { 1.0 } else { -1.0 },
+                    2 => -0.0,
+                    3 => 0.0,
+                    _ => (f64::from(h) - 2e9) * 1e-3,
+                };
+                (x, f64::from(k))
+            })
+            .collect();
+        pairs.extend([(f64::INFINITY, 1.0), (f64::NEG_INFINITY, 2.0), (f64::MIN_POSITIVE, 3.0), (-f64::MAX, 4.0)]);
+        let mut want = pairs.clone();
+        want.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let got = radix_sorted(pairs);
+        let bits = |v: &[(f64, f64)]| v.iter().map(|p| (p.0.to_bits(), p.1.to_bits())).collect::<Vec<_>>();
+        assert_eq!(bits(&got), bits(&want));
+        assert!(radix_sorted(Vec::new()).is_empty());
     }
 }
