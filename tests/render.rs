@@ -1027,4 +1027,14 @@ fn colour_by_curvature_draws_a_domes_curvature_per_vertex_whatever_the_exaggerat
             );
         }
     }
+    // The workstation's *data* range of the dome's curvature over its finest quads: the constant
+    // 4/R, symmetric about 0.
+    let store = terrafuse::store::Store::open(&dir.join("dome.gpkg")).unwrap();
+    let record = store.datasets().unwrap().remove(0);
+    let quads: Vec<_> = store.data_quads(&record.name, record.settings.finest_level).unwrap().into_iter().collect();
+    let project = terrafuse::project::Project::load(&dir.join("dome-curvature.json")).unwrap();
+    let (scene, _) = terrafuse::scene::Scene::open(&project).unwrap();
+    let attribute = terrafuse::attributes::Attribute::Curvature;
+    let (lo, hi) = terrafuse::compare::attribute_range(&scene, &quads, attribute, 4).unwrap().unwrap();
+    assert!(lo == -hi && (hi - 400.0 / r).abs() < 0.02 * 400.0 / r, "curvature range {lo} … {hi}");
 }

@@ -187,6 +187,11 @@ fn the_workstation_draws_probes_navigates_and_saves() {
     h.run_steps(2);
     assert_eq!(h.state().renderer_visuals().colour_map.by, terrafuse::project::ColourBy::Tpi);
     assert_eq!(h.state().renderer_ramp_range(), (-5.0, 5.0));
+    // *data*: the TPI's 2nd–98th percentile on the quads drawn, symmetric about 0.
+    h.get_by_label("data").click();
+    h.run_steps(2);
+    let (lo, hi) = h.state().renderer_ramp_range();
+    assert!(hi > 0.0 && lo == -hi && hi != 5.0, "TPI range from the data drawn: {lo} … {hi}");
     h.get_by_role_and_label(colour_by().0, colour_by().1).click_accesskit();
     h.run_steps(2);
     h.get_by_label("slope").click();

@@ -10,9 +10,11 @@
 //! - [`uncertainty`]: the error model, its spatial correlation ([`variogram`]) and the 1σ of a
 //!   mean elevation change and a volume change (Hugonnet et al. 2022);
 //! - [`profile`]: every visible layer's elevation along a geodesic;
+//! - [`attribute_range`]: the range of a terrain attribute over some quads (a colour ramp's);
 //! - [`sample`]: the overlap's samples: each layer composed alone with the CPU reference, cell areas
 //!   and slopes on the ellipsoid.
 
+pub mod attribute_range;
 pub mod bias;
 pub mod coreg;
 mod mosaic;
@@ -24,6 +26,7 @@ pub mod stats;
 pub mod uncertainty;
 pub mod variogram;
 
+pub use attribute_range::attribute_range;
 pub use coreg::NuthKaabOptions;
 pub use pipeline::{CoregOptions, Coregistration, Step, coregister};
 pub use profile::{Profile, ProfileOptions, profile};

@@ -187,12 +187,24 @@ impl App {
                 low.on_hover_text("the value of the ramp's first colour");
                 let high = ui.add(egui::DragValue::new(&mut range[1]).speed(speed).suffix(&unit));
                 high.on_hover_text("the value of the ramp's last colour");
-                if ui
-                    .small_button("data")
-                    .on_hover_text("the default range (the datasets' heights, 0–45° of slope, 0–360° of aspect, …)")
-                    .clicked()
-                {
+                let window = v.colour_map.by.attribute().filter(|a| {
+                    use crate::attributes::Attribute;
+                    !matches!(a, Attribute::Slope | Attribute::Aspect | Attribute::Hillshade)
+                });
+                let hint = match window {
+                    Some(_) => "the attribute's 2nd to 98th percentile on the quads drawn now (symmetric about 0 for the curvatures and TPI)",
+                    None => "the default range (the datasets' heights, 0–45° of slope, 0–360° of aspect, 1–255 of hillshade)",
+                };
+                if ui.small_button("data").on_hover_text(hint).clicked() {
                     range = [data.0, data.1];
+                    if let Some(attribute) = window {
+                        let scene = self.renderer.scene();
+                        match crate::compare::attribute_range(scene, self.renderer.drawn(), attribute, 16) {
+                            Ok(Some((lo, hi))) => range = [lo, hi],
+                            Ok(None) => self.message = format!("{}: no data drawn", attribute.name()),
+                            Err(e) => self.message = format!("{}: {}", attribute.name(), crate::errors::chain(&e)),
+                        }
+                    }
                 }
             });
             if range[1] > range[0] && Some(range) != v.colour_map.range_m && range != [data.0, data.1] {
