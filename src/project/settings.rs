@@ -59,35 +59,43 @@ pub enum ColourBy {
 }
 
 impl ColourBy {
-    /// Every choice, with its name (an attribute's is `export --attribute`'s).
-    pub const ALL: [(ColourBy, &'static str); 10] = [
-        (ColourBy::Height, "height"),
-        (ColourBy::Slope, "slope"),
-        (ColourBy::Aspect, "aspect"),
-        (ColourBy::Hillshade, "hillshade"),
-        (ColourBy::Curvature, "curvature"),
-        (ColourBy::PlanformCurvature, "planform_curvature"),
-        (ColourBy::ProfileCurvature, "profile_curvature"),
-        (ColourBy::Tpi, "tpi"),
-        (ColourBy::Tri, "tri"),
-        (ColourBy::Roughness, "roughness"),
+    /// Every choice.
+    pub const ALL: [ColourBy; 10] = [
+        ColourBy::Height,
+        ColourBy::Slope,
+        ColourBy::Aspect,
+        ColourBy::Hillshade,
+        ColourBy::Curvature,
+        ColourBy::PlanformCurvature,
+        ColourBy::ProfileCurvature,
+        ColourBy::Tpi,
+        ColourBy::Tri,
+        ColourBy::Roughness,
     ];
 
     fn is_height(&self) -> bool {
         *self == ColourBy::Height
     }
 
-    /// Its name.
-    pub fn name(self) -> &'static str {
-        ColourBy::ALL.iter().find(|(b, _)| *b == self).map_or("height", |(_, n)| n)
-    }
-
     /// The attribute it colours; None for the height.
     pub fn attribute(self) -> Option<Attribute> {
-        match self {
-            ColourBy::Height => None,
-            other => Attribute::parse(other.name()),
-        }
+        Some(match self {
+            ColourBy::Height => return None,
+            ColourBy::Slope => Attribute::Slope,
+            ColourBy::Aspect => Attribute::Aspect,
+            ColourBy::Hillshade => Attribute::Hillshade,
+            ColourBy::Curvature => Attribute::Curvature,
+            ColourBy::PlanformCurvature => Attribute::PlanformCurvature,
+            ColourBy::ProfileCurvature => Attribute::ProfileCurvature,
+            ColourBy::Tpi => Attribute::Tpi,
+            ColourBy::Tri => Attribute::Tri,
+            ColourBy::Roughness => Attribute::Roughness,
+        })
+    }
+
+    /// Its name: the attribute's (as `export --attribute` spells it), or `height`.
+    pub fn name(self) -> &'static str {
+        self.attribute().map_or("height", Attribute::name)
     }
 
     /// The range the ramp spans by default: the data's heights, 0–45° of slope, 0–360° of aspect,
@@ -317,12 +325,12 @@ mod tests {
 
     #[test]
     fn every_colour_but_the_height_is_the_attribute_of_its_name() {
-        for (by, name) in ColourBy::ALL {
-            assert_eq!(by.name(), name);
-            assert_eq!(by.attribute().map(Attribute::name), (by != ColourBy::Height).then_some(name));
-            let json = serde_json::to_string(&by).unwrap();
-            assert_eq!(json, format!("\"{name}\""));
+        for by in ColourBy::ALL {
+            assert_eq!(by.attribute().map(Attribute::name), (by != ColourBy::Height).then(|| by.name()));
+            // The project file spells it as the command line does.
+            assert_eq!(serde_json::to_string(&by).unwrap(), format!("\"{}\"", by.name()));
         }
+        assert_eq!(ColourBy::Height.name(), "height");
         assert_eq!(Attribute::ALL.len() + 1, ColourBy::ALL.len());
     }
 }

@@ -169,8 +169,8 @@ impl App {
                 }
             });
             egui::ComboBox::from_label("colour by").selected_text(v.colour_map.by.name()).show_ui(ui, |ui| {
-                for (by, name) in crate::project::ColourBy::ALL {
-                    if ui.selectable_label(v.colour_map.by == by, name).clicked() && v.colour_map.by != by {
+                for by in crate::project::ColourBy::ALL {
+                    if ui.selectable_label(v.colour_map.by == by, by.name()).clicked() && v.colour_map.by != by {
                         v.colour_map.by = by;
                         v.colour_map.range_m = None;
                     }
