@@ -425,14 +425,16 @@ pub fn coregister(project: &Project, a: &str, b: &str, opts: &CoregOptions) -> R
         let after = stable_stats(&residual(&raw, up, &bias), &reference, &stable);
         steps.push(StepResult { correction, moves, converged: step_converged, before, after });
     }
-    let all = vec![true; reference.len()];
-    let after: Vec<Option<f64>> = raw.iter().zip(&bias).map(|(d, b)| d.map(|d| d + up - b)).collect();
     // Over every sample: the first step's `before` and the last one's `after` where every sample
-    // is stable.
+    // is stable, else computed over all of them.
     let everywhere = stable.iter().all(|&s| s);
     let (before, after) = match (steps.first(), steps.last()) {
         (Some(first), Some(last)) if everywhere => (first.before.clone(), last.after.clone()),
-        _ => (stable_stats(&raw_before, &reference, &all), stable_stats(&after, &reference, &all)),
+        _ => {
+            let all = vec![true; reference.len()];
+            let after: Vec<Option<f64>> = raw.iter().zip(&bias).map(|(d, b)| d.map(|d| d + up - b)).collect();
+            (stable_stats(&raw_before, &reference, &all), stable_stats(&after, &reference, &all))
+        }
     };
     Ok(Coregistration {
         a: a.into(),
