@@ -60,6 +60,26 @@ pub struct Stats {
     pub p90_abs_m: f64,
 }
 
+impl Stats {
+    /// The statistics of no differences: counts 0 (and `nodata_count`), the rest NaN.
+    pub fn empty(nodata_count: u64) -> Stats {
+        let nan = f64::NAN;
+        Stats {
+            nodata_count,
+            mean_m: nan,
+            median_m: nan,
+            std_m: nan,
+            rmse_m: nan,
+            nmad_m: nan,
+            min_m: nan,
+            max_m: nan,
+            le90_m: nan,
+            p90_abs_m: nan,
+            ..Stats::default()
+        }
+    }
+}
+
 /// A histogram of dh: `edges_m` has one more entry than `count` and `weight`.
 #[derive(Clone, Debug, Default, PartialEq, Serialize)]
 pub struct Histogram {
@@ -69,6 +89,9 @@ pub struct Histogram {
     pub count: Vec<u64>,
     /// Σ weights per bin.
     pub weight: Vec<f64>,
+    /// The bins' width, metres.
+    #[serde(skip)]
+    width_m: f64,
 }
 
 /// Statistics within one slope class.
@@ -123,11 +146,7 @@ fn sorted_pairs(diffs: &[Diff]) -> Vec<(f64, f64)> {
 fn radix_sorted(mut pairs: Vec<(f64, f64)>) -> Vec<(f64, f64)> {
     const BITS: u32 = 11;
     const BUCKETS: usize = 1 << BITS;
-    // total_cmp's order as an unsigned one: negatives flipped whole, positives' sign bit set.
-    let key = |x: f64| {
-        let b = x.to_bits();
-        if b >> 63 == 1 { !b } else { b | (1 << 63) }
-    };
+    let key = order_key;
     let mut other = pairs.clone();
     for pass in 0..64u32.div_ceil(BITS) {
         let shift = pass * BITS;
@@ -151,6 +170,18 @@ fn radix_sorted(mut pairs: Vec<(f64, f64)>) -> Vec<(f64, f64)> {
         std::mem::swap(&mut pairs, &mut other);
     }
     pairs
+}
+
+/// `f64::total_cmp`'s order as an unsigned one: negatives' bits flipped whole, positives' sign
+/// bit set (so keys compare as the values do, −0 before +0).
+pub(super) fn order_key(x: f64) -> u64 {
+    let b = x.to_bits();
+    if b >> 63 == 1 { !b } else { b | (1 << 63) }
+}
+
+/// The value of an [`order_key`].
+pub(super) fn order_value(key: u64) -> f64 {
+    f64::from_bits(if key >> 63 == 1 { key & !(1 << 63) } else { !key })
 }
 
 /// |x − c| with the weights of values sorted ascending, sorted ascending: the values below c
@@ -183,14 +214,10 @@ fn folded(sorted: &[(f64, f64)], c: f64) -> Vec<(f64, f64)> {
 
 /// The statistics of `diffs` (weights > 0), with `nodata_count` recorded as given.
 pub fn stats(diffs: &[Diff], nodata_count: u64) -> Stats {
-    let mut s = Stats { count: diffs.len() as u64, nodata_count, ..Stats::default() };
     if diffs.is_empty() {
-        for v in [&mut s.mean_m, &mut s.median_m, &mut s.std_m, &mut s.rmse_m, &mut s.nmad_m] {
-            *v = f64::NAN;
-        }
-        (s.min_m, s.max_m, s.le90_m, s.p90_abs_m) = (f64::NAN, f64::NAN, f64::NAN, f64::NAN);
-        return s;
+        return Stats::empty(nodata_count);
     }
+    let mut s = Stats { count: diffs.len() as u64, nodata_count, ..Stats::default() };
     let (mut w, mut wx, mut wxx) = (0.0, 0.0, 0.0);
     let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
     for d in diffs {
@@ -226,19 +253,42 @@ pub fn histogram(diffs: &[Diff], bins: usize) -> Histogram {
         return Histogram::default();
     }
     let sorted = sorted_pairs(diffs);
-    let (mut lo, mut hi) = (weighted_quantile(&sorted, 0.005), weighted_quantile(&sorted, 0.995));
-    if hi <= lo {
-        (lo, hi) = (lo - 0.5, lo + 0.5);
-    }
-    let width = (hi - lo) / bins as f64;
-    let edges_m = (0..=bins).map(|k| lo + width * k as f64).collect();
-    let (mut count, mut weight) = (vec![0u64; bins], vec![0f64; bins]);
+    let mut h = Histogram::over(weighted_quantile(&sorted, 0.005), weighted_quantile(&sorted, 0.995), bins);
     for d in diffs {
-        let k = (((d.dh_m - lo) / width).floor().max(0.0) as usize).min(bins - 1);
-        count[k] += 1;
-        weight[k] += d.weight;
+        h.add(d.dh_m, d.weight);
     }
-    Histogram { edges_m, count, weight }
+    h
+}
+
+impl Histogram {
+    /// An empty histogram of `bins` equal bins from `lo` to `hi` (a metre wide around `lo` where
+    /// `hi` is not above it).
+    pub(super) fn over(mut lo: f64, mut hi: f64, bins: usize) -> Histogram {
+        if hi <= lo {
+            (lo, hi) = (lo - 0.5, lo + 0.5);
+        }
+        let width = (hi - lo) / bins as f64;
+        let edges_m = (0..=bins).map(|k| lo + width * k as f64).collect();
+        Histogram { edges_m, count: vec![0; bins], weight: vec![0.0; bins], width_m: width }
+    }
+
+    /// Counts `dh` with its weight (outside the edges, in the end bins).
+    pub(super) fn add(&mut self, dh_m: f64, weight: f64) {
+        let bins = self.count.len();
+        let k = (((dh_m - self.edges_m[0]) / self.width_m).floor().max(0.0) as usize).min(bins - 1);
+        self.count[k] += 1;
+        self.weight[k] += weight;
+    }
+}
+
+/// The slope class of `slope_deg` among classes with edges `bounds_deg` (the last class includes
+/// its upper bound); None outside them all or for a NaN slope.
+pub fn slope_class(bounds_deg: &[f64], slope_deg: f64) -> Option<usize> {
+    let classes = bounds_deg.len().saturating_sub(1);
+    bounds_deg
+        .windows(2)
+        .enumerate()
+        .position(|(k, b)| slope_deg >= b[0] && (slope_deg < b[1] || (k + 1 == classes && slope_deg <= b[1])))
 }
 
 /// The statistics per slope class; `bounds_deg` are the class edges (the last class includes its
@@ -248,12 +298,8 @@ pub fn by_slope(diffs: &[Diff], bounds_deg: &[f64]) -> Vec<SlopeClass> {
         .windows(2)
         .enumerate()
         .map(|(k, b)| {
-            let last = k + 2 == bounds_deg.len();
-            let members: Vec<Diff> = diffs
-                .iter()
-                .filter(|d| d.slope_deg >= b[0] && (d.slope_deg < b[1] || (last && d.slope_deg <= b[1])))
-                .copied()
-                .collect();
+            let members: Vec<Diff> =
+                diffs.iter().filter(|d| slope_class(bounds_deg, d.slope_deg) == Some(k)).copied().collect();
             SlopeClass { min_deg: b[0], max_deg: b[1], stats: stats(&members, 0) }
         })
         .collect()
