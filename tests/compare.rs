@@ -41,13 +41,12 @@ fn close(field: &str, ours: f64, theirs: f64) {
 fn the_erzurum_pair_gives_xdems_statistics_on_the_same_samples_and_area_weighted_ones() {
     let p = project();
     let dir = common::out_path("compare");
-    for (weighting, key) in [("--unweighted", "samples"), ("", "area")] {
+    // The last run holds no difference in memory: they are spilled and read back in passes.
+    for (options, key) in [(&["--unweighted"][..], "samples"), (&[], "area"), (&["--memory-samples", "0"], "area")] {
         let csv = dir.join(format!("samples-{key}.csv"));
         let mut args =
             vec!["compare", p.to_str().unwrap(), "blurred", "srtm", "--json", "--samples", csv.to_str().unwrap()];
-        if !weighting.is_empty() {
-            args.push(weighting);
-        }
+        args.extend(options);
         let ours: serde_json::Value = serde_json::from_str(&run(&args)).unwrap();
         let theirs = reference(&csv);
         let theirs = &theirs[key];
@@ -77,6 +76,55 @@ fn the_erzurum_pair_gives_xdems_statistics_on_the_same_samples_and_area_weighted
         table.contains("blurred − srtm at level") && table.contains("NMAD") && table.contains("histogram"),
         "{table}"
     );
+}
+
+#[test]
+fn a_comparison_larger_than_memory_holds_gives_the_same_statistics_from_its_scratch_file() {
+    let p = Project::load(&project()).unwrap();
+    let scratch = common::out_path("compare-scratch");
+    let _ = std::fs::remove_dir_all(&scratch);
+    std::fs::create_dir_all(&scratch).unwrap();
+    for weighting in [Weighting::Area, Weighting::Samples] {
+        let held = compare(&p, "blurred", "srtm", &CompareOptions { weighting, ..CompareOptions::default() }).unwrap();
+        let opts = CompareOptions {
+            weighting,
+            memory_samples: 0,
+            scratch: Some(scratch.clone()),
+            ..CompareOptions::default()
+        };
+        let spilled = compare(&p, "blurred", "srtm", &opts).unwrap();
+        assert!(held.stats.count > 900_000);
+        // Sums in the same order: the same bits. Quantiles: exact order statistics whose
+        // positions are summed in another order.
+        let (a, b) = (&spilled.stats, &held.stats);
+        assert_eq!((a.count, a.nodata_count), (b.count, b.nodata_count));
+        for (name, x, y) in [("mean", a.mean_m, b.mean_m), ("std", a.std_m, b.std_m), ("rmse", a.rmse_m, b.rmse_m)] {
+            assert_eq!(x.to_bits(), y.to_bits(), "{name}");
+        }
+        assert_eq!((a.min_m, a.max_m), (b.min_m, b.max_m));
+        assert_eq!(spilled.area_km2.to_bits(), held.area_km2.to_bits());
+        for (name, x, y) in [
+            ("median", a.median_m, b.median_m),
+            ("nmad", a.nmad_m, b.nmad_m),
+            ("le90", a.le90_m, b.le90_m),
+            ("p90_abs", a.p90_abs_m, b.p90_abs_m),
+        ] {
+            close(name, x, y);
+        }
+        assert_eq!(spilled.histogram.count, held.histogram.count);
+        for (s, h) in spilled.by_slope.iter().zip(&held.by_slope) {
+            assert_eq!(s.stats.count, h.stats.count);
+            close("class median", s.stats.median_m, h.stats.median_m);
+            close("class nmad", s.stats.nmad_m, h.stats.nmad_m);
+        }
+    }
+    // The scratch file is gone once the statistics are made.
+    assert_eq!(std::fs::read_dir(&scratch).unwrap().count(), 0);
+    // A scratch folder that cannot be written is named.
+    let missing = scratch.join("no such folder");
+    let opts = CompareOptions { memory_samples: 0, scratch: Some(missing), ..CompareOptions::default() };
+    let err = compare(&p, "blurred", "srtm", &opts).unwrap_err().to_string();
+    assert!(err.contains("no such folder") && err.contains("scratch file"), "{err}");
 }
 
 #[test]

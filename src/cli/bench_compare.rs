@@ -3,7 +3,8 @@
 //! the same data in the same run (its rasters warped to a transverse Mercator centred on the area,
 //! as the tests do), and both tools' co-registration error against the known shift; and on the
 //! Erzurum pair the bias-correction pipelines and the uncertainty beside xDEM's, with their peak
-//! memory ([`super::bench_pipelines`]).
+//! memory ([`super::bench_pipelines`]), and comparisons of 10⁷–10⁸ samples held in memory and
+//! spilled ([`super::bench_compare_large`]).
 
 use super::CliError;
 use super::bench_harness::timed;
@@ -172,6 +173,8 @@ pub fn bench_compare(settings: &CompareBenchSettings) -> Result<String, CliError
         reference_tm: &ref_tm,
         moved_tm: &moved_tm,
     })?);
+    // Comparisons of 10⁷–10⁸ samples, held in memory and spilled.
+    report.push_str(&super::bench_compare_large::large_table(&settings.project)?);
     // 2. The synthetic pair with a known shift.
     let (dlon, dlat) = (0.0004, -0.0003);
     let (pair, made_s) = timed(|| synthetic_pair(&settings.out, settings.size, dlon, dlat));

@@ -30,7 +30,7 @@ const WORKFLOWS: [(&str, &[&str], &str); 3] = [
 
 /// Runs a command to its end; its standard output, seconds, and the last peak resident memory
 /// read while it ran (bytes; 0 where /proc is not there).
-fn run_measured(mut command: Command) -> Result<(String, f64, u64), CliError> {
+pub(super) fn run_measured(mut command: Command) -> Result<(String, f64, u64), CliError> {
     let start = Instant::now();
     let mut child = command.stdout(Stdio::piped()).stderr(Stdio::piped()).spawn().map_err(|e| e.to_string())?;
     let status_path = format!("/proc/{}/status", child.id());

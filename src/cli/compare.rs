@@ -52,6 +52,10 @@ pub struct CompareRequest {
     /// data) or a vector file of unstable terrain (polygons left out).
     #[arg(long, requires = "uncertainty")]
     pub stable: Option<String>,
+    /// Most differences held in memory; a comparison that may have more writes them to a scratch
+    /// file in the temporary folder and reads them back in passes, in bounded memory.
+    #[arg(long, default_value_t = crate::compare::sample::MEMORY_SAMPLES)]
+    pub memory_samples: usize,
 }
 
 /// Parses `--region WEST,SOUTH,EAST,NORTH`.
@@ -68,6 +72,8 @@ pub fn compare_command(request: &CompareRequest) -> Result<String, CliError> {
         region,
         weighting: if request.unweighted { Weighting::Samples } else { Weighting::Area },
         keep_samples: request.samples.is_some(),
+        memory_samples: request.memory_samples,
+        scratch: Some(std::env::temp_dir()),
         ..CompareOptions::default()
     };
     let c = compare(&project, &request.a, &request.b, &opts).within(request.project.display())?;

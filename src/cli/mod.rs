@@ -9,6 +9,7 @@ mod bench_brush;
 mod bench_brush_latency;
 mod bench_command;
 mod bench_compare;
+mod bench_compare_large;
 mod bench_compose;
 mod bench_erosion;
 mod bench_harness;

@@ -3,6 +3,7 @@
 //! the reference's slope, and their statistics (`stats`).
 //!
 //! - [`stats`]: weighted statistics, histogram and slope classes (the JSON of `terrafuse compare`);
+//! - [`streamed`]: the same of more differences than memory holds, spilled and read in passes;
 //! - [`pipeline`]: co-registration as a pipeline of bias corrections (`coregister --pipeline`);
 //! - [`coreg`]: its Nuth & Kääb step on the ellipsoid, and the reference's samples;
 //! - [`bias`]: the other steps' models (vertical, deramp, terrain bias, directional);
@@ -23,6 +24,7 @@ pub mod profile;
 pub mod sample;
 pub mod stable;
 pub mod stats;
+pub mod streamed;
 pub mod uncertainty;
 pub mod variogram;
 

@@ -17,13 +17,17 @@
 //! the grid is sheared (near cube corners).
 
 use std::collections::{BTreeSet, HashSet};
+use std::path::PathBuf;
 
 use glam::DVec3;
 use rayon::prelude::*;
 use serde::Serialize;
 
 use super::CompareError;
-use super::stats::{Diff, HISTOGRAM_BINS, Histogram, SLOPE_CLASSES_DEG, SlopeClass, Stats, by_slope, histogram, stats};
+use super::stats::{
+    Diff, HISTOGRAM_BINS, Histogram, SLOPE_CLASSES_DEG, SlopeClass, Stats, by_slope, histogram, slope_class, stats,
+};
+use super::streamed::{NO_CLASS, Record, Spill, Streamed, streamed_stats};
 use crate::ecm::QuadId;
 use crate::ecm::points::{quad_ball, sample_point};
 use crate::geodesy::GeoBox;
@@ -39,6 +43,9 @@ const N: usize = GRID as usize;
 pub const MAX_QUADS: usize = 4096;
 /// Quads composed at once (memory: 2 × 264 kB each).
 const CHUNK: usize = 16;
+/// Most differences a comparison holds in memory by default (≈ 1.2 GB at the peak of the
+/// statistics, 72 bytes a difference).
+pub const MEMORY_SAMPLES: usize = 1 << 24;
 
 /// How samples are weighted.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
@@ -64,6 +71,12 @@ pub struct CompareOptions {
     pub slope_classes_deg: Vec<f64>,
     /// Keep every sample (for `--samples`).
     pub keep_samples: bool,
+    /// Most differences held in memory: a comparison that may have more spills them to a
+    /// scratch file and reads them back in passes (see [`streamed`](super::streamed)), so its
+    /// memory stays bounded (the samples kept for `keep_samples` aside).
+    pub memory_samples: usize,
+    /// Where that scratch file goes (default: the project's folder).
+    pub scratch: Option<PathBuf>,
 }
 
 impl Default for CompareOptions {
@@ -74,6 +87,8 @@ impl Default for CompareOptions {
             weighting: Weighting::Area,
             slope_classes_deg: SLOPE_CLASSES_DEG.to_vec(),
             keep_samples: false,
+            memory_samples: MEMORY_SAMPLES,
+            scratch: None,
         }
     }
 }
@@ -215,7 +230,7 @@ pub fn compare_operands(
     let (scene_a, scene_b) = (operand_scene(&scene, project, a)?, operand_scene(&scene, project, b)?);
     let (level, quads) = overlap_quads(&scene_a, &scene_b, opts.level, opts.region)?;
     let ellipsoid = scene_a.ellipsoid;
-    let mut diffs = Vec::new();
+    let mut diffs = Differences::new(project, opts, quads.len() * (N - 1) * (N - 1))?;
     let mut samples = Vec::new();
     let mut nodata = 0u64;
     let (mut area_lo, mut area_hi) = (f64::INFINITY, 0f64);
@@ -233,7 +248,7 @@ pub fn compare_operands(
                             area_lo = area_lo.min(s.area_m2);
                             area_hi = area_hi.max(s.area_m2);
                             let weight = if opts.weighting == Weighting::Area { s.area_m2 } else { 1.0 };
-                            diffs.push(Diff { dh_m: s.dh_m, weight, slope_deg: s.slope_deg });
+                            diffs.push(Diff { dh_m: s.dh_m, weight, slope_deg: s.slope_deg })?;
                             if opts.keep_samples {
                                 samples.push(s);
                             }
@@ -253,18 +268,18 @@ pub fn compare_operands(
             ),
         });
     }
-    let area_m2: f64 = if opts.weighting == Weighting::Area { diffs.iter().map(|d| d.weight).sum() } else { f64::NAN };
+    let Streamed { stats, histogram, by_slope } = diffs.statistics(nodata)?;
     let mut comparison = Comparison {
         a: a.label(),
         b: b.label(),
         level,
         spacing_m: spacing_m(&ellipsoid, level),
         weighting: opts.weighting,
-        area_km2: area_m2 / 1e6,
-        weight_ratio: if diffs.is_empty() { f64::NAN } else { area_hi / area_lo },
-        stats: stats(&diffs, nodata),
-        histogram: histogram(&diffs, HISTOGRAM_BINS),
-        by_slope: by_slope(&diffs, &opts.slope_classes_deg),
+        area_km2: stats.weight_sum / 1e6,
+        weight_ratio: if stats.count == 0 { f64::NAN } else { area_hi / area_lo },
+        stats,
+        histogram,
+        by_slope,
         samples,
     };
     if opts.weighting == Weighting::Samples {
@@ -272,6 +287,66 @@ pub fn compare_operands(
         comparison.area_km2 = f64::NAN;
     }
     Ok(comparison)
+}
+
+/// A comparison's differences: in memory, or spilled to a scratch file where there may be more
+/// than the options hold in memory.
+enum Differences<'a> {
+    Memory(Vec<Diff>, &'a [f64]),
+    Spilled(Spill, &'a [f64]),
+}
+
+impl<'a> Differences<'a> {
+    /// Room for at most `most` differences.
+    fn new(project: &Project, opts: &'a CompareOptions, most: usize) -> Result<Differences<'a>, CompareError> {
+        let classes = &opts.slope_classes_deg[..];
+        if most <= opts.memory_samples || classes.len() > usize::from(NO_CLASS) {
+            return Ok(Differences::Memory(Vec::new(), classes));
+        }
+        let dir = opts.scratch.clone().unwrap_or_else(|| project.resolve(std::path::Path::new(".")));
+        let spill = Spill::create(&dir).map_err(|e| CompareError::File {
+            path: dir.clone(),
+            problem: format!("cannot create the comparison's scratch file here: {e}"),
+        })?;
+        Ok(Differences::Spilled(spill, classes))
+    }
+
+    fn push(&mut self, d: Diff) -> Result<(), CompareError> {
+        match self {
+            Differences::Memory(diffs, _) => diffs.push(d),
+            Differences::Spilled(spill, classes) => {
+                let class = slope_class(classes, d.slope_deg).map_or(NO_CLASS, |k| k as u8);
+                spill.push(Record { dh_m: d.dh_m, weight: d.weight, class }).map_err(|e| spill_error(spill, e))?;
+            }
+        }
+        Ok(())
+    }
+
+    fn is_empty(&self) -> bool {
+        match self {
+            Differences::Memory(diffs, _) => diffs.is_empty(),
+            Differences::Spilled(spill, _) => spill.is_empty(),
+        }
+    }
+
+    /// Their statistics, histogram and slope classes.
+    fn statistics(self, nodata: u64) -> Result<Streamed, CompareError> {
+        match self {
+            Differences::Memory(diffs, classes) => Ok(Streamed {
+                stats: stats(&diffs, nodata),
+                histogram: histogram(&diffs, HISTOGRAM_BINS),
+                by_slope: by_slope(&diffs, classes),
+            }),
+            Differences::Spilled(mut spill, classes) => {
+                spill.finish().map_err(|e| spill_error(&spill, e))?;
+                streamed_stats(&spill, nodata, classes, HISTOGRAM_BINS).map_err(|e| spill_error(&spill, e))
+            }
+        }
+    }
+}
+
+fn spill_error(spill: &Spill, e: std::io::Error) -> CompareError {
+    CompareError::File { path: spill.path().to_path_buf(), problem: format!("the comparison's scratch file: {e}") }
 }
 
 /// The level to work at and the quads of it that may reach `region` where every dataset among

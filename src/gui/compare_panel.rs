@@ -129,7 +129,11 @@ impl ComparePanel {
             let idle = !self.busy() && self.a != self.b;
             if ui.add_enabled(idle, egui::Button::new("compare")).clicked() {
                 let (p, a, b) = (project.clone(), self.a.clone(), self.b.clone());
-                self.comparing = Some(std::thread::spawn(move || Ok(compare(&p, &a, &b, &CompareOptions::default())?)));
+                self.comparing = Some(std::thread::spawn(move || {
+                    // A comparison too large for memory spills to the temporary folder.
+                    let opts = CompareOptions { scratch: Some(std::env::temp_dir()), ..CompareOptions::default() };
+                    Ok(compare(&p, &a, &b, &opts)?)
+                }));
             }
             if ui
                 .add_enabled(idle, egui::Button::new("co-register"))

@@ -1,0 +1,45 @@
+//! The large comparisons of `terrafuse bench compare`: the Erzurum pair compared far below its
+//! data's level, so that there are 10⁷–10⁸ samples, with the differences held in memory and spilled
+//! to a scratch file (`--memory-samples`), each run a process of its own so that its peak resident
+//! memory is its own.
+
+use std::fmt::Write as _;
+use std::path::Path;
+use std::process::Command;
+
+use super::CliError;
+use super::bench_pipelines::run_measured;
+
+/// The runs: a label, and the arguments after `compare PROJECT blurred srtm --json`.
+const RUNS: [(&str, &[&str]); 3] = [
+    ("level 12, held in memory", &["--level", "12", "--memory-samples", "1000000000"]),
+    ("level 12, spilled", &["--level", "12"]),
+    ("level 13, west 0.4°, spilled", &["--level", "13", "--region", "40.0,39.0,40.4,40.0"]),
+];
+
+/// The table: samples, seconds, peak memory and the median and NMAD of each run.
+pub(super) fn large_table(project: &Path) -> Result<String, CliError> {
+    let exe = std::env::current_exe().map_err(|e| format!("this program's path: {e}"))?;
+    let mut out = String::new();
+    let _ = writeln!(
+        out,
+        "{:<34} {:>11} {:>9} {:>10} {:>20} {:>16}",
+        "comparison (Erzurum pair)", "samples", "seconds", "peak MiB", "median m", "NMAD m"
+    );
+    for (label, args) in RUNS {
+        let mut command = Command::new(&exe);
+        command.arg("compare").arg(project).args(["blurred", "srtm", "--json"]).args(args);
+        let (json, seconds, peak) = run_measured(command)?;
+        let v: serde_json::Value = serde_json::from_str(&json)?;
+        let number = |field: &str| v[field].as_f64().unwrap_or(f64::NAN);
+        let _ = writeln!(
+            out,
+            "{label:<34} {:>11} {seconds:>9.1} {:>10.0} {:>20.12} {:>16.10}",
+            v["count"],
+            peak as f64 / 1048576.0,
+            number("median_m"),
+            number("nmad_m")
+        );
+    }
+    Ok(out)
+}

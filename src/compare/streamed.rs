@@ -1,0 +1,624 @@
+//! Statistics of more differences than memory holds (a comparison of 10⁸ samples): the
+//! differences are spilled to a scratch file in sample order, 17 bytes each, and read back in
+//! passes, so memory stays bounded whatever their number.
+//!
+//! The sums run in sample order as [`stats`](super::stats::stats) runs them, so the count, mean,
+//! standard deviation, RMSE, minimum and maximum are the same bit for bit. The quantiles (median,
+//! NMAD, LE90, the 90th percentile of |dh|, the histogram's range) are exact weighted order
+//! statistics found by radix refinement: one pass counts a population into 2¹⁶ buckets by the top
+//! 16 bits of its ordering key; the bucket where the cumulative weight reaches the quantile's
+//! position is kept, and the next pass either counts its candidates by their next 16 bits or, once
+//! they are few ([`COLLECT`]), reads them, sorts them and walks them as
+//! [`weighted_quantile`](super::stats::weighted_quantile) walks the whole sorted set. Positions are
+//! summed bucket by bucket rather than sample by sample, so a quantile may differ from the
+//! in-memory one in its last bits.
+
+use std::fs::File;
+use std::io::{self, Read, Write};
+use std::path::{Path, PathBuf};
+
+use rayon::prelude::*;
+
+use super::stats::{Histogram, NMAD_FACTOR, SlopeClass, Stats, order_key, order_value};
+
+/// The class of a difference without a slope.
+pub const NO_CLASS: u8 = u8::MAX;
+/// Bytes of one spilled record: dh and weight (f64) and the slope class.
+const RECORD_BYTES: usize = 17;
+/// What the scratch files are named after.
+const SPILL_NAME: &str = "terrafuse-compare.spill";
+/// Records read at once.
+const BLOCK: usize = 1 << 16;
+/// Bits of the ordering key one pass tells apart.
+const DIGIT_BITS: u32 = 16;
+/// Most candidates of one quantile read into memory (24 bytes each).
+const COLLECT: u64 = 1 << 18;
+
+/// One difference: A − B, its weight and the index of the reference's slope class there.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Record {
+    /// A − B, metres.
+    pub dh_m: f64,
+    /// Its weight (the cell's area in m², or 1).
+    pub weight: f64,
+    /// Its slope class, or [`NO_CLASS`].
+    pub class: u8,
+}
+
+impl Record {
+    fn encode(&self) -> [u8; RECORD_BYTES] {
+        let mut bytes = [0u8; RECORD_BYTES];
+        bytes[..8].copy_from_slice(&self.dh_m.to_le_bytes());
+        bytes[8..16].copy_from_slice(&self.weight.to_le_bytes());
+        bytes[16] = self.class;
+        bytes
+    }
+
+    fn decode(bytes: &[u8]) -> Record {
+        let f64_at = |at: usize| f64::from_le_bytes(bytes[at..at + 8].try_into().unwrap_or([0; 8]));
+        Record { dh_m: f64_at(0), weight: f64_at(8), class: bytes[16] }
+    }
+}
+
+/// Differences that can be read again, in the same order, as often as needed.
+pub trait Records: Sync {
+    /// Calls `f` with consecutive blocks of the records, in order.
+    fn scan(&self, f: &mut dyn FnMut(&[Record])) -> io::Result<()>;
+}
+
+impl Records for Vec<Record> {
+    fn scan(&self, f: &mut dyn FnMut(&[Record])) -> io::Result<()> {
+        self.chunks(BLOCK).for_each(f);
+        Ok(())
+    }
+}
+
+/// Records in a scratch file of their own, removed when dropped.
+#[derive(Debug)]
+pub struct Spill {
+    path: PathBuf,
+    writer: Option<io::BufWriter<File>>,
+    count: u64,
+}
+
+impl Spill {
+    /// A new, empty scratch file in `dir` (a name no other file there has), after removing
+    /// those that killed processes left there.
+    pub fn create(dir: &Path) -> io::Result<Spill> {
+        for orphan in crate::files::orphans(dir, SPILL_NAME) {
+            let _ = std::fs::remove_file(orphan);
+        }
+        let mut n = 0u32;
+        loop {
+            // Named as `files` names temporaries, so that `files::orphans` finds them.
+            let path = dir.join(format!(".{SPILL_NAME}.tmp-{}-{n}", std::process::id()));
+            match File::create_new(&path) {
+                Ok(file) => {
+                    return Ok(Spill { path, writer: Some(io::BufWriter::with_capacity(1 << 20, file)), count: 0 });
+                }
+                Err(e) if e.kind() == io::ErrorKind::AlreadyExists => n += 1,
+                Err(e) => return Err(e),
+            }
+        }
+    }
+
+    /// The scratch file.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// Whether no record was pushed.
+    pub fn is_empty(&self) -> bool {
+        self.count == 0
+    }
+
+    /// Appends a record.
+    pub fn push(&mut self, record: Record) -> io::Result<()> {
+        let Some(writer) = self.writer.as_mut() else {
+            return Err(io::Error::other("the scratch file was already finished"));
+        };
+        writer.write_all(&record.encode())?;
+        self.count += 1;
+        Ok(())
+    }
+
+    /// Ends the writing; the records can be read from now on.
+    pub fn finish(&mut self) -> io::Result<()> {
+        match self.writer.take() {
+            Some(writer) => writer.into_inner().map_err(io::IntoInnerError::into_error).map(drop),
+            None => Ok(()),
+        }
+    }
+}
+
+impl Records for Spill {
+    fn scan(&self, f: &mut dyn FnMut(&[Record])) -> io::Result<()> {
+        if self.writer.is_some() {
+            return Err(io::Error::other("the scratch file is still being written"));
+        }
+        let mut file = File::open(&self.path)?;
+        let mut bytes = vec![0u8; BLOCK * RECORD_BYTES];
+        let mut records = Vec::with_capacity(BLOCK);
+        let mut left = self.count;
+        while left > 0 {
+            let n = left.min(BLOCK as u64) as usize;
+            file.read_exact(&mut bytes[..n * RECORD_BYTES])?;
+            records.clear();
+            records.extend(bytes[..n * RECORD_BYTES].chunks_exact(RECORD_BYTES).map(Record::decode));
+            f(&records);
+            left -= n as u64;
+        }
+        Ok(())
+    }
+}
+
+impl Drop for Spill {
+    fn drop(&mut self) {
+        self.writer = None;
+        let _ = std::fs::remove_file(&self.path);
+    }
+}
+
+/// Some quantiles of one population of differences in one order.
+#[derive(Clone, Debug)]
+struct Job {
+    /// The slope class it is restricted to (every difference with None).
+    class: Option<u8>,
+    /// None: the values dh; Some(c): the distances |dh − c|, at equal distance those below c
+    /// first, then by value (the order `folded` gives).
+    centre: Option<f64>,
+    /// The quantiles asked for, in [0, 1].
+    quantiles: Vec<f64>,
+}
+
+impl Job {
+    /// A record's place in this job's order, None outside the population; equal places keep the
+    /// records' order.
+    fn place(&self, r: &Record) -> Option<Place> {
+        if self.class.is_some_and(|c| c != r.class) {
+            return None;
+        }
+        let value = order_key(r.dh_m);
+        Some(match self.centre {
+            None => Place { key: value, above: false, value },
+            Some(c) => Place { key: order_key((r.dh_m - c).abs()), above: r.dh_m >= c, value },
+        })
+    }
+}
+
+/// Where an element sits in a job's order: by its key (the ordering key of the value or the
+/// distance), then below the centre first, then by value (distances equal from different
+/// values: −0 and +0, or rounding).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+struct Place {
+    key: u64,
+    above: bool,
+    value: u64,
+}
+
+/// Candidates sharing a key's digit: how many, their weight, the largest key, and the first in
+/// order with its weight.
+#[derive(Clone, Copy, Debug)]
+struct Bucket {
+    count: u64,
+    weight: f64,
+    max: u64,
+    first: (Place, f64),
+}
+
+impl Default for Bucket {
+    fn default() -> Bucket {
+        Bucket { count: 0, weight: 0.0, max: 0, first: (Place { key: 0, above: false, value: 0 }, 0.0) }
+    }
+}
+
+impl Bucket {
+    fn add(&mut self, place: Place, weight: f64) {
+        self.count += 1;
+        self.weight += weight;
+        self.max = self.max.max(place.key);
+        if self.count == 1 || place < self.first.0 {
+            self.first = (place, weight);
+        }
+    }
+}
+
+/// Where one quantile's search stands: its candidates share the top `depth` bits of their key,
+/// `prefix`; `below` is the weight of every element before them in order (cumulative, the
+/// first element's included), `before` the value just before them; `goal` the cumulative weight
+/// the quantile sits at.
+#[derive(Clone, Debug)]
+struct Search {
+    job: usize,
+    quantile: usize,
+    goal: f64,
+    below: f64,
+    before: Option<f64>,
+    depth: u32,
+    prefix: u64,
+    /// Read the candidates rather than count them by their next digit.
+    collect: bool,
+}
+
+impl Search {
+    /// Every element of a job.
+    fn whole(job: usize) -> Search {
+        Search { job, quantile: 0, goal: 0.0, below: 0.0, before: None, depth: 0, prefix: 0, collect: false }
+    }
+
+    fn holds(&self, key: u64) -> bool {
+        self.depth == 0 || key >> (64 - self.depth) == self.prefix
+    }
+
+    fn digit(&self, key: u64) -> usize {
+        ((key >> (64 - self.depth - DIGIT_BITS)) & ((1 << DIGIT_BITS) - 1)) as usize
+    }
+}
+
+/// One search's candidates after a pass: counted by digit, or read.
+#[derive(Default)]
+struct Gathered {
+    buckets: Vec<Bucket>,
+    candidates: Vec<(Place, f64)>,
+}
+
+/// One pass over the records: every search's candidates.
+fn gather(records: &dyn Records, jobs: &[Job], searches: &[Search]) -> io::Result<Vec<Gathered>> {
+    let mut gathered: Vec<Gathered> = searches
+        .iter()
+        .map(|s| Gathered {
+            buckets: if s.collect { Vec::new() } else { vec![Bucket::default(); 1 << DIGIT_BITS] },
+            candidates: Vec::new(),
+        })
+        .collect();
+    records.scan(&mut |block| {
+        gathered.par_iter_mut().zip(searches).for_each(|(g, s)| {
+            let job = &jobs[s.job];
+            for r in block {
+                if let Some(place) = job.place(r)
+                    && s.holds(place.key)
+                {
+                    if s.collect {
+                        g.candidates.push((place, r.weight));
+                    } else {
+                        g.buckets[s.digit(place.key)].add(place, r.weight);
+                    }
+                }
+            }
+        });
+    })?;
+    Ok(gathered)
+}
+
+/// The quantile from its candidates read: sorted (stably) and walked from `below` as
+/// [`weighted_quantile`](super::stats::weighted_quantile) walks the whole set.
+fn walk(search: &Search, mut candidates: Vec<(Place, f64)>) -> f64 {
+    candidates.sort_by_key(|c| c.0);
+    let (mut below, mut before) = (search.below, search.before);
+    for (place, weight) in candidates {
+        let x = order_value(place.key);
+        let at = below + weight;
+        if at >= search.goal {
+            return match before {
+                Some(v) => {
+                    let t = if at > below { (search.goal - below) / (at - below) } else { 0.0 };
+                    v + t * (x - v)
+                }
+                None => x,
+            };
+        }
+        (below, before) = (at, Some(x));
+    }
+    // The goal rounded past the last candidate: the largest.
+    before.unwrap_or(f64::NAN)
+}
+
+/// The bucket of `buckets` (the candidates of `search` counted by their next digit) where the
+/// goal is reached: the quantile where that settles it, else the search narrowed to the bucket.
+fn narrow(search: Search, buckets: &[Bucket], collect: u64) -> Result<f64, Search> {
+    let (mut below, mut before) = (search.below, search.before);
+    for (digit, bucket) in buckets.iter().enumerate() {
+        if bucket.count == 0 {
+            continue;
+        }
+        if below + bucket.weight >= search.goal {
+            let depth = search.depth + DIGIT_BITS;
+            let prefix = (search.prefix << DIGIT_BITS) | digit as u64;
+            let narrowed = Search { below, before, depth, prefix, collect: bucket.count <= collect, ..search };
+            if depth == 64 {
+                // One key, one value: only the first candidate's weight can matter.
+                return Ok(walk(&narrowed, vec![bucket.first]));
+            }
+            return Err(narrowed);
+        }
+        below += bucket.weight;
+        before = Some(order_value(bucket.max));
+    }
+    Ok(before.unwrap_or(f64::NAN))
+}
+
+/// Each job's quantiles (NaN for an empty population), in passes over the records, reading at
+/// most `collect` candidates of a quantile at once.
+fn quantiles(records: &dyn Records, jobs: &[Job], collect: u64) -> io::Result<Vec<Vec<f64>>> {
+    let whole: Vec<Search> = (0..jobs.len()).map(Search::whole).collect();
+    let tops = gather(records, jobs, &whole)?;
+    let mut answers: Vec<Vec<f64>> = jobs.iter().map(|j| vec![f64::NAN; j.quantiles.len()]).collect();
+    let mut open = Vec::new();
+    for (j, (job, top)) in jobs.iter().zip(&tops).enumerate() {
+        let count: u64 = top.buckets.iter().map(|b| b.count).sum();
+        let Some(first) = top.buckets.iter().find(|b| b.count > 0).map(|b| b.first) else {
+            continue;
+        };
+        let total: f64 = top.buckets.iter().map(|b| b.weight).sum();
+        let (least, w0) = (order_value(first.0.key), first.1);
+        for (q, &p) in job.quantiles.iter().enumerate() {
+            // weighted_quantile's position p·(W − w₀) past the first element.
+            let target = p.clamp(0.0, 1.0) * (total - w0);
+            if count == 1 || target.is_nan() || target <= 0.0 {
+                answers[j][q] = least;
+                continue;
+            }
+            let search = Search { quantile: q, goal: w0 + target, ..Search::whole(j) };
+            match narrow(search, &top.buckets, collect) {
+                Ok(v) => answers[j][q] = v,
+                Err(s) => open.push(s),
+            }
+        }
+    }
+    while !open.is_empty() {
+        let gathered = gather(records, jobs, &open)?;
+        let mut still = Vec::new();
+        for (search, g) in open.into_iter().zip(gathered) {
+            let (j, q) = (search.job, search.quantile);
+            let found =
+                if search.collect { Ok(walk(&search, g.candidates)) } else { narrow(search, &g.buckets, collect) };
+            match found {
+                Ok(v) => answers[j][q] = v,
+                Err(s) => still.push(s),
+            }
+        }
+        open = still;
+    }
+    Ok(answers)
+}
+
+/// Sums over one population in record order, as `stats` sums them.
+#[derive(Clone, Copy, Debug)]
+struct Moments {
+    count: u64,
+    w: f64,
+    wx: f64,
+    wxx: f64,
+    lo: f64,
+    hi: f64,
+}
+
+impl Default for Moments {
+    fn default() -> Moments {
+        Moments { count: 0, w: 0.0, wx: 0.0, wxx: 0.0, lo: f64::INFINITY, hi: f64::NEG_INFINITY }
+    }
+}
+
+impl Moments {
+    fn add(&mut self, r: &Record) {
+        self.count += 1;
+        self.w += r.weight;
+        self.wx += r.weight * r.dh_m;
+        self.wxx += r.weight * r.dh_m * r.dh_m;
+        self.lo = self.lo.min(r.dh_m);
+        self.hi = self.hi.max(r.dh_m);
+    }
+}
+
+/// What a comparison reports of its differences.
+pub struct Streamed {
+    /// The statistics of them all.
+    pub stats: Stats,
+    /// Their histogram.
+    pub histogram: Histogram,
+    /// The statistics per slope class.
+    pub by_slope: Vec<SlopeClass>,
+}
+
+/// The statistics, histogram and slope classes of `records` (their classes those of
+/// `bounds_deg`), as `stats`, `histogram` and `by_slope` give them for the same differences in
+/// memory, with `nodata_count` recorded as given.
+pub fn streamed_stats(
+    records: &dyn Records,
+    nodata_count: u64,
+    bounds_deg: &[f64],
+    bins: usize,
+) -> io::Result<Streamed> {
+    streamed_stats_with(records, nodata_count, bounds_deg, bins, COLLECT)
+}
+
+fn streamed_stats_with(
+    records: &dyn Records,
+    nodata_count: u64,
+    bounds_deg: &[f64],
+    bins: usize,
+    collect: u64,
+) -> io::Result<Streamed> {
+    // Population 0: every difference; 1 + k: slope class k.
+    let classes = bounds_deg.len().saturating_sub(1).min(usize::from(NO_CLASS));
+    let populations: Vec<Option<u8>> = std::iter::once(None).chain((0..classes).map(|k| Some(k as u8))).collect();
+    let member = |r: &Record| (r.class != NO_CLASS && usize::from(r.class) < classes).then(|| 1 + usize::from(r.class));
+    let mut moments = vec![Moments::default(); populations.len()];
+    records.scan(&mut |block| {
+        for r in block {
+            moments[0].add(r);
+            if let Some(p) = member(r) {
+                moments[p].add(r);
+            }
+        }
+    })?;
+    // The median, 5th and 95th percentiles (and the histogram's 0.5th and 99.5th for them all),
+    // and the 90th percentile of |dh|.
+    let mut jobs = Vec::new();
+    for (p, &class) in populations.iter().enumerate() {
+        let mut quantiles = vec![0.5, 0.05, 0.95];
+        if p == 0 {
+            quantiles.extend([0.005, 0.995]);
+        }
+        jobs.push(Job { class, centre: None, quantiles });
+        jobs.push(Job { class, centre: Some(0.0), quantiles: vec![0.9] });
+    }
+    let values = quantiles(records, &jobs, collect)?;
+    let of = |p: usize| (&values[2 * p], values[2 * p + 1][0]);
+    // The variances about the means, and the histogram over the 0.5th to 99.5th percentile.
+    let means: Vec<f64> = moments.iter().map(|m| m.wx / m.w).collect();
+    let mut spread = vec![0f64; populations.len()];
+    let mut histogram = (moments[0].count > 0).then(|| Histogram::over(of(0).0[3], of(0).0[4], bins.max(1)));
+    records.scan(&mut |block| {
+        for r in block {
+            spread[0] += r.weight * (r.dh_m - means[0]).powi(2);
+            if let Some(p) = member(r) {
+                spread[p] += r.weight * (r.dh_m - means[p]).powi(2);
+            }
+            if let Some(h) = histogram.as_mut() {
+                h.add(r.dh_m, r.weight);
+            }
+        }
+    })?;
+    // The median absolute deviations.
+    let deviations: Vec<Job> = populations
+        .iter()
+        .enumerate()
+        .map(|(p, &class)| Job { class, centre: Some(of(p).0[0]), quantiles: vec![0.5] })
+        .collect();
+    let deviations = quantiles(records, &deviations, collect)?;
+    let stats_of = |p: usize, nodata_count: u64| {
+        let m = &moments[p];
+        if m.count == 0 {
+            return Stats::empty(nodata_count);
+        }
+        let (q, p90_abs) = of(p);
+        Stats {
+            count: m.count,
+            nodata_count,
+            weight_sum: m.w,
+            mean_m: means[p],
+            median_m: q[0],
+            std_m: (spread[p] / m.w).sqrt(),
+            rmse_m: (m.wxx / m.w).sqrt(),
+            nmad_m: NMAD_FACTOR * deviations[p][0],
+            min_m: m.lo,
+            max_m: m.hi,
+            le90_m: q[2] - q[1],
+            p90_abs_m: p90_abs,
+        }
+    };
+    let by_slope = bounds_deg
+        .windows(2)
+        .take(classes)
+        .enumerate()
+        .map(|(k, b)| SlopeClass { min_deg: b[0], max_deg: b[1], stats: stats_of(1 + k, 0) })
+        .collect();
+    Ok(Streamed { stats: stats_of(0, nodata_count), histogram: histogram.unwrap_or_default(), by_slope })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::stats::{Diff, SLOPE_CLASSES_DEG, by_slope, histogram, slope_class, stats};
+    use super::*;
+
+    /// Differences with ties of every kind: repeated values, ±0, distances equal on both sides of
+    /// the median, weights that vary.
+    fn differences(n: u32) -> Vec<Diff> {
+        (0..n)
+            .map(|k| {
+                let h = crate::maths::pcg(k);
+                let dh_m = match h % 6 {
+                    0 => f64::from(h % 9) - 4.0,
+                    1 => -0.0,
+                    2 => 0.0,
+                    _ => (f64::from(h % 100_000) - 50_000.0) * 1e-3,
+                };
+                let weight = 1.0 + f64::from(h % 7) * 0.125;
+                let slope_deg = if h.is_multiple_of(11) { f64::NAN } else { f64::from(h % 900) / 10.0 };
+                Diff { dh_m, weight, slope_deg }
+            })
+            .collect()
+    }
+
+    fn records(diffs: &[Diff]) -> Vec<Record> {
+        diffs
+            .iter()
+            .map(|d| Record {
+                dh_m: d.dh_m,
+                weight: d.weight,
+                class: slope_class(&SLOPE_CLASSES_DEG, d.slope_deg).map_or(NO_CLASS, |k| k as u8),
+            })
+            .collect()
+    }
+
+    fn assert_same(streamed: &Stats, memory: &Stats, what: &str) {
+        // The sums run in the same order: equal bit for bit.
+        let exact =
+            |s: &Stats| [s.weight_sum, s.mean_m, s.std_m, s.rmse_m, s.min_m, s.max_m].map(f64::to_bits).to_vec();
+        assert_eq!((streamed.count, streamed.nodata_count), (memory.count, memory.nodata_count), "{what}");
+        assert_eq!(exact(streamed), exact(memory), "{what}");
+        for (a, b, name) in [
+            (streamed.median_m, memory.median_m, "median"),
+            (streamed.nmad_m, memory.nmad_m, "NMAD"),
+            (streamed.le90_m, memory.le90_m, "LE90"),
+            (streamed.p90_abs_m, memory.p90_abs_m, "p90 |dh|"),
+        ] {
+            assert!((a - b).abs() <= 1e-9 * (1.0 + b.abs()) || (a.is_nan() && b.is_nan()), "{what} {name}: {a} {b}");
+        }
+    }
+
+    #[test]
+    fn streamed_statistics_are_the_in_memory_ones_however_few_candidates_are_read_at_once() {
+        for n in [0, 1, 2, 7, 5000] {
+            let diffs = differences(n);
+            let memory = (stats(&diffs, 3), histogram(&diffs, 50), by_slope(&diffs, &SLOPE_CLASSES_DEG));
+            // 0: every quantile narrowed to a single key; 5: a few read; COLLECT: read at once.
+            for collect in [0, 5, COLLECT] {
+                let what = format!("n {n}, collect {collect}");
+                let s = streamed_stats_with(&records(&diffs), 3, &SLOPE_CLASSES_DEG, 50, collect).unwrap();
+                assert_same(&s.stats, &memory.0, &what);
+                assert_eq!(s.histogram.count, memory.1.count, "{what}");
+                assert_eq!(s.by_slope.len(), memory.2.len());
+                for (a, b) in s.by_slope.iter().zip(&memory.2) {
+                    assert_eq!((a.min_deg, a.max_deg), (b.min_deg, b.max_deg));
+                    assert_same(&a.stats, &b.stats, &format!("{what}, class {}", a.min_deg));
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn a_spill_gives_back_what_was_pushed_and_leaves_nothing_behind() {
+        let dir = std::env::temp_dir().join(format!("terrafuse-spill-test-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let pushed = records(&differences(BLOCK as u32 + 123));
+        let path = {
+            let mut spill = Spill::create(&dir).unwrap();
+            let other = Spill::create(&dir).unwrap();
+            assert_ne!(spill.path(), other.path());
+            for r in &pushed {
+                spill.push(*r).unwrap();
+            }
+            assert!(spill.scan(&mut |_| {}).is_err(), "read before it was finished");
+            spill.finish().unwrap();
+            let mut read = Vec::new();
+            spill.scan(&mut |block| read.extend_from_slice(block)).unwrap();
+            let bits =
+                |v: &[Record]| v.iter().map(|r| (r.dh_m.to_bits(), r.weight.to_bits(), r.class)).collect::<Vec<_>>();
+            assert_eq!(bits(&read), bits(&pushed));
+            spill.path().to_path_buf()
+        };
+        assert!(!path.exists());
+        assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 0);
+        // One a killed process left (no process has id 2³¹ − 2) goes with the next one made.
+        let orphan = dir.join(format!(".{SPILL_NAME}.tmp-2147483646-0"));
+        std::fs::write(&orphan, b"left").unwrap();
+        let kept = dir.join(format!(".{SPILL_NAME}.tmp-{}-99", std::process::id()));
+        std::fs::write(&kept, b"this process's").unwrap();
+        drop(Spill::create(&dir).unwrap());
+        assert!(!orphan.exists() && kept.exists());
+        std::fs::remove_file(&kept).unwrap();
+        std::fs::remove_dir(&dir).unwrap();
+    }
+}
