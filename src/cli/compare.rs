@@ -67,8 +67,22 @@ fn parse_region(region: Option<&str>) -> Result<Option<GeoBox>, CliError> {
 pub fn compare_command(request: &CompareRequest) -> Result<String, CliError> {
     let region = parse_region(request.region.as_deref())?;
     let project = Project::load(&request.project)?;
+    // The uncertainty first: it holds its samples and may refuse a level the statistics take.
+    let uncertainty = if request.uncertainty {
+        let names: Vec<&str> = project.layers.iter().map(|l| l.name.as_str()).collect();
+        let opts = UncertaintyOptions {
+            level: request.level,
+            region,
+            stable: request.stable.as_deref().map(|s| Stable::parse(&names, s)),
+            area: request.area.as_deref().map(|s| Stable::parse(&names, s)),
+            keep_samples: false,
+        };
+        Some(uncertainty(&project, &request.a, &request.b, &opts).within(request.project.display())?)
+    } else {
+        None
+    };
     let opts = CompareOptions {
-        level: request.level,
+        level: request.level.or(uncertainty.as_ref().map(|u| u.level)),
         region,
         weighting: if request.unweighted { Weighting::Samples } else { Weighting::Area },
         keep_samples: request.samples.is_some(),
@@ -84,19 +98,6 @@ pub fn compare_command(request: &CompareRequest) -> Result<String, CliError> {
         }
         crate::files::write_atomic(path, csv.as_bytes()).map_err(CliError::file(path, "cannot write"))?;
     }
-    let uncertainty = if request.uncertainty {
-        let names: Vec<&str> = project.layers.iter().map(|l| l.name.as_str()).collect();
-        let opts = UncertaintyOptions {
-            level: Some(c.level),
-            region,
-            stable: request.stable.as_deref().map(|s| Stable::parse(&names, s)),
-            area: request.area.as_deref().map(|s| Stable::parse(&names, s)),
-            keep_samples: false,
-        };
-        Some(uncertainty(&project, &request.a, &request.b, &opts).within(request.project.display())?)
-    } else {
-        None
-    };
     if request.json {
         let mut json = serde_json::to_value(&c)?;
         if let (Some(u), Some(object)) = (&uncertainty, json.as_object_mut()) {

@@ -349,6 +349,44 @@ fn spill_error(spill: &Spill, e: std::io::Error) -> CompareError {
     CompareError::File { path: spill.path().to_path_buf(), problem: format!("the comparison's scratch file: {e}") }
 }
 
+/// Refuses, before any work, a run that holds every sample of `quads` at `bytes_each` bytes a
+/// sample (co-registration and the uncertainty do; `compare` does not) where they would take more
+/// than `budget` bytes: a clear error naming the level rather than a process the system kills.
+pub(super) fn held_samples_fit(
+    what: &str,
+    level: u8,
+    quads: usize,
+    bytes_each: usize,
+    budget: u64,
+) -> Result<(), CompareError> {
+    let samples = quads as u64 * ((N - 1) * (N - 1)) as u64;
+    let need = samples.saturating_mul(bytes_each as u64);
+    if need <= budget {
+        return Ok(());
+    }
+    let gib = |b: u64| b as f64 / f64::from(1u32 << 30);
+    Err(CompareError::Option {
+        option: "--level".into(),
+        problem: format!(
+            "{what} holds every sample: up to {samples} at level {level} would take ≈ {:.1} GiB, more than the {:.1} GiB \
+             three quarters of this machine's memory allow; choose a coarser level or a region (`compare` alone works in \
+             bounded memory)",
+            gib(need),
+            gib(budget)
+        ),
+    })
+}
+
+/// Three quarters of the machine's physical memory, bytes (unbounded where it cannot be read).
+pub(super) fn memory_budget() -> u64 {
+    // SAFETY: sysconf only reads system configuration values.
+    let (pages, page) = unsafe { (libc::sysconf(libc::_SC_PHYS_PAGES), libc::sysconf(libc::_SC_PAGESIZE)) };
+    if pages <= 0 || page <= 0 {
+        return u64::MAX;
+    }
+    (pages as u64).saturating_mul(page as u64) / 4 * 3
+}
+
 /// The level to work at and the quads of it that may reach `region` where every dataset among
 /// the two scenes has tiles, in order. By default: the coarser dataset's finest level (finer
 /// levels would only upsample it), or finer where an edit, erosion or procedural layer on either
@@ -576,6 +614,16 @@ mod tests {
                 assert!((s - 20.0).abs() < 0.05, "{quad} ({i},{j}): {s}°");
             }
         }
+    }
+
+    #[test]
+    fn a_run_that_would_hold_more_samples_than_memory_allows_is_refused_by_level() {
+        assert!(held_samples_fit("co-registration", 10, 100, 310, u64::MAX).is_ok());
+        assert!(held_samples_fit("co-registration", 10, 100, 310, 100 * 65536 * 310).is_ok());
+        let e = held_samples_fit("the uncertainty", 12, 1300, 400, 16 << 30).unwrap_err().to_string();
+        assert!(e.starts_with("--level: the uncertainty holds every sample: up to 85196800 at level 12"), "{e}");
+        assert!(e.contains("31.7 GiB") && e.contains("16.0 GiB") && e.contains("coarser level or a region"), "{e}");
+        assert!(memory_budget() > 1 << 28);
     }
 
     #[test]
