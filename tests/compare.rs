@@ -1061,6 +1061,34 @@ fn the_uncertainty_of_a_mean_change_agrees_with_xdems_spatial_statistics() {
 }
 
 #[test]
+fn an_uncertainty_fitted_on_some_quads_sums_the_area_over_every_sample() {
+    use terrafuse::compare::{UncertaintyOptions, uncertainty};
+    let p = Project::load(&project()).unwrap();
+    let all = uncertainty(&p, "blurred", "srtm", &UncertaintyOptions::default()).unwrap();
+    let opts = UncertaintyOptions { fit_quads: Some(8), ..UncertaintyOptions::default() };
+    let some = uncertainty(&p, "blurred", "srtm", &opts).unwrap();
+    assert!(all.quad_count > 8 && all.fit_quad_count == all.quad_count, "{} quads", all.quad_count);
+    assert_eq!((some.quad_count, some.fit_quad_count), (all.quad_count, 8));
+    assert!(some.stable_count < all.stable_count / 2, "{} of {}", some.stable_count, all.stable_count);
+    // The area, its mean dh and volume: every sample, in the same order, either way.
+    for (name, x, y) in [
+        ("area", some.area_m2, all.area_m2),
+        ("mean dh", some.mean_dh_m, all.mean_dh_m),
+        ("volume", some.volume_m3, all.volume_m3),
+    ] {
+        assert_eq!(x.to_bits(), y.to_bits(), "{name}: {x} vs {y}");
+    }
+    // The error model from a quarter of the quads, applied over every sample: its mean σ within
+    // 15 % of the model fitted on all of them.
+    let ratio = some.mean_error_m / all.mean_error_m;
+    assert!((ratio - 1.0).abs() < 0.15, "mean error {} vs {}", some.mean_error_m, all.mean_error_m);
+    println!(
+        "σ of the mean: {:.4} m fitted on 8 of {} quads, {:.4} m on all; mean error {:.3} vs {:.3} m",
+        some.mean_dh_sigma_m, all.quad_count, all.mean_dh_sigma_m, some.mean_error_m, all.mean_error_m
+    );
+}
+
+#[test]
 fn a_known_along_track_sinusoid_is_recovered_and_xdems_directional_bias_is_measured_beside_it() {
     // The SRTM tile with 2 m at a 3 km wavelength along 30° added: `directional:30` finds it,
     // and takes it off. xDEM 0.2.3's DirectionalBias on the same pair warped to the local

@@ -1,7 +1,8 @@
 //! The large comparisons of `terrafuse bench compare`: the Erzurum pair compared far below its
 //! data's level, so that there are 10⁷–10⁸ samples, with the differences held in memory and spilled
-//! to a scratch file (`--memory-samples`), each run a process of its own so that its peak resident
-//! memory is its own.
+//! to a scratch file (`--memory-samples`), and with the uncertainty (its model fitted on at most 48
+//! quads, its area summed over every sample), each run a process of its own so that its peak
+//! resident memory is its own.
 
 use std::fmt::Write as _;
 use std::path::Path;
@@ -11,10 +12,11 @@ use super::CliError;
 use super::bench_pipelines::run_measured;
 
 /// The runs: a label, and the arguments after `compare PROJECT blurred srtm --json`.
-const RUNS: [(&str, &[&str]); 3] = [
+const RUNS: [(&str, &[&str]); 4] = [
     ("level 12, held in memory", &["--level", "12", "--memory-samples", "1000000000"]),
     ("level 12, spilled", &["--level", "12"]),
     ("level 13, west 0.4°, spilled", &["--level", "13", "--region", "40.0,39.0,40.4,40.0"]),
+    ("level 12, spilled, --uncertainty", &["--level", "12", "--uncertainty"]),
 ];
 
 /// The table: samples, seconds, peak memory and the median and NMAD of each run.
@@ -23,8 +25,8 @@ pub(super) fn large_table(project: &Path) -> Result<String, CliError> {
     let mut out = String::new();
     let _ = writeln!(
         out,
-        "{:<34} {:>11} {:>9} {:>10} {:>20} {:>16}",
-        "comparison (Erzurum pair)", "samples", "seconds", "peak MiB", "median m", "NMAD m"
+        "{:<34} {:>11} {:>9} {:>10} {:>20} {:>16} {:>12}",
+        "comparison (Erzurum pair)", "samples", "seconds", "peak MiB", "median m", "NMAD m", "σ mean m"
     );
     for (label, args) in RUNS {
         let mut command = Command::new(&exe);
@@ -34,11 +36,12 @@ pub(super) fn large_table(project: &Path) -> Result<String, CliError> {
         let number = |field: &str| v[field].as_f64().unwrap_or(f64::NAN);
         let _ = writeln!(
             out,
-            "{label:<34} {:>11} {seconds:>9.1} {:>10.0} {:>20.12} {:>16.10}",
+            "{label:<34} {:>11} {seconds:>9.1} {:>10.0} {:>20.12} {:>16.10} {:>12}",
             v["count"],
             peak as f64 / 1048576.0,
             number("median_m"),
-            number("nmad_m")
+            number("nmad_m"),
+            v["uncertainty"]["mean_dh_sigma_m"].as_f64().map_or("-".into(), |s| format!("{s:.4}"))
         );
     }
     Ok(out)

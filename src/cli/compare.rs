@@ -76,6 +76,7 @@ pub fn compare_command(request: &CompareRequest) -> Result<String, CliError> {
             stable: request.stable.as_deref().map(|s| Stable::parse(&names, s)),
             area: request.area.as_deref().map(|s| Stable::parse(&names, s)),
             keep_samples: false,
+            fit_quads: None,
         };
         Some(uncertainty(&project, &request.a, &request.b, &opts).within(request.project.display())?)
     } else {
@@ -128,11 +129,16 @@ pub fn uncertainty_table(u: &Uncertainty) -> String {
         u.variogram.models.iter().map(|m| format!("range {:.0} m sill {:.3}", m.range_m, m.psill)).collect();
     let _ = writeln!(
         out,
-        "  spatial correlation: {} ({} effective samples); fitted on {} stable samples{}",
+        "  spatial correlation: {} ({} effective samples); fitted on {} stable samples{}{}",
         models.join(" + "),
         u.effective_samples.round(),
         u.stable_count,
-        u.stable.as_deref().map(|s| format!(", {s}")).unwrap_or_default()
+        u.stable.as_deref().map(|s| format!(", {s}")).unwrap_or_default(),
+        if u.fit_quad_count < u.quad_count {
+            format!(" of {} quads in {} (the mean and volume over all)", u.fit_quad_count, u.quad_count)
+        } else {
+            String::new()
+        }
     );
     let _ = writeln!(out, "  NMAD of dh (m) by slope (rows, degrees) and maximal curvature (columns, 100/m):");
     let edges = |e: &[f64], k: usize| format!("{:.2}–{:.2}", e[k], e[k + 1]);

@@ -19,7 +19,7 @@ use rayon::prelude::*;
 
 use super::CompareError;
 use super::mosaic::Mosaic;
-use super::sample::{gradient, quad_points};
+use super::sample::{cell_area, gradient, quad_points};
 use crate::ecm::QuadId;
 use crate::geodesy::GeoBox;
 use crate::scene::Scene;
@@ -191,8 +191,7 @@ pub(super) fn reference_samples(
                             let det = ie * jn - je * in_;
                             let to_grid = [[jn / det, -je / det], [-in_ / det, ie / det]];
                             let (g_e, g_n) = (g.dot(east), g.dot(north));
-                            let corner = |di: usize, dj: usize| points[(j + dj) * N + i + di].0;
-                            let area = 0.5 * (corner(1, 1) - p).cross(corner(0, 1) - corner(1, 0)).length();
+                            let area = cell_area(&e, *q, &points, i, j);
                             Some(RefSample {
                                 p,
                                 b,

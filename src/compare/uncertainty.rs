@@ -16,18 +16,25 @@
 //!    select): the mean dh (area-weighted), its 1σ = mean σ / √N_eff with N_eff of a disk of the
 //!    area's size (xDEM's `spatial_error_propagation` with a numeric area), and the volume change
 //!    mean dh × area with 1σ = σ_mean × area.
+//!
+//! Steps 1–3 hold their samples, so they are fitted on at most [`FIT_QUADS`] quads: all of them
+//! when there are no more, else those first in hash order (spread at random over the overlap,
+//! each whole, so the variogram keeps its short lags). Step 4 runs over every sample, 16 quads at
+//! a time, in sample order: memory stays bounded however many samples the area has (10⁸ at
+//! finer levels) and the area, mean and volume are the same as from every sample held.
 
 use serde::Serialize;
 
 use super::CompareError;
 use super::bias::nonnegative_least_squares;
-use super::coreg::{differences, reference_samples};
+use super::coreg::{RefSample, differences, reference_samples};
 use super::mosaic::Mosaic;
 use super::pipeline::stable_mask;
-use super::sample::{held_samples_fit, memory_budget, operand_scene, overlap_quads};
+use super::sample::{operand_scene, overlap_quads};
 use super::stable::Stable;
 use super::stats::weighted_quantile;
 use super::variogram::{Spherical, VariogramBin, empirical, fit, neff_disk};
+use crate::ecm::QuadId;
 use crate::geodesy::GeoBox;
 use crate::layers::Operand;
 use crate::layers::correction::Frame;
@@ -39,8 +46,10 @@ use crate::store::grid::spacing_m;
 const BINS: usize = 10;
 /// Samples a bin needs for its NMAD to count (xDEM's `min_count`).
 const MIN_COUNT: u64 = 100;
-/// Bytes a sample takes at the peak (measured: 513 MiB for 1.3·10⁶ samples on the Erzurum pair).
-const HELD_BYTES: usize = 400;
+/// Most quads the error model and the variogram are fitted on (3.1·10⁶ samples, ≈ 1.2 GB held).
+pub const FIT_QUADS: usize = 48;
+/// Quads the area's sums read at once.
+const CHUNK: usize = 16;
 /// Standardised values beyond this many NMADs are outliers (xDEM's `fac_spread_outliers`).
 const OUTLIER_NMADS: f64 = 7.0;
 
@@ -56,8 +65,10 @@ pub struct UncertaintyOptions {
     /// The area of the mean and volume (default: every sample with data): a layer's coverage, or
     /// inside polygons.
     pub area: Option<Stable>,
-    /// Keep the samples (for checks against xDEM).
+    /// Keep the samples the model was fitted on (for checks against xDEM).
     pub keep_samples: bool,
+    /// Most quads the model is fitted on (default [`FIT_QUADS`]; 0 counts as 1).
+    pub fit_quads: Option<usize>,
 }
 
 /// The error model of dh (field names are the JSON's: scripts rely on them).
@@ -133,6 +144,10 @@ pub struct Uncertainty {
     pub stable: Option<String>,
     /// Stable samples the model was fitted on (with data and curvature, outliers left out).
     pub stable_count: u64,
+    /// Quads of the overlap (the area's mean and volume are over all of them).
+    pub quad_count: u64,
+    /// Quads the model and the variogram were fitted on.
+    pub fit_quad_count: u64,
     /// The area (absent: every sample with data).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub area: Option<String>,
@@ -170,9 +185,9 @@ pub fn uncertainty(
     let alone = |name: &str| operand_scene(&scene, project, &Operand::Layer(name.into()));
     let (scene_a, scene_b) = (alone(a)?, alone(b)?);
     let (level, quads) = overlap_quads(&scene_a, &scene_b, opts.level, opts.region)?;
-    held_samples_fit("the uncertainty", level, quads.len(), HELD_BYTES, memory_budget())?;
     let ellipsoid = scene_b.ellipsoid;
-    let reference = reference_samples(&scene_b, &quads, opts.region, true)?;
+    let fitted = fit_quads(&quads, opts.fit_quads.unwrap_or(FIT_QUADS));
+    let reference = reference_samples(&scene_b, &fitted, opts.region, true)?;
     let too_few = |what: &str| CompareError::Option {
         option: "--uncertainty".into(),
         problem: format!("too few stable samples with data on both sides to fit {what}"),
@@ -180,13 +195,9 @@ pub fn uncertainty(
     if reference.is_empty() {
         return Err(CompareError::Option { option: "A, B".into(), problem: "the layers do not overlap".into() });
     }
-    let stable = stable_mask(&scene, project, &quads, &reference, opts.stable.as_ref())?;
-    let in_area = match &opts.area {
-        None => vec![true; reference.len()],
-        Some(area) => area.select(&scene, project, &quads, &reference, true)?,
-    };
-    let mut mosaic = Mosaic::new(scene_a, level);
-    let dh: Vec<f64> = differences(&mut mosaic, &reference, 0.0, 0.0)?.iter().map(|d| d.unwrap_or(f64::NAN)).collect();
+    let stable = stable_mask(&scene, project, &fitted, &reference, opts.stable.as_ref())?;
+    let in_area = area_mask(&scene, project, opts.area.as_ref(), &fitted, &reference)?;
+    let dh = unshifted_differences(&scene_a, level, &reference)?;
     let slope: Vec<f64> = reference.iter().map(|r| r.tan_slope.atan().to_degrees()).collect();
     let curvature: Vec<f64> = reference.iter().map(|r| r.max_curvature).collect();
 
@@ -269,18 +280,26 @@ pub fn uncertainty(
     let bins = empirical(&points, &z, &weights, spacing, max_lag);
     let correlation = fit(&bins).ok_or_else(|| too_few("the variogram"))?;
 
-    // 4. The mean, the volume and their errors over the area.
-    let area_set: Vec<usize> = (0..reference.len()).filter(|&k| in_area[k] && dh[k].is_finite()).collect();
-    if area_set.is_empty() {
+    // 4. The mean, the volume and their errors over the area: every sample, in sample order.
+    let mut sums = AreaSums::default();
+    if fitted.len() == quads.len() {
+        sums.add(&reference, &in_area, &dh, &model);
+    } else {
+        for chunk in quads.chunks(CHUNK) {
+            let reference = reference_samples(&scene_b, chunk, opts.region, true)?;
+            let in_area = area_mask(&scene, project, opts.area.as_ref(), chunk, &reference)?;
+            let dh = unshifted_differences(&scene_a, level, &reference)?;
+            sums.add(&reference, &in_area, &dh, &model);
+        }
+    }
+    if sums.count == 0 {
         return Err(CompareError::Option {
             option: "--area".into(),
             problem: "holds no sample with data on both sides".into(),
         });
     }
-    let area_m2: f64 = area_set.iter().map(|&k| reference[k].area).sum();
-    let mean_of = |f: &dyn Fn(usize) -> f64| area_set.iter().map(|&k| f(k) * reference[k].area).sum::<f64>() / area_m2;
-    let mean_dh_m = mean_of(&|k| dh[k]);
-    let mean_error_m = mean_of(&|k| model.sigma_m(slope[k], curvature[k]));
+    let area_m2 = sums.area_m2;
+    let (mean_dh_m, mean_error_m) = (sums.dh_area / area_m2, sums.sigma_area / area_m2);
     let neff = neff_disk(&correlation, area_m2);
     let mean_dh_sigma_m = mean_error_m / neff.sqrt();
     let samples = if opts.keep_samples {
@@ -304,6 +323,8 @@ pub fn uncertainty(
         spacing_m: spacing,
         stable: opts.stable.as_ref().map(Stable::describe),
         stable_count: z.iter().filter(|v| v.is_finite()).count() as u64,
+        quad_count: quads.len() as u64,
+        fit_quad_count: fitted.len() as u64,
         area: opts.area.as_ref().map(Stable::describe_area),
         area_m2,
         mean_dh_m,
@@ -316,6 +337,65 @@ pub fn uncertainty(
         variogram: Variogram { models: correlation.models.clone(), bins },
         samples,
     })
+}
+
+/// The quads the model is fitted on: all of `quads` where they are at most `most`, else the
+/// `most` first in hash order, in their order.
+fn fit_quads(quads: &[QuadId], most: usize) -> Vec<QuadId> {
+    let most = most.max(1);
+    if quads.len() <= most {
+        return quads.to_vec();
+    }
+    let mut order: Vec<usize> = (0..quads.len()).collect();
+    order.sort_unstable_by_key(|&k| (crate::maths::pcg(k as u32), k));
+    order.truncate(most);
+    order.sort_unstable();
+    order.into_iter().map(|k| quads[k]).collect()
+}
+
+/// Which reference samples are in the area (all without one).
+fn area_mask(
+    scene: &Scene,
+    project: &Project,
+    area: Option<&Stable>,
+    quads: &[QuadId],
+    reference: &[RefSample],
+) -> Result<Vec<bool>, CompareError> {
+    match area {
+        None => Ok(vec![true; reference.len()]),
+        Some(area) => area.select(scene, project, quads, reference, true),
+    }
+}
+
+/// A − B at every reference sample, A unmoved (NaN: no data), from A composed on their quads.
+fn unshifted_differences(scene_a: &Scene, level: u8, reference: &[RefSample]) -> Result<Vec<f64>, CompareError> {
+    let mut mosaic = Mosaic::new(scene_a.clone(), level);
+    Ok(differences(&mut mosaic, reference, 0.0, 0.0)?.iter().map(|d| d.unwrap_or(f64::NAN)).collect())
+}
+
+/// The area's sums, in sample order: its samples with data on both sides, their area, and their
+/// dh and σ times the area.
+#[derive(Default)]
+struct AreaSums {
+    count: u64,
+    area_m2: f64,
+    dh_area: f64,
+    sigma_area: f64,
+}
+
+impl AreaSums {
+    fn add(&mut self, reference: &[RefSample], in_area: &[bool], dh: &[f64], model: &Heteroscedasticity) {
+        for (k, r) in reference.iter().enumerate() {
+            if !(in_area[k] && dh[k].is_finite()) {
+                continue;
+            }
+            let slope_deg = r.tan_slope.atan().to_degrees();
+            self.count += 1;
+            self.area_m2 += r.area;
+            self.dh_area += dh[k] * r.area;
+            self.sigma_area += model.sigma_m(slope_deg, r.max_curvature) * r.area;
+        }
+    }
 }
 
 /// The weighted NMAD: 1.4826 × the weighted median of |x − weighted median|.

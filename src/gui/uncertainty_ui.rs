@@ -20,6 +20,15 @@ pub fn uncertainty_ui(ui: &mut egui::Ui, u: &Uncertainty) {
         "σ(dh) = {:.2} × √({:.2}² + ({:.1} tan slope)² + ({:.1} curvature)²) m, {:.2} m on average",
         h.scale, h.base_m, h.slope_m, h.curvature_m, u.mean_error_m
     ));
+    if u.fit_quad_count < u.quad_count {
+        ui.label(
+            egui::RichText::new(format!(
+                "model and variogram fitted on {} of the {} quads; the mean and volume over all",
+                u.fit_quad_count, u.quad_count
+            ))
+            .small(),
+        );
+    }
     // The binned NMAD: rows by slope, columns by curvature, shaded by value.
     ui.label(egui::RichText::new("NMAD of dh by slope (rows) and maximal curvature (columns), m").small());
     let peak = h.nmad_m.iter().flatten().flatten().copied().fold(0.0, f64::max).max(f64::MIN_POSITIVE);
