@@ -1061,6 +1061,38 @@ fn the_uncertainty_of_a_mean_change_agrees_with_xdems_spatial_statistics() {
 }
 
 #[test]
+fn a_pipeline_fitted_on_some_quads_is_replayed_over_every_sample() {
+    use terrafuse::compare::{CoregOptions, Step, coregister};
+    let p = Project::load(&project()).unwrap();
+    let scratch = common::out_path("compare-coreg-scratch");
+    let _ = std::fs::remove_dir_all(&scratch);
+    std::fs::create_dir_all(&scratch).unwrap();
+    let pipeline = vec![Step::NuthKaab, Step::Deramp(1)];
+    let base = CoregOptions { level: Some(9), pipeline, scratch: Some(scratch.clone()), ..CoregOptions::default() };
+    let all = coregister(&p, "blurred", "srtm", &base).unwrap();
+    let some = coregister(&p, "blurred", "srtm", &CoregOptions { fit_quads: Some(12), ..base.clone() }).unwrap();
+    assert!(all.quad_count > 12 && all.fit_quad_count == all.quad_count);
+    assert_eq!((some.quad_count, some.fit_quad_count), (all.quad_count, 12));
+    // Before any step: every sample either way, the same moments bit for bit.
+    let (a, b) = (&some.before, &all.before);
+    assert_eq!(a.count, b.count);
+    assert_eq!([a.mean_m, a.std_m, a.rmse_m].map(f64::to_bits), [b.mean_m, b.std_m, b.rmse_m].map(f64::to_bits));
+    assert!((a.median_m - b.median_m).abs() < 1e-9 && (a.nmad_m - b.nmad_m).abs() < 1e-9);
+    // The shift from a third of the quads within 2 m of the one from all (a 510 m shift), and the
+    // replayed pipeline corrects every sample about as well.
+    let moved = (some.east_m - all.east_m).hypot(some.north_m - all.north_m);
+    assert!(moved < 2.0, "{moved} m apart");
+    assert!((some.after.count as f64) > 0.99 * all.after.count as f64);
+    assert!(some.after.nmad_m < 1.1 * all.after.nmad_m, "{} vs {}", some.after.nmad_m, all.after.nmad_m);
+    assert!(some.after.nmad_m < b.nmad_m / 10.0);
+    assert_eq!(std::fs::read_dir(&scratch).unwrap().count(), 0);
+    println!(
+        "fitted on 12 of {} quads: shift {moved:.3} m from all's, NMAD after {:.3} m (all {:.3} m)",
+        all.quad_count, some.after.nmad_m, all.after.nmad_m
+    );
+}
+
+#[test]
 fn an_uncertainty_fitted_on_some_quads_sums_the_area_over_every_sample() {
     use terrafuse::compare::{UncertaintyOptions, uncertainty};
     let p = Project::load(&project()).unwrap();

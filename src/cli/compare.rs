@@ -260,7 +260,14 @@ pub fn coregister_command(request: &CoregRequest) -> Result<String, CliError> {
     }
     let names: Vec<&str> = project.layers.iter().map(|l| l.name.as_str()).collect();
     let stable = request.stable.as_deref().map(|s| Stable::parse(&names, s));
-    let opts = CoregOptions { level: request.level, region, pipeline, stable, ..CoregOptions::default() };
+    let opts = CoregOptions {
+        level: request.level,
+        region,
+        pipeline,
+        stable,
+        scratch: Some(std::env::temp_dir()),
+        ..CoregOptions::default()
+    };
     let c = coregister(&project, &request.a, &request.b, &opts).within(request.project.display())?;
     if request.apply {
         let layer = project.layers.iter_mut().find(|l| l.name == request.a).ok_or("the layer vanished")?;

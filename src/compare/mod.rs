@@ -11,6 +11,8 @@
 //! - [`uncertainty`]: the error model, its spatial correlation ([`variogram`]) and the 1σ of a
 //!   mean elevation change and a volume change (Hugonnet et al. 2022);
 //! - [`profile`]: every visible layer's elevation along a geodesic;
+//! - `whole_area`: a pipeline fitted on some quads, replayed over every sample for the area's
+//!   statistics;
 //! - [`attribute_range`]: the range of a terrain attribute over some quads (a colour ramp's);
 //! - [`sample`]: the overlap's samples: each layer composed alone with the CPU reference, cell areas
 //!   and slopes on the ellipsoid.
@@ -27,6 +29,7 @@ pub mod stats;
 pub mod streamed;
 pub mod uncertainty;
 pub mod variogram;
+mod whole_area;
 
 pub use attribute_range::attribute_range;
 pub use coreg::NuthKaabOptions;

@@ -22,9 +22,10 @@ use super::CompareError;
 use super::bias::{Binned, Polynomial, Sinusoids, vertical};
 use super::coreg::{NuthKaabOptions, RefSample, differences, nuth_kaab, reference_samples};
 use super::mosaic::Mosaic;
-use super::sample::{held_samples_fit, memory_budget, operand_scene, overlap_quads};
+use super::sample::{fit_quads, held_samples_fit, memory_budget, operand_scene, overlap_quads};
 use super::stable::Stable;
 use super::stats::{Diff, Stats, stats};
+use super::whole_area::{At, Stand, WholeArea, sample_attributes, whole_area_stats};
 use crate::ecm::QuadId;
 use crate::geodesy::{GeoBox, geodetic_from_ecef};
 pub use crate::layers::correction::Attribute;
@@ -34,6 +35,10 @@ use crate::maths::median;
 use crate::project::Project;
 use crate::scene::Scene;
 use crate::store::grid::spacing_m;
+
+/// Most quads a co-registration's steps are fitted on (1.7·10⁷ samples; the Erzurum tile at its
+/// default level has 140).
+pub const FIT_QUADS: usize = 256;
 
 /// Bytes a reference sample takes at the peak of a run (measured: 1 656 MiB for 5.3·10⁶ samples on
 /// the Erzurum pair, with the whole-area residuals of `--stable`).
@@ -123,6 +128,12 @@ pub struct CoregOptions {
     pub stable: Option<Stable>,
     /// How Nuth & Kääb iterates.
     pub nuth_kaab: NuthKaabOptions,
+    /// Most quads the steps are fitted on (default [`FIT_QUADS`]); with more, the whole area's
+    /// statistics are made by replaying the pipeline over every sample (see
+    /// [`whole_area`](super::whole_area)).
+    pub fit_quads: Option<usize>,
+    /// Where that replay's scratch files go (default: the project's folder).
+    pub scratch: Option<std::path::PathBuf>,
 }
 
 impl Default for CoregOptions {
@@ -133,6 +144,8 @@ impl Default for CoregOptions {
             pipeline: vec![Step::NuthKaab],
             stable: None,
             nuth_kaab: NuthKaabOptions::default(),
+            fit_quads: None,
+            scratch: None,
         }
     }
 }
@@ -161,20 +174,6 @@ pub enum Correction {
     Bias(Bias),
 }
 
-/// What a bias reads at a reference sample: where it is and B's attributes there.
-pub(super) struct At {
-    /// East metres in the frame of the pipeline's origin.
-    pub east_m: f64,
-    /// North.
-    pub north_m: f64,
-    /// A's elevation as the steps before left it, metres (NaN where A has no data).
-    pub elevation_m: f64,
-    /// B's slope, degrees.
-    pub slope_deg: f64,
-    /// B's maximal curvature, 100/m.
-    pub max_curvature: f64,
-}
-
 impl At {
     fn attribute(&self, attribute: Attribute) -> f64 {
         match attribute {
@@ -187,7 +186,7 @@ impl At {
 
 impl Correction {
     /// The bias at a sample (0 for the steps that move or raise A).
-    fn bias(&self, at: &At) -> f64 {
+    pub(super) fn bias(&self, at: &At) -> f64 {
         match self {
             Correction::NuthKaab { .. } | Correction::Vertical { .. } => 0.0,
             Correction::Bias(b) => b.at(at.east_m, at.north_m, |a| at.attribute(a)),
@@ -239,8 +238,12 @@ pub struct Coregistration {
     /// Where stable terrain was taken from (absent: everywhere).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub stable: Option<String>,
-    /// Samples on stable terrain.
+    /// Samples on stable terrain (of the quads fitted on).
     pub stable_count: u64,
+    /// Quads of the overlap (`before` and `after` are over all of them).
+    pub quad_count: u64,
+    /// Quads the steps were fitted on (their `before` and `after` are over these).
+    pub fit_quad_count: u64,
     /// Each step: its correction and the statistics on stable terrain before and after it.
     pub steps: Vec<StepResult>,
     /// Statistics of A − B over every sample before (cell-area weighted).
@@ -299,36 +302,39 @@ pub fn coregister(project: &Project, a: &str, b: &str, opts: &CoregOptions) -> R
     let (scene_a, scene_b) = (alone(a)?, alone(b)?);
     let (finest, _) = overlap_quads(&scene_a, &scene_b, None, opts.region).map(|(l, q)| (l, q.len()))?;
     let (level, quads) = overlap_quads(&scene_a, &scene_b, Some(opts.level.unwrap_or(finest + 1)), opts.region)?;
-    held_samples_fit("co-registration", level, quads.len(), HELD_BYTES, memory_budget())?;
+    let fitted = fit_quads(&quads, opts.fit_quads.unwrap_or(FIT_QUADS));
+    held_samples_fit("co-registration", level, fitted.len(), HELD_BYTES, memory_budget())?;
     let ellipsoid = scene_b.ellipsoid;
     let curvature = opts.pipeline.contains(&Step::TerrainBias(Attribute::MaxCurvature));
-    let reference = reference_samples(&scene_b, &quads, opts.region, curvature)?;
+    let reference = reference_samples(&scene_b, &fitted, opts.region, curvature)?;
     if reference.is_empty() {
         return Err(CompareError::Option { option: "A, B".into(), problem: "the layers do not overlap".into() });
     }
-    let stable = stable_mask(&scene, project, &quads, &reference, opts.stable.as_ref())?;
+    let stable = stable_mask(&scene, project, &fitted, &reference, opts.stable.as_ref())?;
     let origin_deg = centroid_deg(&ellipsoid, &reference);
     let frame = Frame::at(&ellipsoid, origin_deg);
-    let mut at: Vec<At> = reference
-        .iter()
-        .map(|r| {
-            let (east_m, north_m) = frame.local(r.p);
-            At {
-                east_m,
-                north_m,
-                elevation_m: r.b,
-                slope_deg: r.tan_slope.atan().to_degrees(),
-                max_curvature: r.max_curvature,
-            }
-        })
-        .collect();
-    let mut mosaic = Mosaic::new(scene_a, level);
+    let mut at = sample_attributes(&frame, &reference);
+    // The extent the biases hold beyond (east, north metres): the samples', or, fitted on some
+    // quads, every quad's outline.
+    let subset = fitted.len() < quads.len();
+    let outline: Vec<[f64; 2]> = if subset {
+        quads
+            .iter()
+            .flat_map(|q| (0..9).map(move |k| (*q, k % 3, k / 3)))
+            .map(|(q, i, j)| frame.local(crate::ecm::points::sample_point(&ellipsoid, q, 3, i, j).0))
+            .map(|(e, n)| [e, n])
+            .collect()
+    } else {
+        at.iter().map(|a| [a.east_m, a.north_m]).collect()
+    };
+    let mut mosaic = Mosaic::new(scene_a.clone(), level);
     let raw_before = differences(&mut mosaic, &reference, 0.0, 0.0)?;
     let mut raw = raw_before.clone();
     let (mut shift, mut up) = ((0.0, 0.0), 0.0);
     let mut bias = vec![0.0; reference.len()];
     let (mut iterations, mut converged) = (0u32, true);
     let mut steps = Vec::new();
+    let mut stands = Vec::new();
     for step in &opts.pipeline {
         let residual = |raw: &[Option<f64>], up: f64, bias: &[f64]| -> Vec<Option<f64>> {
             raw.iter().zip(bias).map(|(d, b)| d.map(|d| d + up - b)).collect()
@@ -392,7 +398,7 @@ pub fn coregister(project: &Project, a: &str, b: &str, opts: &CoregOptions) -> R
                 let (dh, w): (Vec<f64>, Vec<f64>) = set.iter().map(|s| (s.1, s.2)).unzip();
                 let p = Polynomial::fit(order, &e, &n, &dh, &w).ok_or_else(|| too_few("deramp"))?;
                 // Held beyond the overlap's box, not extrapolated.
-                let (lo, hi) = bounds(at.iter().map(|a| [a.east_m / 1000.0, a.north_m / 1000.0]));
+                let (lo, hi) = bounds(outline.iter().map(|p| [p[0] / 1000.0, p[1] / 1000.0]));
                 let box_km = [lo[0], lo[1], hi[0], hi[1]];
                 Correction::Bias(Bias::Deramp { origin_deg, order, coefficients: p.coefficients, box_km })
             }
@@ -414,7 +420,7 @@ pub fn coregister(project: &Project, a: &str, b: &str, opts: &CoregOptions) -> R
                 let extent = x.iter().fold(0.0f64, |m, v| m.max(v.abs())) * 2.0;
                 let bins = ((extent / (4.0 * spacing_m(&ellipsoid, level))) as usize).clamp(100, 1000);
                 let fit = Sinusoids::fit(&x, &dh, &w, bins).ok_or_else(|| too_few("directional"))?;
-                let (lo, hi) = bounds(at.iter().map(|a| [a.east_m * s + a.north_m * c; 2]));
+                let (lo, hi) = bounds(outline.iter().map(|p| [p[0] * s + p[1] * c; 2]));
                 Correction::Bias(Bias::Directional {
                     origin_deg,
                     azimuth_deg,
@@ -429,11 +435,28 @@ pub fn coregister(project: &Project, a: &str, b: &str, opts: &CoregOptions) -> R
         }
         let after = stable_stats(&residual(&raw, up, &bias), &reference, &stable);
         steps.push(StepResult { correction, moves, converged: step_converged, before, after });
+        stands.push(Stand { shift, up });
     }
     // Over every sample: the first step's `before` and the last one's `after` where every sample
-    // is stable, else computed over all of them.
+    // is stable, else computed over all of them; fitted on some quads, the pipeline replayed over
+    // every quad.
     let everywhere = stable.iter().all(|&s| s);
     let (before, after) = match (steps.first(), steps.last()) {
+        _ if subset => {
+            let bias = |k: usize, a: &At| steps[k].correction.bias(a);
+            let scratch = opts.scratch.clone().unwrap_or_else(|| project.resolve(std::path::Path::new(".")));
+            let area = WholeArea {
+                scene_a: &scene_a,
+                scene_b: &scene_b,
+                level,
+                quads: &quads,
+                region: opts.region,
+                curvature,
+                frame: &frame,
+                scratch: &scratch,
+            };
+            whole_area_stats(&area, &stands, &bias)?
+        }
         (Some(first), Some(last)) if everywhere => (first.before.clone(), last.after.clone()),
         _ => {
             let all = vec![true; reference.len()];
@@ -454,6 +477,8 @@ pub fn coregister(project: &Project, a: &str, b: &str, opts: &CoregOptions) -> R
         converged,
         stable: opts.stable.as_ref().map(Stable::describe),
         stable_count: stable.iter().filter(|&&s| s).count() as u64,
+        quad_count: quads.len() as u64,
+        fit_quad_count: fitted.len() as u64,
         steps,
         before,
         after,

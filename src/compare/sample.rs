@@ -378,6 +378,20 @@ pub(super) fn held_samples_fit(
     })
 }
 
+/// The quads a fit holds the samples of: all of `quads` where they are at most `most`, else the
+/// `most` first in PCG hash order (spread at random over the overlap), in their order.
+pub(super) fn fit_quads(quads: &[QuadId], most: usize) -> Vec<QuadId> {
+    let most = most.max(1);
+    if quads.len() <= most {
+        return quads.to_vec();
+    }
+    let mut order: Vec<usize> = (0..quads.len()).collect();
+    order.sort_unstable_by_key(|&k| (crate::maths::pcg(k as u32), k));
+    order.truncate(most);
+    order.sort_unstable();
+    order.into_iter().map(|k| quads[k]).collect()
+}
+
 /// Three quarters of the machine's physical memory, bytes (unbounded where it cannot be read).
 pub(super) fn memory_budget() -> u64 {
     // SAFETY: sysconf only reads system configuration values.

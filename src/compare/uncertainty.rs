@@ -30,7 +30,7 @@ use super::bias::nonnegative_least_squares;
 use super::coreg::{RefSample, differences, reference_samples};
 use super::mosaic::Mosaic;
 use super::pipeline::stable_mask;
-use super::sample::{operand_scene, overlap_quads};
+use super::sample::{fit_quads, operand_scene, overlap_quads};
 use super::stable::Stable;
 use super::stats::weighted_quantile;
 use super::variogram::{Spherical, VariogramBin, empirical, fit, neff_disk};
@@ -337,20 +337,6 @@ pub fn uncertainty(
         variogram: Variogram { models: correlation.models.clone(), bins },
         samples,
     })
-}
-
-/// The quads the model is fitted on: all of `quads` where they are at most `most`, else the
-/// `most` first in hash order, in their order.
-fn fit_quads(quads: &[QuadId], most: usize) -> Vec<QuadId> {
-    let most = most.max(1);
-    if quads.len() <= most {
-        return quads.to_vec();
-    }
-    let mut order: Vec<usize> = (0..quads.len()).collect();
-    order.sort_unstable_by_key(|&k| (crate::maths::pcg(k as u32), k));
-    order.truncate(most);
-    order.sort_unstable();
-    order.into_iter().map(|k| quads[k]).collect()
 }
 
 /// Which reference samples are in the area (all without one).
