@@ -99,9 +99,103 @@ pub fn bilinear(grid: &[f32], u: f64, v: f64) -> f64 {
     h
 }
 
+/// Bicubic interpolation in a 257² grid at grid coordinates (u, v) ∈ [0, 256]²: cubic Lagrange
+/// through the 4 × 4 samples around the point (the window shifted inwards at the grid's edges),
+/// exact at the samples and for bicubic surfaces, NaN where a sample with weight has none (a
+/// sample with weight 0, as at a node, is not read). Where bilinear interpolation flattens
+/// curvature between samples, this keeps it: co-registration samples A with it (see
+/// `compare::mosaic`).
+pub fn bicubic(grid: &[f32], u: f64, v: f64) -> f64 {
+    let n = GRID as usize;
+    let (bu, wu) = cubic_weights(u, n);
+    let (bv, wv) = cubic_weights(v, n);
+    let mut h = 0.0;
+    for (dj, &w_v) in wv.iter().enumerate() {
+        if w_v == 0.0 {
+            continue;
+        }
+        let row = &grid[(bv + dj) * n + bu..][..4];
+        let mut across = 0.0;
+        for (&value, &w_u) in row.iter().zip(&wu) {
+            if w_u != 0.0 {
+                across += w_u * f64::from(value);
+            }
+        }
+        h += w_v * across;
+    }
+    h
+}
+
+/// Cubic Lagrange interpolation at a fractional node index `f` among `n ≥ 4` nodes: the first of
+/// the four nodes used (the two either side of `f`, shifted inwards at the ends) and their
+/// weights. Exact for cubics; the error of a smooth function falls as the fourth power of the
+/// node spacing. At a node, the other three weights are exactly 0.
+pub(crate) fn cubic_weights(f: f64, n: usize) -> (usize, [f64; 4]) {
+    let f = f.clamp(0.0, (n - 1) as f64);
+    let base = (f.floor() as usize).saturating_sub(1).min(n - 4);
+    let t = f - base as f64;
+    let w = [
+        -(t - 1.0) * (t - 2.0) * (t - 3.0) / 6.0,
+        t * (t - 2.0) * (t - 3.0) / 2.0,
+        -t * (t - 1.0) * (t - 3.0) / 2.0,
+        t * (t - 1.0) * (t - 2.0) / 6.0,
+    ];
+    (base, w)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn cubic_weights_reproduce_cubics_and_sum_to_one() {
+        for n in [4usize, 5, 18] {
+            for k in 0..=100 {
+                let f = (n - 1) as f64 * k as f64 / 100.0;
+                let (base, w) = cubic_weights(f, n);
+                assert!(base + 3 < n);
+                let cubic = |x: f64| 2.0 - 0.5 * x + 0.25 * x * x - 0.125 * x * x * x;
+                let got: f64 = (0..4).map(|j| w[j] * cubic((base + j) as f64)).sum();
+                assert!((got - cubic(f)).abs() < 1e-9 * (1.0 + cubic(f).abs()), "n {n}, f {f}: {got} vs {}", cubic(f));
+                assert!((w.iter().sum::<f64>() - 1.0).abs() < 1e-12);
+            }
+        }
+    }
+
+    #[test]
+    fn bicubic_is_exact_for_bicubics_and_at_the_samples() {
+        let n = GRID as usize;
+        let surface = |u: f64, v: f64| {
+            let (x, y) = (u / 64.0, v / 64.0);
+            100.0 + 3.0 * x - 2.0 * y + 0.5 * x * x * y - 0.25 * x * x * x + 0.125 * y * y * y * x
+        };
+        let grid: Vec<f32> = (0..n * n).map(|k| surface((k % n) as f64, (k / n) as f64) as f32).collect();
+        let stored = |u: usize, v: usize| f64::from(grid[v * n + u]);
+        for (u, v) in [(0.0, 0.0), (0.5, 255.5), (17.25, 3.75), (128.0, 200.4), (255.9, 256.0), (256.0, 0.3)] {
+            // f32 storage rounds each sample by at most 2⁻²⁴ relative; the weights sum to 1 with
+            // absolute sums below 1.7 per axis, so the error is that rounding, amplified ≤ 3×.
+            let (got, want) = (bicubic(&grid, u, v), surface(u, v));
+            assert!((got - want).abs() < 3.0 * 200.0 * f64::from(f32::EPSILON), "({u}, {v}): {got} vs {want}");
+        }
+        for (u, v) in [(0usize, 0usize), (1, 255), (256, 256), (77, 3)] {
+            assert_eq!(bicubic(&grid, u as f64, v as f64), stored(u, v));
+            assert_eq!(bicubic(&grid, u as f64, v as f64), bilinear(&grid, u as f64, v as f64));
+        }
+    }
+
+    #[test]
+    fn bicubic_reads_only_the_samples_with_weight() {
+        let n = GRID as usize;
+        let mut grid = vec![10.0f32; n * n];
+        grid[20 * n + 30] = f32::NAN;
+        // A sample in the 4 × 4 window makes the value NaN ...
+        assert!(bicubic(&grid, 29.5, 19.5).is_nan());
+        assert!(bicubic(&grid, 31.5, 21.5).is_nan());
+        // ... outside it, or at a node (the other weights are 0), it is not read.
+        assert_eq!(bicubic(&grid, 32.5, 19.5), 10.0);
+        assert_eq!(bicubic(&grid, 30.0, 21.0), 10.0);
+        assert!((bicubic(&grid, 27.5, 22.5) - 10.0).abs() < 1e-12);
+    }
 
     #[test]
     fn face_xy_matches_the_geometry_grid() {

@@ -17,7 +17,7 @@
 
 use std::sync::atomic::{AtomicU64, Ordering};
 
-use super::grid::{self, TILE};
+use super::grid::{self, TILE, cubic_weights};
 use super::source::SourceReader;
 use crate::ecm::{CubeProjection, FacePoint, QuadId};
 use crate::geodesy::Ellipsoid;
@@ -431,40 +431,5 @@ impl LatticeRow<'_> {
     pub fn at_weights(&self, &(base, w): &(usize, [f64; 4])) -> (f64, f64) {
         let mix = |g: &[f64]| w[0] * g[base] + w[1] * g[base + 1] + w[2] * g[base + 2] + w[3] * g[base + 3];
         (self.lattice.own_column(mix(&self.xs)), mix(&self.ys))
-    }
-}
-
-/// Cubic Lagrange interpolation at a fractional node index `f` among `n ≥ 4` nodes: the first of
-/// the four nodes used (the two either side of `f`, shifted inwards at the ends) and their
-/// weights. Exact for cubics; the error of a smooth function falls as the fourth power of the
-/// node spacing.
-fn cubic_weights(f: f64, n: usize) -> (usize, [f64; 4]) {
-    let f = f.clamp(0.0, (n - 1) as f64);
-    let base = (f.floor() as usize).saturating_sub(1).min(n - 4);
-    let t = f - base as f64;
-    let w = [
-        -(t - 1.0) * (t - 2.0) * (t - 3.0) / 6.0,
-        t * (t - 2.0) * (t - 3.0) / 2.0,
-        -t * (t - 1.0) * (t - 3.0) / 2.0,
-        t * (t - 1.0) * (t - 2.0) / 6.0,
-    ];
-    (base, w)
-}
-
-#[cfg(test)]
-mod tests {
-    #[test]
-    fn cubic_weights_reproduce_cubics_and_sum_to_one() {
-        for n in [4usize, 5, 18] {
-            for k in 0..=100 {
-                let f = (n - 1) as f64 * k as f64 / 100.0;
-                let (base, w) = super::cubic_weights(f, n);
-                assert!(base + 3 < n);
-                let cubic = |x: f64| 2.0 - 0.5 * x + 0.25 * x * x - 0.125 * x * x * x;
-                let got: f64 = (0..4).map(|j| w[j] * cubic((base + j) as f64)).sum();
-                assert!((got - cubic(f)).abs() < 1e-9 * (1.0 + cubic(f).abs()), "n {n}, f {f}: {got} vs {}", cubic(f));
-                assert!((w.iter().sum::<f64>() - 1.0).abs() < 1e-12);
-            }
-        }
     }
 }
