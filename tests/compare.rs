@@ -365,7 +365,9 @@ fn a_known_shift_is_recovered_at_least_as_closely_as_xdem_recovers_it() {
         ours["east_m"], ours["north_m"], xdem["shift_x"], xdem["shift_y"]
     );
     assert!(ours_error <= xdem_error, "Terrafuse errs by {ours_error} m, xDEM by {xdem_error} m");
-    assert!(ours_error < 0.2, "{ours_error} m");
+    // At the data's level, A read bicubically between its samples (bilinearly it errs by 0.38 m
+    // there: BENCHMARKS.md).
+    assert!(ours_error < 0.1, "{ours_error} m");
 
     // Applied, the layer moves: A′ − B is noise where A − B was tens of metres.
     let before: serde_json::Value =
@@ -871,8 +873,8 @@ fn an_applied_pipeline_is_what_compare_export_and_replay_see() {
     let reported = coreg["after"]["nmad_m"].as_f64().unwrap();
     println!("applied {pipeline}: compare's NMAD {before:.3} m → {after:.4} m; coregister reported {reported:.4} m");
     assert!(before > 1.0, "{before}");
-    // What compare sees is what the co-registration reported (it works one level finer than
-    // compare: the same within 1 cm). One pass of the two steps leaves ≈ 1.1 m: the plane,
+    // What compare sees is what the co-registration reported (the same level; A read bicubically
+    // there, the applied layer's composition bilinearly: the same within 1 cm). One pass of the two steps leaves ≈ 1.1 m: the plane,
     // fitted first, takes up part of the elevation bias where height trends across the box
     // (repeating the pair converges: docs/comparison.md).
     assert!(after < before / 5.0 && (after - reported).abs() < 0.01, "{after} m, reported {reported} m");

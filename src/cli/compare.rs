@@ -220,8 +220,8 @@ pub struct CoregRequest {
     /// The reference layer.
     #[arg(long = "to")]
     pub b: String,
-    /// Level to work at (default: one finer than the coarser dataset's finest, where A and B
-    /// are smoothed alike by interpolation).
+    /// Level to work at (default: the coarser dataset's finest, the data's own; A is read
+    /// between its samples by bicubic interpolation).
     #[arg(long)]
     pub level: Option<u8>,
     /// Only inside WEST,SOUTH,EAST,NORTH (degrees).

@@ -21,7 +21,7 @@ use serde::Serialize;
 use super::CompareError;
 use super::bias::{Binned, Polynomial, Sinusoids, vertical};
 use super::coreg::{NuthKaabOptions, RefSample, differences, nuth_kaab, reference_samples};
-use super::mosaic::Mosaic;
+use super::mosaic::{Interpolation, Mosaic};
 use super::sample::{fit_quads, held_samples_fit, memory_budget, operand_scene, overlap_quads};
 use super::stable::Stable;
 use super::stats::{Diff, Stats, stats};
@@ -37,7 +37,7 @@ use crate::scene::Scene;
 use crate::store::grid::spacing_m;
 
 /// Most quads a co-registration's steps are fitted on (1.7·10⁷ samples; the Erzurum tile at its
-/// default level has 140).
+/// default level has 35).
 pub const FIT_QUADS: usize = 256;
 
 /// Bytes a reference sample takes at the peak of a run (measured: 1 656 MiB for 5.3·10⁶ samples on
@@ -113,12 +113,12 @@ impl Step {
 /// How to co-register.
 #[derive(Clone, Debug)]
 pub struct CoregOptions {
-    /// The level (default: one finer than the finest level of the coarser dataset. A is sampled
-    /// between its samples by bilinear interpolation, which smooths it; at the data's own level B
-    /// is not, and the unequal smoothing biases the fit. On a grid twice as fine three samples of
-    /// B in four are bilinear interpolations too, so both sides are smoothed alike: measured on
-    /// a synthetic shift, 0.12 m error instead of 0.38 m, where keeping only every other sample
-    /// of the finer grid gives 0.38 m again; BENCHMARKS.md).
+    /// The level (default: the finest level of the coarser dataset, the data's own). A is read
+    /// between its samples by bicubic interpolation (`compare::mosaic`); bilinear
+    /// interpolation would flatten it there and not at B's samples, an unequal smoothing that
+    /// biases the fit (on a synthetic shift 0.38 m at the data's level, which is why this was one
+    /// level finer, 0.12 m, with four times the samples; bicubic at the data's level: 0.08 m;
+    /// BENCHMARKS.md).
     pub level: Option<u8>,
     /// Only inside this box: west, south, east, north, degrees.
     pub region: Option<GeoBox>,
@@ -301,7 +301,7 @@ pub fn coregister(project: &Project, a: &str, b: &str, opts: &CoregOptions) -> R
     let alone = |name: &str| operand_scene(&scene, project, &Operand::Layer(name.into()));
     let (scene_a, scene_b) = (alone(a)?, alone(b)?);
     let (finest, _) = overlap_quads(&scene_a, &scene_b, None, opts.region).map(|(l, q)| (l, q.len()))?;
-    let (level, quads) = overlap_quads(&scene_a, &scene_b, Some(opts.level.unwrap_or(finest + 1)), opts.region)?;
+    let (level, quads) = overlap_quads(&scene_a, &scene_b, Some(opts.level.unwrap_or(finest)), opts.region)?;
     let fitted = fit_quads(&quads, opts.fit_quads.unwrap_or(FIT_QUADS));
     held_samples_fit("co-registration", level, fitted.len(), HELD_BYTES, memory_budget())?;
     let ellipsoid = scene_b.ellipsoid;
@@ -327,7 +327,7 @@ pub fn coregister(project: &Project, a: &str, b: &str, opts: &CoregOptions) -> R
     } else {
         at.iter().map(|a| [a.east_m, a.north_m]).collect()
     };
-    let mut mosaic = Mosaic::new(scene_a.clone(), level);
+    let mut mosaic = Mosaic::new(scene_a.clone(), level, Interpolation::Bicubic);
     let raw_before = differences(&mut mosaic, &reference, 0.0, 0.0)?;
     let mut raw = raw_before.clone();
     let (mut shift, mut up) = ((0.0, 0.0), 0.0);

@@ -5,7 +5,7 @@ use glam::DVec3;
 use serde::Serialize;
 
 use super::CompareError;
-use super::mosaic::Mosaic;
+use super::mosaic::{Interpolation, Mosaic};
 use super::sample::operand_scene;
 use crate::geodesy::geodesic::{direct, inverse};
 use crate::geodesy::{Geodetic, ecef_from_geodetic};
@@ -116,7 +116,7 @@ pub fn profile(project: &Project, opts: &ProfileOptions) -> Result<Profile, Comp
         points.push(ecef_from_geodetic(&e, Geodetic { lat_rad: lat, lon_rad: lon, height_m: 0.0 }));
     }
     let sample = |scene: Scene| -> Result<Vec<f64>, CompareError> {
-        let mut mosaic = Mosaic::new(scene, level);
+        let mut mosaic = Mosaic::new(scene, level, Interpolation::Bilinear);
         mosaic.prefetch(&points)?;
         Ok(points.iter().map(|p| mosaic.value(*p)).collect())
     };

@@ -28,7 +28,7 @@ use serde::Serialize;
 use super::CompareError;
 use super::bias::nonnegative_least_squares;
 use super::coreg::{RefSample, differences, reference_samples};
-use super::mosaic::Mosaic;
+use super::mosaic::{Interpolation, Mosaic};
 use super::pipeline::stable_mask;
 use super::sample::{fit_quads, operand_scene, overlap_quads};
 use super::stable::Stable;
@@ -355,7 +355,7 @@ fn area_mask(
 
 /// A − B at every reference sample, A unmoved (NaN: no data), from A composed on their quads.
 fn unshifted_differences(scene_a: &Scene, level: u8, reference: &[RefSample]) -> Result<Vec<f64>, CompareError> {
-    let mut mosaic = Mosaic::new(scene_a.clone(), level);
+    let mut mosaic = Mosaic::new(scene_a.clone(), level, Interpolation::Bilinear);
     Ok(differences(&mut mosaic, reference, 0.0, 0.0)?.iter().map(|d| d.unwrap_or(f64::NAN)).collect())
 }
 

@@ -9,7 +9,7 @@ use std::path::Path;
 
 use super::CompareError;
 use super::coreg::{RefSample, differences, reference_samples};
-use super::mosaic::Mosaic;
+use super::mosaic::{Interpolation, Mosaic};
 use super::stats::{HISTOGRAM_BINS, SLOPE_CLASSES_DEG, Stats, slope_class};
 use super::streamed::{NO_CLASS, Record, Spill, streamed_stats};
 use crate::ecm::QuadId;
@@ -87,7 +87,7 @@ pub(super) fn whole_area_stats(
     for chunk in area.quads.chunks(16) {
         let reference = reference_samples(area.scene_b, chunk, area.region, area.curvature)?;
         let mut at = sample_attributes(area.frame, &reference);
-        let mut mosaic = Mosaic::new(area.scene_a.clone(), area.level);
+        let mut mosaic = Mosaic::new(area.scene_a.clone(), area.level, Interpolation::Bicubic);
         let raw_before = differences(&mut mosaic, &reference, 0.0, 0.0)?;
         let mut raw = raw_before.clone();
         let mut stand = Stand { shift: (0.0, 0.0), up: 0.0 };

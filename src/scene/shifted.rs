@@ -1,7 +1,9 @@
 //! Datasets moved horizontally (`shift_m`, what `terrafuse coregister --apply` writes): a shifted
 //! dataset's tile at a quad holds, at each sample p, the dataset's value at p moved back by the
-//! shift in p's local east-north frame (metres on the ellipsoid), interpolated bilinearly from
-//! the tiles of the level (across quad and face edges). The loader makes these tiles; composition
+//! shift in p's local east-north frame (metres on the ellipsoid), interpolated bicubically from
+//! the tiles of the level (across quad and face edges), as co-registration read it when it fitted
+//! the shift (`compare::mosaic`): bilinear interpolation would flatten the terrain between
+//! samples, and a comparison after `--apply` would no longer see what the fit reported. The loader makes these tiles; composition
 //! on the GPU and the CPU reference then use them like any other, so a shift is composed like
 //! every other parameter. Which quads a shifted dataset covers is still decided by its unshifted
 //! tiles: at the data's outer edge a shift of s leaves up to s uncovered.
@@ -14,7 +16,7 @@ use super::dataset::DatasetInfo;
 use crate::ecm::points::sample_point;
 use crate::ecm::{CubeProjection, QuadId};
 use crate::geodesy::{Ellipsoid, geodetic_from_ecef};
-use crate::store::grid::{GRID, bilinear};
+use crate::store::grid::{GRID, bicubic};
 use crate::store::{Store, StoreError};
 
 const N: usize = GRID as usize;
@@ -54,7 +56,7 @@ pub fn shifted_grid(dataset: &DatasetInfo, store: &Store, quad: QuadId) -> Resul
                 e.insert(if dataset.has(q) { store.read_grid(&dataset.dataset, q)?.map(|t| t.values) } else { None })
             }
         };
-        out.push(tile.as_deref().map_or(f32::NAN, |g| bilinear(g, u, v) as f32));
+        out.push(tile.as_deref().map_or(f32::NAN, |g| bicubic(g, u, v) as f32));
     }
     Ok(out)
 }
