@@ -110,8 +110,7 @@ pub(super) fn nuth_kaab(
     // The samples fitted on: the stable ones, at most FIT_SAMPLES of them.
     let mut fit: Vec<usize> = (0..reference.len()).filter(|&k| stable[k]).collect();
     if fit.len() > FIT_SAMPLES {
-        fit.sort_unstable_by_key(|&k| (crate::maths::pcg(k as u32), k));
-        fit.truncate(FIT_SAMPLES);
+        fit = crate::maths::first_in_hash_order(&fit, FIT_SAMPLES);
         fit.sort_unstable();
     }
     let subset: Vec<RefSample> = fit.iter().map(|&k| reference[k]).collect();

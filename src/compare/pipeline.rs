@@ -511,7 +511,8 @@ fn stable_stats(dh: &[Option<f64>], reference: &[RefSample], keep: &[bool]) -> S
         .zip(keep)
         .filter(|(_, k)| **k)
         .filter_map(|((d, r), _)| {
-            d.map(|d| Diff { dh_m: d, weight: r.area, slope_deg: r.tan_slope.atan().to_degrees() })
+            // `stats` reads no slope (only `compare`'s slope classes do).
+            d.map(|d| Diff { dh_m: d, weight: r.area, slope_deg: f64::NAN })
         })
         .collect();
     stats(&diffs, 0)

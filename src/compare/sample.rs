@@ -385,9 +385,7 @@ pub(super) fn fit_quads(quads: &[QuadId], most: usize) -> Vec<QuadId> {
     if quads.len() <= most {
         return quads.to_vec();
     }
-    let mut order: Vec<usize> = (0..quads.len()).collect();
-    order.sort_unstable_by_key(|&k| (crate::maths::pcg(k as u32), k));
-    order.truncate(most);
+    let mut order = crate::maths::first_in_hash_order(&(0..quads.len()).collect::<Vec<_>>(), most);
     order.sort_unstable();
     order.into_iter().map(|k| quads[k]).collect()
 }

@@ -218,21 +218,25 @@ pub fn stats(diffs: &[Diff], nodata_count: u64) -> Stats {
         return Stats::empty(nodata_count);
     }
     let mut s = Stats { count: diffs.len() as u64, nodata_count, ..Stats::default() };
-    let (mut w, mut wx, mut wxx) = (0.0, 0.0, 0.0);
-    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
-    for d in diffs {
-        w += d.weight;
-        wx += d.weight * d.dh_m;
-        wxx += d.weight * d.dh_m * d.dh_m;
-        lo = lo.min(d.dh_m);
-        hi = hi.max(d.dh_m);
-    }
-    let mean = wx / w;
-    let var = diffs.iter().map(|d| d.weight * (d.dh_m - mean).powi(2)).sum::<f64>() / w;
-    let sorted = sorted_pairs(diffs);
+    // The moments and the sort are independent, as are the two foldings: each side runs in
+    // sample order on one thread, so the result is the same on any number of threads.
+    let moments = || {
+        let (mut w, mut wx, mut wxx) = (0.0, 0.0, 0.0);
+        let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+        for d in diffs {
+            w += d.weight;
+            wx += d.weight * d.dh_m;
+            wxx += d.weight * d.dh_m * d.dh_m;
+            lo = lo.min(d.dh_m);
+            hi = hi.max(d.dh_m);
+        }
+        let mean = wx / w;
+        let var = diffs.iter().map(|d| d.weight * (d.dh_m - mean).powi(2)).sum::<f64>() / w;
+        (w, wxx, lo, hi, mean, var)
+    };
+    let ((w, wxx, lo, hi, mean, var), sorted) = rayon::join(moments, || sorted_pairs(diffs));
     let median = weighted_quantile(&sorted, 0.5);
-    let deviations = folded(&sorted, median);
-    let magnitudes = folded(&sorted, 0.0);
+    let (deviations, magnitudes) = rayon::join(|| folded(&sorted, median), || folded(&sorted, 0.0));
     s.weight_sum = w;
     s.mean_m = mean;
     s.median_m = median;

@@ -17,7 +17,7 @@
 use glam::DVec3;
 use serde::Serialize;
 
-use crate::maths::pcg;
+use crate::maths::first_in_hash_order;
 
 /// Samples paired with each other (4.5·10⁶ pairs).
 const POOL: usize = 3000;
@@ -84,8 +84,7 @@ pub fn empirical(p: &[DVec3], z: &[f64], w: &[f64], spacing_m: f64, max_lag_m: f
     }
     edges.push(max_lag_m);
     // Samples in hash order: the pool and the centres are the first ones.
-    let mut order = valid.clone();
-    order.sort_by_key(|&k| (pcg(k as u32), k));
+    let order = first_in_hash_order(&valid, POOL.max(CENTRES));
     let centres = &order[..order.len().min(CENTRES)];
     let pool = &order[..order.len().min(POOL)];
     let near_m = NEAR_SPACINGS * spacing_m;

@@ -15,6 +15,22 @@ pub fn pcg(v: u32) -> u32 {
     (word >> 22) ^ word
 }
 
+/// The `n` of `indices` (distinct) that come first in PCG hash order, the order of
+/// `(pcg(k), k)`, in that order: what sorting them all by that key and keeping the first `n`
+/// gives, by selection: O(len + n log n). How the fits draw a deterministic random subset.
+pub fn first_in_hash_order(indices: &[usize], n: usize) -> Vec<usize> {
+    let mut keyed: Vec<(u32, usize)> = indices.iter().map(|&k| (pcg(k as u32), k)).collect();
+    if n < keyed.len() {
+        if n == 0 {
+            return Vec::new();
+        }
+        keyed.select_nth_unstable(n - 1);
+        keyed.truncate(n);
+    }
+    keyed.sort_unstable();
+    keyed.into_iter().map(|(_, k)| k).collect()
+}
+
 /// The median of `values` (the mean of the two middle ones for an even count; NaN when empty),
 /// by selection rather than a sort: O(n).
 pub fn median(mut values: Vec<f64>) -> f64 {
@@ -48,6 +64,16 @@ pub fn segment_distance_m(p: DVec3, a: DVec3, b: DVec3) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn first_in_hash_order_is_the_sorted_prefix() {
+        let indices: Vec<usize> = (0..5000).map(|k| k * 7 + 3).collect();
+        let mut sorted = indices.clone();
+        sorted.sort_by_key(|&k| (pcg(k as u32), k));
+        for n in [0, 1, 17, 4999, 5000, 6000] {
+            assert_eq!(first_in_hash_order(&indices, n), sorted[..n.min(5000)], "{n}");
+        }
+    }
 
     #[test]
     fn the_median_of_odd_even_and_empty_samples() {
