@@ -300,32 +300,43 @@ impl Scene {
     }
 
     fn compose_cpu_of(&self, quads: &[QuadId], difference: bool) -> Result<HashMap<QuadId, Composed>, SceneError> {
-        let mut stores: Vec<Option<Store>> = self.datasets.iter().map(|_| None).collect();
+        use rayon::prelude::*;
         let fields = EdgeFields::default();
-        let mut grids = HashMap::new();
-        for &quad in quads {
-            let mut plan = self.plan(quad);
-            if !difference {
-                // Heights only: the difference's operands are not read.
-                plan.difference = None;
-            }
-            // Per planned layer (the heights', then the difference's): its raw and edge tiles.
-            let mut tiles: Vec<(Option<Grid>, Option<Grid>)> = Vec::with_capacity(plan.layers.len());
-            for l in plan.all_layers() {
-                let mut read = |key| self.read_layer_tile(key, &mut stores, &fields).map(|t| t.grid);
-                tiles.push(match self.layer_tiles(l.index, quad) {
-                    Some((source, edge)) => (Some(read(source)?), edge.map(&mut read).transpose()?),
-                    None => (None, None),
-                });
-            }
-            let layer_tiles = |k: usize| LayerTiles { raw: tiles[k].0.as_deref(), edge_m: tiles[k].1.as_deref() };
-            let heights = compose_quad(&self.stack, &plan, &layer_tiles);
-            let offset = plan.layers.len();
-            let difference =
-                plan.difference.as_ref().map(|d| compose_difference(&self.stack, d, &|k| layer_tiles(offset + k)));
-            grids.insert(quad, (heights, difference));
-        }
-        Ok(grids)
+        // Quads in parallel, each worker with its own open stores (at least 4 quads a worker, so
+        // the stores are not opened for every quad); every quad is composed alone, so the result
+        // is the same on any number of threads.
+        quads
+            .par_iter()
+            .with_min_len(4)
+            .map_init(
+                || self.datasets.iter().map(|_| None).collect::<Vec<Option<Store>>>(),
+                |stores, &quad| -> Result<(QuadId, Composed), SceneError> {
+                    let mut plan = self.plan(quad);
+                    if !difference {
+                        // Heights only: the difference's operands are not read.
+                        plan.difference = None;
+                    }
+                    // Per planned layer (the heights', then the difference's): its raw and edge tiles.
+                    let mut tiles: Vec<(Option<Grid>, Option<Grid>)> = Vec::with_capacity(plan.layers.len());
+                    for l in plan.all_layers() {
+                        let mut read = |key| self.read_layer_tile(key, stores, &fields).map(|t| t.grid);
+                        tiles.push(match self.layer_tiles(l.index, quad) {
+                            Some((source, edge)) => (Some(read(source)?), edge.map(&mut read).transpose()?),
+                            None => (None, None),
+                        });
+                    }
+                    let layer_tiles =
+                        |k: usize| LayerTiles { raw: tiles[k].0.as_deref(), edge_m: tiles[k].1.as_deref() };
+                    let heights = compose_quad(&self.stack, &plan, &layer_tiles);
+                    let offset = plan.layers.len();
+                    let difference = plan
+                        .difference
+                        .as_ref()
+                        .map(|d| compose_difference(&self.stack, d, &|k| layer_tiles(offset + k)));
+                    Ok((quad, (heights, difference)))
+                },
+            )
+            .collect()
     }
 
     /// A tile a layer reads: a dataset's from its store, an edit layer's from its raster.
