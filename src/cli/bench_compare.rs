@@ -244,8 +244,19 @@ pub fn bench_compare(settings: &CompareBenchSettings) -> Result<String, CliError
     let _ = writeln!(
         report,
         "known correction of the synthetic pair at its centre: east {e:.3} m, north {n:.3} m (made in {made_s:.1} s, imported in {import_s:.1} s); \
-         stats: the whole overlap, cell-area weighted; coreg: Nuth & Kääb to 0.001 px (Terrafuse at the statistics' level here)"
+         stats: the whole overlap, cell-area weighted; coreg: Nuth & Kääb to 0.001 px (Terrafuse: the whole run, before and after over every sample; xDEM: its fit)"
     );
+    // Nuth & Kääb as a whole workflow on the synthetic pair (xDEM's row above times its fit alone).
+    report.push_str(&super::bench_pipelines::nuth_kaab_table(
+        &super::bench_pipelines::PipelineBench {
+            project: &synthetic_path,
+            python: &settings.python,
+            reference_dir: &settings.reference_dir,
+            reference_tm: &ref_tm,
+            moved_tm: &moved_tm,
+        },
+        &format!("synthetic {}² pair", settings.size),
+    )?);
     let path = settings.out.join("compare.txt");
     crate::files::write_atomic(&path, report.as_bytes()).map_err(CliError::file(path, "cannot write"))?;
     Ok(report)

@@ -14,7 +14,8 @@ use std::time::{Duration, Instant};
 use super::CliError;
 
 /// The workflows: a label, Terrafuse's arguments after the project, xDEM's workflow name.
-const WORKFLOWS: [(&str, &[&str], &str); 3] = [
+const WORKFLOWS: [(&str, &[&str], &str); 4] = [
+    ("nuth_kaab", &["coregister", "blurred", "--to", "srtm", "--pipeline", "nuth_kaab", "--json"], "nuth_kaab"),
     (
         "nuth_kaab,deramp:1",
         &["coregister", "blurred", "--to", "srtm", "--pipeline", "nuth_kaab,deramp:1", "--json"],
@@ -84,47 +85,65 @@ pub(super) struct PipelineBench<'a> {
 
 /// The table: each workflow by Terrafuse on the Erzurum project and by xDEM on its warped pair.
 pub(super) fn pipelines_table(bench: &PipelineBench) -> Result<String, CliError> {
-    let exe = std::env::current_exe().map_err(|e| format!("this program's path: {e}"))?;
-    let mut out = String::new();
-    let _ = writeln!(
-        out,
-        "{:<34} {:<10} {:>9} {:>10} {:>22}",
-        "workflow (Erzurum pair)", "tool", "seconds", "peak MiB", "NMAD after / σ mean m"
-    );
-    for (label, args, workflow) in WORKFLOWS {
-        let mut command = Command::new(&exe);
-        command.arg(args[0]).arg(bench.project).args(&args[1..]);
-        let (json, seconds, peak) = run_measured(command)?;
-        let v: serde_json::Value = serde_json::from_str(&json)?;
-        let value = v["after"]["nmad_m"].as_f64().or_else(|| v["uncertainty"]["mean_dh_sigma_m"].as_f64());
-        let _ = writeln!(
-            out,
-            "{label:<34} {:<10} {seconds:>9.2} {:>10.0} {:>22.4}",
-            "Terrafuse",
-            peak as f64 / 1048576.0,
-            value.unwrap_or(f64::NAN)
-        );
-        let mut python = Command::new(bench.python);
-        let script = bench.reference_dir.join("xdem_bench_pipeline.py");
-        python.arg(script).arg(bench.reference_tm).arg(bench.moved_tm).arg(workflow);
-        match run_measured(python) {
-            Ok((json, _, peak)) => {
-                let x: serde_json::Value = serde_json::from_str(&json)?;
-                let value = x["nmad_after_m"].as_f64().or_else(|| x["sigma_mean_m"].as_f64());
-                let _ = writeln!(
-                    out,
-                    "{:<34} {:<10} {:>9.2} {:>10.0} {:>22.4}",
-                    "",
-                    "xDEM",
-                    x["seconds"].as_f64().unwrap_or(f64::NAN),
-                    peak as f64 / 1048576.0,
-                    value.unwrap_or(f64::NAN)
-                );
-            }
-            Err(e) => {
-                let _ = writeln!(out, "{:<34} xDEM not run: {}", "", crate::errors::chain(&e));
-            }
-        }
+    let mut out = heading("workflow (Erzurum pair)");
+    for workflow in WORKFLOWS {
+        workflow_rows(&mut out, bench, workflow)?;
     }
     Ok(out)
+}
+
+/// Nuth & Kääb alone as a whole workflow (fit, apply, the NMAD after) by both tools on another
+/// pair (the synthetic one: `ref` and `moved`).
+pub(super) fn nuth_kaab_table(bench: &PipelineBench, pair: &str) -> Result<String, CliError> {
+    let mut out = heading(&format!("workflow ({pair})"));
+    let args: &[&str] = &["coregister", "moved", "--to", "ref", "--pipeline", "nuth_kaab", "--json"];
+    workflow_rows(&mut out, bench, ("nuth_kaab", args, "nuth_kaab"))?;
+    Ok(out)
+}
+
+fn heading(pair: &str) -> String {
+    format!("{pair:<34} {:<10} {:>9} {:>10} {:>22}\n", "tool", "seconds", "peak MiB", "NMAD after / σ mean m")
+}
+
+/// A workflow's two rows: Terrafuse's on the project, xDEM's on the warped pair.
+fn workflow_rows(
+    out: &mut String,
+    bench: &PipelineBench,
+    (label, args, workflow): (&str, &[&str], &str),
+) -> Result<(), CliError> {
+    let exe = std::env::current_exe().map_err(|e| format!("this program's path: {e}"))?;
+    let mut command = Command::new(&exe);
+    command.arg(args[0]).arg(bench.project).args(&args[1..]);
+    let (json, seconds, peak) = run_measured(command)?;
+    let v: serde_json::Value = serde_json::from_str(&json)?;
+    let value = v["after"]["nmad_m"].as_f64().or_else(|| v["uncertainty"]["mean_dh_sigma_m"].as_f64());
+    let _ = writeln!(
+        out,
+        "{label:<34} {:<10} {seconds:>9.2} {:>10.0} {:>22.4}",
+        "Terrafuse",
+        peak as f64 / 1048576.0,
+        value.unwrap_or(f64::NAN)
+    );
+    let mut python = Command::new(bench.python);
+    let script = bench.reference_dir.join("xdem_bench_pipeline.py");
+    python.arg(script).arg(bench.reference_tm).arg(bench.moved_tm).arg(workflow);
+    match run_measured(python) {
+        Ok((json, _, peak)) => {
+            let x: serde_json::Value = serde_json::from_str(&json)?;
+            let value = x["nmad_after_m"].as_f64().or_else(|| x["sigma_mean_m"].as_f64());
+            let _ = writeln!(
+                out,
+                "{:<34} {:<10} {:>9.2} {:>10.0} {:>22.4}",
+                "",
+                "xDEM",
+                x["seconds"].as_f64().unwrap_or(f64::NAN),
+                peak as f64 / 1048576.0,
+                value.unwrap_or(f64::NAN)
+            );
+        }
+        Err(e) => {
+            let _ = writeln!(out, "{:<34} xDEM not run: {}", "", crate::errors::chain(&e));
+        }
+    }
+    Ok(())
 }

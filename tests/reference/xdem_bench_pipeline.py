@@ -4,7 +4,7 @@ first's when they differ).
 
 usage: xdem_bench_pipeline.py REFERENCE.tif MOVED.tif WORKFLOW
 
-WORKFLOW: nuth_kaab+deramp (NuthKaab() + Deramp(1)), nuth_kaab+terrain_bias (NuthKaab() +
+WORKFLOW: nuth_kaab (NuthKaab()), nuth_kaab+deramp (NuthKaab() + Deramp(1)), nuth_kaab+terrain_bias (NuthKaab() +
 TerrainBias("elevation")), or uncertainty (heteroscedasticity by slope and maximal curvature,
 the variogram of the standardised dh with two spherical models, the σ of the mean over the
 whole raster, as xdem.spatialstats does on stable terrain everywhere). Prints JSON: "seconds"
@@ -28,7 +28,12 @@ if moved.shape != reference.shape or moved.transform != reference.transform:
     moved = moved.reproject(reference)
 workflow = sys.argv[3]
 out = {}
-if workflow in ("nuth_kaab+deramp", "nuth_kaab+terrain_bias"):
+if workflow == "nuth_kaab":
+    pipeline = xdem.coreg.NuthKaab()
+    pipeline.fit(reference, moved)
+    corrected = pipeline.apply(moved)
+    out["nmad_after_m"] = float(ss.nmad((corrected - reference).data.compressed()))
+elif workflow in ("nuth_kaab+deramp", "nuth_kaab+terrain_bias"):
     second = xdem.coreg.Deramp(poly_order=1) if workflow.endswith("deramp") else xdem.coreg.TerrainBias(
         terrain_attribute="elevation"
     )
