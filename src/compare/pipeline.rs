@@ -336,13 +336,10 @@ pub fn coregister(project: &Project, a: &str, b: &str, opts: &CoregOptions) -> R
     let mut steps = Vec::new();
     let mut stands = Vec::new();
     for step in &opts.pipeline {
-        let residual = |raw: &[Option<f64>], up: f64, bias: &[f64]| -> Vec<Option<f64>> {
-            raw.iter().zip(bias).map(|(d, b)| d.map(|d| d + up - b)).collect()
-        };
         // What the step before left (each step's `after` is the next one's `before`).
         let before = match steps.last() {
             Some(StepResult { after, .. }) => after.clone(),
-            None => stable_stats(&residual(&raw, up, &bias), &reference, &stable),
+            None => stable_stats(residual(&raw, up, &bias), &reference, &stable),
         };
         // A's elevation as the steps before left it (B + what is left of dh; unknown where A has
         // no data): what a terrain bias by elevation is fitted against, and what the layer reads
@@ -350,14 +347,6 @@ pub fn coregister(project: &Project, a: &str, b: &str, opts: &CoregOptions) -> R
         for ((a, r), d) in at.iter_mut().zip(&reference).zip(residual(&raw, up, &bias)) {
             a.elevation_m = d.map_or(f64::NAN, |d| r.b + d);
         }
-        // The stable samples with a residual: index, value, weight.
-        let fit_set = |res: &[Option<f64>]| -> Vec<(usize, f64, f64)> {
-            res.iter()
-                .enumerate()
-                .filter(|(k, d)| stable[*k] && d.is_some())
-                .map(|(k, d)| (k, d.unwrap_or(0.0), reference[k].area))
-                .collect()
-        };
         let too_few = |what: &str| CompareError::Option {
             option: "--pipeline".into(),
             problem: format!("{what}: too few stable samples with data on both sides to fit it"),
@@ -368,7 +357,8 @@ pub fn coregister(project: &Project, a: &str, b: &str, opts: &CoregOptions) -> R
                 let prior: Vec<f64> = bias.iter().map(|b| b - up).collect();
                 let run = nuth_kaab(&mut mosaic, &reference, &stable, &prior, shift, &opts.nuth_kaab)?;
                 raw = run.dh;
-                let left: Vec<f64> = fit_set(&residual(&raw, 0.0, &bias)).into_iter().map(|s| s.1).collect();
+                let left: Vec<f64> =
+                    residual(&raw, 0.0, &bias).zip(&stable).filter_map(|(d, &s)| d.filter(|_| s)).collect();
                 let new_up = -median(left);
                 let c = Correction::NuthKaab {
                     east_m: run.east_m - shift.0,
@@ -382,7 +372,7 @@ pub fn coregister(project: &Project, a: &str, b: &str, opts: &CoregOptions) -> R
                 c
             }
             Step::Vertical => {
-                let set = fit_set(&residual(&raw, up, &bias));
+                let set = fit_set(residual(&raw, up, &bias), &stable, &reference);
                 let (dh, w): (Vec<f64>, Vec<f64>) = set.iter().map(|s| (s.1, s.2)).unzip();
                 let m = vertical(&dh, &w);
                 if !m.is_finite() {
@@ -392,7 +382,7 @@ pub fn coregister(project: &Project, a: &str, b: &str, opts: &CoregOptions) -> R
                 Correction::Vertical { up_m: -m }
             }
             Step::Deramp(order) => {
-                let set = fit_set(&residual(&raw, up, &bias));
+                let set = fit_set(residual(&raw, up, &bias), &stable, &reference);
                 let e: Vec<f64> = set.iter().map(|s| at[s.0].east_m / 1000.0).collect();
                 let n: Vec<f64> = set.iter().map(|s| at[s.0].north_m / 1000.0).collect();
                 let (dh, w): (Vec<f64>, Vec<f64>) = set.iter().map(|s| (s.1, s.2)).unzip();
@@ -403,7 +393,7 @@ pub fn coregister(project: &Project, a: &str, b: &str, opts: &CoregOptions) -> R
                 Correction::Bias(Bias::Deramp { origin_deg, order, coefficients: p.coefficients, box_km })
             }
             Step::TerrainBias(attribute) => {
-                let set: Vec<(usize, f64, f64)> = fit_set(&residual(&raw, up, &bias))
+                let set: Vec<(usize, f64, f64)> = fit_set(residual(&raw, up, &bias), &stable, &reference)
                     .into_iter()
                     .filter(|s| at[s.0].attribute(attribute).is_finite())
                     .collect();
@@ -413,7 +403,7 @@ pub fn coregister(project: &Project, a: &str, b: &str, opts: &CoregOptions) -> R
                 Correction::Bias(Bias::TerrainBias { attribute, bins: b.bins })
             }
             Step::Directional(azimuth_deg) => {
-                let set = fit_set(&residual(&raw, up, &bias));
+                let set = fit_set(residual(&raw, up, &bias), &stable, &reference);
                 let (s, c) = azimuth_deg.to_radians().sin_cos();
                 let x: Vec<f64> = set.iter().map(|k| at[k.0].east_m * s + at[k.0].north_m * c).collect();
                 let (dh, w): (Vec<f64>, Vec<f64>) = set.iter().map(|s| (s.1, s.2)).unzip();
@@ -433,7 +423,7 @@ pub fn coregister(project: &Project, a: &str, b: &str, opts: &CoregOptions) -> R
         for (b, at) in bias.iter_mut().zip(&at) {
             *b += correction.bias(at);
         }
-        let after = stable_stats(&residual(&raw, up, &bias), &reference, &stable);
+        let after = stable_stats(residual(&raw, up, &bias), &reference, &stable);
         steps.push(StepResult { correction, moves, converged: step_converged, before, after });
         stands.push(Stand { shift, up });
     }
@@ -460,8 +450,8 @@ pub fn coregister(project: &Project, a: &str, b: &str, opts: &CoregOptions) -> R
         (Some(first), Some(last)) if everywhere => (first.before.clone(), last.after.clone()),
         _ => {
             let all = vec![true; reference.len()];
-            let after: Vec<Option<f64>> = raw.iter().zip(&bias).map(|(d, b)| d.map(|d| d + up - b)).collect();
-            (stable_stats(&raw_before, &reference, &all), stable_stats(&after, &reference, &all))
+            let after = residual(&raw, up, &bias);
+            (stable_stats(raw_before.iter().copied(), &reference, &all), stable_stats(after, &reference, &all))
         }
     };
     Ok(Coregistration {
@@ -503,10 +493,24 @@ fn bounds(points: impl Iterator<Item = [f64; 2]>) -> ([f64; 2], [f64; 2]) {
     })
 }
 
+/// What is left of `raw` (A − B as A stands) once the offset `up` is added and the biases taken
+/// off, sample by sample (None: no data), without holding it.
+fn residual<'a>(raw: &'a [Option<f64>], up: f64, bias: &'a [f64]) -> impl Iterator<Item = Option<f64>> + 'a {
+    raw.iter().zip(bias).map(move |(d, b)| d.map(|d| d + up - b))
+}
+
+/// The stable samples with a residual: index, value, weight.
+fn fit_set(res: impl Iterator<Item = Option<f64>>, stable: &[bool], reference: &[RefSample]) -> Vec<(usize, f64, f64)> {
+    res.enumerate()
+        .filter(|(k, d)| stable[*k] && d.is_some())
+        .map(|(k, d)| (k, d.unwrap_or(0.0), reference[k].area))
+        .collect()
+}
+
 /// Statistics of the samples `keep` holds that have a difference.
-fn stable_stats(dh: &[Option<f64>], reference: &[RefSample], keep: &[bool]) -> Stats {
+fn stable_stats(dh: impl IntoIterator<Item = Option<f64>>, reference: &[RefSample], keep: &[bool]) -> Stats {
     let diffs: Vec<Diff> = dh
-        .iter()
+        .into_iter()
         .zip(reference)
         .zip(keep)
         .filter(|(_, k)| **k)

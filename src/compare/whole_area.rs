@@ -7,6 +7,8 @@
 
 use std::path::Path;
 
+use rayon::prelude::*;
+
 use super::CompareError;
 use super::coreg::{RefSample, differences, reference_samples};
 use super::mosaic::{Interpolation, Mosaic};
@@ -56,7 +58,7 @@ pub(super) struct WholeArea<'a> {
 /// What a bias reads at each sample (A's elevation filled in step by step).
 pub(super) fn sample_attributes(frame: &Frame, reference: &[RefSample]) -> Vec<At> {
     reference
-        .iter()
+        .par_iter()
         .map(|r| {
             let (east_m, north_m) = frame.local(r.p);
             At {
