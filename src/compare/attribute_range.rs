@@ -11,7 +11,7 @@ use crate::scene::Scene;
 use crate::store::grid::GRID;
 
 use super::CompareError;
-use super::sample::quad_points;
+use super::quad_geometry::quad_points;
 
 /// Samples along a quad edge.
 const N: usize = GRID as usize;

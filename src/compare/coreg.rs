@@ -19,7 +19,7 @@ use rayon::prelude::*;
 
 use super::CompareError;
 use super::mosaic::Mosaic;
-use super::sample::{cell_area, gradient, quad_points};
+use super::quad_geometry::{cell_area, gradient, quad_points};
 use crate::ecm::QuadId;
 use crate::geodesy::GeoBox;
 use crate::scene::Scene;

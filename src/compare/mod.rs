@@ -23,6 +23,7 @@ pub mod coreg;
 mod mosaic;
 pub mod pipeline;
 pub mod profile;
+mod quad_geometry;
 pub mod sample;
 pub mod stable;
 pub mod stats;
