@@ -75,10 +75,11 @@ pub(super) struct RefSample {
     pub p: DVec3,
     /// B there, metres.
     pub b: f64,
-    /// Its quad and grid position there (the mosaic's level is B's sampling level).
+    /// Its quad and grid position there (the mosaic's level is B's sampling level): sample
+    /// (i, j) of the quad's 257² grid.
     pub quad: QuadId,
-    pub u: f64,
-    pub v: f64,
+    pub i: u16,
+    pub j: u16,
     /// Grid units per metre east and north: (du, dv) = to_grid · (de, dn), from the grid's
     /// central differences at the sample.
     to_grid: [[f64; 2]; 2],
@@ -195,8 +196,8 @@ pub(super) fn reference_samples(
                                 p,
                                 b,
                                 quad: *q,
-                                u: i as f64,
-                                v: j as f64,
+                                i: i as u16,
+                                j: j as u16,
                                 to_grid,
                                 tan_slope: g_e.hypot(g_n),
                                 aspect: (-g_e).atan2(-g_n),
@@ -233,7 +234,7 @@ pub(super) fn differences(
         .par_iter()
         .map(|r| {
             let [[a, b], [c, d]] = r.to_grid;
-            let (u, v) = (r.u - a * c_e - b * c_n, r.v - c * c_e - d * c_n);
+            let (u, v) = (f64::from(r.i) - a * c_e - b * c_n, f64::from(r.j) - c * c_e - d * c_n);
             if (0.0..=256.0).contains(&u) && (0.0..=256.0).contains(&v) {
                 return Some((r.quad, u, v));
             }

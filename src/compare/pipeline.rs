@@ -24,7 +24,7 @@ use super::coreg::{NuthKaabOptions, RefSample, differences, nuth_kaab, reference
 use super::mosaic::{Interpolation, Mosaic};
 use super::sample::{fit_quads, held_samples_fit, memory_budget, operand_scene, overlap_quads};
 use super::stable::Stable;
-use super::stats::{Diff, Stats, stats};
+use super::stats::{Stats, pair_stats};
 use super::whole_area::{At, Stand, WholeArea, sample_attributes, whole_area_stats};
 use crate::ecm::QuadId;
 use crate::geodesy::{GeoBox, geodetic_from_ecef};
@@ -40,8 +40,9 @@ use crate::store::grid::spacing_m;
 /// default level has 35).
 pub const FIT_QUADS: usize = 256;
 
-/// Bytes a reference sample takes at the peak of a run (measured: 1 656 MiB for 5.3·10⁶ samples on
-/// the Erzurum pair, with the whole-area residuals of `--stable`).
+/// Bytes a reference sample takes at the peak of a run, with a margin (measured: 1 606 MiB for
+/// 5.35·10⁶ samples on the Erzurum pair at level 10 with the whole-area residuals of `--stable`,
+/// ≈ 307 bytes a sample).
 const HELD_BYTES: usize = 330;
 
 /// One step of a pipeline, as `--pipeline` names it.
@@ -509,17 +510,14 @@ fn fit_set(res: impl Iterator<Item = Option<f64>>, stable: &[bool], reference: &
 
 /// Statistics of the samples `keep` holds that have a difference.
 fn stable_stats(dh: impl IntoIterator<Item = Option<f64>>, reference: &[RefSample], keep: &[bool]) -> Stats {
-    let diffs: Vec<Diff> = dh
+    let pairs: Vec<(f64, f64)> = dh
         .into_iter()
         .zip(reference)
         .zip(keep)
         .filter(|(_, k)| **k)
-        .filter_map(|((d, r), _)| {
-            // `stats` reads no slope (only `compare`'s slope classes do).
-            d.map(|d| Diff { dh_m: d, weight: r.area, slope_deg: f64::NAN })
-        })
+        .filter_map(|((d, r), _)| d.map(|d| (d, r.area)))
         .collect();
-    stats(&diffs, 0)
+    pair_stats(pairs, 0)
 }
 
 /// The area-weighted centroid of the samples on the ellipsoid: longitude, latitude, degrees.

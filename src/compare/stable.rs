@@ -78,7 +78,7 @@ impl Stable {
                 let n = GRID as usize;
                 Ok(reference
                     .iter()
-                    .map(|r| has_data.get(&r.quad).is_some_and(|g| g[r.v as usize * n + r.u as usize]))
+                    .map(|r| has_data.get(&r.quad).is_some_and(|g| g[usize::from(r.j) * n + usize::from(r.i)]))
                     .collect())
             }
             Stable::Outlines(path) => {

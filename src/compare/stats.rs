@@ -262,28 +262,32 @@ fn folded_quantile(sorted: &[(f64, f64)], c: f64, p: f64) -> f64 {
 
 /// The statistics of `diffs` (weights > 0), with `nodata_count` recorded as given.
 pub fn stats(diffs: &[Diff], nodata_count: u64) -> Stats {
-    if diffs.is_empty() {
+    pair_stats(diffs.iter().map(|d| (d.dh_m, d.weight)).collect(), nodata_count)
+}
+
+/// [`stats`] of (dh, weight) pairs in sample order (weights > 0): the same figures, from the
+/// pairs alone (a caller with millions of samples need not build `Diff`s, whose slopes the
+/// statistics do not read). The pairs become the sort's buffer.
+pub(super) fn pair_stats(pairs: Vec<(f64, f64)>, nodata_count: u64) -> Stats {
+    if pairs.is_empty() {
         return Stats::empty(nodata_count);
     }
-    let mut s = Stats { count: diffs.len() as u64, nodata_count, ..Stats::default() };
-    // The moments and the sort are independent, as are the two foldings: each side runs in
-    // sample order on one thread, so the result is the same on any number of threads.
-    let moments = || {
-        let (mut w, mut wx, mut wxx) = (0.0, 0.0, 0.0);
-        let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
-        for d in diffs {
-            w += d.weight;
-            wx += d.weight * d.dh_m;
-            wxx += d.weight * d.dh_m * d.dh_m;
-            lo = lo.min(d.dh_m);
-            hi = hi.max(d.dh_m);
-        }
-        let mean = wx / w;
-        let var = diffs.iter().map(|d| d.weight * (d.dh_m - mean).powi(2)).sum::<f64>() / w;
-        (w, wxx, lo, hi, mean, var)
-    };
-    let ((w, wxx, lo, hi, mean, var), sorted) = rayon::join(moments, || sorted_pairs(diffs));
+    let mut s = Stats { count: pairs.len() as u64, nodata_count, ..Stats::default() };
+    let (mut w, mut wx, mut wxx) = (0.0, 0.0, 0.0);
+    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+    for &(dh, weight) in &pairs {
+        w += weight;
+        wx += weight * dh;
+        wxx += weight * dh * dh;
+        lo = lo.min(dh);
+        hi = hi.max(dh);
+    }
+    let mean = wx / w;
+    let var = pairs.iter().map(|&(dh, weight)| weight * (dh - mean).powi(2)).sum::<f64>() / w;
+    let sorted = radix_sorted(pairs);
     let median = weighted_quantile(&sorted, 0.5);
+    // The two foldings are independent, each walked in order on one thread: the same result on
+    // any number of threads.
     let (nmad, p90_abs) = rayon::join(|| folded_quantile(&sorted, median, 0.5), || folded_quantile(&sorted, 0.0, 0.9));
     s.weight_sum = w;
     s.mean_m = mean;
