@@ -314,11 +314,14 @@ pub fn coregister(project: &Project, a: &str, b: &str, opts: &CoregOptions) -> R
     let stable = stable_mask(&scene, project, &fitted, &reference, opts.stable.as_ref())?;
     let origin_deg = centroid_deg(&ellipsoid, &reference);
     let frame = Frame::at(&ellipsoid, origin_deg);
-    let mut at = sample_attributes(&frame, &reference);
+    // Each sample's place and attributes, for the steps that fit a bias (none for Nuth & Kääb
+    // and a vertical offset, whose corrections do not depend on the place).
+    let biased = opts.pipeline.iter().any(|s| !matches!(s, Step::NuthKaab | Step::Vertical));
+    let mut at = if biased { sample_attributes(&frame, &reference) } else { Vec::new() };
     // The extent the biases hold beyond (east, north metres): the samples', or, fitted on some
     // quads, every quad's outline.
     let subset = fitted.len() < quads.len();
-    let outline: Vec<[f64; 2]> = if subset {
+    let quad_outline: Vec<[f64; 2]> = if subset {
         quads
             .iter()
             .flat_map(|q| (0..9).map(move |k| (*q, k % 3, k / 3)))
@@ -326,11 +329,16 @@ pub fn coregister(project: &Project, a: &str, b: &str, opts: &CoregOptions) -> R
             .map(|(e, n)| [e, n])
             .collect()
     } else {
-        at.iter().map(|a| [a.east_m, a.north_m]).collect()
+        Vec::new()
     };
+    let outline = |at: &[At]| -> Vec<[f64; 2]> {
+        if subset { quad_outline.clone() } else { at.iter().map(|a| [a.east_m, a.north_m]).collect() }
+    };
+    let everywhere = stable.iter().all(|&s| s);
     let mut mosaic = Mosaic::new(scene_a.clone(), level, Interpolation::Bicubic);
-    let raw_before = differences(&mut mosaic, &reference, 0.0, 0.0)?;
-    let mut raw = raw_before.clone();
+    let mut raw = differences(&mut mosaic, &reference, 0.0, 0.0)?;
+    // Kept for the whole area's `before` only where it is not the first step's.
+    let raw_before = (!everywhere && !subset).then(|| raw.clone());
     let (mut shift, mut up) = ((0.0, 0.0), 0.0);
     let mut bias = vec![0.0; reference.len()];
     let (mut iterations, mut converged) = (0u32, true);
@@ -389,7 +397,7 @@ pub fn coregister(project: &Project, a: &str, b: &str, opts: &CoregOptions) -> R
                 let (dh, w): (Vec<f64>, Vec<f64>) = set.iter().map(|s| (s.1, s.2)).unzip();
                 let p = Polynomial::fit(order, &e, &n, &dh, &w).ok_or_else(|| too_few("deramp"))?;
                 // Held beyond the overlap's box, not extrapolated.
-                let (lo, hi) = bounds(outline.iter().map(|p| [p[0] / 1000.0, p[1] / 1000.0]));
+                let (lo, hi) = bounds(outline(&at).iter().map(|p| [p[0] / 1000.0, p[1] / 1000.0]));
                 let box_km = [lo[0], lo[1], hi[0], hi[1]];
                 Correction::Bias(Bias::Deramp { origin_deg, order, coefficients: p.coefficients, box_km })
             }
@@ -411,7 +419,7 @@ pub fn coregister(project: &Project, a: &str, b: &str, opts: &CoregOptions) -> R
                 let extent = x.iter().fold(0.0f64, |m, v| m.max(v.abs())) * 2.0;
                 let bins = ((extent / (4.0 * spacing_m(&ellipsoid, level))) as usize).clamp(100, 1000);
                 let fit = Sinusoids::fit(&x, &dh, &w, bins).ok_or_else(|| too_few("directional"))?;
-                let (lo, hi) = bounds(outline.iter().map(|p| [p[0] * s + p[1] * c; 2]));
+                let (lo, hi) = bounds(outline(&at).iter().map(|p| [p[0] * s + p[1] * c; 2]));
                 Correction::Bias(Bias::Directional {
                     origin_deg,
                     azimuth_deg,
@@ -431,8 +439,7 @@ pub fn coregister(project: &Project, a: &str, b: &str, opts: &CoregOptions) -> R
     // Over every sample: the first step's `before` and the last one's `after` where every sample
     // is stable, else computed over all of them; fitted on some quads, the pipeline replayed over
     // every quad.
-    let everywhere = stable.iter().all(|&s| s);
-    let (before, after) = match (steps.first(), steps.last()) {
+    let (before, after) = match (steps.first(), steps.last(), &raw_before) {
         _ if subset => {
             let bias = |k: usize, a: &At| steps[k].correction.bias(a);
             let scratch = opts.scratch.clone().unwrap_or_else(|| project.resolve(std::path::Path::new(".")));
@@ -448,12 +455,13 @@ pub fn coregister(project: &Project, a: &str, b: &str, opts: &CoregOptions) -> R
             };
             whole_area_stats(&area, &stands, &bias)?
         }
-        (Some(first), Some(last)) if everywhere => (first.before.clone(), last.after.clone()),
-        _ => {
+        (_, _, Some(raw_before)) => {
             let all = vec![true; reference.len()];
             let after = residual(&raw, up, &bias);
             (stable_stats(raw_before.iter().copied(), &reference, &all), stable_stats(after, &reference, &all))
         }
+        (Some(first), Some(last), None) => (first.before.clone(), last.after.clone()),
+        _ => (Stats::empty(0), Stats::empty(0)), // no step: refused above
     };
     Ok(Coregistration {
         a: a.into(),
