@@ -6,12 +6,11 @@
 
 use crate::attributes::{Attribute, PixelAxes, attribute_at};
 use crate::ecm::QuadId;
-use crate::geodesy::local_axes;
 use crate::scene::Scene;
 use crate::store::grid::GRID;
 
 use super::CompareError;
-use super::quad_geometry::quad_points;
+use super::quad_geometry::{axes_at, quad_points};
 
 /// Samples along a quad edge.
 const N: usize = GRID as usize;
@@ -47,10 +46,9 @@ pub fn attribute_range(
                 if z.iter().any(|v| v.is_nan()) {
                     continue;
                 }
-                let (_, lon, lat) = points[k];
-                let (east, north) = local_axes(lon, lat);
-                let x = (points[k + 1].0 - points[k - 1].0) / 2.0;
-                let y = (points[k + N].0 - points[k - N].0) / 2.0;
+                let (east, north) = axes_at(&scene.ellipsoid, points[k]);
+                let x = (points[k + 1] - points[k - 1]) / 2.0;
+                let y = (points[k + N] - points[k - N]) / 2.0;
                 let axes = PixelAxes { x: [x.dot(east), x.dot(north)], y: [y.dot(east), y.dot(north)] };
                 let value = attribute_at(attribute, &z, &axes);
                 if value.is_finite() {

@@ -19,11 +19,12 @@ use rayon::prelude::*;
 
 use super::CompareError;
 use super::mosaic::Mosaic;
-use super::quad_geometry::{cell_area, gradient, quad_points};
+use super::quad_geometry::{axes_at, cell_area, gradient, lon_lat, quad_points};
+use super::sample::in_region;
 use crate::ecm::QuadId;
 use crate::geodesy::GeoBox;
 use crate::scene::Scene;
-use crate::scene::shifted::{local_axes, locate};
+use crate::scene::shifted::locate;
 use crate::store::grid::{GRID, spacing_m};
 
 /// Samples along a quad edge.
@@ -83,13 +84,28 @@ pub(super) struct RefSample {
     /// Grid units per metre east and north: (du, dv) = to_grid · (de, dn), from the grid's
     /// central differences at the sample.
     to_grid: [[f64; 2]; 2],
-    pub tan_slope: f64,
-    aspect: f64,
+    /// B's gradient east and north, metres per metre (its slope and aspect are computed from it
+    /// where a step reads them: the aspect only for the samples Nuth & Kääb fits on).
+    gradient: [f64; 2],
     /// B's maximal curvature (Shary 1995, as xDEM's `max_curvature`), 100/m; NaN where a
     /// neighbour has no data.
     pub max_curvature: f64,
     /// The cell's area, m².
     pub area: f64,
+}
+
+impl RefSample {
+    /// The tangent of B's slope.
+    pub fn tan_slope(&self) -> f64 {
+        let [e, n] = self.gradient;
+        (e * e + n * n).sqrt()
+    }
+
+    /// B's aspect: the azimuth of its downhill direction, radians.
+    fn aspect(&self) -> f64 {
+        let [e, n] = self.gradient;
+        (-e).atan2(-n)
+    }
 }
 
 /// Moves A onto B by Nuth & Kääb from a start (east, north metres), fitting on the samples
@@ -119,18 +135,27 @@ pub(super) fn nuth_kaab(
     let mut dh = differences(mosaic, &subset, c_e, c_n)?;
     let kept =
         |dh: &[Option<f64>]| -> Vec<Option<f64>> { dh.iter().zip(&prior).map(|(d, p)| d.map(|d| d - p)).collect() };
+    // Each sample's slope and aspect bin (None where it is too flat or has no aspect).
+    let binned: Vec<Option<(f64, usize)>> = subset
+        .par_iter()
+        .map(|r| {
+            let (tan_slope, aspect) = (r.tan_slope(), r.aspect());
+            if tan_slope < min_tan || !aspect.is_finite() {
+                return None;
+            }
+            let turn = aspect.rem_euclid(std::f64::consts::TAU) / std::f64::consts::TAU;
+            Some((tan_slope, ((turn * BINS as f64) as usize).min(BINS - 1)))
+        })
+        .collect();
     for _ in 0..opts.max_iterations.max(1) {
         let here = kept(&dh);
         let bias = median(here.iter().flatten().copied().collect());
         // dh / tan α per aspect bin.
         let mut bins: Vec<Vec<f64>> = vec![Vec::new(); BINS];
-        for (d, r) in here.iter().zip(&subset) {
-            let Some(d) = d else { continue };
-            if r.tan_slope < min_tan || !r.aspect.is_finite() {
-                continue;
+        for (d, b) in here.iter().zip(&binned) {
+            if let (Some(d), Some((tan_slope, bin))) = (d, b) {
+                bins[*bin].push((d - bias) / tan_slope);
             }
-            let turn = r.aspect.rem_euclid(std::f64::consts::TAU) / std::f64::consts::TAU;
-            bins[((turn * BINS as f64) as usize).min(BINS - 1)].push((d - bias) / r.tan_slope);
         }
         let (s_e, s_n) = fit_cosine(bins).ok_or_else(|| CompareError::Option {
             option: "A, B".into(),
@@ -172,18 +197,23 @@ pub(super) fn reference_samples(
                     (0..N - 1)
                         .filter_map(|i| {
                             let k = j * N + i;
-                            let (p, lon, lat) = points[k];
+                            let p = points[k];
                             let b = f64::from(h[k]);
-                            if b.is_nan() || !super::sample::in_region(region, lon, lat) {
+                            if b.is_nan()
+                                || region.is_some_and(|_| {
+                                    let (lon, lat) = lon_lat(&e, p);
+                                    !in_region(region, lon, lat)
+                                })
+                            {
                                 return None;
                             }
-                            let (east, north) = local_axes(lon, lat);
+                            let (east, north) = axes_at(&e, p);
                             let g = gradient(&points, h, i, j)?;
                             // The grid's axes in metres east and north, inverted.
                             let (i0, i1) = (i.saturating_sub(1), (i + 1).min(N - 1));
                             let (j0, j1) = (j.saturating_sub(1), (j + 1).min(N - 1));
                             let axis = |a: usize, b: usize, steps: usize| {
-                                let d = (points[b].0 - points[a].0) / steps as f64;
+                                let d = (points[b] - points[a]) / steps as f64;
                                 (d.dot(east), d.dot(north))
                             };
                             let (ie, in_) = axis(j * N + i0, j * N + i1, i1 - i0);
@@ -199,8 +229,7 @@ pub(super) fn reference_samples(
                                 i: i as u16,
                                 j: j as u16,
                                 to_grid,
-                                tan_slope: g_e.hypot(g_n),
-                                aspect: (-g_e).atan2(-g_n),
+                                gradient: [g_e, g_n],
                                 max_curvature: if curvature {
                                     max_curvature(&points, h, i, j, east, north)
                                 } else {
@@ -222,6 +251,11 @@ pub(super) fn reference_samples(
 /// is found in the sample's own quad through the grid's local axes (a shift of d moves it off by
 /// the grid's curvature, ≈ d²/2R: 0.02 m for 500 m on Earth, 4·10⁻⁴ of a level-10 sample), and
 /// located exactly (inverse projection) only where it leaves that quad.
+///
+/// Two passes, neither holding a moved point per sample: the first finds the quads the moved
+/// points fall in (the samples come grouped by quad, so their own quads are gathered as they
+/// change) and composes them; the second reads A at each moved point, each worker keeping the
+/// grid of the quad it read last.
 pub(super) fn differences(
     mosaic: &mut Mosaic,
     reference: &[RefSample],
@@ -230,33 +264,54 @@ pub(super) fn differences(
 ) -> Result<Vec<Option<f64>>, CompareError> {
     let ellipsoid = mosaic.ellipsoid();
     let level = mosaic.level();
-    let moved: Vec<Option<(QuadId, f64, f64)>> = reference
+    let outside = |r: &RefSample| -> Option<(QuadId, f64, f64)> {
+        let (east, north) = axes_at(&ellipsoid, r.p);
+        locate(&ellipsoid, level, r.p - c_e * east - c_n * north)
+    };
+    let mut quads: std::collections::BTreeSet<QuadId> = reference
         .par_iter()
-        .map(|r| {
-            let [[a, b], [c, d]] = r.to_grid;
-            let (u, v) = (f64::from(r.i) - a * c_e - b * c_n, f64::from(r.j) - c * c_e - d * c_n);
-            if (0.0..=256.0).contains(&u) && (0.0..=256.0).contains(&v) {
-                return Some((r.quad, u, v));
-            }
-            let (lon, lat) = {
-                let g = crate::geodesy::geodetic_from_ecef(&ellipsoid, r.p);
-                (g.lon_rad, g.lat_rad)
-            };
-            let (east, north) = local_axes(lon, lat);
-            locate(&ellipsoid, level, r.p - c_e * east - c_n * north)
-        })
+        .filter(|r| in_quad(r, c_e, c_n).is_none())
+        .filter_map(|r| outside(r).map(|m| m.0))
         .collect();
-    let quads: std::collections::BTreeSet<QuadId> = moved.iter().flatten().map(|m| m.0).collect();
+    let mut last = None;
+    for r in reference.iter().filter(|r| in_quad(r, c_e, c_n).is_some()) {
+        if last != Some(r.quad) {
+            quads.insert(r.quad);
+            last = Some(r.quad);
+        }
+    }
     mosaic.prefetch_quads(&quads.into_iter().collect::<Vec<_>>())?;
     let mosaic = &*mosaic;
-    Ok(moved
+    Ok(reference
         .par_iter()
-        .zip(reference)
-        .map(|(m, r)| {
-            let a = m.map_or(f64::NAN, |(q, u, v)| mosaic.value_at(q, u, v));
-            (!a.is_nan()).then_some(a - r.b)
-        })
+        .map_init(
+            || None,
+            |read: &mut Option<(QuadId, Option<&[f32]>)>, r| {
+                let (q, u, v) = match in_quad(r, c_e, c_n) {
+                    Some((u, v)) => (r.quad, u, v),
+                    None => outside(r)?,
+                };
+                let grid = match *read {
+                    Some((last, grid)) if last == q => grid,
+                    _ => {
+                        let grid = mosaic.grid(q);
+                        *read = Some((q, grid));
+                        grid
+                    }
+                };
+                let a = mosaic.read(grid?, u, v);
+                (!a.is_nan()).then_some(a - r.b)
+            },
+        )
         .collect())
+}
+
+/// The grid position (u, v) a reference sample moves to under A's move (c_e, c_n) through its
+/// quad's local axes, where it stays in the quad.
+fn in_quad(r: &RefSample, c_e: f64, c_n: f64) -> Option<(f64, f64)> {
+    let [[a, b], [c, d]] = r.to_grid;
+    let (u, v) = (f64::from(r.i) - a * c_e - b * c_n, f64::from(r.j) - c * c_e - d * c_n);
+    ((0.0..=256.0).contains(&u) && (0.0..=256.0).contains(&v)).then_some((u, v))
 }
 
 /// The maximal curvature of B at sample (i, j) (Shary 1995; xDEM's `max_curvature`, 100/m):
@@ -265,9 +320,9 @@ pub(super) fn differences(
 /// cube corner is measured as it lies), then H + √(H² − K) from the mean curvature H and the
 /// Gaussian curvature K; 0 where the fit is flat, NaN where a neighbour has no data. On the
 /// quad's border the window is the one of the nearest sample inside (its curvature).
-fn max_curvature(points: &[(DVec3, f64, f64)], h: &[f32], i: usize, j: usize, east: DVec3, north: DVec3) -> f64 {
+fn max_curvature(points: &[DVec3], h: &[f32], i: usize, j: usize, east: DVec3, north: DVec3) -> f64 {
     let (i, j) = (i.clamp(1, N - 2), j.clamp(1, N - 2));
-    let centre = points[j * N + i].0;
+    let centre = points[j * N + i];
     let mut normal = vec![vec![0.0; 6]; 6];
     let mut rhs = vec![0.0; 6];
     for dj in 0..3 {
@@ -277,7 +332,7 @@ fn max_curvature(points: &[(DVec3, f64, f64)], h: &[f32], i: usize, j: usize, ea
             if z.is_nan() {
                 return f64::NAN;
             }
-            let d = points[k].0 - centre;
+            let d = points[k] - centre;
             let (x, y) = (d.dot(east), d.dot(north));
             let row = [0.5 * x * x, x * y, 0.5 * y * y, x, y, 1.0];
             for a in 0..6 {

@@ -81,7 +81,16 @@ impl Mosaic {
 
     /// A's value at grid position (u, v) ∈ [0, 256]² of a quad (NaN where it has none).
     pub(crate) fn value_at(&self, quad: QuadId, u: f64, v: f64) -> f64 {
-        let Some(grid) = self.grids.get(&quad) else { return f64::NAN };
+        self.grid(quad).map_or(f64::NAN, |grid| self.read(grid, u, v))
+    }
+
+    /// A composed quad's grid (None where it is not composed).
+    pub(crate) fn grid(&self, quad: QuadId) -> Option<&[f32]> {
+        self.grids.get(&quad).map(Vec::as_slice)
+    }
+
+    /// A grid of this mosaic read at (u, v) ∈ [0, 256]² by its interpolation.
+    pub(crate) fn read(&self, grid: &[f32], u: f64, v: f64) -> f64 {
         match self.interpolation {
             Interpolation::Bilinear => bilinear(grid, u, v),
             Interpolation::Bicubic => bicubic(grid, u, v),

@@ -21,7 +21,7 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use super::CompareError;
-use super::quad_geometry::{cell_area, quad_points, slope_deg};
+use super::quad_geometry::{cell_area, lon_lat, quad_points, slope_deg};
 use super::stats::{
     Diff, HISTOGRAM_BINS, Histogram, SLOPE_CLASSES_DEG, SlopeClass, Stats, by_slope, histogram, slope_class, stats,
 };
@@ -502,15 +502,15 @@ fn quad_samples(
     region: Option<GeoBox>,
 ) -> Vec<Vec<Outcome>> {
     let points = quad_points(ellipsoid, quad);
-    let inside = |lon: f64, lat: f64| in_region(region, lon, lat);
+
     (0..N - 1)
         .into_par_iter()
         .map(|j| {
             (0..N - 1)
                 .map(|i| {
                     let k = j * N + i;
-                    let (_, lon, lat) = points[k];
-                    if !inside(lon, lat) {
+                    let (lon, lat) = lon_lat(ellipsoid, points[k]);
+                    if !in_region(region, lon, lat) {
                         return None;
                     }
                     let (va, vb) = (f64::from(a[k]), f64::from(b[k]));

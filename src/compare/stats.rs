@@ -143,31 +143,40 @@ fn sorted_pairs(diffs: &[Diff]) -> Vec<(f64, f64)> {
 /// Pairs sorted by their first value in `f64::total_cmp`'s order, stably: a least-significant-
 /// digit radix sort on the value's bits made monotonic (six passes of 11 bits), in O(n); what
 /// `sort_by(|a, b| a.0.total_cmp(&b.0))` gives, several times faster on millions of samples.
+/// Each value is turned into its order key once (kept in the pair's first slot as bits, so no
+/// second buffer of keys), every pass's digit counts come from one read, and the keys are turned
+/// back at the end.
 fn radix_sorted(mut pairs: Vec<(f64, f64)>) -> Vec<(f64, f64)> {
     const BITS: u32 = 11;
     const BUCKETS: usize = 1 << BITS;
-    let key = order_key;
-    let mut other = pairs.clone();
-    for pass in 0..64u32.div_ceil(BITS) {
-        let shift = pass * BITS;
-        let digit = |x: f64| ((key(x) >> shift) as usize) & (BUCKETS - 1);
-        let mut start = vec![0usize; BUCKETS + 1];
-        for p in &pairs {
-            start[digit(p.0) + 1] += 1;
+    const PASSES: usize = 64usize.div_ceil(BITS as usize);
+    let digit = |key: f64, pass: usize| ((key.to_bits() >> (pass as u32 * BITS)) as usize) & (BUCKETS - 1);
+    let mut counts = vec![[0usize; BUCKETS]; PASSES];
+    for p in &mut pairs {
+        p.0 = f64::from_bits(order_key(p.0));
+        for (pass, count) in counts.iter_mut().enumerate() {
+            count[digit(p.0, pass)] += 1;
         }
+    }
+    let mut other = vec![(0.0, 0.0); pairs.len()];
+    for (pass, count) in counts.iter().enumerate() {
         // A pass where every value shares the digit moves nothing.
-        if start.contains(&pairs.len()) {
+        if count.contains(&pairs.len()) {
             continue;
         }
-        for b in 0..BUCKETS {
-            start[b + 1] += start[b];
+        let mut start = [0usize; BUCKETS];
+        for b in 1..BUCKETS {
+            start[b] = start[b - 1] + count[b - 1];
         }
         for p in &pairs {
-            let d = digit(p.0);
+            let d = digit(p.0, pass);
             other[start[d]] = *p;
             start[d] += 1;
         }
         std::mem::swap(&mut pairs, &mut other);
+    }
+    for p in &mut pairs {
+        p.0 = order_value(p.0.to_bits());
     }
     pairs
 }

@@ -198,7 +198,7 @@ pub fn uncertainty(
     let stable = stable_mask(&scene, project, &fitted, &reference, opts.stable.as_ref())?;
     let in_area = area_mask(&scene, project, opts.area.as_ref(), &fitted, &reference)?;
     let dh = unshifted_differences(&scene_a, level, &reference)?;
-    let slope: Vec<f64> = reference.iter().map(|r| r.tan_slope.atan().to_degrees()).collect();
+    let slope: Vec<f64> = reference.iter().map(|r| r.tan_slope().atan().to_degrees()).collect();
     let curvature: Vec<f64> = reference.iter().map(|r| r.max_curvature).collect();
 
     // 1. The binned NMAD and its model, on stable samples with dh and a curvature.
@@ -375,7 +375,7 @@ impl AreaSums {
             if !(in_area[k] && dh[k].is_finite()) {
                 continue;
             }
-            let slope_deg = r.tan_slope.atan().to_degrees();
+            let slope_deg = r.tan_slope().atan().to_degrees();
             self.count += 1;
             self.area_m2 += r.area;
             self.dh_area += dh[k] * r.area;

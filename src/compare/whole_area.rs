@@ -65,7 +65,7 @@ pub(super) fn sample_attributes(frame: &Frame, reference: &[RefSample]) -> Vec<A
                 east_m,
                 north_m,
                 elevation_m: r.b,
-                slope_deg: r.tan_slope.atan().to_degrees(),
+                slope_deg: r.tan_slope().atan().to_degrees(),
                 max_curvature: r.max_curvature,
             }
         })
@@ -107,7 +107,8 @@ pub(super) fn whole_area_stats(
             }
         }
         for (k, r) in reference.iter().enumerate() {
-            let class = slope_class(&SLOPE_CLASSES_DEG, r.tan_slope.atan().to_degrees()).map_or(NO_CLASS, |c| c as u8);
+            let class =
+                slope_class(&SLOPE_CLASSES_DEG, r.tan_slope().atan().to_degrees()).map_or(NO_CLASS, |c| c as u8);
             let record = |dh_m: f64| Record { dh_m, weight: r.area, class };
             if let Some(d) = raw_before[k] {
                 before.push(record(d)).map_err(|e| scratch_error(before.path(), e))?;

@@ -27,8 +27,9 @@ pub fn sample_point(ellipsoid: &Ellipsoid, quad: QuadId, n: u32, i: u32, j: u32)
 /// where QSC bends cells too sharply for straight sides (QSC's cusp).
 pub fn cell_area_m2(ellipsoid: &Ellipsoid, level: u8, cells: u32, centre: DVec3) -> f64 {
     let (a, b) = (ellipsoid.a_m(), ellipsoid.b_m());
-    let psi = (centre.z / centre.length()).clamp(-1.0, 1.0).asin();
-    let (sin_psi, cos_psi) = psi.sin_cos();
+    let length = centre.length();
+    let sin_psi = (centre.z / length).clamp(-1.0, 1.0);
+    let cos_psi = (centre.x * centre.x + centre.y * centre.y).sqrt() / length;
     let q = b * b * cos_psi * cos_psi + a * a * sin_psi * sin_psi;
     let r = a * b / q.sqrt();
     let dr = -a * b * (a * a - b * b) * sin_psi * cos_psi / (q * q.sqrt());
