@@ -241,7 +241,7 @@ pub(super) fn reference_samples(
                         .collect()
                 })
                 .collect();
-            out.extend(rows.into_iter().flatten());
+            rows.iter().for_each(|row| out.extend_from_slice(row));
         }
     }
     Ok(out)

@@ -200,12 +200,16 @@ pub(super) fn order_value(key: u64) -> f64 {
 #[cfg(test)]
 fn folded(sorted: &[(f64, f64)], c: f64) -> Vec<(f64, f64)> {
     let mut out = Vec::with_capacity(sorted.len());
-    fold_each(sorted, c, |pair| out.push(pair));
+    fold_each(sorted, c, |pair| {
+        out.push(pair);
+        true
+    });
     out
 }
 
 /// [`folded`]'s pairs handed to `emit` in its order, without holding them.
-fn fold_each(sorted: &[(f64, f64)], c: f64, mut emit: impl FnMut((f64, f64))) {
+/// `emit` returns whether to go on.
+fn fold_each(sorted: &[(f64, f64)], c: f64, mut emit: impl FnMut((f64, f64)) -> bool) {
     let split = sorted.partition_point(|p| p.0 < c);
     let (below, above) = sorted.split_at(split);
     let distance = |x: f64| (x - c).abs();
@@ -218,13 +222,17 @@ fn fold_each(sorted: &[(f64, f64)], c: f64, mut emit: impl FnMut((f64, f64))) {
             start -= 1;
         }
         while j < above.len() && distance(above[j].0) < d {
-            emit((distance(above[j].0), above[j].1));
+            if !emit((distance(above[j].0), above[j].1)) {
+                return;
+            }
             j += 1;
         }
-        below[start..end].iter().for_each(|&(x, w)| emit((distance(x), w)));
+        if !below[start..end].iter().all(|&(x, w)| emit((distance(x), w))) {
+            return;
+        }
         end = start;
     }
-    above[j..].iter().for_each(|&(x, w)| emit((distance(x), w)));
+    let _ = above[j..].iter().all(|&(x, w)| emit((distance(x), w)));
 }
 
 /// `weighted_quantile(&folded(sorted, c), p)`, the same bit for bit, in two passes over the
@@ -241,6 +249,7 @@ fn folded_quantile(sorted: &[(f64, f64)], c: f64, p: f64) -> f64 {
             total += pair.1;
         }
         count += 1;
+        true
     });
     match count {
         0 => return f64::NAN,
@@ -251,20 +260,22 @@ fn folded_quantile(sorted: &[(f64, f64)], c: f64, p: f64) -> f64 {
     if span <= 0.0 {
         return first.0;
     }
-    // Pass 2: the walk.
+    // Pass 2: the walk, up to the pair around the target.
     let target = p.clamp(0.0, 1.0) * span;
     let (mut k, mut below, mut previous, mut found) = (0usize, 0.0, f64::NAN, None);
     fold_each(sorted, c, |(x, w)| {
-        if found.is_none() && k > 0 {
+        if k > 0 {
             let at = below + w;
             if at >= target {
                 let t = if at > below { (target - below) / (at - below) } else { 0.0 };
                 found = Some(previous + t * (x - previous));
+                return false;
             }
             below = at;
         }
         previous = x;
         k += 1;
+        true
     });
     found.unwrap_or(previous)
 }
