@@ -136,11 +136,11 @@ fn smooth_inside(quad: QuadId) -> bool {
     !crosses(x0, x1) && !crosses(-x1, -x0) && off_centre
 }
 
-/// The longitude and geodetic latitude (radians) of a surface point p (ECEF, metres).
+/// The longitude and geodetic latitude (radians) of a surface point p (ECEF, metres): those of
+/// its direction from the centre.
 pub(super) fn lon_lat(ellipsoid: &crate::geodesy::Ellipsoid, p: DVec3) -> (f64, f64) {
-    let r = (p.x * p.x + p.y * p.y).sqrt();
-    let lon = if r == 0.0 { 0.0 } else { p.y.atan2(p.x) };
-    (lon, p.z.atan2(ellipsoid.b2_over_a2() * r))
+    let (lat, lon) = crate::geodesy::geodetic_from_sphere_direction(ellipsoid, p);
+    (lon, lat)
 }
 
 /// The local east and north unit vectors at a surface point `p` (ECEF, metres) of the ellipsoid,
