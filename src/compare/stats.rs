@@ -109,28 +109,39 @@ pub struct SlopeClass {
 /// The weighted quantile p ∈ [0, 1] of values sorted ascending with their weights (see the
 /// module documentation); NaN for no values.
 pub fn weighted_quantile(sorted: &[(f64, f64)], p: f64) -> f64 {
+    weighted_quantiles(sorted, [p])[0]
+}
+
+/// [`weighted_quantile`] at each of `ps` (ascending), the same bit for bit, with one sum of the
+/// weights and one walk.
+fn weighted_quantiles<const N: usize>(sorted: &[(f64, f64)], ps: [f64; N]) -> [f64; N] {
     match sorted.len() {
-        0 => f64::NAN,
-        1 => sorted[0].0,
+        0 => [f64::NAN; N],
+        1 => [sorted[0].0; N],
         _ => {
             let w0 = sorted[0].1;
             let total: f64 = sorted.iter().map(|s| s.1).sum();
             let span = total - w0;
             if span <= 0.0 {
-                return sorted[0].0;
+                return [sorted[0].0; N];
             }
-            let target = p.clamp(0.0, 1.0) * span;
-            // Positions W_k − w_0 are increasing: find the pair around the target.
-            let mut below = 0.0; // W_{k} − w_0 for k = 0
-            for k in 1..sorted.len() {
-                let at = below + sorted[k].1;
-                if at >= target {
-                    let t = if at > below { (target - below) / (at - below) } else { 0.0 };
-                    return sorted[k - 1].0 + t * (sorted[k].0 - sorted[k - 1].0);
+            let mut out = [sorted[sorted.len() - 1].0; N];
+            // Positions W_k − w_0 are increasing: find the pair around each target.
+            let (mut below, mut k) = (0.0, 1); // W_{k−1} − w_0
+            for (q, p) in out.iter_mut().zip(ps) {
+                let target = p.clamp(0.0, 1.0) * span;
+                while k < sorted.len() {
+                    let at = below + sorted[k].1;
+                    if at >= target {
+                        let t = if at > below { (target - below) / (at - below) } else { 0.0 };
+                        *q = sorted[k - 1].0 + t * (sorted[k].0 - sorted[k - 1].0);
+                        break;
+                    }
+                    below = at;
+                    k += 1;
                 }
-                below = at;
             }
-            sorted[sorted.len() - 1].0
+            out
         }
     }
 }
@@ -140,45 +151,93 @@ fn sorted_pairs(diffs: &[Diff]) -> Vec<(f64, f64)> {
     radix_sorted(diffs.iter().map(|d| (d.dh_m, d.weight)).collect())
 }
 
-/// Pairs sorted by their first value in `f64::total_cmp`'s order, stably: a least-significant-
-/// digit radix sort on the value's bits made monotonic (six passes of 11 bits), in O(n); what
+/// Pairs sorted by their first value in `f64::total_cmp`'s order, stably: what
 /// `sort_by(|a, b| a.0.total_cmp(&b.0))` gives, several times faster on millions of samples.
-/// Each value is turned into its order key once (kept in the pair's first slot as bits, so no
-/// second buffer of keys), every pass's digit counts come from one read, and the keys are turned
-/// back at the end.
+/// Each value is turned into its order key (kept in the pair's first slot as bits, so no second
+/// buffer of keys); the two halves are sorted on two threads by [`radix_sort_keys`] and merged
+/// (the first half's pair first among equal keys: stable), and the keys are turned back. The
+/// halves are the same on any number of threads.
 fn radix_sorted(mut pairs: Vec<(f64, f64)>) -> Vec<(f64, f64)> {
-    const BITS: u32 = 11;
-    const BUCKETS: usize = 1 << BITS;
-    const PASSES: usize = 64usize.div_ceil(BITS as usize);
-    let digit = |key: f64, pass: usize| ((key.to_bits() >> (pass as u32 * BITS)) as usize) & (BUCKETS - 1);
-    let mut counts = vec![[0usize; BUCKETS]; PASSES];
     for p in &mut pairs {
         p.0 = f64::from_bits(order_key(p.0));
+    }
+    let n = pairs.len();
+    let mut other = vec![(0.0, 0.0); n];
+    let mut sorted = if n < 1 << 16 {
+        radix_sort_keys(&mut pairs, &mut other);
+        pairs
+    } else {
+        let ((a, b), (scratch_a, scratch_b)) = (pairs.split_at_mut(n / 2), other.split_at_mut(n / 2));
+        rayon::join(|| radix_sort_keys(a, scratch_a), || radix_sort_keys(b, scratch_b));
+        let key = |p: &(f64, f64)| p.0.to_bits();
+        let (mut i, mut j) = (0, 0);
+        for out in other.iter_mut() {
+            *out = if j == b.len() || (i < a.len() && key(&a[i]) <= key(&b[j])) {
+                i += 1;
+                a[i - 1]
+            } else {
+                j += 1;
+                b[j - 1]
+            };
+        }
+        other
+    };
+    for p in &mut sorted {
+        p.0 = order_value(p.0.to_bits());
+    }
+    sorted
+}
+
+/// Sorts pairs by their first slot's bits (order keys), stably, with `other` (as long) as
+/// scratch: a least-significant-digit radix sort (three passes of 11 bits, every pass's digit
+/// counts from one read) on the top 33 bits (sign, exponent and 21 bits of mantissa), then each
+/// run that shares those bits (values within a few millionths of each other: mostly one or
+/// two) sorted stably on the whole key.
+fn radix_sort_keys(pairs: &mut [(f64, f64)], other: &mut [(f64, f64)]) {
+    const BITS: u32 = 11;
+    const BUCKETS: usize = 1 << BITS;
+    const PASSES: usize = 3;
+    const LOW: u32 = 64 - PASSES as u32 * BITS; // the bits the passes leave to the runs
+    let digit = |key: f64, pass: usize| ((key.to_bits() >> (LOW + pass as u32 * BITS)) as usize) & (BUCKETS - 1);
+    let mut counts = vec![[0usize; BUCKETS]; PASSES];
+    for p in pairs.iter() {
         for (pass, count) in counts.iter_mut().enumerate() {
             count[digit(p.0, pass)] += 1;
         }
     }
-    let mut other = vec![(0.0, 0.0); pairs.len()];
+    let (mut from, mut to) = (pairs, other);
+    let mut moved = false; // whether the pairs now lie in `other`
     for (pass, count) in counts.iter().enumerate() {
         // A pass where every value shares the digit moves nothing.
-        if count.contains(&pairs.len()) {
+        if count.contains(&from.len()) {
             continue;
         }
         let mut start = [0usize; BUCKETS];
         for b in 1..BUCKETS {
             start[b] = start[b - 1] + count[b - 1];
         }
-        for p in &pairs {
+        for p in from.iter() {
             let d = digit(p.0, pass);
-            other[start[d]] = *p;
+            to[start[d]] = *p;
             start[d] += 1;
         }
-        std::mem::swap(&mut pairs, &mut other);
+        std::mem::swap(&mut from, &mut to);
+        moved = !moved;
     }
-    for p in &mut pairs {
-        p.0 = order_value(p.0.to_bits());
+    if moved {
+        to.copy_from_slice(from); // `to` is the caller's `pairs` again
+        from = to;
     }
-    pairs
+    let top = |p: &(f64, f64)| p.0.to_bits() >> LOW;
+    let mut start = 0;
+    while start < from.len() {
+        let t = top(&from[start]);
+        let end = start + from[start..].iter().position(|p| top(p) != t).unwrap_or(from.len() - start);
+        if end - start > 1 {
+            from[start..end].sort_by_key(|p| p.0.to_bits());
+        }
+        start = end;
+    }
 }
 
 /// `f64::total_cmp`'s order as an unsigned one: negatives' bits flipped whole, positives' sign
@@ -305,7 +364,7 @@ pub(super) fn pair_stats(pairs: Vec<(f64, f64)>, nodata_count: u64) -> Stats {
     let mean = wx / w;
     let var = pairs.iter().map(|&(dh, weight)| weight * (dh - mean).powi(2)).sum::<f64>() / w;
     let sorted = radix_sorted(pairs);
-    let median = weighted_quantile(&sorted, 0.5);
+    let [q05, median, q95] = weighted_quantiles(&sorted, [0.05, 0.5, 0.95]);
     // The two foldings are independent, each walked in order on one thread: the same result on
     // any number of threads.
     let (nmad, p90_abs) = rayon::join(|| folded_quantile(&sorted, median, 0.5), || folded_quantile(&sorted, 0.0, 0.9));
@@ -317,7 +376,7 @@ pub(super) fn pair_stats(pairs: Vec<(f64, f64)>, nodata_count: u64) -> Stats {
     s.nmad_m = NMAD_FACTOR * nmad;
     s.min_m = lo;
     s.max_m = hi;
-    s.le90_m = weighted_quantile(&sorted, 0.95) - weighted_quantile(&sorted, 0.05);
+    s.le90_m = q95 - q05;
     s.p90_abs_m = p90_abs;
     s
 }
@@ -329,7 +388,8 @@ pub fn histogram(diffs: &[Diff], bins: usize) -> Histogram {
         return Histogram::default();
     }
     let sorted = sorted_pairs(diffs);
-    let mut h = Histogram::over(weighted_quantile(&sorted, 0.005), weighted_quantile(&sorted, 0.995), bins);
+    let [lo, hi] = weighted_quantiles(&sorted, [0.005, 0.995]);
+    let mut h = Histogram::over(lo, hi, bins);
     for d in diffs {
         h.add(d.dh_m, d.weight);
     }
@@ -486,16 +546,54 @@ mod tests {
     }
 
     #[test]
+    fn quantiles_walked_together_are_each_quantile_bit_for_bit() {
+        let sorted = radix_sorted(
+            (0..3000u32).map(|k| (f64::from(crate::maths::pcg(k) % 1000) * 0.37, 1.0 + f64::from(k % 7))).collect(),
+        );
+        let ps = [0.0, 0.005, 0.05, 0.5, 0.5, 0.95, 0.995, 1.0];
+        for (p, q) in ps.iter().zip(weighted_quantiles(&sorted, ps)) {
+            assert_eq!(q.to_bits(), weighted_quantile_alone(&sorted, *p).to_bits(), "p = {p}");
+        }
+    }
+
+    /// `weighted_quantile` as it was written before the quantiles were walked together.
+    fn weighted_quantile_alone(sorted: &[(f64, f64)], p: f64) -> f64 {
+        let total: f64 = sorted.iter().map(|s| s.1).sum();
+        let (span, target) = (total - sorted[0].1, p * (total - sorted[0].1));
+        assert!(span > 0.0);
+        let mut below = 0.0;
+        for k in 1..sorted.len() {
+            let at = below + sorted[k].1;
+            if at >= target {
+                let t = if at > below { (target - below) / (at - below) } else { 0.0 };
+                return sorted[k - 1].0 + t * (sorted[k].0 - sorted[k - 1].0);
+            }
+            below = at;
+        }
+        sorted[sorted.len() - 1].0
+    }
+
+    #[test]
     fn the_radix_sort_orders_as_a_stable_sort_by_total_order_does() {
-        let mut pairs: Vec<(f64, f64)> = (0..5000u32)
+        // One thread's sort, and two halves' merged.
+        for len in [5000u32, 100_000] {
+            radix_sort_matches_a_stable_sort(len);
+        }
+        assert!(radix_sorted(Vec::new()).is_empty());
+    }
+
+    fn radix_sort_matches_a_stable_sort(len: u32) {
+        let mut pairs: Vec<(f64, f64)> = (0..len)
             .map(|k| {
                 let h = crate::maths::pcg(k);
-                let x = match h % 5 {
+                let x = match h % 6 {
                     0 => f64::from(h % 13) - 6.0,
                     1 => f64::from_bits(u64::from(h) << 20) * if h & 1 == 0 { 1.0 } else { -1.0 },
                     2 => -0.0,
                     3 => 0.0,
-                    _ => (f64::from(h) - 2e9) * 1e-3,
+                    4 => (f64::from(h) - 2e9) * 1e-3,
+                    // Values that share their top 33 bits: ordered by the runs' sort alone.
+                    _ => f64::from_bits(1.5f64.to_bits() + u64::from(h % 4096)) * if h & 2 == 0 { 1.0 } else { -1.0 },
                 };
                 (x, f64::from(k))
             })
@@ -505,7 +603,6 @@ mod tests {
         want.sort_by(|a, b| a.0.total_cmp(&b.0));
         let got = radix_sorted(pairs);
         let bits = |v: &[(f64, f64)]| v.iter().map(|p| (p.0.to_bits(), p.1.to_bits())).collect::<Vec<_>>();
-        assert_eq!(bits(&got), bits(&want));
-        assert!(radix_sorted(Vec::new()).is_empty());
+        assert_eq!(bits(&got), bits(&want), "{len} pairs");
     }
 }

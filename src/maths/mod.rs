@@ -17,13 +17,22 @@ pub fn pcg(v: u32) -> u32 {
 
 /// The `n` of `indices` (distinct) that come first in PCG hash order, the order of
 /// `(pcg(k), k)`, in that order: what sorting them all by that key and keeping the first `n`
-/// gives, by selection: O(len + n log n). How the fits draw a deterministic random subset.
+/// gives, by selection: O(len + n log n). The hashes are uniform, so the first `n` almost always
+/// lie below a threshold a little above their expected largest hash: only those are held and
+/// selected from (the whole set only when fewer than `n` do). How the fits draw a deterministic
+/// random subset.
 pub fn first_in_hash_order(indices: &[usize], n: usize) -> Vec<usize> {
-    let mut keyed: Vec<(u32, usize)> = indices.iter().map(|&k| (pcg(k as u32), k)).collect();
+    let key = |k: usize| (pcg(k as u32), k);
+    if n == 0 {
+        return Vec::new();
+    }
+    let expected = n as f64 / indices.len() as f64 * 2f64.powi(32);
+    let threshold = (expected * 1.1 + 4096.0).min(u32::MAX as f64) as u32;
+    let mut keyed: Vec<(u32, usize)> = indices.iter().map(|&k| key(k)).filter(|k| k.0 < threshold).collect();
+    if keyed.len() < n.min(indices.len()) {
+        keyed = indices.iter().map(|&k| key(k)).collect();
+    }
     if n < keyed.len() {
-        if n == 0 {
-            return Vec::new();
-        }
         keyed.select_nth_unstable(n - 1);
         keyed.truncate(n);
     }
@@ -72,6 +81,17 @@ mod tests {
         sorted.sort_by_key(|&k| (pcg(k as u32), k));
         for n in [0, 1, 17, 4999, 5000, 6000] {
             assert_eq!(first_in_hash_order(&indices, n), sorted[..n.min(5000)], "{n}");
+        }
+        // Many indices, few kept (the threshold holds them), and indices whose hashes all lie
+        // in the upper half (none below the threshold: the whole set is selected from).
+        for indices in
+            [(0..200_000).collect::<Vec<usize>>(), (0..20_000).filter(|&k| pcg(k as u32) > 1 << 31).collect()]
+        {
+            let mut sorted = indices.clone();
+            sorted.sort_by_key(|&k| (pcg(k as u32), k));
+            for n in [1, 10, 1000] {
+                assert_eq!(first_in_hash_order(&indices, n), sorted[..n], "{} indices, {n}", indices.len());
+            }
         }
     }
 
