@@ -70,29 +70,32 @@ pub(super) struct NuthKaabRun {
     pub dh: Vec<Option<f64>>,
 }
 
-/// A sample of the reference.
+/// A sample of the reference: 88 bytes, millions of them held at once (B's height and the
+/// curvature are f32 as B's grid is; the grid axes f32, 10⁻⁶ m on a 500 m move).
 #[derive(Clone, Copy)]
 pub(super) struct RefSample {
     pub p: DVec3,
-    /// B there, metres.
-    pub b: f64,
+    /// The cell's area, m².
+    pub area: f64,
+    /// B's gradient east and north, metres per metre (its slope and aspect are computed from it
+    /// where a step reads them: the aspect only for the samples Nuth & Kääb fits on).
+    gradient: [f64; 2],
+    /// Grid units per metre east and north: (du, dv) = to_grid · (de, dn), from the grid's
+    /// central differences at the sample.
+    to_grid: [[f32; 2]; 2],
+    /// B there, metres (B's grid value).
+    pub b: f32,
+    /// B's maximal curvature (Shary 1995, as xDEM's `max_curvature`), 100/m; NaN where a
+    /// neighbour has no data.
+    pub max_curvature: f32,
     /// Its quad and grid position there (the mosaic's level is B's sampling level): sample
     /// (i, j) of the quad's 257² grid.
     pub quad: QuadId,
     pub i: u16,
     pub j: u16,
-    /// Grid units per metre east and north: (du, dv) = to_grid · (de, dn), from the grid's
-    /// central differences at the sample.
-    to_grid: [[f64; 2]; 2],
-    /// B's gradient east and north, metres per metre (its slope and aspect are computed from it
-    /// where a step reads them: the aspect only for the samples Nuth & Kääb fits on).
-    gradient: [f64; 2],
-    /// B's maximal curvature (Shary 1995, as xDEM's `max_curvature`), 100/m; NaN where a
-    /// neighbour has no data.
-    pub max_curvature: f64,
-    /// The cell's area, m².
-    pub area: f64,
 }
+
+const _: () = assert!(std::mem::size_of::<RefSample>() == 88);
 
 impl RefSample {
     /// The tangent of B's slope.
@@ -198,7 +201,7 @@ pub(super) fn reference_samples(
                         .filter_map(|i| {
                             let k = j * N + i;
                             let p = points[k];
-                            let b = f64::from(h[k]);
+                            let b = h[k];
                             if b.is_nan()
                                 || region.is_some_and(|_| {
                                     let (lon, lat) = lon_lat(&e, p);
@@ -219,7 +222,8 @@ pub(super) fn reference_samples(
                             let (ie, in_) = axis(j * N + i0, j * N + i1, i1 - i0);
                             let (je, jn) = axis(j0 * N + i, j1 * N + i, j1 - j0);
                             let det = ie * jn - je * in_;
-                            let to_grid = [[jn / det, -je / det], [-in_ / det, ie / det]];
+                            let to_grid =
+                                [[jn / det, -je / det], [-in_ / det, ie / det]].map(|row| row.map(|x| x as f32));
                             let (g_e, g_n) = (g.dot(east), g.dot(north));
                             let area = cell_area(&e, *q, &points, i, j);
                             Some(RefSample {
@@ -231,9 +235,9 @@ pub(super) fn reference_samples(
                                 to_grid,
                                 gradient: [g_e, g_n],
                                 max_curvature: if curvature {
-                                    max_curvature(&points, h, i, j, east, north)
+                                    max_curvature(&points, h, i, j, east, north) as f32
                                 } else {
-                                    f64::NAN
+                                    f32::NAN
                                 },
                                 area,
                             })
@@ -300,7 +304,7 @@ pub(super) fn differences(
                     }
                 };
                 let a = mosaic.read(grid?, u, v);
-                (!a.is_nan()).then_some(a - r.b)
+                (!a.is_nan()).then_some(a - f64::from(r.b))
             },
         )
         .collect())
@@ -309,7 +313,7 @@ pub(super) fn differences(
 /// The grid position (u, v) a reference sample moves to under A's move (c_e, c_n) through its
 /// quad's local axes, where it stays in the quad.
 fn in_quad(r: &RefSample, c_e: f64, c_n: f64) -> Option<(f64, f64)> {
-    let [[a, b], [c, d]] = r.to_grid;
+    let [[a, b], [c, d]] = r.to_grid.map(|row| row.map(f64::from));
     let (u, v) = (f64::from(r.i) - a * c_e - b * c_n, f64::from(r.j) - c * c_e - d * c_n);
     ((0.0..=256.0).contains(&u) && (0.0..=256.0).contains(&v)).then_some((u, v))
 }

@@ -354,7 +354,7 @@ pub fn coregister(project: &Project, a: &str, b: &str, opts: &CoregOptions) -> R
         // no data): what a terrain bias by elevation is fitted against, and what the layer reads
         // when it applies one.
         for ((a, r), d) in at.iter_mut().zip(&reference).zip(residual(&raw, up, &bias)) {
-            a.elevation_m = d.map_or(f64::NAN, |d| r.b + d);
+            a.elevation_m = d.map_or(f64::NAN, |d| f64::from(r.b) + d);
         }
         let too_few = |what: &str| CompareError::Option {
             option: "--pipeline".into(),

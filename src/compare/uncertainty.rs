@@ -199,7 +199,7 @@ pub fn uncertainty(
     let in_area = area_mask(&scene, project, opts.area.as_ref(), &fitted, &reference)?;
     let dh = unshifted_differences(&scene_a, level, &reference)?;
     let slope: Vec<f64> = reference.iter().map(|r| r.tan_slope().atan().to_degrees()).collect();
-    let curvature: Vec<f64> = reference.iter().map(|r| r.max_curvature).collect();
+    let curvature: Vec<f64> = reference.iter().map(|r| f64::from(r.max_curvature)).collect();
 
     // 1. The binned NMAD and its model, on stable samples with dh and a curvature.
     let fit_set: Vec<usize> =
@@ -379,7 +379,7 @@ impl AreaSums {
             self.count += 1;
             self.area_m2 += r.area;
             self.dh_area += dh[k] * r.area;
-            self.sigma_area += model.sigma_m(slope_deg, r.max_curvature) * r.area;
+            self.sigma_area += model.sigma_m(slope_deg, f64::from(r.max_curvature)) * r.area;
         }
     }
 }

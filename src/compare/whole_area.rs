@@ -64,9 +64,9 @@ pub(super) fn sample_attributes(frame: &Frame, reference: &[RefSample]) -> Vec<A
             At {
                 east_m,
                 north_m,
-                elevation_m: r.b,
+                elevation_m: f64::from(r.b),
                 slope_deg: r.tan_slope().atan().to_degrees(),
-                max_curvature: r.max_curvature,
+                max_curvature: f64::from(r.max_curvature),
             }
         })
         .collect()
@@ -96,7 +96,7 @@ pub(super) fn whole_area_stats(
         let mut bias = vec![0.0; reference.len()];
         for (k, next) in stands.iter().enumerate() {
             for ((a, r), (d, b)) in at.iter_mut().zip(&reference).zip(raw.iter().zip(&bias)) {
-                a.elevation_m = d.map_or(f64::NAN, |d| r.b + (d + stand.up - b));
+                a.elevation_m = d.map_or(f64::NAN, |d| f64::from(r.b) + (d + stand.up - b));
             }
             if next.shift != stand.shift {
                 raw = differences(&mut mosaic, &reference, next.shift.0, next.shift.1)?;
