@@ -188,66 +188,63 @@ pub(super) fn reference_samples(
     curvature: bool,
 ) -> Result<Vec<RefSample>, CompareError> {
     let e = scene_b.ellipsoid;
-    let mut out = Vec::new();
+    // Room for every sample (pages are only touched as samples are written), so the samples are
+    // written in place by both threads, never copied into a growing vector.
+    let mut out = Vec::with_capacity(quads.len() * (N - 1) * (N - 1));
     for chunk in quads.chunks(16) {
         let grids = scene_b.compose_cpu(chunk)?;
         for q in chunk {
             let h = &grids[q];
             let points = quad_points(&e, *q);
-            let rows: Vec<Vec<RefSample>> = (0..N - 1)
+            // The cells with a sample (B has data there and a gradient, inside the region), with
+            // the gradient.
+            let cells: Vec<(usize, usize, DVec3)> = (0..N - 1)
                 .into_par_iter()
-                .map(|j| {
-                    (0..N - 1)
-                        .filter_map(|i| {
-                            let k = j * N + i;
-                            let p = points[k];
-                            let b = h[k];
-                            if b.is_nan()
-                                || region.is_some_and(|_| {
-                                    let (lon, lat) = lon_lat(&e, p);
-                                    !in_region(region, lon, lat)
-                                })
-                            {
-                                return None;
-                            }
-                            let (east, north) = axes_at(&e, p);
-                            let g = gradient(&points, h, i, j)?;
-                            // The grid's axes in metres east and north, inverted.
-                            let (i0, i1) = (i.saturating_sub(1), (i + 1).min(N - 1));
-                            let (j0, j1) = (j.saturating_sub(1), (j + 1).min(N - 1));
-                            let axis = |a: usize, b: usize, steps: usize| {
-                                let d = (points[b] - points[a]) / steps as f64;
-                                (d.dot(east), d.dot(north))
-                            };
-                            let (ie, in_) = axis(j * N + i0, j * N + i1, i1 - i0);
-                            let (je, jn) = axis(j0 * N + i, j1 * N + i, j1 - j0);
-                            let det = ie * jn - je * in_;
-                            let to_grid =
-                                [[jn / det, -je / det], [-in_ / det, ie / det]].map(|row| row.map(|x| x as f32));
-                            let (g_e, g_n) = (g.dot(east), g.dot(north));
-                            let area = cell_area(&e, *q, &points, i, j);
-                            Some(RefSample {
-                                p,
-                                b,
-                                quad: *q,
-                                i: i as u16,
-                                j: j as u16,
-                                to_grid,
-                                gradient: [g_e, g_n],
-                                max_curvature: if curvature {
-                                    max_curvature(&points, h, i, j, east, north) as f32
-                                } else {
-                                    f32::NAN
-                                },
-                                area,
-                            })
-                        })
-                        .collect()
+                .flat_map_iter(|j| (0..N - 1).map(move |i| (i, j)))
+                .filter_map(|(i, j)| {
+                    let outside = region.is_some_and(|_| {
+                        let (lon, lat) = lon_lat(&e, points[j * N + i]);
+                        !in_region(region, lon, lat)
+                    });
+                    if h[j * N + i].is_nan() || outside {
+                        return None;
+                    }
+                    gradient(&points, h, i, j).map(|g| (i, j, g))
                 })
                 .collect();
-            rows.iter().for_each(|row| out.extend_from_slice(row));
+            out.par_extend(cells.into_par_iter().map(|(i, j, g)| {
+                let p = points[j * N + i];
+                let (east, north) = axes_at(&e, p);
+                // The grid's axes in metres east and north, inverted.
+                let (i0, i1) = (i.saturating_sub(1), (i + 1).min(N - 1));
+                let (j0, j1) = (j.saturating_sub(1), (j + 1).min(N - 1));
+                let axis = |a: usize, b: usize, steps: usize| {
+                    let d = (points[b] - points[a]) / steps as f64;
+                    (d.dot(east), d.dot(north))
+                };
+                let (ie, in_) = axis(j * N + i0, j * N + i1, i1 - i0);
+                let (je, jn) = axis(j0 * N + i, j1 * N + i, j1 - j0);
+                let det = ie * jn - je * in_;
+                let to_grid = [[jn / det, -je / det], [-in_ / det, ie / det]].map(|row| row.map(|x| x as f32));
+                RefSample {
+                    p,
+                    area: cell_area(&e, *q, &points, i, j),
+                    gradient: [g.dot(east), g.dot(north)],
+                    to_grid,
+                    b: h[j * N + i],
+                    max_curvature: if curvature {
+                        max_curvature(&points, h, i, j, east, north) as f32
+                    } else {
+                        f32::NAN
+                    },
+                    quad: *q,
+                    i: i as u16,
+                    j: j as u16,
+                }
+            }));
         }
     }
+    out.shrink_to_fit();
     Ok(out)
 }
 
