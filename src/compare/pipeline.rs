@@ -345,11 +345,14 @@ pub fn coregister(project: &Project, a: &str, b: &str, opts: &CoregOptions) -> R
     let mut steps = Vec::new();
     let mut stands = Vec::new();
     for step in &opts.pipeline {
-        // What the step before left (each step's `after` is the next one's `before`).
-        let before = match steps.last() {
-            Some(StepResult { after, .. }) => after.clone(),
-            None => stable_stats(residual(&raw, up, &bias), &reference, &stable),
-        };
+        // What the step before left (each step's `after` is the next one's `before`); the first
+        // step's computed beside Nuth & Kääb's fit where it is one, else here.
+        let mut before = steps.last().map(|s: &StepResult| s.after.clone());
+        let stats_now =
+            |raw: &[Option<f64>], up: f64, bias: &[f64]| stable_stats(residual(raw, up, bias), &reference, &stable);
+        if before.is_none() && *step != Step::NuthKaab {
+            before = Some(stats_now(&raw, up, &bias));
+        }
         // A's elevation as the steps before left it (B + what is left of dh; unknown where A has
         // no data): what a terrain bias by elevation is fitted against, and what the layer reads
         // when it applies one.
@@ -364,7 +367,10 @@ pub fn coregister(project: &Project, a: &str, b: &str, opts: &CoregOptions) -> R
         let correction = match *step {
             Step::NuthKaab => {
                 let prior: Vec<f64> = bias.iter().map(|b| b - up).collect();
-                let run = nuth_kaab(&mut mosaic, &reference, &stable, &prior, shift, &opts.nuth_kaab)?;
+                let fit = || nuth_kaab(&mut mosaic, &reference, &stable, &prior, shift, &opts.nuth_kaab);
+                let (run, stats) = rayon::join(fit, || before.take().unwrap_or_else(|| stats_now(&raw, up, &bias)));
+                before = Some(stats);
+                let run = run?;
                 raw = run.dh;
                 let left: Vec<f64> =
                     residual(&raw, 0.0, &bias).zip(&stable).filter_map(|(d, &s)| d.filter(|_| s)).collect();
@@ -433,6 +439,7 @@ pub fn coregister(project: &Project, a: &str, b: &str, opts: &CoregOptions) -> R
             *b += correction.bias(at);
         }
         let after = stable_stats(residual(&raw, up, &bias), &reference, &stable);
+        let before = before.unwrap_or_else(|| Stats::empty(0)); // set above for every step
         steps.push(StepResult { correction, moves, converged: step_converged, before, after });
         stands.push(Stand { shift, up });
     }
