@@ -3,7 +3,8 @@
 //! the reference's slope, and their statistics (`stats`).
 //!
 //! - [`stats`]: weighted statistics, histogram and slope classes (the JSON of `terrafuse compare`);
-//! - [`streamed`]: the same of more differences than memory holds, spilled and read in passes;
+//! - [`streamed`]: the same of more differences than memory holds, read in passes;
+//! - [`spill`]: differences that can be read again in order: held, or spilled to a scratch file;
 //! - [`pipeline`]: co-registration as a pipeline of bias corrections (`coregister --pipeline`);
 //! - [`coreg`]: its Nuth & Kääb step on the ellipsoid, and the reference's samples;
 //! - [`bias`]: the other steps' models (vertical, deramp, terrain bias, directional);
@@ -25,6 +26,7 @@ pub mod pipeline;
 pub mod profile;
 mod quad_geometry;
 pub mod sample;
+pub mod spill;
 pub mod stable;
 pub mod stats;
 pub mod streamed;

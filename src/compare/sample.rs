@@ -22,10 +22,11 @@ use serde::Serialize;
 
 use super::CompareError;
 use super::quad_geometry::{cell_area, lon_lat, quad_points, slope_deg};
+use super::spill::{NO_CLASS, Record, Spill};
 use super::stats::{
     Diff, HISTOGRAM_BINS, Histogram, SLOPE_CLASSES_DEG, SlopeClass, Stats, by_slope, histogram, slope_class, stats,
 };
-use super::streamed::{NO_CLASS, Record, Spill, Streamed, streamed_stats};
+use super::streamed::{Streamed, streamed_stats};
 use crate::ecm::QuadId;
 use crate::ecm::points::quad_ball;
 use crate::geodesy::GeoBox;
