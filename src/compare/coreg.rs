@@ -111,15 +111,17 @@ impl RefSample {
     }
 }
 
-/// Moves A onto B by Nuth & Kääb from a start (east, north metres), fitting on the samples
-/// `stable` keeps (at most [`FIT_SAMPLES`] of them), with `prior` (a bias per sample, metres)
-/// taken off dh first; the differences it returns are over every sample.
+/// Moves A onto B by Nuth & Kääb from a start (east, north metres), where A − B is `at_start`
+/// (every reference sample's, as [`differences`] gives them), fitting on the samples `stable`
+/// keeps (at most [`FIT_SAMPLES`] of them), with `prior` (a bias per sample, metres) taken off dh
+/// first; the differences it returns are over every sample.
 pub(super) fn nuth_kaab(
     mosaic: &mut Mosaic,
     reference: &[RefSample],
     stable: &[bool],
     prior: &[f64],
     start: (f64, f64),
+    at_start: &[Option<f64>],
     opts: &NuthKaabOptions,
 ) -> Result<NuthKaabRun, CompareError> {
     let spacing = spacing_m(&mosaic.ellipsoid(), mosaic.level());
@@ -130,12 +132,11 @@ pub(super) fn nuth_kaab(
     // The samples fitted on: the stable ones, at most FIT_SAMPLES of them.
     let mut fit: Vec<usize> = (0..reference.len()).filter(|&k| stable[k]).collect();
     if fit.len() > FIT_SAMPLES {
-        fit = crate::maths::first_in_hash_order(&fit, FIT_SAMPLES);
-        fit.sort_unstable();
+        fit = crate::maths::first_in_hash_order_ascending(&fit, FIT_SAMPLES);
     }
     let subset: Vec<RefSample> = fit.iter().map(|&k| reference[k]).collect();
     let prior: Vec<f64> = fit.iter().map(|&k| prior[k]).collect();
-    let mut dh = differences(mosaic, &subset, c_e, c_n)?;
+    let mut dh: Vec<Option<f64>> = fit.iter().map(|&k| at_start[k]).collect();
     let kept =
         |dh: &[Option<f64>]| -> Vec<Option<f64>> { dh.iter().zip(&prior).map(|(d, p)| d.map(|d| d - p)).collect() };
     // Each sample's slope and aspect bin (None where it is too flat or has no aspect).
@@ -274,13 +275,20 @@ pub(super) fn differences(
         .filter(|r| in_quad(r, c_e, c_n).is_none())
         .filter_map(|r| outside(r).map(|m| m.0))
         .collect();
-    let mut last = None;
-    for r in reference.iter().filter(|r| in_quad(r, c_e, c_n).is_some()) {
-        if last != Some(r.quad) {
-            quads.insert(r.quad);
-            last = Some(r.quad);
-        }
-    }
+    // The samples' own quads where they stay in them (the samples come grouped by quad).
+    quads.extend(
+        reference
+            .par_chunks(1 << 12)
+            .flat_map_iter(|chunk| {
+                let mut last = None;
+                chunk.iter().filter(|r| in_quad(r, c_e, c_n).is_some()).filter_map(move |r| {
+                    let new = last != Some(r.quad);
+                    last = Some(r.quad);
+                    new.then_some(r.quad)
+                })
+            })
+            .collect::<Vec<_>>(),
+    );
     mosaic.prefetch_quads(&quads.into_iter().collect::<Vec<_>>())?;
     let mosaic = &*mosaic;
     Ok(reference

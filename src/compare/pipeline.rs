@@ -16,6 +16,7 @@
 //! The statistics of each step are over the stable samples; those of the whole run over every
 //! sample (as `compare` counts them).
 
+use rayon::prelude::*;
 use serde::Serialize;
 
 use super::CompareError;
@@ -23,8 +24,10 @@ use super::bias::{Binned, Polynomial, Sinusoids, vertical};
 use super::coreg::{NuthKaabOptions, RefSample, differences, nuth_kaab, reference_samples};
 use super::mosaic::{Interpolation, Mosaic};
 use super::sample::{fit_quads, held_samples_fit, memory_budget, operand_scene, overlap_quads};
+use super::spill::{NO_CLASS, Record};
 use super::stable::Stable;
-use super::stats::{Stats, pair_stats};
+use super::stats::Stats;
+use super::streamed::held_stats;
 use super::whole_area::{At, Stand, WholeArea, sample_attributes, whole_area_stats};
 use crate::ecm::QuadId;
 use crate::geodesy::{GeoBox, geodetic_from_ecef};
@@ -349,7 +352,7 @@ pub fn coregister(project: &Project, a: &str, b: &str, opts: &CoregOptions) -> R
         // step's computed beside Nuth & Kääb's fit where it is one, else here.
         let mut before = steps.last().map(|s: &StepResult| s.after.clone());
         let stats_now =
-            |raw: &[Option<f64>], up: f64, bias: &[f64]| stable_stats(residual(raw, up, bias), &reference, &stable);
+            |raw: &[Option<f64>], up: f64, bias: &[f64]| stable_stats(residual_at(raw, up, bias), &reference, &stable);
         if before.is_none() && *step != Step::NuthKaab {
             before = Some(stats_now(&raw, up, &bias));
         }
@@ -367,7 +370,7 @@ pub fn coregister(project: &Project, a: &str, b: &str, opts: &CoregOptions) -> R
         let correction = match *step {
             Step::NuthKaab => {
                 let prior: Vec<f64> = bias.iter().map(|b| b - up).collect();
-                let fit = || nuth_kaab(&mut mosaic, &reference, &stable, &prior, shift, &opts.nuth_kaab);
+                let fit = || nuth_kaab(&mut mosaic, &reference, &stable, &prior, shift, &raw, &opts.nuth_kaab);
                 let (run, stats) = rayon::join(fit, || before.take().unwrap_or_else(|| stats_now(&raw, up, &bias)));
                 before = Some(stats);
                 let run = run?;
@@ -438,7 +441,7 @@ pub fn coregister(project: &Project, a: &str, b: &str, opts: &CoregOptions) -> R
         for (b, at) in bias.iter_mut().zip(&at) {
             *b += correction.bias(at);
         }
-        let after = stable_stats(residual(&raw, up, &bias), &reference, &stable);
+        let after = stable_stats(residual_at(&raw, up, &bias), &reference, &stable);
         let before = before.unwrap_or_else(|| Stats::empty(0)); // set above for every step
         steps.push(StepResult { correction, moves, converged: step_converged, before, after });
         stands.push(Stand { shift, up });
@@ -464,8 +467,8 @@ pub fn coregister(project: &Project, a: &str, b: &str, opts: &CoregOptions) -> R
         }
         (_, _, Some(raw_before)) => {
             let all = vec![true; reference.len()];
-            let after = residual(&raw, up, &bias);
-            (stable_stats(raw_before.iter().copied(), &reference, &all), stable_stats(after, &reference, &all))
+            let after = residual_at(&raw, up, &bias);
+            (stable_stats(|k| raw_before[k], &reference, &all), stable_stats(after, &reference, &all))
         }
         (Some(first), Some(last), None) => (first.before.clone(), last.after.clone()),
         _ => (Stats::empty(0), Stats::empty(0)), // no step: refused above
@@ -523,21 +526,33 @@ fn fit_set(res: impl Iterator<Item = Option<f64>>, stable: &[bool], reference: &
         .collect()
 }
 
-/// Statistics of the samples `keep` holds that have a difference.
-fn stable_stats(dh: impl IntoIterator<Item = Option<f64>>, reference: &[RefSample], keep: &[bool]) -> Stats {
-    let pairs: Vec<(f64, f64)> = dh
-        .into_iter()
-        .zip(reference)
-        .zip(keep)
-        .filter(|(_, k)| **k)
-        .filter_map(|((d, r), _)| d.map(|d| (d, r.area)))
+/// [`residual`] of one sample.
+fn residual_at<'a>(raw: &'a [Option<f64>], up: f64, bias: &'a [f64]) -> impl Fn(usize) -> Option<f64> + Sync + 'a {
+    move |k| raw[k].map(|d| d + up - bias[k])
+}
+
+/// Statistics of the samples `keep` holds that have a difference (`dh` of a sample's index): a
+/// record per sample, made on every thread in sample order (NaN where it is left out).
+fn stable_stats(dh: impl Fn(usize) -> Option<f64> + Sync, reference: &[RefSample], keep: &[bool]) -> Stats {
+    let records: Vec<Record> = (0..reference.len())
+        .into_par_iter()
+        .map(|k| Record {
+            dh_m: dh(k).filter(|_| keep[k]).unwrap_or(f64::NAN),
+            weight: reference[k].area,
+            class: NO_CLASS,
+        })
         .collect();
-    pair_stats(pairs, 0)
+    held_stats(&records, 0, &[], 0).stats
 }
 
 /// The area-weighted centroid of the samples on the ellipsoid: longitude, latitude, degrees.
 pub(super) fn centroid_deg(ellipsoid: &crate::geodesy::Ellipsoid, reference: &[RefSample]) -> [f64; 2] {
-    let (sum, w) = reference.iter().fold((glam::DVec3::ZERO, 0.0), |(s, w), r| (s + r.p * r.area, w + r.area));
+    // Summed in fixed chunks, then the chunks' sums in order: the same on any number of threads.
+    let chunks: Vec<(glam::DVec3, f64)> = reference
+        .par_chunks(1 << 16)
+        .map(|c| c.iter().fold((glam::DVec3::ZERO, 0.0), |(s, w), r| (s + r.p * r.area, w + r.area)))
+        .collect();
+    let (sum, w) = chunks.into_iter().fold((glam::DVec3::ZERO, 0.0), |(s, w), c| (s + c.0, w + c.1));
     let g = geodetic_from_ecef(ellipsoid, sum / w.max(f64::MIN_POSITIVE));
     [g.lon_rad.to_degrees(), g.lat_rad.to_degrees()]
 }

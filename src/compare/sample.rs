@@ -23,10 +23,8 @@ use serde::Serialize;
 use super::CompareError;
 use super::quad_geometry::{cell_area, lon_lat, quad_points, slope_deg};
 use super::spill::{NO_CLASS, Record, Spill};
-use super::stats::{
-    Diff, HISTOGRAM_BINS, Histogram, SLOPE_CLASSES_DEG, SlopeClass, Stats, by_slope, histogram, slope_class, stats,
-};
-use super::streamed::{Streamed, streamed_stats};
+use super::stats::{Diff, HISTOGRAM_BINS, Histogram, SLOPE_CLASSES_DEG, SlopeClass, Stats, slope_class};
+use super::streamed::{Streamed, held_stats, streamed_stats};
 use crate::ecm::QuadId;
 use crate::ecm::points::quad_ball;
 use crate::geodesy::GeoBox;
@@ -288,10 +286,11 @@ pub fn compare_operands(
     Ok(comparison)
 }
 
-/// A comparison's differences: in memory, or spilled to a scratch file where there may be more
-/// than the options hold in memory.
+/// A comparison's differences, each with its slope class: in memory, or spilled to a scratch file
+/// where there may be more than the options hold in memory. Their statistics are made the same
+/// way from either ([`streamed_stats`]).
 enum Differences<'a> {
-    Memory(Vec<Diff>, &'a [f64]),
+    Memory(Vec<Record>, &'a [f64]),
     Spilled(Spill, &'a [f64]),
 }
 
@@ -299,7 +298,13 @@ impl<'a> Differences<'a> {
     /// Room for at most `most` differences.
     fn new(project: &Project, opts: &'a CompareOptions, most: usize) -> Result<Differences<'a>, CompareError> {
         let classes = &opts.slope_classes_deg[..];
-        if most <= opts.memory_samples || classes.len() > usize::from(NO_CLASS) {
+        if classes.len() > usize::from(NO_CLASS) {
+            return Err(CompareError::Option {
+                option: "slope classes".into(),
+                problem: format!("{} class edges: at most {NO_CLASS}", classes.len()),
+            });
+        }
+        if most <= opts.memory_samples {
             return Ok(Differences::Memory(Vec::new(), classes));
         }
         let dir = opts.scratch.clone().unwrap_or_else(|| project.resolve(std::path::Path::new(".")));
@@ -312,10 +317,10 @@ impl<'a> Differences<'a> {
 
     fn push(&mut self, d: Diff) -> Result<(), CompareError> {
         match self {
-            Differences::Memory(diffs, _) => diffs.push(d),
+            Differences::Memory(records, classes) => records.push(record(classes, &d)),
             Differences::Spilled(spill, classes) => {
-                let class = slope_class(classes, d.slope_deg).map_or(NO_CLASS, |k| k as u8);
-                spill.push(Record { dh_m: d.dh_m, weight: d.weight, class }).map_err(|e| spill_error(spill, e))?;
+                let r = record(classes, &d);
+                spill.push(r).map_err(|e| spill_error(spill, e))?;
             }
         }
         Ok(())
@@ -323,7 +328,7 @@ impl<'a> Differences<'a> {
 
     fn is_empty(&self) -> bool {
         match self {
-            Differences::Memory(diffs, _) => diffs.is_empty(),
+            Differences::Memory(records, _) => records.is_empty(),
             Differences::Spilled(spill, _) => spill.is_empty(),
         }
     }
@@ -331,17 +336,18 @@ impl<'a> Differences<'a> {
     /// Their statistics, histogram and slope classes.
     fn statistics(self, nodata: u64) -> Result<Streamed, CompareError> {
         match self {
-            Differences::Memory(diffs, classes) => Ok(Streamed {
-                stats: stats(&diffs, nodata),
-                histogram: histogram(&diffs, HISTOGRAM_BINS),
-                by_slope: by_slope(&diffs, classes),
-            }),
+            Differences::Memory(records, classes) => Ok(held_stats(&records, nodata, classes, HISTOGRAM_BINS)),
             Differences::Spilled(mut spill, classes) => {
                 spill.finish().map_err(|e| spill_error(&spill, e))?;
                 streamed_stats(&spill, nodata, classes, HISTOGRAM_BINS).map_err(|e| spill_error(&spill, e))
             }
         }
     }
+}
+
+/// A difference as a record: its slope class among `classes`.
+fn record(classes: &[f64], d: &Diff) -> Record {
+    Record { dh_m: d.dh_m, weight: d.weight, class: slope_class(classes, d.slope_deg).map_or(NO_CLASS, |k| k as u8) }
 }
 
 fn spill_error(spill: &Spill, e: std::io::Error) -> CompareError {

@@ -18,7 +18,8 @@ const BLOCK: usize = 1 << 16;
 /// One difference: A − B, its weight and the index of the reference's slope class there.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Record {
-    /// A − B, metres.
+    /// A − B, metres; NaN: none there (a record every statistic leaves out, so records can be
+    /// made one per sample, in place).
     pub dh_m: f64,
     /// Its weight (the cell's area in m², or 1).
     pub weight: f64,
@@ -45,12 +46,22 @@ impl Record {
 pub trait Records: Sync {
     /// Calls `f` with consecutive blocks of the records, in order.
     fn scan(&self, f: &mut dyn FnMut(&[Record])) -> io::Result<()>;
+
+    /// The records all at once where they are held in memory (a pass may then read parts of
+    /// them on several threads); None where they can only be scanned.
+    fn held(&self) -> Option<&[Record]> {
+        None
+    }
 }
 
 impl Records for Vec<Record> {
     fn scan(&self, f: &mut dyn FnMut(&[Record])) -> io::Result<()> {
         self.chunks(BLOCK).for_each(f);
         Ok(())
+    }
+
+    fn held(&self) -> Option<&[Record]> {
+        Some(self)
     }
 }
 

@@ -1,8 +1,10 @@
 //! Statistics of elevation differences dh = A − B, each sample weighted (by its cell's area on
 //! the ellipsoid, or 1 to count samples as xDEM and demcompare do): count, mean, median, standard
 //! deviation, RMSE, NMAD, min, max, LE90, the 90th percentile of |dh|, a histogram, and the same
-//! per slope class. Deterministic: sums in f64 in sample order, quantiles from one stable (radix)
-//! sort and the absolute deviations merged from it.
+//! per slope class. Deterministic: sums in f64 in sample order, quantiles from one stable sort
+//! and the absolute deviations merged from it. This is the definition, written to be read:
+//! `compare` and `coregister` make the same figures in passes over their differences, on every
+//! thread and in bounded memory ([`super::streamed`]), and are tested against it.
 //!
 //! Weighted quantiles generalise numpy's default (linear interpolation between order statistics,
 //! sample k of n at p = k/(n − 1)): sorted by value, sample k sits at p_k = (W_k − w_0)/(W − w_0)
@@ -148,96 +150,13 @@ fn weighted_quantiles<const N: usize>(sorted: &[(f64, f64)], ps: [f64; N]) -> [f
 
 /// The differences' (value, weight) pairs sorted by value, stably (ties keep the samples' order).
 fn sorted_pairs(diffs: &[Diff]) -> Vec<(f64, f64)> {
-    radix_sorted(diffs.iter().map(|d| (d.dh_m, d.weight)).collect())
+    sorted_by_value(diffs.iter().map(|d| (d.dh_m, d.weight)).collect())
 }
 
-/// Pairs sorted by their first value in `f64::total_cmp`'s order, stably: what
-/// `sort_by(|a, b| a.0.total_cmp(&b.0))` gives, several times faster on millions of samples.
-/// Each value is turned into its order key (kept in the pair's first slot as bits, so no second
-/// buffer of keys); the two halves are sorted on two threads by [`radix_sort_keys`] and merged
-/// (the first half's pair first among equal keys: stable), and the keys are turned back. The
-/// halves are the same on any number of threads.
-fn radix_sorted(mut pairs: Vec<(f64, f64)>) -> Vec<(f64, f64)> {
-    for p in &mut pairs {
-        p.0 = f64::from_bits(order_key(p.0));
-    }
-    let n = pairs.len();
-    let mut other = vec![(0.0, 0.0); n];
-    let mut sorted = if n < 1 << 16 {
-        radix_sort_keys(&mut pairs, &mut other);
-        pairs
-    } else {
-        let ((a, b), (scratch_a, scratch_b)) = (pairs.split_at_mut(n / 2), other.split_at_mut(n / 2));
-        rayon::join(|| radix_sort_keys(a, scratch_a), || radix_sort_keys(b, scratch_b));
-        let key = |p: &(f64, f64)| p.0.to_bits();
-        let (mut i, mut j) = (0, 0);
-        for out in other.iter_mut() {
-            *out = if j == b.len() || (i < a.len() && key(&a[i]) <= key(&b[j])) {
-                i += 1;
-                a[i - 1]
-            } else {
-                j += 1;
-                b[j - 1]
-            };
-        }
-        other
-    };
-    for p in &mut sorted {
-        p.0 = order_value(p.0.to_bits());
-    }
-    sorted
-}
-
-/// Sorts pairs by their first slot's bits (order keys), stably, with `other` (as long) as
-/// scratch: a least-significant-digit radix sort (three passes of 11 bits, every pass's digit
-/// counts from one read) on the top 33 bits (sign, exponent and 21 bits of mantissa), then each
-/// run that shares those bits (values within a few millionths of each other: mostly one or
-/// two) sorted stably on the whole key.
-fn radix_sort_keys(pairs: &mut [(f64, f64)], other: &mut [(f64, f64)]) {
-    const BITS: u32 = 11;
-    const BUCKETS: usize = 1 << BITS;
-    const PASSES: usize = 3;
-    const LOW: u32 = 64 - PASSES as u32 * BITS; // the bits the passes leave to the runs
-    let digit = |key: f64, pass: usize| ((key.to_bits() >> (LOW + pass as u32 * BITS)) as usize) & (BUCKETS - 1);
-    let mut counts = vec![[0usize; BUCKETS]; PASSES];
-    for p in pairs.iter() {
-        for (pass, count) in counts.iter_mut().enumerate() {
-            count[digit(p.0, pass)] += 1;
-        }
-    }
-    let (mut from, mut to) = (pairs, other);
-    let mut moved = false; // whether the pairs now lie in `other`
-    for (pass, count) in counts.iter().enumerate() {
-        // A pass where every value shares the digit moves nothing.
-        if count.contains(&from.len()) {
-            continue;
-        }
-        let mut start = [0usize; BUCKETS];
-        for b in 1..BUCKETS {
-            start[b] = start[b - 1] + count[b - 1];
-        }
-        for p in from.iter() {
-            let d = digit(p.0, pass);
-            to[start[d]] = *p;
-            start[d] += 1;
-        }
-        std::mem::swap(&mut from, &mut to);
-        moved = !moved;
-    }
-    if moved {
-        to.copy_from_slice(from); // `to` is the caller's `pairs` again
-        from = to;
-    }
-    let top = |p: &(f64, f64)| p.0.to_bits() >> LOW;
-    let mut start = 0;
-    while start < from.len() {
-        let t = top(&from[start]);
-        let end = start + from[start..].iter().position(|p| top(p) != t).unwrap_or(from.len() - start);
-        if end - start > 1 {
-            from[start..end].sort_by_key(|p| p.0.to_bits());
-        }
-        start = end;
-    }
+/// Pairs sorted by their first value in `f64::total_cmp`'s order, stably.
+fn sorted_by_value(mut pairs: Vec<(f64, f64)>) -> Vec<(f64, f64)> {
+    pairs.sort_by(|a, b| a.0.total_cmp(&b.0));
+    pairs
 }
 
 /// `f64::total_cmp`'s order as an unsigned one: negatives' bits flipped whole, positives' sign
@@ -344,10 +263,9 @@ pub fn stats(diffs: &[Diff], nodata_count: u64) -> Stats {
     pair_stats(diffs.iter().map(|d| (d.dh_m, d.weight)).collect(), nodata_count)
 }
 
-/// [`stats`] of (dh, weight) pairs in sample order (weights > 0): the same figures, from the
-/// pairs alone (a caller with millions of samples need not build `Diff`s, whose slopes the
-/// statistics do not read). The pairs become the sort's buffer.
-pub(super) fn pair_stats(pairs: Vec<(f64, f64)>, nodata_count: u64) -> Stats {
+/// [`stats`] of (dh, weight) pairs in sample order (weights > 0). The pairs become the sort's
+/// buffer.
+fn pair_stats(pairs: Vec<(f64, f64)>, nodata_count: u64) -> Stats {
     if pairs.is_empty() {
         return Stats::empty(nodata_count);
     }
@@ -363,7 +281,7 @@ pub(super) fn pair_stats(pairs: Vec<(f64, f64)>, nodata_count: u64) -> Stats {
     }
     let mean = wx / w;
     let var = pairs.iter().map(|&(dh, weight)| weight * (dh - mean).powi(2)).sum::<f64>() / w;
-    let sorted = radix_sorted(pairs);
+    let sorted = sorted_by_value(pairs);
     let [q05, median, q95] = weighted_quantiles(&sorted, [0.05, 0.5, 0.95]);
     // The two foldings are independent, each walked in order on one thread: the same result on
     // any number of threads.
@@ -547,7 +465,7 @@ mod tests {
 
     #[test]
     fn quantiles_walked_together_are_each_quantile_bit_for_bit() {
-        let sorted = radix_sorted(
+        let sorted = sorted_by_value(
             (0..3000u32).map(|k| (f64::from(crate::maths::pcg(k) % 1000) * 0.37, 1.0 + f64::from(k % 7))).collect(),
         );
         let ps = [0.0, 0.005, 0.05, 0.5, 0.5, 0.95, 0.995, 1.0];
@@ -571,38 +489,5 @@ mod tests {
             below = at;
         }
         sorted[sorted.len() - 1].0
-    }
-
-    #[test]
-    fn the_radix_sort_orders_as_a_stable_sort_by_total_order_does() {
-        // One thread's sort, and two halves' merged.
-        for len in [5000u32, 100_000] {
-            radix_sort_matches_a_stable_sort(len);
-        }
-        assert!(radix_sorted(Vec::new()).is_empty());
-    }
-
-    fn radix_sort_matches_a_stable_sort(len: u32) {
-        let mut pairs: Vec<(f64, f64)> = (0..len)
-            .map(|k| {
-                let h = crate::maths::pcg(k);
-                let x = match h % 6 {
-                    0 => f64::from(h % 13) - 6.0,
-                    1 => f64::from_bits(u64::from(h) << 20) * if h & 1 == 0 { 1.0 } else { -1.0 },
-                    2 => -0.0,
-                    3 => 0.0,
-                    4 => (f64::from(h) - 2e9) * 1e-3,
-                    // Values that share their top 33 bits: ordered by the runs' sort alone.
-                    _ => f64::from_bits(1.5f64.to_bits() + u64::from(h % 4096)) * if h & 2 == 0 { 1.0 } else { -1.0 },
-                };
-                (x, f64::from(k))
-            })
-            .collect();
-        pairs.extend([(f64::INFINITY, 1.0), (f64::NEG_INFINITY, 2.0), (f64::MIN_POSITIVE, 3.0), (-f64::MAX, 4.0)]);
-        let mut want = pairs.clone();
-        want.sort_by(|a, b| a.0.total_cmp(&b.0));
-        let got = radix_sorted(pairs);
-        let bits = |v: &[(f64, f64)]| v.iter().map(|p| (p.0.to_bits(), p.1.to_bits())).collect::<Vec<_>>();
-        assert_eq!(bits(&got), bits(&want), "{len} pairs");
     }
 }

@@ -1,6 +1,8 @@
-//! Statistics of more differences than memory holds (a comparison of 10⁸ samples): the
-//! differences are spilled to a scratch file in sample order ([`super::spill`]) and read back in
-//! passes, so memory stays bounded whatever their number.
+//! Statistics of differences in passes over them, in bounded memory: held in memory (a
+//! co-registration's, a comparison that fits) or spilled to a scratch file in sample order (a
+//! comparison of 10⁸ samples, [`super::spill`]), so memory stays bounded whatever their number.
+//! Held records are read in up to four parts on several threads, each part's candidates gathered
+//! alone and the parts' put together in order; a record whose difference is NaN is left out.
 //!
 //! The sums run in sample order as [`stats`](super::stats::stats) runs them, so the count, mean,
 //! standard deviation, RMSE, minimum and maximum are the same bit for bit. The quantiles (median,
@@ -9,9 +11,10 @@
 //! 16 bits of its ordering key; the bucket where the cumulative weight reaches the quantile's
 //! position is kept, and the next pass either counts its candidates by their next 16 bits or, once
 //! they are few ([`COLLECT`]), reads them, sorts them and walks them as
-//! [`weighted_quantile`](super::stats::weighted_quantile) walks the whole sorted set. Positions are
-//! summed bucket by bucket rather than sample by sample, so a quantile may differ from the
-//! in-memory one in its last bits.
+//! [`weighted_quantile`](super::stats::weighted_quantile) walks the whole sorted set (held records
+//! no more than that are read, sorted and walked at once). Positions are summed bucket by bucket
+//! rather than sample by sample, so a quantile may differ from the sorted one in its last bits
+//! (within 10⁻⁹ of it in the tests); the same on any number of threads.
 
 use std::io;
 
@@ -24,6 +27,9 @@ use super::stats::{Histogram, NMAD_FACTOR, SlopeClass, Stats, order_key, order_v
 const DIGIT_BITS: u32 = 16;
 /// Most candidates of one quantile read into memory (24 bytes each).
 const COLLECT: u64 = 1 << 18;
+/// Most parts a pass reads held records in, and the fewest records in a part.
+const PARTS: usize = 4;
+const PART: usize = 1 << 20;
 
 /// Some quantiles of one population of differences in one order.
 #[derive(Clone, Debug)]
@@ -41,7 +47,7 @@ impl Job {
     /// A record's place in this job's order, None outside the population; equal places keep the
     /// records' order.
     fn place(&self, r: &Record) -> Option<Place> {
-        if self.class.is_some_and(|c| c != r.class) {
+        if r.dh_m.is_nan() || self.class.is_some_and(|c| c != r.class) {
             return None;
         }
         let value = order_key(r.dh_m);
@@ -87,6 +93,60 @@ impl Bucket {
             self.first = (place, weight);
         }
     }
+
+    /// The candidates of the records after these, put after them.
+    fn join(&mut self, next: &Bucket) {
+        if next.count == 0 {
+            return;
+        }
+        if self.count == 0 || next.first.0 < self.first.0 {
+            self.first = next.first;
+        }
+        self.count += next.count;
+        self.weight += next.weight;
+        self.max = self.max.max(next.max);
+    }
+}
+
+/// Buckets in a page.
+const PAGE: usize = 256;
+
+/// The 2¹⁶ buckets of a digit, in pages made when first reached: a population's values gather in
+/// few of them, so a pass makes (and clears) only those.
+struct Buckets {
+    pages: Vec<Option<Box<[Bucket; PAGE]>>>,
+}
+
+impl Buckets {
+    fn new() -> Buckets {
+        Buckets { pages: (0..(1 << DIGIT_BITS) / PAGE).map(|_| None).collect() }
+    }
+
+    fn at(&mut self, digit: usize) -> &mut Bucket {
+        let page = self.pages[digit / PAGE].get_or_insert_with(|| Box::new([Bucket::default(); PAGE]));
+        &mut page[digit % PAGE]
+    }
+
+    /// The buckets that hold candidates, with their digits, in digit order.
+    fn filled(&self) -> impl Iterator<Item = (usize, &Bucket)> {
+        self.pages
+            .iter()
+            .enumerate()
+            .filter_map(|(p, page)| page.as_ref().map(|page| (p, page)))
+            .flat_map(|(p, page)| page.iter().enumerate().map(move |(k, b)| (p * PAGE + k, b)))
+            .filter(|(_, b)| b.count > 0)
+    }
+
+    /// The candidates of the records after these, put after them.
+    fn join(&mut self, next: Buckets) {
+        for (mine, theirs) in self.pages.iter_mut().zip(next.pages) {
+            match (mine.as_mut(), theirs) {
+                (_, None) => {}
+                (None, Some(theirs)) => *mine = Some(theirs),
+                (Some(mine), Some(theirs)) => mine.iter_mut().zip(theirs.iter()).for_each(|(b, n)| b.join(n)),
+            }
+        }
+    }
 }
 
 /// Where one quantile's search stands: its candidates share the top `depth` bits of their key,
@@ -122,46 +182,99 @@ impl Search {
 }
 
 /// One search's candidates after a pass: counted by digit, or read.
-#[derive(Default)]
 struct Gathered {
-    buckets: Vec<Bucket>,
+    buckets: Buckets,
     candidates: Vec<(Place, f64)>,
 }
 
-/// One pass over the records: every search's candidates.
-fn gather(records: &dyn Records, jobs: &[Job], searches: &[Search]) -> io::Result<Vec<Gathered>> {
-    let mut gathered: Vec<Gathered> = searches
-        .iter()
-        .map(|s| Gathered {
-            buckets: if s.collect { Vec::new() } else { vec![Bucket::default(); 1 << DIGIT_BITS] },
-            candidates: Vec::new(),
-        })
-        .collect();
-    records.scan(&mut |block| {
-        gathered.par_iter_mut().zip(searches).for_each(|(g, s)| {
-            let job = &jobs[s.job];
-            for r in block {
-                if let Some(place) = job.place(r)
-                    && s.holds(place.key)
-                {
-                    if s.collect {
-                        g.candidates.push((place, r.weight));
-                    } else {
-                        g.buckets[s.digit(place.key)].add(place, r.weight);
-                    }
-                }
+/// How the passes read: at most `collect` candidates of a quantile read at once; held records
+/// in parts of at least `part` records (at most [`PARTS`] of them, so a pass's buckets, 3.7 MB a
+/// search and part, stay few), on several threads. The same on any number of threads.
+#[derive(Clone, Copy, Debug)]
+struct Reading {
+    collect: u64,
+    part: usize,
+}
+
+/// One pass over the records: every search's candidates. Records held in memory are read in
+/// parts, each part's candidates gathered alone and the parts' put together in order: the same
+/// candidates in the same order, and the same counts, as one scan gives (the buckets' weights
+/// summed part by part).
+fn gather(records: &dyn Records, jobs: &[Job], searches: &[Search], reading: Reading) -> io::Result<Vec<Gathered>> {
+    if let Some(all) = records.held() {
+        let parts = (all.len() / reading.part.max(1)).clamp(1, PARTS);
+        let chunks: Vec<&[Record]> = all.chunks(all.len().div_ceil(parts).max(1)).collect();
+        if chunks.is_empty() {
+            return Ok(searches.iter().map(|_| Gathered::empty()).collect());
+        }
+        let n = chunks.len();
+        let mut pieces = (0..searches.len() * n)
+            .into_par_iter()
+            .map(|t| gather_part(chunks[t % n], &jobs[searches[t / n].job], &searches[t / n]))
+            .collect::<Vec<_>>()
+            .into_iter();
+        let mut gathered = Vec::with_capacity(searches.len());
+        while let Some(mut g) = pieces.next() {
+            for next in pieces.by_ref().take(n - 1) {
+                g.join(next);
             }
-        });
+            gathered.push(g);
+        }
+        return Ok(gathered);
+    }
+    let mut gathered: Vec<Gathered> = searches.iter().map(|_| Gathered::empty()).collect();
+    records.scan(&mut |block| {
+        gathered.par_iter_mut().zip(searches).for_each(|(g, s)| g.add(block, &jobs[s.job], s));
     })?;
     Ok(gathered)
+}
+
+/// One part's candidates of one search.
+fn gather_part(part: &[Record], job: &Job, search: &Search) -> Gathered {
+    let mut g = Gathered::empty();
+    g.add(part, job, search);
+    g
+}
+
+impl Gathered {
+    /// Nothing gathered yet for a search.
+    fn empty() -> Gathered {
+        Gathered { buckets: Buckets::new(), candidates: Vec::new() }
+    }
+
+    /// A block's candidates, in order.
+    fn add(&mut self, block: &[Record], job: &Job, search: &Search) {
+        for r in block {
+            if let Some(place) = job.place(r)
+                && search.holds(place.key)
+            {
+                if search.collect {
+                    self.candidates.push((place, r.weight));
+                } else {
+                    self.buckets.at(search.digit(place.key)).add(place, r.weight);
+                }
+            }
+        }
+    }
+
+    /// The candidates of the records after these (the next part), put after them.
+    fn join(&mut self, next: Gathered) {
+        self.candidates.extend(next.candidates);
+        self.buckets.join(next.buckets);
+    }
 }
 
 /// The quantile from its candidates read: sorted (stably) and walked from `below` as
 /// [`weighted_quantile`](super::stats::weighted_quantile) walks the whole set.
 fn walk(search: &Search, mut candidates: Vec<(Place, f64)>) -> f64 {
     candidates.sort_by_key(|c| c.0);
+    walk_sorted(search, &candidates)
+}
+
+/// [`walk`] of candidates already sorted.
+fn walk_sorted(search: &Search, candidates: &[(Place, f64)]) -> f64 {
     let (mut below, mut before) = (search.below, search.before);
-    for (place, weight) in candidates {
+    for &(place, weight) in candidates {
         let x = order_value(place.key);
         let at = below + weight;
         if at >= search.goal {
@@ -181,12 +294,9 @@ fn walk(search: &Search, mut candidates: Vec<(Place, f64)>) -> f64 {
 
 /// The bucket of `buckets` (the candidates of `search` counted by their next digit) where the
 /// goal is reached: the quantile where that settles it, else the search narrowed to the bucket.
-fn narrow(search: Search, buckets: &[Bucket], collect: u64) -> Result<f64, Search> {
+fn narrow(search: Search, buckets: &Buckets, collect: u64) -> Result<f64, Search> {
     let (mut below, mut before) = (search.below, search.before);
-    for (digit, bucket) in buckets.iter().enumerate() {
-        if bucket.count == 0 {
-            continue;
-        }
+    for (digit, bucket) in buckets.filled() {
         if below + bucket.weight >= search.goal {
             let depth = search.depth + DIGIT_BITS;
             let prefix = (search.prefix << DIGIT_BITS) | digit as u64;
@@ -203,19 +313,29 @@ fn narrow(search: Search, buckets: &[Bucket], collect: u64) -> Result<f64, Searc
     Ok(before.unwrap_or(f64::NAN))
 }
 
-/// Each job's quantiles (NaN for an empty population), in passes over the records, reading at
-/// most `collect` candidates of a quantile at once.
-fn quantiles(records: &dyn Records, jobs: &[Job], collect: u64) -> io::Result<Vec<Vec<f64>>> {
-    let whole: Vec<Search> = (0..jobs.len()).map(Search::whole).collect();
-    let tops = gather(records, jobs, &whole)?;
+/// Each job's quantiles (NaN for an empty population), in passes over the records read as
+/// `reading` says. Records held in memory and no more than a quantile's candidates read at once
+/// are read in one pass, sorted and walked.
+fn quantiles(records: &dyn Records, jobs: &[Job], reading: Reading) -> io::Result<Vec<Vec<f64>>> {
+    let few = records.held().is_some_and(|all| all.len() as u64 <= reading.collect);
+    let whole: Vec<Search> = (0..jobs.len()).map(|j| Search { collect: few, ..Search::whole(j) }).collect();
+    let tops = gather(records, jobs, &whole, reading)?;
     let mut answers: Vec<Vec<f64>> = jobs.iter().map(|j| vec![f64::NAN; j.quantiles.len()]).collect();
     let mut open = Vec::new();
-    for (j, (job, top)) in jobs.iter().zip(&tops).enumerate() {
-        let count: u64 = top.buckets.iter().map(|b| b.count).sum();
-        let Some(first) = top.buckets.iter().find(|b| b.count > 0).map(|b| b.first) else {
+    for (j, (job, mut top)) in jobs.iter().zip(tops).enumerate() {
+        top.candidates.sort_by_key(|c| c.0);
+        let (count, first, total): (u64, _, f64) = if few {
+            (top.candidates.len() as u64, top.candidates.first().copied(), top.candidates.iter().map(|c| c.1).sum())
+        } else {
+            (
+                top.buckets.filled().map(|(_, b)| b.count).sum(),
+                top.buckets.filled().next().map(|(_, b)| b.first),
+                top.buckets.filled().map(|(_, b)| b.weight).sum(),
+            )
+        };
+        let Some(first) = first else {
             continue;
         };
-        let total: f64 = top.buckets.iter().map(|b| b.weight).sum();
         let (least, w0) = (order_value(first.0.key), first.1);
         for (q, &p) in job.quantiles.iter().enumerate() {
             // weighted_quantile's position p·(W − w₀) past the first element.
@@ -224,20 +344,27 @@ fn quantiles(records: &dyn Records, jobs: &[Job], collect: u64) -> io::Result<Ve
                 answers[j][q] = least;
                 continue;
             }
-            let search = Search { quantile: q, goal: w0 + target, ..Search::whole(j) };
-            match narrow(search, &top.buckets, collect) {
+            let search = Search { quantile: q, goal: w0 + target, ..whole[j].clone() };
+            if few {
+                answers[j][q] = walk_sorted(&search, &top.candidates);
+                continue;
+            }
+            match narrow(search, &top.buckets, reading.collect) {
                 Ok(v) => answers[j][q] = v,
                 Err(s) => open.push(s),
             }
         }
     }
     while !open.is_empty() {
-        let gathered = gather(records, jobs, &open)?;
+        let gathered = gather(records, jobs, &open, reading)?;
         let mut still = Vec::new();
         for (search, g) in open.into_iter().zip(gathered) {
             let (j, q) = (search.job, search.quantile);
-            let found =
-                if search.collect { Ok(walk(&search, g.candidates)) } else { narrow(search, &g.buckets, collect) };
+            let found = if search.collect {
+                Ok(walk(&search, g.candidates))
+            } else {
+                narrow(search, &g.buckets, reading.collect)
+            };
             match found {
                 Ok(v) => answers[j][q] = v,
                 Err(s) => still.push(s),
@@ -288,14 +415,22 @@ pub struct Streamed {
 
 /// The statistics, histogram and slope classes of `records` (their classes those of
 /// `bounds_deg`), as `stats`, `histogram` and `by_slope` give them for the same differences in
-/// memory, with `nodata_count` recorded as given.
+/// memory, with `nodata_count` recorded as given; `bins` 0 makes no histogram (left empty).
 pub fn streamed_stats(
     records: &dyn Records,
     nodata_count: u64,
     bounds_deg: &[f64],
     bins: usize,
 ) -> io::Result<Streamed> {
-    streamed_stats_with(records, nodata_count, bounds_deg, bins, COLLECT)
+    streamed_stats_with(records, nodata_count, bounds_deg, bins, Reading { collect: COLLECT, part: PART })
+}
+
+/// [`streamed_stats`] of records held in memory (which reading cannot fail).
+pub fn held_stats(records: &Vec<Record>, nodata_count: u64, bounds_deg: &[f64], bins: usize) -> Streamed {
+    match streamed_stats(records, nodata_count, bounds_deg, bins) {
+        Ok(s) => s,
+        Err(_) => unreachable!("records held in memory are read without error"),
+    }
 }
 
 fn streamed_stats_with(
@@ -303,7 +438,7 @@ fn streamed_stats_with(
     nodata_count: u64,
     bounds_deg: &[f64],
     bins: usize,
-    collect: u64,
+    reading: Reading,
 ) -> io::Result<Streamed> {
     // Population 0: every difference; 1 + k: slope class k.
     let classes = bounds_deg.len().saturating_sub(1).min(usize::from(NO_CLASS));
@@ -311,7 +446,7 @@ fn streamed_stats_with(
     let member = |r: &Record| (r.class != NO_CLASS && usize::from(r.class) < classes).then(|| 1 + usize::from(r.class));
     let mut moments = vec![Moments::default(); populations.len()];
     records.scan(&mut |block| {
-        for r in block {
+        for r in block.iter().filter(|r| !r.dh_m.is_nan()) {
             moments[0].add(r);
             if let Some(p) = member(r) {
                 moments[p].add(r);
@@ -323,20 +458,20 @@ fn streamed_stats_with(
     let mut jobs = Vec::new();
     for (p, &class) in populations.iter().enumerate() {
         let mut quantiles = vec![0.5, 0.05, 0.95];
-        if p == 0 {
+        if p == 0 && bins > 0 {
             quantiles.extend([0.005, 0.995]);
         }
         jobs.push(Job { class, centre: None, quantiles });
         jobs.push(Job { class, centre: Some(0.0), quantiles: vec![0.9] });
     }
-    let values = quantiles(records, &jobs, collect)?;
+    let values = quantiles(records, &jobs, reading)?;
     let of = |p: usize| (&values[2 * p], values[2 * p + 1][0]);
     // The variances about the means, and the histogram over the 0.5th to 99.5th percentile.
     let means: Vec<f64> = moments.iter().map(|m| m.wx / m.w).collect();
     let mut spread = vec![0f64; populations.len()];
-    let mut histogram = (moments[0].count > 0).then(|| Histogram::over(of(0).0[3], of(0).0[4], bins.max(1)));
+    let mut histogram = (moments[0].count > 0 && bins > 0).then(|| Histogram::over(of(0).0[3], of(0).0[4], bins));
     records.scan(&mut |block| {
-        for r in block {
+        for r in block.iter().filter(|r| !r.dh_m.is_nan()) {
             spread[0] += r.weight * (r.dh_m - means[0]).powi(2);
             if let Some(p) = member(r) {
                 spread[p] += r.weight * (r.dh_m - means[p]).powi(2);
@@ -352,7 +487,7 @@ fn streamed_stats_with(
         .enumerate()
         .map(|(p, &class)| Job { class, centre: Some(of(p).0[0]), quantiles: vec![0.5] })
         .collect();
-    let deviations = quantiles(records, &deviations, collect)?;
+    let deviations = quantiles(records, &deviations, reading)?;
     let stats_of = |p: usize, nodata_count: u64| {
         let m = &moments[p];
         if m.count == 0 {
@@ -439,18 +574,55 @@ mod tests {
         for n in [0, 1, 2, 7, 5000] {
             let diffs = differences(n);
             let memory = (stats(&diffs, 3), histogram(&diffs, 50), by_slope(&diffs, &SLOPE_CLASSES_DEG));
-            // 0: every quantile narrowed to a single key; 5: a few read; COLLECT: read at once.
+            // 0: every quantile narrowed to a single key; 5: a few read; COLLECT: read at once
+            // (held records: sorted at once). Held records in one part or in four on threads;
+            // records that can only be scanned (a spill's), block by block.
             for collect in [0, 5, COLLECT] {
-                let what = format!("n {n}, collect {collect}");
-                let s = streamed_stats_with(&records(&diffs), 3, &SLOPE_CLASSES_DEG, 50, collect).unwrap();
-                assert_same(&s.stats, &memory.0, &what);
-                assert_eq!(s.histogram.count, memory.1.count, "{what}");
-                assert_eq!(s.by_slope.len(), memory.2.len());
-                for (a, b) in s.by_slope.iter().zip(&memory.2) {
-                    assert_eq!((a.min_deg, a.max_deg), (b.min_deg, b.max_deg));
-                    assert_same(&a.stats, &b.stats, &format!("{what}, class {}", a.min_deg));
+                for part in [PART, 1000] {
+                    let reading = Reading { collect, part };
+                    let held = records(&diffs);
+                    let scanned = Scanned(held.clone());
+                    for (records, how) in [(&held as &dyn Records, "held"), (&scanned, "scanned")] {
+                        let what = format!("n {n}, collect {collect}, part {part}, {how}");
+                        let s = streamed_stats_with(records, 3, &SLOPE_CLASSES_DEG, 50, reading).unwrap();
+                        assert_same(&s.stats, &memory.0, &what);
+                        assert_eq!(s.histogram.count, memory.1.count, "{what}");
+                        assert_eq!(s.by_slope.len(), memory.2.len());
+                        for (a, b) in s.by_slope.iter().zip(&memory.2) {
+                            assert_eq!((a.min_deg, a.max_deg), (b.min_deg, b.max_deg));
+                            assert_same(&a.stats, &b.stats, &format!("{what}, class {}", a.min_deg));
+                        }
+                    }
                 }
             }
+        }
+    }
+
+    #[test]
+    fn records_without_a_difference_are_left_out_of_every_statistic() {
+        let diffs = differences(3000);
+        let mut with_gaps = records(&diffs);
+        for k in (0..with_gaps.len()).rev().step_by(3) {
+            with_gaps.insert(k, Record { dh_m: f64::NAN, weight: 1e9, class: 0 });
+        }
+        let reading = Reading { collect: 5, part: 500 };
+        let a = streamed_stats_with(&records(&diffs), 3, &SLOPE_CLASSES_DEG, 50, reading).unwrap();
+        let b = streamed_stats_with(&with_gaps, 3, &SLOPE_CLASSES_DEG, 50, reading).unwrap();
+        assert_same(&b.stats, &a.stats, "gaps");
+        assert_eq!(b.histogram.count, a.histogram.count);
+        for (x, y) in b.by_slope.iter().zip(&a.by_slope) {
+            assert_same(&x.stats, &y.stats, "gaps, a class");
+        }
+        // No histogram asked for: none made.
+        assert!(held_stats(&with_gaps, 0, &[], 0).histogram.count.is_empty());
+    }
+
+    /// Records that can only be scanned, as a spill's are.
+    struct Scanned(Vec<Record>);
+
+    impl Records for Scanned {
+        fn scan(&self, f: &mut dyn FnMut(&[Record])) -> io::Result<()> {
+            self.0.scan(f)
         }
     }
 }

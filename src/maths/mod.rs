@@ -22,6 +22,20 @@ pub fn pcg(v: u32) -> u32 {
 /// selected from (the whole set only when fewer than `n` do). How the fits draw a deterministic
 /// random subset.
 pub fn first_in_hash_order(indices: &[usize], n: usize) -> Vec<usize> {
+    let mut keyed = hash_selected(indices, n);
+    keyed.sort_unstable();
+    keyed.into_iter().map(|(_, k)| k).collect()
+}
+
+/// The indices [`first_in_hash_order`] gives, in ascending order (without its sort by hash).
+pub fn first_in_hash_order_ascending(indices: &[usize], n: usize) -> Vec<usize> {
+    let mut chosen: Vec<usize> = hash_selected(indices, n).into_iter().map(|(_, k)| k).collect();
+    chosen.sort_unstable();
+    chosen
+}
+
+/// The `n` of `indices` first in PCG hash order with their hashes, in no order.
+fn hash_selected(indices: &[usize], n: usize) -> Vec<(u32, usize)> {
     let key = |k: usize| (pcg(k as u32), k);
     if n == 0 {
         return Vec::new();
@@ -36,8 +50,7 @@ pub fn first_in_hash_order(indices: &[usize], n: usize) -> Vec<usize> {
         keyed.select_nth_unstable(n - 1);
         keyed.truncate(n);
     }
-    keyed.sort_unstable();
-    keyed.into_iter().map(|(_, k)| k).collect()
+    keyed
 }
 
 /// The median of `values` (the mean of the two middle ones for an even count; NaN when empty),
@@ -81,6 +94,9 @@ mod tests {
         sorted.sort_by_key(|&k| (pcg(k as u32), k));
         for n in [0, 1, 17, 4999, 5000, 6000] {
             assert_eq!(first_in_hash_order(&indices, n), sorted[..n.min(5000)], "{n}");
+            let mut ascending = sorted[..n.min(5000)].to_vec();
+            ascending.sort_unstable();
+            assert_eq!(first_in_hash_order_ascending(&indices, n), ascending, "{n}");
         }
         // Many indices, few kept (the threshold holds them), and indices whose hashes all lie
         // in the upper half (none below the threshold: the whole set is selected from).
