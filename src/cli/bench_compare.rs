@@ -33,10 +33,11 @@ pub struct CompareBenchSettings {
 }
 
 /// Warps a raster to the transverse Mercator centred at (lat, lon), 90 m, bilinear.
-fn warp_tm(from: &Path, to: &Path, lat: f64, lon: f64) -> Result<(), CliError> {
+fn warp_tm(from: &Path, to: &Path, lat: f64, lon: f64, spacing_m: f64) -> Result<(), CliError> {
     let tm = format!("+proj=tmerc +lon_0={lon} +lat_0={lat} +k=1 +ellps=WGS84 +units=m");
+    let tr = format!("{spacing_m}");
     let status = std::process::Command::new("gdalwarp")
-        .args(["-q", "-overwrite", "-t_srs", &tm, "-tr", "90", "90", "-r", "bilinear", "-dstnodata", "-9999"])
+        .args(["-q", "-overwrite", "-t_srs", &tm, "-tr", &tr, &tr, "-r", "bilinear", "-dstnodata", "-9999"])
         .args(["-ot", "Float32"])
         .arg(from)
         .arg(to)
@@ -144,8 +145,13 @@ pub fn bench_compare(settings: &CompareBenchSettings) -> Result<String, CliError
     );
     let data = |name: &str| project.resolve(Path::new(&format!("data/{name}")));
     let (ref_tm, moved_tm) = (settings.out.join("erzurum_ref_tm.tif"), settings.out.join("erzurum_moved_tm.tif"));
-    warp_tm(&data("earth_srtm3_demcompare_N39E040.tif"), &ref_tm, 39.6, 40.42)?;
-    warp_tm(&data("earth_srtm3_blurred_shifted_N39E040.tif"), &moved_tm, 39.6, 40.42)?;
+    warp_tm(&data("earth_srtm3_demcompare_N39E040.tif"), &ref_tm, 39.6, 40.42, 90.0)?;
+    warp_tm(&data("earth_srtm3_blurred_shifted_N39E040.tif"), &moved_tm, 39.6, 40.42, 90.0)?;
+    // The same pair at Terrafuse's sample spacing: as many samples for xDEM as Terrafuse reads.
+    let (ref_fine, moved_fine) =
+        (settings.out.join("erzurum_ref_fine.tif"), settings.out.join("erzurum_moved_fine.tif"));
+    warp_tm(&data("earth_srtm3_demcompare_N39E040.tif"), &ref_fine, 39.6, 40.42, r.spacing_m)?;
+    warp_tm(&data("earth_srtm3_blurred_shifted_N39E040.tif"), &moved_fine, 39.6, 40.42, r.spacing_m)?;
     match xdem(settings, &ref_tm, &moved_tm) {
         Ok(x) => {
             let _ = writeln!(
@@ -172,6 +178,7 @@ pub fn bench_compare(settings: &CompareBenchSettings) -> Result<String, CliError
         reference_dir: &settings.reference_dir,
         reference_tm: &ref_tm,
         moved_tm: &moved_tm,
+        fine: (&ref_fine, &moved_fine, r.spacing_m),
     })?);
     // Comparisons of 10⁷–10⁸ samples, held in memory and spilled.
     report.push_str(&super::bench_compare_large::large_table(&settings.project)?);
@@ -219,8 +226,12 @@ pub fn bench_compare(settings: &CompareBenchSettings) -> Result<String, CliError
         c.stats.nmad_m
     );
     let (ref_tm, moved_tm) = (settings.out.join("synthetic_ref_tm.tif"), settings.out.join("synthetic_moved_tm.tif"));
-    warp_tm(&ref_tif, &ref_tm, lat_c, lon_c)?;
-    warp_tm(&moved_tif, &moved_tm, lat_c, lon_c)?;
+    warp_tm(&ref_tif, &ref_tm, lat_c, lon_c, 90.0)?;
+    warp_tm(&moved_tif, &moved_tm, lat_c, lon_c, 90.0)?;
+    let (ref_fine, moved_fine) =
+        (settings.out.join("synthetic_ref_fine.tif"), settings.out.join("synthetic_moved_fine.tif"));
+    warp_tm(&ref_tif, &ref_fine, lat_c, lon_c, r.spacing_m)?;
+    warp_tm(&moved_tif, &moved_fine, lat_c, lon_c, r.spacing_m)?;
     match xdem(settings, &ref_tm, &moved_tm) {
         Ok(x) => {
             let (sx, sy) = (x["shift_x"].as_f64().unwrap_or(f64::NAN), x["shift_y"].as_f64().unwrap_or(f64::NAN));
@@ -254,6 +265,7 @@ pub fn bench_compare(settings: &CompareBenchSettings) -> Result<String, CliError
             reference_dir: &settings.reference_dir,
             reference_tm: &ref_tm,
             moved_tm: &moved_tm,
+            fine: (&ref_fine, &moved_fine, r.spacing_m),
         },
         &format!("synthetic {}² pair", settings.size),
     )?);

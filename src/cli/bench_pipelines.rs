@@ -82,6 +82,9 @@ pub(super) struct PipelineBench<'a> {
     pub reference_tm: &'a Path,
     /// The moved raster, warped the same way.
     pub moved_tm: &'a Path,
+    /// The pair warped the same way at Terrafuse's sample spacing (metres, the last): as many
+    /// samples for xDEM as Terrafuse reads.
+    pub fine: (&'a Path, &'a Path, f64),
 }
 
 /// The table: each workflow by Terrafuse on the Erzurum project and by xDEM on its warped pair.
@@ -109,7 +112,8 @@ fn heading(pair: &str) -> String {
     )
 }
 
-/// A workflow's two rows: Terrafuse's on the project, xDEM's on the warped pair.
+/// A workflow's rows: Terrafuse's on the project, xDEM's on the pair warped to 90 m and to
+/// Terrafuse's sample spacing.
 fn workflow_rows(
     out: &mut String,
     bench: &PipelineBench,
@@ -128,25 +132,33 @@ fn workflow_rows(
         peak as f64 / 1048576.0,
         value.unwrap_or(f64::NAN)
     );
-    let mut python = Command::new(bench.python);
-    let script = bench.reference_dir.join("xdem_bench_pipeline.py");
-    python.arg(script).arg(bench.reference_tm).arg(bench.moved_tm).arg(workflow);
-    match run_measured(python) {
-        Ok((json, process, peak)) => {
-            let x: serde_json::Value = serde_json::from_str(&json)?;
-            let value = x["nmad_after_m"].as_f64().or_else(|| x["sigma_mean_m"].as_f64());
-            let _ = writeln!(
-                out,
-                "{:<34} {:<10} {:>9.2} {process:>10.2} {:>10.0} {:>22.4}",
-                "",
-                "xDEM",
-                x["seconds"].as_f64().unwrap_or(f64::NAN),
-                peak as f64 / 1048576.0,
-                value.unwrap_or(f64::NAN)
-            );
-        }
-        Err(e) => {
-            let _ = writeln!(out, "{:<34} xDEM not run: {}", "", crate::errors::chain(&e));
+    let (fine_ref, fine_moved, fine_m) = bench.fine;
+    for (tool, reference, moved) in [
+        ("xDEM 90 m".to_string(), bench.reference_tm, bench.moved_tm),
+        (format!("xDEM {fine_m:.0} m"), fine_ref, fine_moved),
+    ] {
+        let mut python = Command::new(bench.python);
+        let script = bench.reference_dir.join("xdem_bench_pipeline.py");
+        python.arg(script).arg(reference).arg(moved).arg(workflow);
+        match run_measured(python) {
+            Ok((json, process, peak)) => {
+                let x: serde_json::Value = serde_json::from_str(&json)?;
+                let value = x["nmad_after_m"].as_f64().or_else(|| x["sigma_mean_m"].as_f64());
+                let _ = writeln!(
+                    out,
+                    "{:<34} {tool:<10} {:>9.2} {process:>10.2} {:>10.0} {:>22.4}",
+                    "",
+                    x["seconds"].as_f64().unwrap_or(f64::NAN),
+                    peak as f64 / 1048576.0,
+                    value.unwrap_or(f64::NAN)
+                );
+            }
+            Err(e) => {
+                // A Python traceback's last line says what failed.
+                let error = crate::errors::chain(&e);
+                let last = error.lines().rev().find(|l| !l.trim().is_empty()).unwrap_or_default().trim();
+                let _ = writeln!(out, "{:<34} {tool:<10} failed: {last}", "");
+            }
         }
     }
     Ok(())
