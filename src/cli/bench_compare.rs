@@ -32,12 +32,30 @@ pub struct CompareBenchSettings {
     pub reference_dir: PathBuf,
 }
 
-/// Warps a raster to the transverse Mercator centred at (lat, lon), 90 m, bilinear.
-fn warp_tm(from: &Path, to: &Path, lat: f64, lon: f64, spacing_m: f64) -> Result<(), CliError> {
+/// Warps a pair of rasters (reference, moved; each from → to) to the transverse Mercator centred at
+/// (lat, lon) with `spacing_m` square pixels, bilinear: the reference onto its own extent, the
+/// moved raster onto the reference's grid (xDEM's workflows want both on one grid).
+fn warp_pair_tm(pair: [(&Path, &Path); 2], lat: f64, lon: f64, spacing_m: f64) -> Result<(), CliError> {
+    let [(ref_from, ref_to), (moved_from, moved_to)] = pair;
+    warp_tm(ref_from, ref_to, lat, lon, spacing_m, &[])?;
+    let ds = gdal::Dataset::open(ref_to).map_err(|e| format!("{}: {e}", ref_to.display()))?;
+    let gt = ds.geo_transform().map_err(|e| format!("{}: {e}", ref_to.display()))?;
+    let (w, h) = ds.raster_size();
+    let te = [gt[0], gt[3] + h as f64 * gt[5], gt[0] + w as f64 * gt[1], gt[3]].map(|v| v.to_string());
+    warp_tm(moved_from, moved_to, lat, lon, spacing_m, &te)
+}
+
+/// Warps a raster to the transverse Mercator centred at (lat, lon), `spacing_m` pixels, bilinear;
+/// onto the extent `te` (xmin, ymin, xmax ymax) where given.
+fn warp_tm(from: &Path, to: &Path, lat: f64, lon: f64, spacing_m: f64, te: &[String]) -> Result<(), CliError> {
     let tm = format!("+proj=tmerc +lon_0={lon} +lat_0={lat} +k=1 +ellps=WGS84 +units=m");
     let tr = format!("{spacing_m}");
-    let status = std::process::Command::new("gdalwarp")
-        .args(["-q", "-overwrite", "-t_srs", &tm, "-tr", &tr, &tr, "-r", "bilinear", "-dstnodata", "-9999"])
+    let mut command = std::process::Command::new("gdalwarp");
+    command.args(["-q", "-overwrite", "-t_srs", &tm, "-tr", &tr, &tr, "-r", "bilinear", "-dstnodata", "-9999"]);
+    if !te.is_empty() {
+        command.arg("-te").args(te);
+    }
+    let status = command
         .args(["-ot", "Float32"])
         .arg(from)
         .arg(to)
@@ -145,13 +163,12 @@ pub fn bench_compare(settings: &CompareBenchSettings) -> Result<String, CliError
     );
     let data = |name: &str| project.resolve(Path::new(&format!("data/{name}")));
     let (ref_tm, moved_tm) = (settings.out.join("erzurum_ref_tm.tif"), settings.out.join("erzurum_moved_tm.tif"));
-    warp_tm(&data("earth_srtm3_demcompare_N39E040.tif"), &ref_tm, 39.6, 40.42, 90.0)?;
-    warp_tm(&data("earth_srtm3_blurred_shifted_N39E040.tif"), &moved_tm, 39.6, 40.42, 90.0)?;
+    let (srtm, blurred) = (data("earth_srtm3_demcompare_N39E040.tif"), data("earth_srtm3_blurred_shifted_N39E040.tif"));
+    warp_pair_tm([(&srtm, &ref_tm), (&blurred, &moved_tm)], 39.6, 40.42, 90.0)?;
     // The same pair at Terrafuse's sample spacing: as many samples for xDEM as Terrafuse reads.
     let (ref_fine, moved_fine) =
         (settings.out.join("erzurum_ref_fine.tif"), settings.out.join("erzurum_moved_fine.tif"));
-    warp_tm(&data("earth_srtm3_demcompare_N39E040.tif"), &ref_fine, 39.6, 40.42, r.spacing_m)?;
-    warp_tm(&data("earth_srtm3_blurred_shifted_N39E040.tif"), &moved_fine, 39.6, 40.42, r.spacing_m)?;
+    warp_pair_tm([(&srtm, &ref_fine), (&blurred, &moved_fine)], 39.6, 40.42, r.spacing_m)?;
     match xdem(settings, &ref_tm, &moved_tm) {
         Ok(x) => {
             let _ = writeln!(
@@ -226,12 +243,10 @@ pub fn bench_compare(settings: &CompareBenchSettings) -> Result<String, CliError
         c.stats.nmad_m
     );
     let (ref_tm, moved_tm) = (settings.out.join("synthetic_ref_tm.tif"), settings.out.join("synthetic_moved_tm.tif"));
-    warp_tm(&ref_tif, &ref_tm, lat_c, lon_c, 90.0)?;
-    warp_tm(&moved_tif, &moved_tm, lat_c, lon_c, 90.0)?;
+    warp_pair_tm([(&ref_tif, &ref_tm), (&moved_tif, &moved_tm)], lat_c, lon_c, 90.0)?;
     let (ref_fine, moved_fine) =
         (settings.out.join("synthetic_ref_fine.tif"), settings.out.join("synthetic_moved_fine.tif"));
-    warp_tm(&ref_tif, &ref_fine, lat_c, lon_c, r.spacing_m)?;
-    warp_tm(&moved_tif, &moved_fine, lat_c, lon_c, r.spacing_m)?;
+    warp_pair_tm([(&ref_tif, &ref_fine), (&moved_tif, &moved_fine)], lat_c, lon_c, r.spacing_m)?;
     match xdem(settings, &ref_tm, &moved_tm) {
         Ok(x) => {
             let (sx, sy) = (x["shift_x"].as_f64().unwrap_or(f64::NAN), x["shift_y"].as_f64().unwrap_or(f64::NAN));
