@@ -515,7 +515,7 @@ fn bounds(points: impl Iterator<Item = [f64; 2]>) -> ([f64; 2], [f64; 2]) {
 /// What is left of `raw` (A − B as A stands) once the offset `up` is added and the biases taken
 /// off, sample by sample (None: no data), without holding it.
 fn residual<'a>(raw: &'a [Option<f64>], up: f64, bias: &'a [f64]) -> impl Iterator<Item = Option<f64>> + 'a {
-    raw.iter().zip(bias).map(move |(d, b)| d.map(|d| d + up - b))
+    (0..raw.len().min(bias.len())).map(residual_at(raw, up, bias))
 }
 
 /// The stable samples with a residual: index, value, weight.

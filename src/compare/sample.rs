@@ -319,8 +319,7 @@ impl<'a> Differences<'a> {
         match self {
             Differences::Memory(records, classes) => records.push(record(classes, &d)),
             Differences::Spilled(spill, classes) => {
-                let r = record(classes, &d);
-                spill.push(r).map_err(|e| spill_error(spill, e))?;
+                spill.push(record(classes, &d)).map_err(|e| spill_error(spill, e))?;
             }
         }
         Ok(())

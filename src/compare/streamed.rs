@@ -188,8 +188,8 @@ struct Gathered {
 }
 
 /// How the passes read: at most `collect` candidates of a quantile read at once; held records
-/// in parts of at least `part` records (at most [`PARTS`] of them, so a pass's buckets, 3.7 MB a
-/// search and part, stay few), on several threads. The same on any number of threads.
+/// in parts of at least `part` records (at most [`PARTS`] of them, each with its own buckets), on
+/// several threads. The same on any number of threads.
 #[derive(Clone, Copy, Debug)]
 struct Reading {
     collect: u64,
