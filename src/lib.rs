@@ -23,6 +23,7 @@ pub mod gpu;
 pub mod gui;
 pub mod layers;
 pub mod maths;
+pub mod progress;
 pub mod project;
 pub mod replay;
 pub mod scene;
