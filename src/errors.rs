@@ -57,9 +57,47 @@ pub fn chain(error: &dyn std::error::Error) -> String {
     text
 }
 
+/// The option closest to `word` when it looks like a typo of it (at most a third of its letters,
+/// and at least one, to change by Levenshtein distance), for "did you mean …" in messages.
+pub fn closest<'a>(word: &str, options: impl IntoIterator<Item = &'a str>) -> Option<&'a str> {
+    let limit = (word.chars().count() / 3).max(1);
+    options
+        .into_iter()
+        .map(|o| (levenshtein(&word.to_lowercase(), &o.to_lowercase()), o))
+        .filter(|(d, _)| *d <= limit)
+        .min_by_key(|(d, _)| *d)
+        .map(|(_, o)| o)
+}
+
+/// Edits (insertions, deletions, substitutions) from `a` to `b`.
+fn levenshtein(a: &str, b: &str) -> usize {
+    let b: Vec<char> = b.chars().collect();
+    let mut row: Vec<usize> = (0..=b.len()).collect();
+    for (i, ca) in a.chars().enumerate() {
+        let mut diagonal = row[0];
+        row[0] = i + 1;
+        for (j, cb) in b.iter().enumerate() {
+            let above = row[j + 1];
+            row[j + 1] = (above + 1).min(row[j] + 1).min(diagonal + usize::from(ca != *cb));
+            diagonal = above;
+        }
+    }
+    row[b.len()]
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_typo_finds_its_word_and_a_stranger_finds_none() {
+        let layers = ["sculpt", "lola_global", "erosion"];
+        assert_eq!(closest("scuplt", layers), Some("sculpt"));
+        assert_eq!(closest("Sculpt", layers), Some("sculpt"));
+        assert_eq!(closest("erosoin", layers), Some("erosion"));
+        assert_eq!(closest("terrain", layers), None);
+        assert_eq!(levenshtein("kitten", "sitting"), 3);
+    }
 
     #[derive(Debug, thiserror::Error)]
     #[error("{path}: cannot read")]

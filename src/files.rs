@@ -7,6 +7,8 @@
 //! at most its temporary file, named `.<name>.tmp-<pid>-<n>`; the next save into that folder
 //! removes the temporaries of processes that no longer run.
 
+pub mod lock;
+
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -53,7 +55,12 @@ fn sync_folder(dir: &Path) -> std::io::Result<()> {
 
 /// The temporaries of `name` in `dir` that processes no longer running left behind.
 pub fn orphans(dir: &Path, name: &str) -> Vec<PathBuf> {
-    let prefix = format!(".{name}.tmp-");
+    orphans_of(dir, |file| file == name)
+}
+
+/// The temporaries in `dir` of every file whose name `of` accepts, left by processes that no
+/// longer run.
+pub fn orphans_of(dir: &Path, of: impl Fn(&str) -> bool) -> Vec<PathBuf> {
     let Ok(entries) = std::fs::read_dir(dir) else {
         return Vec::new();
     };
@@ -61,8 +68,9 @@ pub fn orphans(dir: &Path, name: &str) -> Vec<PathBuf> {
         .filter_map(Result::ok)
         .filter_map(|e| {
             let file = e.file_name().to_string_lossy().into_owned();
-            let pid: i32 = file.strip_prefix(&prefix)?.split('-').next()?.parse().ok()?;
-            (!process_runs(pid)).then(|| e.path())
+            let (name, tail) = file.strip_prefix('.')?.rsplit_once(".tmp-")?;
+            let pid: i32 = tail.split('-').next()?.parse().ok()?;
+            (of(name) && !process_runs(pid)).then(|| e.path())
         })
         .collect()
 }

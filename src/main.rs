@@ -66,8 +66,34 @@ fn workstation(opts: &terrafuse::gui::ViewOptions) -> Result<()> {
     Ok(())
 }
 
+/// Keeps headless commands quiet without a desktop session: Mesa's Vulkan device-select layer
+/// asks libwayland for a display, which prints "error: XDG_RUNTIME_DIR is invalid or not set in
+/// the environment" on every GPU command when the variable is unset. A private, empty folder
+/// (mode 0700, as the variable requires) answers it; the workstation keeps the environment as
+/// it is.
+fn quiet_without_a_desktop() {
+    use std::os::unix::fs::{DirBuilderExt, MetadataExt, PermissionsExt};
+    if std::env::var_os("XDG_RUNTIME_DIR").is_some() {
+        return;
+    }
+    // SAFETY: getuid has no preconditions and cannot fail.
+    let uid = unsafe { libc::getuid() };
+    let dir = std::env::temp_dir().join(format!("terrafuse-runtime-{uid}"));
+    let _ = std::fs::DirBuilder::new().mode(0o700).create(&dir);
+    let private = std::fs::symlink_metadata(&dir)
+        .is_ok_and(|m| m.is_dir() && m.uid() == uid && m.permissions().mode() & 0o777 == 0o700);
+    if private {
+        // SAFETY: called first thing in main, before any thread exists.
+        unsafe { std::env::set_var("XDG_RUNTIME_DIR", &dir) };
+    }
+}
+
 fn main() -> ExitCode {
-    match run(Args::parse()) {
+    let args = Args::parse();
+    if !matches!(args.command, None | Some(Command::View { .. })) {
+        quiet_without_a_desktop();
+    }
+    match run(args) {
         Ok(code) => code,
         Err(error) => {
             eprintln!("terrafuse: {}", terrafuse::errors::chain(&*error));
@@ -119,6 +145,7 @@ fn run(args: Args) -> Result<ExitCode> {
                 err: &mut io::stderr(),
                 trace: trace(),
                 var: &var,
+                progress: io::IsTerminal::is_terminal(&io::stderr()),
             };
             return Ok(ExitCode::from(cli::run(command, &mut console)?));
         }

@@ -124,3 +124,98 @@ fn an_error_prints_its_cause_chain() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("cannot read") && err.contains("os error"), "{err}");
 }
+
+/// The `terrafuse` command line, as main.rs parses it.
+#[derive(clap::Parser)]
+struct Cli {
+    #[command(subcommand)]
+    command: terrafuse::cli::args::Command,
+}
+
+/// The command lines the README and docs/ quote: every line of a code block and every inline
+/// code span that starts with `terrafuse ` (a line ending in `\` joined with the next), with the
+/// file and line they come from.
+fn documented_command_lines() -> Vec<(String, String)> {
+    let mut files = vec![common::repo_path("README.md")];
+    let mut docs: Vec<_> = std::fs::read_dir(common::repo_path("docs"))
+        .unwrap()
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.extension().is_some_and(|e| e == "md"))
+        .collect();
+    docs.sort();
+    files.extend(docs);
+    let mut out = Vec::new();
+    for file in files {
+        let text = std::fs::read_to_string(&file).unwrap();
+        let name = file.file_name().unwrap().to_string_lossy().into_owned();
+        let mut in_code = false;
+        let mut joined = String::new();
+        for (k, line) in text.lines().enumerate() {
+            let at = format!("{name}:{}", k + 1);
+            if line.trim_start().starts_with("```") {
+                in_code = !in_code;
+                continue;
+            }
+            if in_code {
+                let line = line.split(" # ").next().unwrap_or("").trim();
+                if !joined.is_empty() || line.starts_with("terrafuse ") {
+                    joined.push_str(line.trim_end_matches('\\'));
+                    joined.push(' ');
+                    if !line.ends_with('\\') {
+                        out.push((at, std::mem::take(&mut joined)));
+                    }
+                }
+                continue;
+            }
+            for (i, span) in line.split('`').enumerate() {
+                if i % 2 == 1 && span.starts_with("terrafuse ") {
+                    out.push((at.clone(), span.to_string()));
+                }
+            }
+        }
+    }
+    out
+}
+
+#[test]
+fn every_command_line_the_docs_quote_names_commands_and_flags_that_exist() {
+    use clap::CommandFactory;
+    let root = Cli::command();
+    let lines = documented_command_lines();
+    assert!(lines.len() > 50, "the docs quote command lines: {}", lines.len());
+    let mut problems = Vec::new();
+    for (at, line) in &lines {
+        let words: Vec<&str> = line.split_whitespace().skip(1).collect();
+        // The subcommands named (`a|b` names each of several), then the flags of the last.
+        let mut command = &root;
+        let mut chain: Vec<&clap::Command> = vec![&root];
+        let mut rest = &words[..];
+        while let Some(word) = rest.first() {
+            let names: Vec<&str> = word.split('|').collect();
+            if !names.iter().all(|n| n.chars().all(|c| c.is_ascii_lowercase() || c == '-') && !n.is_empty()) {
+                break;
+            }
+            let Some(found) = command.find_subcommand(names[0]) else { break };
+            for n in &names[1..] {
+                if command.find_subcommand(n).is_none() {
+                    problems.push(format!("{at}: `{line}`: no subcommand '{n}'"));
+                }
+            }
+            command = found;
+            chain.push(found);
+            rest = &rest[1..];
+        }
+        for word in rest {
+            let Some(flag) = word.strip_prefix("--") else { continue };
+            let flag = flag.split(['=', '|', '`', ',', ')', ']']).next().unwrap_or("");
+            if flag.is_empty() || flag == "help" || flag == "version" || !flag.chars().next().unwrap().is_alphabetic() {
+                continue;
+            }
+            let known = chain.iter().any(|c| c.get_arguments().any(|a| a.get_long() == Some(flag)));
+            if !known {
+                problems.push(format!("{at}: `{}`: no flag --{flag}", line.trim()));
+            }
+        }
+    }
+    assert!(problems.is_empty(), "documented command lines that do not exist:\n{}", problems.join("\n"));
+}

@@ -107,7 +107,11 @@ fn bad_project_files_are_refused_naming_the_file_the_field_and_the_problem() {
     };
     let stroke = r#"{"tool": "raise", "radius_m": 2000, "strength": 5, "level": 8, "path": [[0, 0]]}"#;
     let cases: Vec<(&str, String, &str)> = vec![
-        ("truncated", sample[..sample.len() / 2].to_string(), "not valid JSON: layers[1].strokes["),
+        (
+            "truncated",
+            sample[..sample.find("\"strokes\"").unwrap() + 200].to_string(),
+            "not valid JSON: layers[1].strokes[",
+        ),
         ("not-json", "<?xml version=\"1.0\"?><project/>".into(), "not valid JSON"),
         ("empty", String::new(), "not valid JSON"),
         ("array", "[1, 2]".into(), "a project file is a JSON object"),
@@ -120,6 +124,21 @@ fn bad_project_files_are_refused_naming_the_file_the_field_and_the_problem() {
         ("infinite", sample.replace("\"radius_m\": 20000.0", "\"radius_m\": 1e999"), "number out of range"),
         ("radius-of-1e10", with_layers("r=1e10", ""), "body: a semi-major axis of 10000000000.0 m is outside"),
         ("negative-radius", edit_of(&stroke.replace("2000", "-5")), "layers[0]: layer 'e': strokes[0].radius_m"),
+        (
+            "stroke-beyond-180",
+            edit_of(&stroke.replace("[[0, 0]]", "[[0, 420]]")),
+            "strokes[0].path: point 0 [0, 420] is not [lat, lon] in degrees (latitude within ±90, longitude within ±180)",
+        ),
+        (
+            "camera-beyond-180",
+            sample.replace("\"lon\": 45.0", "\"lon\": 405.0"),
+            "camera longitude 405 is outside [-180, 180]",
+        ),
+        (
+            "unknown-colour-map",
+            sample.replace("\"preset\": \"viridis\"", "\"preset\": \"virdis\""),
+            "visuals.colour_map.preset: 'virdis' is not a colour map (did you mean 'viridis'?)",
+        ),
         (
             "a-billion-applied",
             with_layers(

@@ -807,6 +807,89 @@ fn the_file_bar_saves_as_opens_autosaves_and_offers_the_recovery_after_a_crash()
     assert!(recovery::find(&project).is_none(), "saving removes the recovery file");
 }
 
+#[test]
+fn a_change_a_command_makes_while_the_window_has_unsaved_edits_is_never_written_over() {
+    let dir = common::out_path("workstation-two-writers");
+    let _ = std::fs::remove_dir_all(&dir);
+    let project = sample_project("moon-brushing", &dir);
+    let strokes_on_disk = || Project::load(&project).unwrap().layers[1].strokes().len();
+    let brush = |lat: f64| {
+        let path = format!("{lat},40;{lat},41");
+        let args = ["brush", project.to_str().unwrap(), "--layer", "sculpt", "--tool", "raise"];
+        let more = ["--radius-m", "20000", "--strength-m", "100", "--path", path.as_str(), "--wait", "30"];
+        let out = common::terrafuse(&[&args[..], &more[..]].concat(), "");
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    };
+    let wait_until = |h: &mut Harness<'static, App>, what: &str, done: &dyn Fn(&App) -> bool| {
+        for _ in 0..200 {
+            h.step();
+            if done(h.state()) {
+                h.run_steps(2);
+                return;
+            }
+            std::thread::sleep(Duration::from_millis(50));
+        }
+        panic!("{what}: {}", h.state().message());
+    };
+    let mut h = harness(&project, "sculpt");
+    settle(&mut h);
+    let n = strokes_on_disk();
+
+    // An unsaved change in the window (a layer hidden), then a stroke by a command.
+    h.get_all_by_label("visible").next().unwrap().click_accesskit();
+    h.run_steps(2);
+    assert!(h.state().unsaved());
+    let hidden = h.state().project().layers.iter().position(|l| !l.visible).expect("a layer hidden");
+    brush(1.0);
+    assert_eq!(strokes_on_disk(), n + 1);
+    // The window sees the change within a second and asks; "decide later", then a save: refused,
+    // and the command's stroke stays in the file.
+    wait_until(&mut h, "the conflict is offered", &|a| a.disk_conflict());
+    h.get_by_label("decide later").click_accesskit();
+    h.run_steps(2);
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::S);
+    h.run_steps(2);
+    assert!(h.state().disk_conflict() && h.state().unsaved(), "{}", h.state().message());
+    assert!(h.state().message().contains("another process changed the file"), "{}", h.state().message());
+    assert_eq!(strokes_on_disk(), n + 1, "the command's stroke is kept");
+
+    // Kept as a copy: the copy holds the window's version, the project the command's.
+    h.get_by_label("keep mine as a copy").click_accesskit();
+    h.run_steps(2);
+    let copy = dir.join("moon-brushing.mine.json");
+    assert_eq!(h.state().project_path(), copy.as_path(), "{}", h.state().message());
+    let mine = Project::load(&copy).unwrap();
+    assert!(!mine.layers[hidden].visible && mine.layers[1].strokes().len() == n, "the window's version");
+    assert_eq!(strokes_on_disk(), n + 1);
+
+    // Back on the project with another unsaved change, another command's stroke: reloading takes
+    // it and drops the window's change.
+    h.state_mut().open_project(&project, None);
+    wait_for_open(&mut h);
+    settle(&mut h);
+    h.get_all_by_label("visible").next().unwrap().click_accesskit();
+    h.run_steps(2);
+    brush(2.0);
+    wait_until(&mut h, "the conflict is offered", &|a| a.disk_conflict());
+    h.get_by_label("reload it (drop my changes)").click_accesskit();
+    wait_for_open(&mut h);
+    assert!(!h.state().unsaved() && h.state().project().layers[hidden].visible);
+    assert_eq!(h.state().project().layers[1].strokes().len(), n + 2);
+
+    // With nothing unsaved, a command's change is simply reloaded.
+    settle(&mut h);
+    brush(3.0);
+    wait_until(&mut h, "the change is reloaded", &|a| a.project().layers[1].strokes().len() == n + 3);
+    assert!(!h.state().disk_conflict() && !h.state().unsaved());
+    // And the window's own save goes through again.
+    h.get_all_by_label("visible").next().unwrap().click_accesskit();
+    h.run_steps(2);
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::S);
+    h.run_steps(2);
+    let saved = Project::load(&project).unwrap();
+    assert!(!saved.layers[hidden].visible && saved.layers[1].strokes().len() == n + 3, "{}", h.state().message());
+}
+
 /// Steps until the cluster-import panel's plan or merge is over.
 fn wait_for_cluster(h: &mut Harness<'static, App>) {
     step_while(h, 6000, "the plan or merge", |a| a.cluster_import().busy());

@@ -61,16 +61,20 @@ pub enum Command {
     /// --flight, frames along a camera path with frames.csv.
     Render {
         /// The project file (JSON).
-        project: PathBuf,
+        #[arg(required_unless_present = "list_colour_maps")]
+        project: Option<PathBuf>,
         /// The PNG to write.
-        #[arg(long, required_unless_present = "flight", conflicts_with = "flight")]
+        #[arg(long, required_unless_present_any = ["flight", "list_colour_maps"], conflicts_with = "flight")]
         out: Option<PathBuf>,
+        /// List the colour maps a project's visuals.colour_map.preset may name, and stop.
+        #[arg(long = "list-colour-maps", exclusive = true)]
+        list_colour_maps: bool,
         /// A camera path: LAT,LON,ALT,HEADING,PITCH[,FOV];LAT,… (degrees, metres above the
         /// ellipsoid), flown along geodesics, the altitude geometrically.
         #[arg(long, allow_hyphen_values = true, requires = "out_dir", conflicts_with_all = ["swipe", "view", "camera"])]
         flight: Option<String>,
         /// Frames along the flight.
-        #[arg(long, default_value_t = 60, requires = "flight")]
+        #[arg(long, default_value_t = 60, requires = "flight", allow_negative_numbers = true)]
         frames: usize,
         /// Folder for the flight's frame_0000.png … and frames.csv.
         #[arg(long, requires = "flight")]
@@ -79,10 +83,10 @@ pub enum Command {
         #[arg(long)]
         no_geomorph: bool,
         /// Image width, pixels.
-        #[arg(long, default_value_t = 1280)]
+        #[arg(long, default_value_t = 1280, allow_negative_numbers = true)]
         width: u32,
         /// Image height, pixels.
-        #[arg(long, default_value_t = 1024)]
+        #[arg(long, default_value_t = 1024, allow_negative_numbers = true)]
         height: u32,
         /// The view: a named one, a camera, a level of detail.
         #[command(flatten)]
@@ -105,7 +109,7 @@ pub enum Command {
         raster: RasterArgs,
         /// Level to compose (default: the output's pixel size, no finer than the finest dataset
         /// unless procedural layers add detail).
-        #[arg(long)]
+        #[arg(long, allow_negative_numbers = true)]
         level: Option<u8>,
         /// Where to compose: gpu (the renderer's pass) or cpu (the reference, bit for bit).
         #[arg(long, default_value = "gpu", value_parser = ["gpu", "cpu"])]
@@ -149,16 +153,16 @@ pub enum Command {
         #[command(flatten)]
         look: LookArgs,
         /// Window width, pixels.
-        #[arg(long, default_value_t = 1280)]
+        #[arg(long, default_value_t = 1280, allow_negative_numbers = true)]
         width: u32,
         /// Window height, pixels.
-        #[arg(long, default_value_t = 800)]
+        #[arg(long, default_value_t = 800, allow_negative_numbers = true)]
         height: u32,
         /// Once the view has loaded, write a picture of the whole window to this PNG and close.
         #[arg(long)]
         screenshot: Option<PathBuf>,
         /// Seconds a --screenshot run waits for the view to load.
-        #[arg(long, default_value_t = 300.0)]
+        #[arg(long, default_value_t = 300.0, allow_negative_numbers = true)]
         timeout: f64,
     },
     /// Rebuild every edit and erosion layer of a project from its operations and print a digest
@@ -196,6 +200,9 @@ pub enum ProjectCommand {
         /// Write here instead of over the project.
         #[arg(long)]
         out: Option<PathBuf>,
+        /// How long to wait for another process changing the project (or the file at --out).
+        #[command(flatten)]
+        wait: super::WaitArgs,
     },
     /// Print the JSON Schema of project files (docs/project.schema.json), or with --markdown
     /// the field reference of docs/project-format.md.
@@ -216,7 +223,7 @@ pub struct LookArgs {
     #[arg(long, allow_hyphen_values = true)]
     pub camera: Option<String>,
     /// Split quads while a sample covers more than this many pixels (the project's default).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub lod_threshold: Option<f64>,
 }
 
@@ -237,7 +244,7 @@ pub struct ImportArgs {
     #[arg(long, requires = "shards", conflicts_with_all = ["store", "manifest"])]
     pub plan: Option<PathBuf>,
     /// Shards of the plan.
-    #[arg(long, requires = "plan")]
+    #[arg(long, requires = "plan", allow_negative_numbers = true)]
     pub shards: Option<usize>,
     /// Import one shard of this manifest (with --shard and --store).
     #[arg(long, requires = "shard")]
@@ -272,7 +279,7 @@ pub struct ImportArgs {
     #[arg(long, default_value = "2GiB")]
     pub memory_budget: String,
     /// Worker threads (default: all cores).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub threads: Option<usize>,
     /// No progress bar.
     #[arg(long)]
@@ -302,7 +309,7 @@ pub struct SubmitArgs {
     #[arg(long)]
     pub store: PathBuf,
     /// CPUs per task, and the import's threads.
-    #[arg(long, default_value_t = 2)]
+    #[arg(long, default_value_t = 2, allow_negative_numbers = true)]
     pub threads: usize,
     /// Memory budget per task.
     #[arg(long, default_value = "2GiB")]
@@ -334,7 +341,7 @@ pub enum StoreCommand {
         #[arg(required = true)]
         parts: Vec<PathBuf>,
         /// Worker threads for the pyramid (default: all cores).
-        #[arg(long)]
+        #[arg(long, allow_negative_numbers = true)]
         threads: Option<usize>,
         /// No progress bar.
         #[arg(long)]
@@ -353,7 +360,7 @@ pub enum StoreCommand {
         #[arg(long)]
         dataset: Option<String>,
         /// Level to sample (default: the finest).
-        #[arg(long)]
+        #[arg(long, allow_negative_numbers = true)]
         level: Option<u8>,
     },
     /// Write a dataset as a GeoTIFF in any CRS.
@@ -369,7 +376,7 @@ pub enum StoreCommand {
         #[arg(long)]
         dataset: Option<String>,
         /// Level to read (default: the finest the output resolution needs).
-        #[arg(long)]
+        #[arg(long, allow_negative_numbers = true)]
         level: Option<u8>,
     },
 }
@@ -427,10 +434,10 @@ pub enum Analysis {
     /// Angular and areal distortion of the cube projections and the alternative grids.
     Tissot {
         /// Points per chart side for the pointwise supremum.
-        #[arg(long, default_value_t = 600)]
+        #[arg(long, default_value_t = 600, allow_negative_numbers = true)]
         samples: usize,
         /// Quadtree level whose cells are measured (2-12).
-        #[arg(long, default_value_t = 10)]
+        #[arg(long, default_value_t = 10, allow_negative_numbers = true)]
         level: u8,
     },
     /// Per level: largest displacement and normal deviation of the static maps, and the flat
@@ -440,17 +447,17 @@ pub enum Analysis {
         #[arg(long, default_value = "wgs84")]
         body: String,
         /// Tolerance on the flat path's position error, metres.
-        #[arg(long, default_value_t = crate::ecm::geometry::FlatRule::DEFAULT_TOLERANCE_M)]
+        #[arg(long, default_value_t = crate::ecm::geometry::FlatRule::DEFAULT_TOLERANCE_M, allow_negative_numbers = true)]
         tolerance_m: f64,
         /// Cap the tolerance at this fraction of the f32 limit at each level's draw distance
         /// (0: the absolute tolerance alone).
-        #[arg(long, default_value_t = 0.25)]
+        #[arg(long, default_value_t = 0.25, allow_negative_numbers = true)]
         limit_fraction: f64,
         /// Deepest level in the table (≤ 30).
-        #[arg(long, default_value_t = 30)]
+        #[arg(long, default_value_t = 30, allow_negative_numbers = true)]
         max_level: u8,
         /// Samples per quad edge in the scan.
-        #[arg(long, default_value_t = 17)]
+        #[arg(long, default_value_t = 17, allow_negative_numbers = true)]
         samples: u32,
     },
 }

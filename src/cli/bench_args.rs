@@ -12,13 +12,13 @@ pub enum Bench {
     /// --gpu, the GPU; saving and loading its project file and a log of 10⁵ strokes.
     Replay {
         /// Strokes of the edit layer.
-        #[arg(long, default_value_t = 10_000)]
+        #[arg(long, default_value_t = 10_000, allow_negative_numbers = true)]
         strokes: usize,
         /// Steps of the erosion run (128² cells).
-        #[arg(long, default_value_t = 10_000)]
+        #[arg(long, default_value_t = 10_000, allow_negative_numbers = true)]
         steps: u64,
         /// Strokes of the log that is saved and loaded.
-        #[arg(long, default_value_t = 100_000)]
+        #[arg(long, default_value_t = 100_000, allow_negative_numbers = true)]
         log_strokes: usize,
         /// Replay on the GPU too (lavapipe without a hardware GPU).
         #[arg(long)]
@@ -31,10 +31,10 @@ pub enum Bench {
     /// and its undo.
     Brush {
         /// Strokes in the session.
-        #[arg(long, default_value_t = 1000)]
+        #[arg(long, default_value_t = 1000, allow_negative_numbers = true)]
         strokes: usize,
         /// The level they are rasterised at.
-        #[arg(long, default_value_t = 6)]
+        #[arg(long, default_value_t = 6, allow_negative_numbers = true)]
         level: u8,
         /// Rebuild on the GPU rasteriser as well (and compare with the CPU's).
         #[arg(long)]
@@ -47,16 +47,16 @@ pub enum Bench {
         #[arg(long, value_delimiter = ',', default_value = "256,512,1024")]
         sizes: Vec<usize>,
         /// Steps timed per grid.
-        #[arg(long, default_value_t = 20)]
+        #[arg(long, default_value_t = 20, allow_negative_numbers = true)]
         steps: u64,
         /// The largest grid the CPU reference runs (larger: the GPU only).
-        #[arg(long = "cpu-max", default_value_t = 1024)]
+        #[arg(long = "cpu-max", default_value_t = 1024, allow_negative_numbers = true)]
         cpu_max: usize,
         /// Also time the GPU kernels.
         #[arg(long)]
         gpu: bool,
         /// The device's memory bandwidth, GB/s, for the share of it a step reaches.
-        #[arg(long = "bandwidth-gbs")]
+        #[arg(long = "bandwidth-gbs", allow_negative_numbers = true)]
         bandwidth_gbs: Option<f64>,
     },
     /// A stroke's latency in the workstation: pointer release to the updated image read back
@@ -66,13 +66,13 @@ pub enum Bench {
         #[arg(long, default_value = concat!(env!("CARGO_MANIFEST_DIR"), "/projects/moon-brushing.json"))]
         project: PathBuf,
         /// Strokes per tool.
-        #[arg(long, default_value_t = 5)]
+        #[arg(long, default_value_t = 5, allow_negative_numbers = true)]
         rounds: usize,
         /// Image width, pixels.
-        #[arg(long, default_value_t = 1280)]
+        #[arg(long, default_value_t = 1280, allow_negative_numbers = true)]
         width: u32,
         /// Image height, pixels.
-        #[arg(long, default_value_t = 800)]
+        #[arg(long, default_value_t = 800, allow_negative_numbers = true)]
         height: u32,
     },
     /// Comparison statistics and co-registration: time on the Erzurum pair and on a synthetic
@@ -83,7 +83,7 @@ pub enum Bench {
         #[arg(long, default_value = concat!(env!("CARGO_MANIFEST_DIR"), "/projects/erzurum-compare.json"))]
         project: PathBuf,
         /// Edge of the synthetic rasters, pixels.
-        #[arg(long, default_value_t = 4096)]
+        #[arg(long, default_value_t = 4096, allow_negative_numbers = true)]
         size: usize,
         /// Folder for the synthetic pair, its stores and compare.txt.
         #[arg(long, default_value = "out/bench-compare")]
@@ -97,7 +97,7 @@ pub enum Bench {
         #[arg(long, value_delimiter = ',', default_value = "128,256,512")]
         sizes: Vec<usize>,
         /// Steps per run.
-        #[arg(long, default_value_t = 50)]
+        #[arg(long, default_value_t = 50, allow_negative_numbers = true)]
         steps: u64,
         /// Folder for landscape.csv.
         #[arg(long, default_value = "out/bench-landscape")]
@@ -111,10 +111,10 @@ pub enum Bench {
         #[arg(long, default_value = "projects/erzurum.json")]
         project: PathBuf,
         /// Level-9 quads per measurement.
-        #[arg(long, default_value_t = 16)]
+        #[arg(long, default_value_t = 16, allow_negative_numbers = true)]
         quads: usize,
         /// Repetitions (the median is reported).
-        #[arg(long, default_value_t = 5)]
+        #[arg(long, default_value_t = 5, allow_negative_numbers = true)]
         repeats: usize,
         /// Folder for compose.csv.
         #[arg(long, default_value = "out/bench")]
@@ -135,16 +135,16 @@ pub enum Bench {
         #[arg(long, default_value = "1,2,4")]
         shards: String,
         /// Threads per process.
-        #[arg(long, default_value_t = 1)]
+        #[arg(long, default_value_t = 1, allow_negative_numbers = true)]
         threads: usize,
         /// Nodes of the cluster projected to.
-        #[arg(long, default_value_t = 64)]
+        #[arg(long, default_value_t = 64, allow_negative_numbers = true)]
         nodes: usize,
         /// Cores per node.
-        #[arg(long, default_value_t = 32)]
+        #[arg(long, default_value_t = 32, allow_negative_numbers = true)]
         cores: usize,
         /// Output samples of the projected import (default: SRTM 3″, 872 tiles of 6000²).
-        #[arg(long)]
+        #[arg(long, allow_negative_numbers = true)]
         samples: Option<f64>,
         /// Work folder (default: a temporary folder, removed after).
         #[arg(long)]
@@ -166,13 +166,13 @@ pub enum Bench {
         #[arg(long, value_delimiter = ',', default_values_t = [0.5, 1.0, 1.5, 2.0, 4.0, 8.0])]
         thresholds: Vec<f64>,
         /// Image width.
-        #[arg(long, default_value_t = 1280)]
+        #[arg(long, default_value_t = 1280, allow_negative_numbers = true)]
         width: u32,
         /// Image height.
-        #[arg(long, default_value_t = 1024)]
+        #[arg(long, default_value_t = 1024, allow_negative_numbers = true)]
         height: u32,
         /// Timed frames per view and threshold.
-        #[arg(long, default_value_t = 3)]
+        #[arg(long, default_value_t = 3, allow_negative_numbers = true)]
         frames: usize,
         /// Folder for render.csv and render.png.
         #[arg(long, default_value = "out/bench")]
@@ -191,23 +191,23 @@ pub enum Bench {
         #[arg(long, default_value = "1,10,100,1e3,1e4,1e5,1e6,1e7,1e8")]
         distances: String,
         /// Random quads per level and distance.
-        #[arg(long, default_value_t = 8)]
+        #[arg(long, default_value_t = 8, allow_negative_numbers = true)]
         trials: usize,
         /// Random vertices per quad (besides the one under the camera and its neighbours).
-        #[arg(long, default_value_t = 40)]
+        #[arg(long, default_value_t = 40, allow_negative_numbers = true)]
         vertices: usize,
         /// Seed of the random choices.
-        #[arg(long, default_value_t = 2012)]
+        #[arg(long, default_value_t = 2012, allow_negative_numbers = true)]
         seed: u64,
         /// Samples per quad edge.
-        #[arg(long, default_value_t = crate::ecm::geometry::DEFAULT_SAMPLES)]
+        #[arg(long, default_value_t = crate::ecm::geometry::DEFAULT_SAMPLES, allow_negative_numbers = true)]
         samples: u32,
         /// Tolerance of the flat rule (ecm-cutoff), metres.
-        #[arg(long, default_value_t = crate::ecm::geometry::FlatRule::DEFAULT_TOLERANCE_M)]
+        #[arg(long, default_value_t = crate::ecm::geometry::FlatRule::DEFAULT_TOLERANCE_M, allow_negative_numbers = true)]
         tolerance_m: f64,
         /// Cap the tolerance at this fraction of the f32 limit at each level's draw distance
         /// (0: the absolute tolerance alone).
-        #[arg(long, default_value_t = 0.25)]
+        #[arg(long, default_value_t = 0.25, allow_negative_numbers = true)]
         limit_fraction: f64,
         /// Where to write the CSV.
         #[arg(long, default_value = "accuracy.csv")]
@@ -233,7 +233,7 @@ pub struct BenchImportArgs {
     #[arg(long, default_value = "auto")]
     pub level: String,
     /// Worker threads for both tools.
-    #[arg(long, default_value_t = 2)]
+    #[arg(long, default_value_t = 2, allow_negative_numbers = true)]
     pub threads: usize,
     /// Folder for the stores and gdalwarp outputs (default: a temporary folder).
     #[arg(long)]

@@ -2,14 +2,15 @@
 //! and saves the project atomically, so brushing sessions can be scripted and checked. The stroke
 //! is checked and rasterised before anything is written: a refused stroke leaves the file as it was.
 
-use super::{CliError, Within};
+use super::edit_target::target_layer;
+use super::{CliError, Feedback, WaitArgs, Within};
 use std::fmt::Write as _;
 use std::path::PathBuf;
 
 use crate::edit::{Falloff, Stroke, Tool};
-use crate::layers::LayerSpec;
+use crate::layers::LayerKind;
 use crate::project::Project;
-use crate::scene::Scene;
+use crate::scene::{Edits, Scene};
 use crate::store::grid::spacing_m;
 
 /// What `terrafuse brush` was asked.
@@ -24,13 +25,13 @@ pub struct BrushRequest {
     #[arg(long)]
     pub tool: Option<String>,
     /// Brush radius on the surface, metres.
-    #[arg(long = "radius-m")]
+    #[arg(long = "radius-m", allow_negative_numbers = true)]
     pub radius_m: Option<f64>,
     /// Metres per dab (raise, lower, noise).
     #[arg(long = "strength-m", allow_hyphen_values = true)]
     pub strength_m: Option<f64>,
     /// A fraction 0–1 per dab (restore and the tools that read the terrain).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub strength: Option<f64>,
     /// The path: LAT,LON;LAT,LON;… degrees.
     #[arg(long, allow_hyphen_values = true)]
@@ -39,25 +40,36 @@ pub struct BrushRequest {
     #[arg(long)]
     pub falloff: Option<String>,
     /// Dab spacing, a fraction of the radius (default 0.25).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub spacing: Option<f64>,
     /// The level it is rasterised at (default: the coarsest with samples at most a tenth of
     /// the radius apart).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub level: Option<u8>,
     /// Noise seed.
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub seed: Option<u32>,
     /// Flatten: the height to flatten to, metres above the ellipsoid (default: the terrain's
     /// under the path's first point, before the stroke).
     #[arg(long = "height-m", allow_hyphen_values = true)]
     pub height_m: Option<f64>,
     /// Undo this many strokes (no stroke).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub undo: Option<usize>,
     /// Redo this many strokes (no stroke).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub redo: Option<usize>,
+    /// Make the edit layer on top of the stack when the project has none of that name (without
+    /// it, an unknown --layer is refused, so a typo never makes a layer).
+    #[arg(long)]
+    pub create: bool,
+    /// The most tiles the stroke may write at its level (default: the project's
+    /// detail.max_edit_tiles, 2048); a larger stroke is refused before any of it is made.
+    #[arg(long = "max-tiles", allow_negative_numbers = true)]
+    pub max_tiles: Option<u64>,
+    /// How long to wait for another process changing the project.
+    #[command(flatten)]
+    pub wait: WaitArgs,
 }
 
 fn parse_path(text: &str) -> Result<Vec<[f64; 2]>, CliError> {
@@ -84,59 +96,22 @@ fn named<T: Copy>(what: &str, name: &str, all: &[T], name_of: fn(T) -> &'static 
     })
 }
 
-/// Runs the command; returns the report.
-pub fn brush_command(request: &BrushRequest) -> Result<String, CliError> {
+/// Runs the command; returns the report. The request is checked against the project before the
+/// command waits for another that holds it (a bad flag is refused at once), then again once the
+/// project is held (locked) from before it is read until the stroke is saved: a refused stroke
+/// leaves the project and its stores as they were.
+pub fn brush_command(request: &BrushRequest, fb: &mut Feedback) -> Result<String, CliError> {
     let path = &request.project;
-    let mut project = Project::load(path)?;
-    let ellipsoid = project.ellipsoid()?;
-    let mut out = String::new();
-    let index = match project.layers.iter().position(|l| l.name == request.layer) {
-        Some(i) if project.layers[i].as_edit().is_some() => i,
-        Some(i) => {
-            return Err(format!(
-                "--layer {}: a {} layer, not an edit layer",
-                request.layer,
-                project.layers[i].kind().name()
-            )
-            .into());
-        }
-        None => {
-            project.layers.push(LayerSpec::edit(&request.layer));
-            let _ = writeln!(out, "made edit layer '{}' on top of the stack", request.layer);
-            project.layers.len() - 1
-        }
-    };
-    let spec = &mut project.layers[index];
-    match (request.undo, request.redo, &request.tool) {
-        (Some(_), None, None) | (None, Some(_), None) => {
-            let to = spec.move_applied(request.undo, request.redo)?;
-            let done = if request.undo.is_some() { "undone" } else { "redone" };
-            let _ = writeln!(out, "layer '{}': {done} to {to} of {} strokes", spec.name, spec.strokes().len());
-        }
-        (None, None, Some(tool)) => {
-            let stroke = stroke_of(request, tool, ellipsoid.a_m(), &ellipsoid)?;
-            let dabs = crate::edit::dabs::dab_centres(&ellipsoid, &stroke).within("--path")?;
-            let dropped = spec.record_stroke(stroke.clone())?;
-            let _ = writeln!(
-                out,
-                "layer '{}': stroke {} ({}, radius {} m, strength {}, {} falloff, {} dabs, level {}){}",
-                spec.name,
-                spec.strokes().len() - 1,
-                stroke.tool.name(),
-                stroke.radius_m,
-                stroke.strength,
-                stroke.falloff.name(),
-                dabs.len(),
-                stroke.level,
-                if dropped > 0 { format!("; {dropped} undone strokes dropped") } else { String::new() }
-            );
-        }
-        _ => return Err("give either --tool with its stroke, or --undo N, or --redo N".into()),
+    if request.wait.duration()? > std::time::Duration::ZERO {
+        change_of(&mut Project::load(path)?, request)?;
     }
+    let (mut project, held) = super::feedback::change(path, "terrafuse brush", &request.wait, fb)?;
+    let (index, mut out) = change_of(&mut project, request)?;
     // Rasterised before saving, with the project's layers (smooth, flatten and ramp read the
     // terrain below): a stroke that cannot be is refused and nothing is written.
     let t = std::time::Instant::now();
-    let (scene, report) = Scene::open(&project).within(format_args!("layer '{}'", request.layer))?;
+    let (scene, report) =
+        Scene::open_watched(&project, Edits::Cached, fb.watch).within(format_args!("layer '{}'", request.layer))?;
     for line in report.imported.iter().chain(&report.edits) {
         let _ = writeln!(out, "{line}");
     }
@@ -151,9 +126,77 @@ pub fn brush_command(request: &BrushRequest) -> Result<String, CliError> {
         raster.tiles.len(),
         raster.level
     );
-    project.save(path)?;
+    held.save(&project)?;
     let _ = writeln!(out, "saved {}", path.display());
     Ok(out)
+}
+
+/// Holds a new stroke to the budget (`--max-tiles`, else the project's): its own footprint at
+/// the level the layer will be rasterised at (the finest of its strokes'), and, when the stroke
+/// is finer than the layer's strokes so far, the whole layer's rebuilt at its level.
+fn check_footprint(
+    ellipsoid: &crate::geodesy::Ellipsoid,
+    applied: &[Stroke],
+    stroke: &Stroke,
+    budget: (Option<u64>, u64),
+) -> Result<(), CliError> {
+    let layer_level = applied.iter().map(|s| s.level).max();
+    let level = layer_level.map_or(stroke.level, |l| l.max(stroke.level));
+    let own = stroke.footprint_tiles(ellipsoid, level).within("--path")?;
+    super::edit_target::check_budget_of(budget, own, &format!("the stroke at level {level}"))?;
+    if let Some(was) = layer_level.filter(|l| *l < stroke.level) {
+        let mut all = own;
+        for s in applied {
+            all += s.footprint_tiles(ellipsoid, level).within("the layer's strokes")?;
+        }
+        let what = format!(
+            "the layer rasterised again at the stroke's level {level} (its {} strokes so far are at level {was} or coarser; a layer holds every stroke at the finest level of any)",
+            applied.len()
+        );
+        super::edit_target::check_budget_of(budget, all, &what)?;
+    }
+    Ok(())
+}
+
+/// The change the request makes to `project` (its edit layer's new stroke, or its undo position
+/// moved), every value checked; the layer's index and what to report.
+fn change_of(project: &mut Project, request: &BrushRequest) -> Result<(usize, String), CliError> {
+    let undo_or_redo = match (request.undo, request.redo, &request.tool) {
+        (Some(_), None, None) | (None, Some(_), None) => true,
+        (None, None, Some(_)) => false,
+        _ => return Err("give either --tool with its stroke, or --undo N, or --redo N".into()),
+    };
+    let ellipsoid = project.ellipsoid()?;
+    let mut out = String::new();
+    let index = target_layer(project, &request.layer, LayerKind::Edit, request.create, &mut out)?;
+    if undo_or_redo {
+        let spec = &mut project.layers[index];
+        let to = spec.move_applied(request.undo, request.redo)?;
+        let done = if request.undo.is_some() { "undone" } else { "redone" };
+        let _ = writeln!(out, "layer '{}': {done} to {to} of {} strokes", spec.name, spec.strokes().len());
+        return Ok((index, out));
+    }
+    let tool = request.tool.as_deref().unwrap_or_default();
+    let stroke = stroke_of(request, tool, ellipsoid.a_m(), &ellipsoid)?;
+    let budget = (request.max_tiles, project.detail.max_edit_tiles);
+    check_footprint(&ellipsoid, project.layers[index].applied_strokes(), &stroke, budget)?;
+    let dabs = crate::edit::dabs::dab_centres(&ellipsoid, &stroke).within("--path")?;
+    let spec = &mut project.layers[index];
+    let dropped = spec.record_stroke(stroke.clone())?;
+    let _ = writeln!(
+        out,
+        "layer '{}': stroke {} ({}, radius {} m, strength {}, {} falloff, {} dabs, level {}){}",
+        spec.name,
+        spec.strokes().len() - 1,
+        stroke.tool.name(),
+        stroke.radius_m,
+        stroke.strength,
+        stroke.falloff.name(),
+        dabs.len(),
+        stroke.level,
+        if dropped > 0 { format!("; {dropped} undone strokes dropped") } else { String::new() }
+    );
+    Ok((index, out))
 }
 
 fn stroke_of(

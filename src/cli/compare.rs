@@ -2,7 +2,7 @@
 //! [`crate::compare`]), as a table for people or JSON with stable field names for scripts, and
 //! optionally every sample as CSV.
 
-use super::{CliError, Within};
+use super::{CliError, Feedback, WaitArgs, Within};
 use std::fmt::Write as _;
 use std::path::PathBuf;
 
@@ -25,7 +25,7 @@ pub struct CompareRequest {
     /// Layer B, the reference.
     pub b: String,
     /// Level to compare at (default: the coarser dataset's finest, or finer where strokes, erosion runs or noise on either side add detail below it, within 4096 quads).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub level: Option<u8>,
     /// Only inside WEST,SOUTH,EAST,NORTH (degrees; east < west crosses ±180°).
     #[arg(long, allow_hyphen_values = true)]
@@ -54,7 +54,7 @@ pub struct CompareRequest {
     pub stable: Option<String>,
     /// Most differences held in memory; a comparison that may have more writes them to a scratch
     /// file in the temporary folder and reads them back in passes, in bounded memory.
-    #[arg(long, default_value_t = crate::compare::sample::MEMORY_SAMPLES)]
+    #[arg(long, default_value_t = crate::compare::sample::MEMORY_SAMPLES, allow_negative_numbers = true)]
     pub memory_samples: usize,
 }
 
@@ -64,7 +64,7 @@ fn parse_region(region: Option<&str>) -> Result<Option<GeoBox>, CliError> {
 }
 
 /// Runs the comparison; returns what to print.
-pub fn compare_command(request: &CompareRequest) -> Result<String, CliError> {
+pub fn compare_command(request: &CompareRequest, fb: &mut Feedback) -> Result<String, CliError> {
     let region = parse_region(request.region.as_deref())?;
     let project = Project::load(&request.project)?;
     // The uncertainty first: it holds its samples and may refuse a level the statistics take.
@@ -77,6 +77,7 @@ pub fn compare_command(request: &CompareRequest) -> Result<String, CliError> {
             area: request.area.as_deref().map(|s| Stable::parse(&names, s)),
             keep_samples: false,
             fit_quads: None,
+            watch: Some(fb.watch.clone()),
         };
         Some(uncertainty(&project, &request.a, &request.b, &opts).within(request.project.display())?)
     } else {
@@ -89,6 +90,7 @@ pub fn compare_command(request: &CompareRequest) -> Result<String, CliError> {
         keep_samples: request.samples.is_some(),
         memory_samples: request.memory_samples,
         scratch: Some(std::env::temp_dir()),
+        watch: Some(fb.watch.clone()),
         ..CompareOptions::default()
     };
     let c = compare(&project, &request.a, &request.b, &opts).within(request.project.display())?;
@@ -222,7 +224,7 @@ pub struct CoregRequest {
     pub b: String,
     /// Level to work at (default: the coarser dataset's finest, the data's own; A is read
     /// between its samples by bicubic interpolation).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub level: Option<u8>,
     /// Only inside WEST,SOUTH,EAST,NORTH (degrees).
     #[arg(long, allow_hyphen_values = true)]
@@ -242,12 +244,22 @@ pub struct CoregRequest {
     /// Print JSON (east_m, north_m, up_m, iterations, steps, before, after).
     #[arg(long)]
     pub json: bool,
+    /// With --apply: how long to wait for another process changing the project.
+    #[command(flatten)]
+    pub wait: WaitArgs,
 }
 
-/// Runs the co-registration (and applies it); returns what to print.
-pub fn coregister_command(request: &CoregRequest) -> Result<String, CliError> {
+/// Runs the co-registration (and applies it); returns what to print. With `--apply` the project
+/// is held (locked) from before it is read until the corrected layer is saved.
+pub fn coregister_command(request: &CoregRequest, fb: &mut Feedback) -> Result<String, CliError> {
     let region = parse_region(request.region.as_deref())?;
-    let mut project = Project::load(&request.project)?;
+    let (mut project, held) = if request.apply {
+        let (project, held) =
+            super::feedback::change(&request.project, "terrafuse coregister --apply", &request.wait, fb)?;
+        (project, Some(held))
+    } else {
+        (Project::load(&request.project)?, None)
+    };
     let pipeline = Step::parse_list(&request.pipeline)?;
     if request.apply
         && let Some(step) = pipeline.iter().find(|s| matches!(s, Step::TerrainBias(a) if *a != Attribute::Elevation))
@@ -266,13 +278,14 @@ pub fn coregister_command(request: &CoregRequest) -> Result<String, CliError> {
         pipeline,
         stable,
         scratch: Some(std::env::temp_dir()),
+        watch: Some(fb.watch.clone()),
         ..CoregOptions::default()
     };
     let c = coregister(&project, &request.a, &request.b, &opts).within(request.project.display())?;
     if request.apply {
         let layer = project.layers.iter_mut().find(|l| l.name == request.a).ok_or("the layer vanished")?;
         c.apply_to(layer)?;
-        project.save(&request.project)?;
+        held.as_ref().ok_or("the project is not held")?.save(&project)?;
     }
     if request.json {
         return Ok(serde_json::to_string_pretty(&c)? + "\n");

@@ -19,6 +19,8 @@ pub struct Console<'a> {
     pub trace: Trace,
     /// An environment variable's value (for `import --shard env`).
     pub var: &'a dyn Fn(&str) -> Option<String>,
+    /// Whether standard error is a terminal (long commands draw a progress bar there).
+    pub progress: bool,
 }
 
 impl Console<'_> {

@@ -8,6 +8,7 @@ use std::io::BufReader;
 use super::args::{Analysis, Command, GeoCommand, ImportArgs, ProjectCommand, SlurmCommand, StoreCommand};
 use super::console::Console;
 use super::error::Context;
+use super::feedback::watched;
 use super::{CliError, GeoOperation};
 use crate::ecm::CubeProjection;
 use crate::geodesy::Ellipsoid;
@@ -63,7 +64,25 @@ pub fn run(command: Command, c: &mut Console) -> Result<u8, CliError> {
                 super::cutoff_report(&ellipsoid, tolerance_m, limit_fraction, max_level.min(30), samples.max(3));
             c.print(table)?;
         }
-        Command::Render { project, out: None, width, height, look, flight, frames, out_dir, no_geomorph, .. } => {
+        Command::Render { list_colour_maps: true, .. } => {
+            for (name, what, _) in crate::colour::PRESETS {
+                c.print(format_args!("{name:<14} {what}\n"))?;
+            }
+            c.print("(or visuals.colour_map.file: a gdaldem colour-relief file or a GMT .cpt, heights in metres)\n")?;
+        }
+        Command::Render { project: None, .. } => return Err("render: give the project file".into()),
+        Command::Render {
+            project: Some(project),
+            out: None,
+            width,
+            height,
+            look,
+            flight,
+            frames,
+            out_dir,
+            no_geomorph,
+            ..
+        } => {
             let request = super::FlightRequest {
                 project: &project,
                 flight: flight.as_deref().unwrap_or_default(),
@@ -80,7 +99,7 @@ pub fn run(command: Command, c: &mut Console) -> Result<u8, CliError> {
             })?;
             c.print(report)?;
         }
-        Command::Render { project, out: Some(out), width, height, look, swipe, no_geomorph, .. } => {
+        Command::Render { project: Some(project), out: Some(out), width, height, look, swipe, no_geomorph, .. } => {
             c.note_recovery(&project);
             let request = super::RenderRequest {
                 project: &project,
@@ -101,13 +120,25 @@ pub fn run(command: Command, c: &mut Console) -> Result<u8, CliError> {
             c.print(report)?;
         }
         Command::Profile(request) => c.print(super::profile_command(&request)?)?,
-        Command::Compare(request) => c.print(super::compare_command(&request)?)?,
-        Command::Coregister(request) => c.print(super::coregister_command(&request)?)?,
-        Command::Brush(request) => c.print(super::brush_command(&request)?)?,
-        Command::Erode(request) => c.print(super::erode_command(&request)?)?,
+        Command::Compare(request) => {
+            let report = watched(c, !request.json, |fb| super::compare_command(&request, fb))?;
+            c.print(report)?;
+        }
+        Command::Coregister(request) => {
+            let report = watched(c, !request.json, |fb| super::coregister_command(&request, fb))?;
+            c.print(report)?;
+        }
+        Command::Brush(request) => {
+            let report = watched(c, true, |fb| super::brush_command(&request, fb))?;
+            c.print(report)?;
+        }
+        Command::Erode(request) => {
+            let report = watched(c, !request.json, |fb| super::erode_command(&request, fb))?;
+            c.print(report)?;
+        }
         Command::Replay(request) => {
             c.note_recovery(&request.project);
-            let outcome = super::replay_command(&request)?;
+            let outcome = watched(c, !request.json, |fb| super::replay_command(&request, fb))?;
             c.print(&outcome.report)?;
             if !outcome.passed {
                 c.note("terrafuse: replay: a check failed (see above)");
@@ -116,7 +147,10 @@ pub fn run(command: Command, c: &mut Console) -> Result<u8, CliError> {
         }
         Command::Project { command } => match command {
             ProjectCommand::Check { project } => c.print(super::project_check(&project)?)?,
-            ProjectCommand::Upgrade { project, out } => c.print(super::project_upgrade(&project, out.as_deref())?)?,
+            ProjectCommand::Upgrade { project, out, wait } => {
+                let report = watched(c, false, |fb| super::project_upgrade(&project, out.as_deref(), &wait, fb))?;
+                c.print(report)?;
+            }
             ProjectCommand::Schema { markdown: false } => c.print(crate::project::Project::schema())?,
             ProjectCommand::Schema { markdown: true } => c.print(crate::project::reference::markdown())?,
         },
@@ -148,7 +182,7 @@ pub fn run(command: Command, c: &mut Console) -> Result<u8, CliError> {
                 attribute,
                 layer,
             };
-            let report = super::export_composed(&opts)?;
+            let report = watched(c, true, |fb| super::export::export_composed_watched(&opts, fb.watch))?;
             c.print(format_args!(
                 "wrote {}{} ({}×{} pixels, level {}, {} quads composed on the {}, {} pixels with data)\n",
                 opts.out.display(),

@@ -3,7 +3,8 @@
 //! moves its undo position, caches the layer's change of height beside the project and saves the
 //! project atomically. A run that cannot be made leaves the file as it was.
 
-use super::{CliError, Within};
+use super::edit_target::target_layer;
+use super::{CliError, Feedback, WaitArgs, Within};
 use std::fmt::Write as _;
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -13,9 +14,10 @@ use crate::erosion::operation::{Device, Model, Operation};
 use crate::erosion::params::{Params, gravity_of_body};
 use crate::gpu::GpuContext;
 use crate::gpu::erosion::{ErosionKernel, GpuStepper};
-use crate::layers::LayerSpec;
+use crate::layers::LayerKind;
 use crate::project::Project;
-use crate::scene::Scene;
+use crate::project::editing::Held;
+use crate::scene::{Edits, Scene};
 
 /// Where `terrafuse erode` runs.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -42,11 +44,11 @@ pub struct ErodeRequest {
     pub region: Option<String>,
     /// The level whose samples are the cells (default: the coarsest with 512 cells along the
     /// box's north–south side, as the workstation chooses).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub level: Option<u8>,
     /// Steps (each the preset's Δt or less, by the CFL bound; hydraulic only: a stream-power run
     /// takes years / dt-years steps).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub steps: Option<u64>,
     /// hydraulic (virtual pipes over seconds of rain; the default) or stream-power (uplift,
     /// river incision and hillslope diffusion over geological time).
@@ -87,7 +89,7 @@ pub struct ErodeRequest {
     #[arg(long)]
     pub set: Vec<String>,
     /// The seed of the rounding dither.
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub seed: Option<u64>,
     /// Run on the GPU (lavapipe too).
     #[arg(long, conflicts_with = "cpu")]
@@ -100,11 +102,22 @@ pub struct ErodeRequest {
     #[arg(long)]
     pub json: bool,
     /// Undo this many runs (no run).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub undo: Option<usize>,
     /// Redo this many runs (no run).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub redo: Option<usize>,
+    /// Make the erosion layer on top of the stack when the project has none of that name
+    /// (without it, an unknown --layer is refused, so a typo never makes a layer).
+    #[arg(long)]
+    pub create: bool,
+    /// The most tiles the run may write at its level (default: the project's
+    /// detail.max_edit_tiles, 2048); a larger run is refused before it starts.
+    #[arg(long = "max-tiles", allow_negative_numbers = true)]
+    pub max_tiles: Option<u64>,
+    /// How long to wait for another process changing the project.
+    #[command(flatten)]
+    pub wait: WaitArgs,
 }
 
 impl ErodeRequest {
@@ -154,67 +167,27 @@ pub fn params_of(preset: &str, body: &str, set: &[String]) -> Result<Params, Cli
     Ok(params)
 }
 
-/// Runs the command; returns the report (text or JSON).
-pub fn erode_command(request: &ErodeRequest) -> Result<String, CliError> {
+/// Runs the command; returns the report (text or JSON). The project is held (locked) from
+/// before it is read until the run is saved; every value is checked, and the run's footprint
+/// held to the budget, before the layers are opened or a step is taken.
+pub fn erode_command(request: &ErodeRequest, fb: &mut Feedback) -> Result<String, CliError> {
     let path = &request.project;
-    let mut project = Project::load(path)?;
-    let mut out = String::new();
-    let index = match project.layers.iter().position(|l| l.name == request.layer) {
-        Some(i) if project.layers[i].as_erosion().is_some() => i,
-        Some(i) => {
-            return Err(format!(
-                "--layer {}: a {} layer, not an erosion layer",
-                request.layer,
-                project.layers[i].kind().name()
-            )
-            .into());
-        }
-        None => {
-            project.layers.push(LayerSpec::erosion(&request.layer));
-            let _ = writeln!(out, "made erosion layer '{}' on top of the stack", request.layer);
-            project.layers.len() - 1
-        }
+    // Checked before waiting for another process that holds the project: a bad flag is refused
+    // at once; then again on the project as it is once held.
+    if request.wait.duration()? > std::time::Duration::ZERO {
+        change_of(&mut Project::load(path)?, request)?;
+    }
+    let (mut project, held) = super::feedback::change(path, "terrafuse erode", &request.wait, fb)?;
+    let (index, mut out, op) = change_of(&mut project, request)?;
+    let Some(mut op) = op else {
+        return finish(&project, &held, index, out, fb);
     };
     let applied = project.layers[index].applied_runs().len();
-    let total = project.layers[index].runs().len();
-    let landscape = super::erode_landscape::params_of(request)?;
-    let asked_run =
-        request.region.is_some() || request.level.is_some() || request.steps.is_some() || request.years.is_some();
-    match (request.undo, request.redo, asked_run) {
-        (Some(_), None, false) | (None, Some(_), false) => {
-            let to = project.layers[index].move_applied(request.undo, request.redo)?;
-            let done = if request.undo.is_some() { "undone" } else { "redone" };
-            let _ = writeln!(out, "layer '{}': {done} to {to} of {total} runs", request.layer);
-            return finish(&project, path, index, out);
-        }
-        (None, None, true) => {}
-        _ => {
-            return Err(
-                "give either --region and --steps (or --years) (and --level) for a run, or --undo N, or --redo N"
-                    .into(),
-            );
-        }
-    }
-    let region = super::geo::parse_box(request.region.as_deref().ok_or("--region: a run needs its box")?)?;
-    // Without --level, as the workstation chooses: the layer's level, else the coarsest with 512
-    // cells along the box.
-    let layer_level = project.layers[index].runs().first().map(|r| r.level);
-    let level = match request.level.or(layer_level) {
-        Some(level) => level,
-        None => crate::erosion::placement::default_level(&project.ellipsoid()?, &region),
-    };
-    let steps = match &landscape {
-        Some(p) if request.steps.is_some() => {
-            return Err(format!("--steps: a stream-power run takes --years / --dt-years = {} steps", p.steps()).into());
-        }
-        Some(p) => p.steps(),
-        None => request.steps.ok_or("--steps: a run needs its number of steps")?,
-    };
-    let preset = request.preset.clone().unwrap_or_else(|| "rain".into());
-    let params = params_of(&preset, &project.body, &request.set)?;
+    let (landscape, model) = (op.stream_power.clone(), op.model);
     // The layer as it stands (its runs in effect), opened and built or read from its cache.
     project.layers[index].drop_undone();
-    let (mut scene, report) = Scene::open(&project).within(format_args!("layer '{}'", request.layer))?;
+    let (mut scene, report) =
+        Scene::open_watched(&project, Edits::Cached, fb.watch).within(format_args!("layer '{}'", request.layer))?;
     for line in report.imported.iter().chain(&report.edits) {
         let _ = writeln!(out, "{line}");
     }
@@ -232,40 +205,24 @@ pub fn erode_command(request: &ErodeRequest) -> Result<String, CliError> {
         (Some(c), Some(k)) => Box::new(GpuStepper { device: &c.device, queue: &c.queue, kernel: k.clone() }),
         _ => Box::new(CpuStepper),
     };
-    let model = if landscape.is_some() { Model::StreamPower } else { Model::Hydraulic };
-    let op = Operation {
-        region,
-        level,
-        steps,
-        seed: request.seed.unwrap_or(0),
-        preset: landscape.is_none().then_some(preset),
-        model,
-        params: if landscape.is_some() { Params::standard() } else { params },
-        stream_power: landscape,
-        brush: None,
-        device: if model == Model::StreamPower { Device::Cpu } else { stepper.device() },
-    };
+    op.device = if model == Model::StreamPower { Device::Cpu } else { stepper.device() };
     let uid = scene.stack.layers[index].uid;
     let mut raster = scene.edits.get(&uid).map(|r| (**r).clone()).ok_or("the erosion layer was not built")?;
     let below = scene.below(index)?;
-    let outcome =
-        crate::erosion::layer::apply(&mut raster, applied, &op, &|q| Ok(below.heights_cpu(q)?), stepper.as_ref())
-            .map_err(|e| {
-                let flag = match e.field.as_str() {
-                    "region" => "--region".to_string(),
-                    "level" => "--level".to_string(),
-                    "steps" => "--steps".to_string(),
-                    f if f.starts_with("params.") => format!("--set {}", &f[7..]),
-                    f if f.starts_with("stream_power.") => super::erode_landscape::flag_of(&f[13..]),
-                    f => f.to_string(),
-                };
-                format!("{flag}: {}", e.problem)
-            })?;
+    let outcome = crate::erosion::layer::apply(
+        &mut raster,
+        applied,
+        &op,
+        &|q| Ok(below.heights_cpu(q)?),
+        stepper.as_ref(),
+        fb.watch,
+    )
+    .map_err(|e| format!("{}: {}", flag_of(&e.field), e.problem))?;
     project.layers[index].record_run(op)?;
     scene.stack.set(index, project.layers[index].clone())?;
     scene.set_edit(index, raster);
     let cached = scene.save_edit_cache(index)?;
-    project.save(path)?;
+    held.save(&project)?;
     let device = match (&gpu, model) {
         (Some(g), Model::Hydraulic) => g.describe(),
         _ => "CPU reference".into(),
@@ -358,14 +315,100 @@ fn json_of(o: &Outcome, device: &str, cached: Option<&std::path::Path>, path: &s
     text
 }
 
+/// The change the request makes to `project`: the erosion layer's undo position moved (no run),
+/// or the run to make (every value checked, its footprint within the budget; not recorded yet).
+/// The layer's index, what to report, and the run.
+fn change_of(project: &mut Project, request: &ErodeRequest) -> Result<(usize, String, Option<Operation>), CliError> {
+    let landscape = super::erode_landscape::params_of(request)?;
+    let asked_run =
+        request.region.is_some() || request.level.is_some() || request.steps.is_some() || request.years.is_some();
+    let undo_or_redo = match (request.undo, request.redo, asked_run) {
+        (Some(_), None, false) | (None, Some(_), false) => true,
+        (None, None, true) => false,
+        _ => {
+            return Err(
+                "give either --region and --steps (or --years) (and --level) for a run, or --undo N, or --redo N"
+                    .into(),
+            );
+        }
+    };
+    let region = request.region.as_deref().map(super::geo::parse_box).transpose()?;
+    let mut out = String::new();
+    let index = target_layer(project, &request.layer, LayerKind::Erosion, request.create, &mut out)?;
+    if undo_or_redo {
+        let total = project.layers[index].runs().len();
+        let to = project.layers[index].move_applied(request.undo, request.redo)?;
+        let done = if request.undo.is_some() { "undone" } else { "redone" };
+        let _ = writeln!(out, "layer '{}': {done} to {to} of {total} runs", request.layer);
+        return Ok((index, out, None));
+    }
+    let region = region.ok_or("--region: a run needs its box")?;
+    let ellipsoid = project.ellipsoid()?;
+    // Without --level, as the workstation chooses: the layer's level, else the coarsest with 512
+    // cells along the box.
+    let layer_level = project.layers[index].runs().first().map(|r| r.level);
+    let level = match request.level.or(layer_level) {
+        Some(level) => level,
+        None => crate::erosion::placement::default_level(&ellipsoid, &region),
+    };
+    let steps = match &landscape {
+        Some(p) if request.steps.is_some() => {
+            return Err(format!("--steps: a stream-power run takes --years / --dt-years = {} steps", p.steps()).into());
+        }
+        Some(p) => p.steps(),
+        None => request.steps.ok_or("--steps: a run needs its number of steps")?,
+    };
+    let preset = request.preset.clone().unwrap_or_else(|| "rain".into());
+    let params = params_of(&preset, &project.body, &request.set)?;
+    let model = if landscape.is_some() { Model::StreamPower } else { Model::Hydraulic };
+    let op = Operation {
+        region,
+        level,
+        steps,
+        seed: request.seed.unwrap_or(0),
+        preset: landscape.is_none().then_some(preset),
+        model,
+        params: if landscape.is_some() { Params::standard() } else { params },
+        stream_power: landscape,
+        brush: None,
+        device: Device::Cpu,
+    };
+    // Every check a run makes, before the layers are opened: a refused run costs nothing.
+    op.check().map_err(|(field, problem)| format!("{}: {problem}", flag_of(&field)))?;
+    let placed =
+        crate::erosion::region::Region::from_box(&ellipsoid, region, level).map_err(|e| format!("--region: {e}"))?;
+    let tiles = (placed.width / 256 * (placed.height / 256)) as f64;
+    let what = format!("the run on {} × {} cells at level {level}", placed.width, placed.height);
+    super::edit_target::check_budget_of((request.max_tiles, project.detail.max_edit_tiles), tiles, &what)?;
+    Ok((index, out, Some(op)))
+}
+
+/// The flag of an operation's field (`steps` → `--steps`, `params.rain_m_s` → `--set rain_m_s`).
+fn flag_of(field: &str) -> String {
+    match field {
+        "region" => "--region".to_string(),
+        "level" => "--level".to_string(),
+        "steps" => "--steps".to_string(),
+        f if f.starts_with("params.") => format!("--set {}", &f[7..]),
+        f if f.starts_with("stream_power.") => super::erode_landscape::flag_of(&f[13..]),
+        f => f.to_string(),
+    }
+}
+
 /// After an undo or redo: the layer rebuilt or read from its cache, the project saved.
-fn finish(project: &Project, path: &std::path::Path, index: usize, mut out: String) -> Result<String, CliError> {
-    let (scene, report) = Scene::open(project)?;
+fn finish(
+    project: &Project,
+    held: &Held,
+    index: usize,
+    mut out: String,
+    fb: &mut Feedback,
+) -> Result<String, CliError> {
+    let (scene, report) = Scene::open_watched(project, Edits::Cached, fb.watch)?;
     for line in report.imported.iter().chain(&report.edits) {
         let _ = writeln!(out, "{line}");
     }
     scene.save_edit_cache(index)?;
-    project.save(path)?;
-    let _ = writeln!(out, "saved {}", path.display());
+    held.save(project)?;
+    let _ = writeln!(out, "saved {}", held.path().display());
     Ok(out)
 }

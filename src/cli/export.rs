@@ -11,6 +11,7 @@ use std::path::PathBuf;
 
 use crate::ecm::{CubeProjection, QuadId};
 use crate::gpu::{GpuContext, IMAGE_FORMAT, Renderer};
+use crate::progress::Watch;
 use crate::project::Project;
 use crate::scene::Scene;
 use crate::store::export::RasterSpec;
@@ -75,6 +76,12 @@ const GPU_BATCH: usize = 16;
 
 /// Exports the composed elevation of a project. Errors name the file and the problem.
 pub fn export_composed(opts: &ComposedExport) -> Result<ComposedReport, CliError> {
+    export_composed_watched(opts, &Watch::default())
+}
+
+/// [`export_composed`], the quads composed counted on `watch` (and stopped when it is cancelled,
+/// before anything is written).
+pub fn export_composed_watched(opts: &ComposedExport, watch: &Watch) -> Result<ComposedReport, CliError> {
     let project = Project::load(&opts.project)?;
     let raster = RasterSpec::new(&opts.crs, opts.bounds, opts.resolution, &opts.out)?;
     if let Some(l) = opts.level
@@ -116,12 +123,12 @@ pub fn export_composed(opts: &ComposedExport) -> Result<ComposedReport, CliError
     };
     let (grids, composer) = match &opts.difference {
         None => match &opts.layer {
-            None => compose_grids(scene, &quads, opts.compose_on)?,
-            Some(name) => compose_grids(alone(name)?, &quads, opts.compose_on)?,
+            None => compose_grids(scene, &quads, opts.compose_on, watch)?,
+            Some(name) => compose_grids(alone(name)?, &quads, opts.compose_on, watch)?,
         },
         Some((a, b)) => {
-            let (mut grids, composer) = compose_grids(alone(a)?, &quads, opts.compose_on)?;
-            let (minus, _) = compose_grids(alone(b)?, &quads, opts.compose_on)?;
+            let (mut grids, composer) = compose_grids(alone(a)?, &quads, opts.compose_on, watch)?;
+            let (minus, _) = compose_grids(alone(b)?, &quads, opts.compose_on, watch)?;
             for (q, g) in grids.iter_mut() {
                 for (v, w) in g.iter_mut().zip(&minus[q]) {
                     *v -= w; // NaN where either has none
@@ -186,15 +193,29 @@ fn compose_grids(
     scene: Scene,
     quads: &[QuadId],
     compose_on: ComposeOn,
+    watch: &Watch,
 ) -> Result<(HashMap<QuadId, Vec<f32>>, String), CliError> {
+    watch.start_phase("quads", quads.len() as u64);
+    let cancelled = |_| CliError::from("the export was cancelled; nothing was written");
     match compose_on {
-        ComposeOn::Cpu => Ok((scene.compose_cpu(quads)?, "CPU reference".to_string())),
+        ComposeOn::Cpu => {
+            // In batches, for the progress (each quad is composed alone: the same heights).
+            let mut grids = HashMap::new();
+            for batch in quads.chunks(4 * GPU_BATCH) {
+                watch.check().map_err(cancelled)?;
+                grids.extend(scene.compose_cpu(batch)?);
+                watch.advance_by(batch.len() as u64);
+            }
+            Ok((grids, "CPU reference".to_string()))
+        }
         ComposeOn::Gpu => {
             let ctx = GpuContext::headless()?;
             let name = ctx.describe();
             let mut renderer = Renderer::new(&ctx, scene, IMAGE_FORMAT)?;
             let mut grids = HashMap::new();
             for batch in quads.chunks(GPU_BATCH) {
+                watch.check().map_err(cancelled)?;
+                watch.advance_by(batch.len() as u64);
                 renderer.compose_now(batch)?;
                 for &q in batch {
                     let grid = renderer.read_heights(q)?;

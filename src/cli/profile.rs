@@ -23,10 +23,10 @@ pub struct ProfileRequest {
     #[arg(long)]
     pub line: Option<String>,
     /// Samples along the line (default: one per sample spacing of the level).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub samples: Option<usize>,
     /// Level to sample (default: the finest among the datasets).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub level: Option<u8>,
     /// Write the profile as CSV (distance_m, lat_deg, lon_deg, a column per layer, composed).
     #[arg(long)]

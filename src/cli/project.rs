@@ -97,15 +97,26 @@ pub fn project_check(path: &Path) -> Result<String, CliError> {
 
 /// `terrafuse project upgrade`: the project rewritten in the current version, over itself or at
 /// `out` (relative paths rewritten to reach the same files from there).
-pub fn project_upgrade(path: &Path, out: Option<&Path>) -> Result<String, CliError> {
+pub fn project_upgrade(
+    path: &Path,
+    out: Option<&Path>,
+    wait: &super::WaitArgs,
+    fb: &mut super::Feedback,
+) -> Result<String, CliError> {
+    let target = out.unwrap_or(path);
+    // The file written is held from before the project is read until it is written.
+    let lock = crate::files::lock::Lock::acquire(target, "terrafuse project upgrade", wait.duration()?, &mut |who| {
+        (fb.note)(&format!("terrafuse: waiting for {who} to finish changing {}", target.display()))
+    })
+    .map_err(|e| format!("{} (wait longer with --wait SECONDS)", crate::errors::chain(&e)))?;
     let text = std::fs::read_to_string(path).map_err(CliError::file(path, "cannot read"))?;
     let from = crate::project::migrate::header(&text).within(path.display())?;
     let mut project = Project::load(path)?;
-    let target = out.unwrap_or(path);
     if let Some(out) = out {
         let dir = crate::files::folder_of(out);
         project.rebase(dir);
     }
     project.save(target)?;
+    drop(lock);
     Ok(format!("{}: version {from} → {}, written to {}\n", path.display(), crate::project::VERSION, target.display()))
 }

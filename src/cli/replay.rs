@@ -4,13 +4,13 @@
 //! `--gpu` rebuilds on the GPU and, with `--check`, compares each layer with the CPU reference
 //! within its stated tolerance (the digests are checked on the CPU replay: they are bit for bit).
 
-use super::{CliError, Within};
+use super::{CliError, Feedback, WaitArgs, Within};
 use std::fmt::Write as _;
 use std::path::PathBuf;
 use std::time::Instant;
 
 use crate::gpu::GpuContext;
-use crate::project::Project;
+use crate::project::{CheckSpec, Project, checks};
 use crate::replay::{self, Engine, Replayed, digest};
 
 /// What `terrafuse replay` was asked.
@@ -35,6 +35,9 @@ pub struct ReplayRequest {
     /// checks[name, digest, expected, ok, first_differing_tile], seconds, passed).
     #[arg(long)]
     pub json: bool,
+    /// With --record: how long to wait for another process changing the project.
+    #[command(flatten)]
+    pub wait: WaitArgs,
 }
 
 /// What it found: the report, and whether every check held.
@@ -46,18 +49,24 @@ pub struct ReplayOutcome {
 }
 
 /// Runs `terrafuse replay`.
-pub fn replay_command(request: &ReplayRequest) -> Result<ReplayOutcome, CliError> {
+pub fn replay_command(request: &ReplayRequest, fb: &mut Feedback) -> Result<ReplayOutcome, CliError> {
     let t = Instant::now();
     let path = &request.project;
-    let mut project = Project::load(path)?;
     if request.record && request.gpu {
         return Err("--record: digests are recorded from the CPU reference (bit for bit); drop --gpu".into());
     }
+    // Recording changes the project: it is held from before it is read until it is saved.
+    let (mut project, held) = if request.record {
+        let (project, held) = super::feedback::change(path, "terrafuse replay --record", &request.wait, fb)?;
+        (project, Some(held))
+    } else {
+        (Project::load(path)?, None)
+    };
     let ctx = if request.gpu { Some(GpuContext::headless().within("--gpu")?) } else { None };
     let engine = ctx.as_ref().map_or(Engine::Cpu, Engine::Gpu);
     let fail =
         |e: replay::ReplayError| CliError::Within { context: path.display().to_string(), source: Box::new(e.into()) };
-    let replayed = replay::replay(&project, engine).map_err(fail)?;
+    let replayed = replay::replay_watched(&project, engine, fb.watch).map_err(fail)?;
     // The CPU reference, when the GPU replayed and something is to be checked against it.
     let cpu =
         if request.gpu && request.check { Some(replay::replay(&project, Engine::Cpu).map_err(fail)?) } else { None };
@@ -88,13 +97,16 @@ pub fn replay_command(request: &ReplayRequest) -> Result<ReplayOutcome, CliError
         let mut row = serde_json::json!({
             "name": name, "layer": check.layer, "digest": digest::hex(got.total), "tiles": got.tiles.len(),
         });
+        let inputs = checks::inputs(&project, &check);
         if request.check {
             let result = digest::compare(&check, &got);
             passed &= result.is_ok();
             row["expected"] = serde_json::json!(check.digest);
             row["ok"] = serde_json::json!(result.is_ok());
             if let Err(m) = result {
-                row["problem"] = serde_json::json!(m.to_string());
+                let changed = checks::changed_inputs(&check.inputs, &inputs);
+                row["problem"] = serde_json::json!(mismatch_text(&m, &check, &changed, path));
+                row["changed_since_recorded"] = serde_json::json!(changed);
                 if let digest::Mismatch::Differs { first_tile, .. } = m {
                     row["first_differing_tile"] = serde_json::json!(first_tile);
                 }
@@ -102,15 +114,16 @@ pub fn replay_command(request: &ReplayRequest) -> Result<ReplayOutcome, CliError
         }
         if request.record {
             let entry = project.checks.get_mut(&name).expect("the check is there");
-            if digest::compare(entry, &got).is_err() {
+            if digest::compare(entry, &got).is_err() || entry.inputs != inputs {
                 got.record(entry);
+                entry.inputs = inputs;
                 recorded += 1;
             }
         }
         checks.push(row);
     }
-    if request.record && recorded > 0 {
-        project.save(path)?;
+    if let Some(held) = held.as_ref().filter(|_| recorded > 0) {
+        held.save(&project)?;
     }
     let seconds = t.elapsed().as_secs_f64();
     let report = if request.json {
@@ -126,6 +139,24 @@ pub fn replay_command(request: &ReplayRequest) -> Result<ReplayOutcome, CliError
         text_report(path, &engine, &replayed, &layers, &checks, request, recorded, seconds)
     };
     Ok(ReplayOutcome { report, passed })
+}
+
+/// A check's mismatch in words: the digests, what changed in the project since the check was
+/// recorded (or that nothing did), and how to accept the new state.
+fn mismatch_text(m: &digest::Mismatch, check: &CheckSpec, changed: &[String], path: &std::path::Path) -> String {
+    if *m == digest::Mismatch::NotRecorded {
+        return m.to_string();
+    }
+    let why = if check.inputs.is_empty() {
+        "it was recorded without its inputs, so what changed since is not known".to_string()
+    } else if changed.is_empty() {
+        "the layers and views it reads are as they were when it was recorded, so the same operations now make \
+         other heights: a change in Terrafuse, in a store or in a store's source files"
+            .to_string()
+    } else {
+        format!("since it was recorded, {}", changed.join(", "))
+    };
+    format!("{m}; {why}; if the new state is meant, accept it with `terrafuse replay --record {}`", path.display())
 }
 
 /// The largest |GPU − CPU| of layer `index`'s tiles and its tolerance, metres.

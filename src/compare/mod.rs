@@ -78,4 +78,23 @@ pub enum CompareError {
     /// A project value (its body) breaks a rule.
     #[error(transparent)]
     Invalid(#[from] crate::Invalid),
+    /// The comparison was asked to stop (its watch cancelled).
+    #[error("the comparison was cancelled")]
+    Cancelled(#[from] crate::progress::Cancelled),
+}
+
+/// Counts `n` more quads done on `watch` (if any); `Err(Cancelled)` once it was cancelled.
+pub(crate) fn tick(watch: &Option<std::sync::Arc<crate::progress::Watch>>, n: usize) -> Result<(), CompareError> {
+    if let Some(w) = watch {
+        w.check()?;
+        w.advance_by(n as u64);
+    }
+    Ok(())
+}
+
+/// Starts a phase of `total` quads on `watch` (if any).
+pub(crate) fn phase(watch: &Option<std::sync::Arc<crate::progress::Watch>>, name: &str, total: usize) {
+    if let Some(w) = watch {
+        w.start_phase(name, total as u64);
+    }
 }

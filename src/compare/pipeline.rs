@@ -138,6 +138,9 @@ pub struct CoregOptions {
     pub fit_quads: Option<usize>,
     /// Where that replay's scratch files go (default: the project's folder).
     pub scratch: Option<std::path::PathBuf>,
+    /// Says which step runs (and stops the co-registration between steps and quads when
+    /// cancelled).
+    pub watch: Option<std::sync::Arc<crate::progress::Watch>>,
 }
 
 impl Default for CoregOptions {
@@ -150,6 +153,7 @@ impl Default for CoregOptions {
             nuth_kaab: NuthKaabOptions::default(),
             fit_quads: None,
             scratch: None,
+            watch: None,
         }
     }
 }
@@ -301,6 +305,7 @@ pub fn coregister(project: &Project, a: &str, b: &str, opts: &CoregOptions) -> R
     if opts.pipeline.is_empty() {
         return Err(CompareError::Option { option: "--pipeline".into(), problem: "names no step".into() });
     }
+    super::phase(&opts.watch, "samples", 0);
     let (scene, _) = Scene::open(project)?;
     let alone = |name: &str| operand_scene(&scene, project, &Operand::Layer(name.into()));
     let (scene_a, scene_b) = (alone(a)?, alone(b)?);
@@ -348,6 +353,8 @@ pub fn coregister(project: &Project, a: &str, b: &str, opts: &CoregOptions) -> R
     let mut steps = Vec::new();
     let mut stands = Vec::new();
     for step in &opts.pipeline {
+        super::phase(&opts.watch, &step_name(step), 0);
+        super::tick(&opts.watch, 0)?;
         // What the step before left (each step's `after` is the next one's `before`); the first
         // step's computed beside Nuth & Kääb's fit where it is one, else here.
         let mut before = steps.last().map(|s: &StepResult| s.after.clone());
@@ -453,7 +460,9 @@ pub fn coregister(project: &Project, a: &str, b: &str, opts: &CoregOptions) -> R
         _ if subset => {
             let bias = |k: usize, a: &At| steps[k].correction.bias(a);
             let scratch = opts.scratch.clone().unwrap_or_else(|| project.resolve(std::path::Path::new(".")));
+            super::phase(&opts.watch, "whole area", quads.len());
             let area = WholeArea {
+                watch: &opts.watch,
                 scene_a: &scene_a,
                 scene_b: &scene_b,
                 level,

@@ -28,7 +28,7 @@ use super::streamed::{Streamed, held_stats, streamed_stats};
 use crate::ecm::QuadId;
 use crate::ecm::points::quad_ball;
 use crate::geodesy::GeoBox;
-use crate::layers::{BlendMode, LayerSpec, Operand};
+use crate::layers::{LayerSpec, Operand};
 use crate::project::Project;
 use crate::scene::Scene;
 use crate::scene::dataset::DatasetInfo;
@@ -74,6 +74,8 @@ pub struct CompareOptions {
     pub memory_samples: usize,
     /// Where that scratch file goes (default: the project's folder).
     pub scratch: Option<PathBuf>,
+    /// Counts the quads compared (and stops the comparison when cancelled).
+    pub watch: Option<std::sync::Arc<crate::progress::Watch>>,
 }
 
 impl Default for CompareOptions {
@@ -86,6 +88,7 @@ impl Default for CompareOptions {
             keep_samples: false,
             memory_samples: MEMORY_SAMPLES,
             scratch: None,
+            watch: None,
         }
     }
 }
@@ -175,36 +178,13 @@ pub fn open_operand(project: &Project, operand: &Operand) -> Result<Scene, Compa
     operand_scene(&scene, project, operand)
 }
 
-/// An operand's scene from the project's scene, already open: the whole stack with the layers
-/// that are not the operand's hidden, so an edit or erosion layer's deltas are the ones its
-/// operations make on the terrain really below it (a stroke that smooths or flattens reads it).
-/// A layer of deltas alone is its deltas over a zero plane.
+/// An operand's scene from the project's scene, already open ([`Scene::of_operand`]), its names
+/// checked first: each a layer of the project with heights.
 pub fn operand_scene(scene: &Scene, project: &Project, operand: &Operand) -> Result<Scene, CompareError> {
-    let names = operand.names();
-    for name in &names {
+    for name in &operand.names() {
         height_layer(project, name)?;
     }
-    let mut scene = scene.clone();
-    let alone = matches!(operand, Operand::Layer(_));
-    let mut deltas_alone = false;
-    for k in 0..scene.stack.layers.len() {
-        let mut spec = scene.stack.layers[k].spec.clone();
-        spec.visible = names.contains(&spec.name.as_str());
-        if spec.visible && alone {
-            spec.opacity = 1.0;
-            deltas_alone = spec.holds_deltas();
-            if !deltas_alone {
-                spec.blend = BlendMode::Over;
-            }
-        }
-        scene.stack.set(k, spec).map_err(|e| CompareError::Open(e.into()))?;
-    }
-    if deltas_alone {
-        let used = |n: &str| scene.stack.index_of(n).is_some();
-        let zero = (0..).map(|k| format!("zero plane {k}")).find(|n| !used(n)).unwrap_or_default();
-        scene.stack.insert(0, LayerSpec::constant(&zero, 0.0)).map_err(|e| CompareError::Open(e.into()))?;
-    }
-    Ok(scene)
+    scene.of_operand(operand).map_err(|e| CompareError::Open(e.into()))
 }
 
 /// Compares `a` with `b` (the reference) of a project: each a layer or a composed group
@@ -231,7 +211,9 @@ pub fn compare_operands(
     let mut samples = Vec::new();
     let mut nodata = 0u64;
     let (mut area_lo, mut area_hi) = (f64::INFINITY, 0f64);
+    super::phase(&opts.watch, "quads", quads.len());
     for chunk in quads.chunks(CHUNK) {
+        super::tick(&opts.watch, 0)?;
         let grids_a = scene_a.compose_cpu(chunk)?;
         let grids_b = scene_b.compose_cpu(chunk)?;
         for q in chunk {
@@ -254,7 +236,9 @@ pub fn compare_operands(
                 }
             }
         }
+        super::tick(&opts.watch, chunk.len())?;
     }
+    super::phase(&opts.watch, "statistics", 0);
     if let Some(region) = opts.region
         && diffs.is_empty()
     {

@@ -69,6 +69,8 @@ pub struct UncertaintyOptions {
     pub keep_samples: bool,
     /// Most quads the model is fitted on (default [`FIT_QUADS`]; 0 counts as 1).
     pub fit_quads: Option<usize>,
+    /// Counts the quads of the area summed (and stops when cancelled).
+    pub watch: Option<std::sync::Arc<crate::progress::Watch>>,
 }
 
 /// The error model of dh (field names are the JSON's: scripts rely on them).
@@ -285,7 +287,9 @@ pub fn uncertainty(
     if fitted.len() == quads.len() {
         sums.add(&reference, &in_area, &dh, &model);
     } else {
+        super::phase(&opts.watch, "area", quads.len());
         for chunk in quads.chunks(CHUNK) {
+            super::tick(&opts.watch, chunk.len())?;
             let reference = reference_samples(&scene_b, chunk, opts.region, true)?;
             let in_area = area_mask(&scene, project, opts.area.as_ref(), chunk, &reference)?;
             let dh = unshifted_differences(&scene_a, level, &reference)?;

@@ -46,6 +46,7 @@ pub(super) struct Stand {
 /// What the replay reads: both layers alone, the level, every quad, the region and whether B's
 /// curvature is needed, the pipeline's frame, and the folder of its scratch files.
 pub(super) struct WholeArea<'a> {
+    pub watch: &'a Option<std::sync::Arc<crate::progress::Watch>>,
     pub scene_a: &'a Scene,
     pub scene_b: &'a Scene,
     pub level: u8,
@@ -88,6 +89,7 @@ pub(super) fn whole_area_stats(
     let mut before = Spill::create(area.scratch).map_err(|e| scratch_error(area.scratch, e))?;
     let mut after = Spill::create(area.scratch).map_err(|e| scratch_error(area.scratch, e))?;
     for chunk in area.quads.chunks(16) {
+        super::tick(area.watch, chunk.len())?;
         let reference = reference_samples(area.scene_b, chunk, area.region, area.curvature)?;
         let mut at = sample_attributes(area.frame, &reference);
         let mut mosaic = Mosaic::new(area.scene_a.clone(), area.level, Interpolation::Bicubic);

@@ -138,5 +138,12 @@ pub fn write(path: &Path, raster: &EditRaster) -> Result<(), CacheError> {
     for (_, stale) in older.iter().skip(KEPT - 1) {
         let _ = std::fs::remove_file(stale);
     }
+    // Half-written caches of any layer that a killed process left (a cache is written whole or
+    // not at all; its temporary is what a kill leaves).
+    if let Some(dir) = path.parent() {
+        for orphan in crate::files::orphans_of(dir, |f| f.starts_with("edits-") && f.ends_with(".tiles")) {
+            let _ = std::fs::remove_file(orphan);
+        }
+    }
     Ok(())
 }

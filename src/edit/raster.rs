@@ -26,6 +26,7 @@ use crate::ecm::points::quad_ball;
 use crate::ecm::{Face, QuadId};
 use crate::errors::SharedFailure;
 use crate::geodesy::Ellipsoid;
+use crate::progress::Watch;
 use crate::store::grid::GRID;
 
 const N: usize = GRID as usize;
@@ -125,15 +126,17 @@ impl EditRaster {
     /// The raster of `strokes`, at the finest of their levels (each checked first); `below` gives
     /// the terrain under the layer to the strokes that read it (see [`super::terrain`]).
     pub fn build(ellipsoid: Ellipsoid, strokes: &[Stroke], below: &Below) -> Result<EditRaster, StrokeError> {
-        EditRaster::build_with(ellipsoid, strokes, below, &CpuRasteriser)
+        EditRaster::build_with(ellipsoid, strokes, below, &CpuRasteriser, &Watch::default())
     }
 
-    /// [`EditRaster::build`] with another rasteriser (the GPU's).
+    /// [`EditRaster::build`] with another rasteriser (the GPU's), the strokes counted on `watch`
+    /// (phase `strokes`) and stopped between strokes when it is cancelled.
     pub fn build_with(
         ellipsoid: Ellipsoid,
         strokes: &[Stroke],
         below: &Below,
         rasteriser: &dyn Rasteriser,
+        watch: &Watch,
     ) -> Result<EditRaster, StrokeError> {
         // Every stroke checked before any is rasterised (a bad level must not set the raster's).
         for (index, stroke) in strokes.iter().enumerate() {
@@ -147,8 +150,16 @@ impl EditRaster {
         let level = strokes.iter().map(|s| s.level).max().unwrap_or(0);
         let mut raster = EditRaster::new(ellipsoid, level);
         let kept = KeptBelow::new(below);
+        watch.start_phase("strokes", strokes.len() as u64);
         for (index, stroke) in strokes.iter().enumerate() {
+            watch.check().map_err(|e| StrokeError {
+                index,
+                field: "strokes".into(),
+                problem: "the rebuild was cancelled".into(),
+                cause: Some(std::sync::Arc::new(e)),
+            })?;
             raster.apply_with(index, stroke, &|q| kept.get(q), rasteriser)?;
+            watch.advance();
         }
         Ok(raster)
     }

@@ -152,6 +152,33 @@ fn default_spacing() -> f64 {
     0.25
 }
 
+impl Stroke {
+    /// An upper bound on the tiles the stroke writes when rasterised at `level` (an edit layer
+    /// rasterises every stroke at the finest level of any of them), from its path's length L on
+    /// the ellipsoid and its radius r (a tile's side s = 256 samples): (L/s + 2r/s + 2) ×
+    /// (2r/s + 2), the tiles a band of width 2r along the path can meet. It costs one geodesic
+    /// per path segment, so a stroke too large to make is refused before any of it is made.
+    /// Errors name the path segment whose geodesic cannot be computed.
+    pub fn footprint_tiles(&self, ellipsoid: &crate::geodesy::Ellipsoid, level: u8) -> Result<f64, crate::Invalid> {
+        let side_m = crate::store::grid::spacing_m(ellipsoid, level) * f64::from(crate::store::grid::TILE);
+        let mut length_m = 0.0;
+        for (k, pair) in self.path.windows(2).enumerate() {
+            let ([lat1, lon1], [lat2, lon2]) = (pair[0], pair[1]);
+            let (l, ..) = crate::geodesy::geodesic::inverse(
+                ellipsoid,
+                lat1.to_radians(),
+                lon1.to_radians(),
+                lat2.to_radians(),
+                lon2.to_radians(),
+            )
+            .map_err(|e| format!("path segment {k}–{}: {e}", k + 1))?;
+            length_m += l;
+        }
+        let across = 2.0 * self.radius_m / side_m + 2.0;
+        Ok((length_m / side_m + across) * across)
+    }
+}
+
 /// Most points a stroke's path may have.
 pub const MAX_PATH_POINTS: usize = 100_000;
 /// Most dabs one stroke may place.
@@ -192,8 +219,13 @@ impl Stroke {
             return Err(("path", format!("{} points: a path has 1 to {MAX_PATH_POINTS}", self.path.len())));
         }
         for (k, [lat, lon]) in self.path.iter().enumerate() {
-            if !(lat.is_finite() && lon.is_finite() && lat.abs() <= 90.0 && lon.abs() <= 540.0) {
-                return Err(("path", format!("point {k} [{lat}, {lon}] is not [lat, lon] in degrees")));
+            if !(lat.is_finite() && lon.is_finite() && lat.abs() <= 90.0 && lon.abs() <= 180.0) {
+                return Err((
+                    "path",
+                    format!(
+                        "point {k} [{lat}, {lon}] is not [lat, lon] in degrees (latitude within ±90, longitude within ±180)"
+                    ),
+                ));
             }
         }
         if let Some(h) = self.height_m

@@ -22,6 +22,7 @@ use crate::edit::terrain::{Below, KeptBelow};
 use crate::errors::{Failure, SharedFailure};
 use crate::geodesy::{Ellipsoid, Geodetic, ecef_from_geodetic};
 use crate::maths::{segment_distance_m, smoothstep};
+use crate::progress::Watch;
 use crate::store::grid::{GRID, TILE, fold_sample, intervals_per_face_edge};
 
 const N: usize = GRID as usize;
@@ -30,8 +31,9 @@ const N: usize = GRID as usize;
 pub trait Stepper {
     /// `cpu` or `gpu`.
     fn device(&self) -> super::operation::Device;
-    /// The run after `steps` more steps.
-    fn run(&self, run: Run, steps: u64) -> Result<Run, Failure>;
+    /// The run after `steps` more steps, counted on `watch` as they are taken; stops with
+    /// [`crate::progress::Cancelled`] as the error when `watch` is cancelled.
+    fn run(&self, run: Run, steps: u64, watch: &Watch) -> Result<Run, Failure>;
 }
 
 /// The CPU reference.
@@ -42,9 +44,11 @@ impl Stepper for CpuStepper {
         super::operation::Device::Cpu
     }
 
-    fn run(&self, mut run: Run, steps: u64) -> Result<Run, Failure> {
+    fn run(&self, mut run: Run, steps: u64, watch: &Watch) -> Result<Run, Failure> {
         for _ in 0..steps {
+            watch.check()?;
             run.step();
+            watch.advance();
         }
         Ok(run)
     }
@@ -112,34 +116,44 @@ pub struct Outcome {
 
 /// The raster of `ops` in order (each checked first), by the CPU reference.
 pub fn build(ellipsoid: Ellipsoid, ops: &[Operation], below: &Below) -> Result<EditRaster, OperationError> {
-    build_with(ellipsoid, ops, below, &CpuStepper)
+    build_with(ellipsoid, ops, below, &CpuStepper, &Watch::default())
 }
 
-/// [`build`] with another stepper (the GPU's).
+/// [`build`] with another stepper (the GPU's), each run's steps counted on `watch` (a phase a
+/// run) and stopped when it is cancelled.
 pub fn build_with(
     ellipsoid: Ellipsoid,
     ops: &[Operation],
     below: &Below,
     stepper: &dyn Stepper,
+    watch: &Watch,
 ) -> Result<EditRaster, OperationError> {
     let level = ops.first().map_or(0, |o| o.level);
     let mut raster = EditRaster::new(ellipsoid, level);
     let kept = KeptBelow::new(below);
     for (index, op) in ops.iter().enumerate() {
-        apply(&mut raster, index, op, &|q| kept.get(q), stepper)?;
+        apply(&mut raster, index, op, &|q| kept.get(q), stepper, watch)?;
     }
     Ok(raster)
 }
 
 /// Runs `op` (the layer's operation `index`) and adds its change of height to `raster`, keeping
-/// the tiles it replaced for undo.
+/// the tiles it replaced for undo. Its steps are counted on `watch` (phase `run N`); a cancel
+/// stops it between steps with the error's field `steps` and leaves `raster` as it was.
 pub fn apply(
     raster: &mut EditRaster,
     index: usize,
     op: &Operation,
     below: &Below,
     stepper: &dyn Stepper,
+    watch: &Watch,
 ) -> Result<Outcome, OperationError> {
+    let cancelled = |e: Failure| OperationError {
+        index,
+        field: "steps".into(),
+        problem: "the run was cancelled".into(),
+        cause: Some(e.into()),
+    };
     if let Some(params) = op.stream_power.as_ref().filter(|_| op.model == Model::StreamPower) {
         let (region, grid) = prepare_grid(raster, index, op, below)?;
         let t = Instant::now();
@@ -149,16 +163,22 @@ pub fn apply(
             problem: e.problem,
             cause: None,
         })?;
-        run.run_to_end();
+        watch.start_phase(&format!("run {index}"), params.steps());
+        while !run.done() {
+            watch.check().map_err(|e| cancelled(e.into()))?;
+            run.step();
+            watch.advance();
+        }
         return Ok(finish_landscape(raster, index, region, &run, t.elapsed().as_secs_f64()));
     }
     let (region, run) = prepare(raster, index, op, below)?;
     let t = Instant::now();
-    let run = stepper.run(run, op.steps).map_err(|e| OperationError {
-        index,
-        field: "device".into(),
-        problem: "the run failed".into(),
-        cause: Some(e.into()),
+    watch.start_phase(&format!("run {index}"), op.steps);
+    let run = stepper.run(run, op.steps, watch).map_err(|e| {
+        if e.is::<crate::progress::Cancelled>() {
+            return cancelled(e);
+        }
+        OperationError { index, field: "device".into(), problem: "the run failed".into(), cause: Some(e.into()) }
     })?;
     Ok(finish(raster, index, region, &run, t.elapsed().as_secs_f64()))
 }

@@ -142,8 +142,15 @@ impl Operation {
             if b.points.is_empty() {
                 return bad("brush.points", "the brush's path has no point".into());
             }
-            if let Some(p) = b.points.iter().find(|p| !(p[0].is_finite() && p[1].is_finite() && p[0].abs() <= 90.0)) {
-                return bad("brush.points", format!("{p:?} is not [lat, lon] in degrees"));
+            if let Some([lat, lon]) = b
+                .points
+                .iter()
+                .find(|p| !(p[0].is_finite() && p[1].is_finite() && p[0].abs() <= 90.0 && p[1].abs() <= 180.0))
+            {
+                return bad(
+                    "brush.points",
+                    format!("[{lat}, {lon}] is not [lat, lon] in degrees (latitude within ±90, longitude within ±180)"),
+                );
             }
         }
         Ok(())

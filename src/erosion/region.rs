@@ -110,6 +110,15 @@ impl Region {
         // Points along the box's edges and inside it, a quarter quad apart at most (and at
         // least 65 a side).
         let quad_deg = (spacing_m(ellipsoid, level) * f64::from(TILE) / ellipsoid.a_m()).to_degrees();
+        // A box far too large is refused before it is walked (QSC stretches a quad's side by
+        // well under a factor of 4 from its mean, so this refuses nothing the walk would accept).
+        let rough_cells = (lat1 - lat0) / quad_deg * f64::from(TILE);
+        if rough_cells > 4.0 * MAX_SIDE as f64 {
+            return Err(format!(
+                "the box {bounds} (W,S,E,N) at level {level} is about {rough_cells:.0} cells from south to north; a region has at most {MAX_SIDE} a side (choose a smaller box or a coarser level)"
+            )
+            .into());
+        }
         let along = |span: f64| ((span / (0.25 * quad_deg)).ceil() as usize).clamp(64, 4 * MAX_SIDE);
         let (na, nb) =
             (along(lat1 - lat0), along((lon1 - lon0) * lat0.abs().max(lat1.abs()).to_radians().cos().max(0.01)));
@@ -119,14 +128,13 @@ impl Region {
                 let lat = lat0 + (lat1 - lat0) * a as f64 / na as f64;
                 let lon = lon0 + (lon1 - lon0) * b as f64 / nb as f64;
                 let (f, i, j) = index(lat, lon);
-                let (i, j) =
-                    if f == face {
-                        (i, j)
-                    } else {
-                        unfold(face, f, level, i, j).ok_or_else(|| {
-                    format!("{bounds:?} reaches the face opposite the one under its centre: too large for one region")
+                let (i, j) = if f == face {
+                    (i, j)
+                } else {
+                    unfold(face, f, level, i, j).ok_or_else(|| {
+                    format!("the box {bounds} (W,S,E,N) reaches the face opposite the one under its centre: too large for one region")
                 })?
-                    };
+                };
                 lo = (lo.0.min(i), lo.1.min(j));
                 hi = (hi.0.max(i), hi.1.max(j));
             }
@@ -137,7 +145,7 @@ impl Region {
         let (width, height) = (((qx1 - qx0 + 1) * tile) as usize, ((qy1 - qy0 + 1) * tile) as usize);
         if width > MAX_SIDE || height > MAX_SIDE {
             return Err(format!(
-                "{bounds:?} at level {level} is {width} × {height} cells; a region has at most {MAX_SIDE} a side (choose a smaller box or a coarser level)"
+                "the box {bounds} (W,S,E,N) at level {level} is {width} × {height} cells; a region has at most {MAX_SIDE} a side (choose a smaller box or a coarser level)"
             ).into());
         }
         Ok(Region { face, level, i0: qx0 * tile, j0: qy0 * tile, width, height })

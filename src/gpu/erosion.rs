@@ -546,13 +546,15 @@ impl Stepper for GpuStepper<'_> {
         Device::Gpu
     }
 
-    fn run(&self, run: Run, steps: u64) -> Result<Run, Failure> {
+    fn run(&self, run: Run, steps: u64, watch: &crate::progress::Watch) -> Result<Run, Failure> {
         let mut gpu = GpuRun::new(self.device, self.queue, self.kernel.clone(), &run)?;
         let mut left = steps;
         while left > 0 {
+            watch.check()?;
             let now = left.min(u64::from(LOG_STEPS)) as u32;
             gpu.step(now)?;
             left -= u64::from(now);
+            watch.advance_by(u64::from(now));
         }
         gpu.download()?;
         Ok(gpu.host)

@@ -68,6 +68,7 @@ pub struct Opened {
     imported: Vec<String>,
     recent: recent::Recent,
     recovery: Option<crate::project::recovery::Recovery>,
+    on_disk: crate::project::editing::OnDisk,
 }
 
 impl Opened {
@@ -82,7 +83,7 @@ pub fn open(opts: &ViewOptions) -> Result<Opened, GuiError> {
     if opts.width < 200 || opts.height < 150 || opts.width > 16384 || opts.height > 16384 {
         return Err(format!("window size {}x{} must lie within 200x150 … 16384x16384", opts.width, opts.height).into());
     }
-    let project = Project::load(&opts.project)?;
+    let (project, on_disk) = Project::load_seen(&opts.project)?;
     let camera = if opts.view.is_none() && opts.camera.is_none() {
         app::file::opening_camera(&project)
     } else {
@@ -121,6 +122,7 @@ pub fn open(opts: &ViewOptions) -> Result<Opened, GuiError> {
         screenshot: opts.screenshot.clone().map(|path| app::ScreenshotJob { path, timeout: opts.timeout }),
         outcome: Arc::new(Mutex::new(None)),
         imported: report.imported,
+        on_disk,
     })
 }
 
@@ -148,7 +150,8 @@ pub fn build_app(cc: &eframe::CreationContext<'_>, opened: Opened) -> Result<app
         opened.outcome,
         device,
     )
-    .with_file(opened.recent, opened.recovery))
+    .with_file(opened.recent, opened.recovery)
+    .with_disk(Some(opened.on_disk)))
 }
 
 /// The renderer's view of eframe's device.

@@ -55,7 +55,7 @@ impl CameraSpec {
         Ok(camera)
     }
 
-    /// Checks the ranges: latitude within ±90°, pitch within [−90°, 90°], field of view in
+    /// Checks the ranges: latitude within ±90°, longitude within ±180°, pitch within [−90°, 90°], field of view in
     /// (0°, 170°), everything finite.
     pub fn check(&self) -> Result<(), Invalid> {
         let all = [self.lat, self.lon, self.alt, self.heading, self.pitch, self.fov];
@@ -64,6 +64,9 @@ impl CameraSpec {
         }
         if self.lat.abs() > 90.0 {
             return Err(format!("camera latitude {} is outside [-90, 90]", self.lat).into());
+        }
+        if self.lon.abs() > 180.0 {
+            return Err(format!("camera longitude {} is outside [-180, 180] (as boxes are)", self.lon).into());
         }
         if self.pitch.abs() > 90.0 {
             return Err(format!("camera pitch {} is outside [-90, 90] (-90 looks straight down)", self.pitch).into());

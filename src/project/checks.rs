@@ -46,6 +46,12 @@ pub struct CheckSpec {
     /// Each tile's digest by quad (`face/level/x/y`), 16 hex digits.
     #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
     pub tiles: BTreeMap<String, String>,
+    /// What the check read when it was recorded, each a digest of 16 hex digits: `layers.NAME`
+    /// (a layer's settings and operations: the layer checked and those below it, or every layer
+    /// for the stack) and `views.NAME` (the view it is placed by). A mismatch names what changed
+    /// since.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub inputs: BTreeMap<String, String>,
 }
 
 /// What a check hashes, once its fields are checked.
@@ -92,6 +98,9 @@ impl CheckSpec {
         for (quad, d) in &self.tiles {
             check_hex(&format!("tiles.{quad}"), d)?;
         }
+        for (input, d) in &self.inputs {
+            check_hex(&format!("inputs.{input}"), d)?;
+        }
         match (self.level, self.region, self.view.as_deref()) {
             (None, None, None) => match layer {
                 Some(name) if holds_deltas(name) == Some(true) => Ok(CheckTarget::LayerTiles(name)),
@@ -117,6 +126,48 @@ impl CheckSpec {
             }
         }
     }
+}
+
+/// What check `check` of `project` reads, by input (`layers.NAME`, `views.NAME`): a digest of
+/// each one's JSON. A check of a layer reads it and the layers below it (strokes and runs read
+/// the terrain below); a check of the stack reads every layer.
+pub fn inputs(project: &super::Project, check: &CheckSpec) -> BTreeMap<String, String> {
+    let top = match &check.layer {
+        Some(name) => project.layers.iter().position(|l| &l.name == name).map_or(0, |k| k + 1),
+        None => project.layers.len(),
+    };
+    let mut out: BTreeMap<String, String> =
+        project.layers[..top].iter().map(|l| (format!("layers.{}", l.name), digest_of(l))).collect();
+    if let Some(view) = check.view.as_ref().and_then(|v| project.views.get_key_value(v)) {
+        out.insert(format!("views.{}", view.0), digest_of(view.1));
+    }
+    out
+}
+
+/// What changed between the inputs a check was recorded with and `now`'s, in words (`layer
+/// 'sculpt' changed`, `layer 'x' is new`, `view 'v' changed`); empty when nothing did.
+pub fn changed_inputs(recorded: &BTreeMap<String, String>, now: &BTreeMap<String, String>) -> Vec<String> {
+    let words = |key: &str| match key.split_once('.') {
+        Some(("layers", name)) => format!("layer '{name}'"),
+        Some(("views", name)) => format!("view '{name}'"),
+        _ => key.to_string(),
+    };
+    let mut out = Vec::new();
+    for (key, d) in recorded {
+        match now.get(key) {
+            Some(n) if n == d => {}
+            Some(_) => out.push(format!("{} changed", words(key))),
+            None => out.push(format!("{} is gone", words(key))),
+        }
+    }
+    out.extend(now.keys().filter(|k| !recorded.contains_key(*k)).map(|k| format!("{} is new", words(k))));
+    out
+}
+
+/// A value's digest: FNV-1a over its JSON, 16 hex digits.
+fn digest_of<T: serde::Serialize>(value: &T) -> String {
+    let json = serde_json::to_string(value).unwrap_or_default();
+    format!("{:016x}", crate::edit::cache::Digest::default().with(json.as_bytes()).value())
 }
 
 fn check_hex(field: &str, text: &str) -> Result<(), Invalid> {

@@ -27,6 +27,7 @@
 
 mod camera;
 pub mod checks;
+pub mod editing;
 pub mod migrate;
 pub mod recovery;
 pub mod reference;
@@ -57,6 +58,8 @@ pub const MAX_FILE_BYTES: u64 = 512 << 20;
 pub const MAX_QUADS: usize = 1 << 16;
 /// The largest cache budget, MiB (`detail.cpu_cache_mib`, `gpu_cache_mib`).
 pub const MAX_CACHE_MIB: u64 = 1 << 20;
+/// The most tiles one stroke or run may be allowed to write (2²⁰, 270 GB of heights).
+pub const MAX_EDIT_TILES: u64 = 1 << 20;
 /// The widest isoline, pixels (`visuals.isolines.*width_px`).
 pub const MAX_LINE_WIDTH_PX: f32 = 64.0;
 /// The body's semi-major axis, metres: from 1 km (a small asteroid) to 10⁸ m (past Jupiter's).
@@ -152,6 +155,18 @@ pub enum ProjectError {
         #[source]
         source: std::io::Error,
     },
+    /// Another process holds the project (it is changing it) for longer than the wait.
+    #[error(transparent)]
+    Lock(#[from] crate::files::lock::LockError),
+    /// Another process changed the file since this one read or wrote it: not written over.
+    #[error(
+        "{}: not saved: another process changed the file since it was opened here (reload it, or save these changes as a copy)",
+        path.display()
+    )]
+    ChangedOnDisk {
+        /// The file.
+        path: PathBuf,
+    },
 }
 
 /// The project: what `terrafuse render` and the workstation open.
@@ -210,19 +225,26 @@ impl Project {
 
     /// Reads and checks a project file (bounded: see the module's documentation).
     pub fn load(path: &Path) -> Result<Project, ProjectError> {
+        Ok(Project::load_seen(path)?.0)
+    }
+
+    /// [`Project::load`], with what the file held as it was read (the workstation saves only
+    /// while the file still holds that: see [`editing`]).
+    pub fn load_seen(path: &Path) -> Result<(Project, editing::OnDisk), ProjectError> {
         let read = |source| ProjectError::Read { path: path.into(), source };
         let size = std::fs::metadata(path).map_err(read)?.len();
         if size > MAX_FILE_BYTES {
             return Err(ProjectError::TooLarge { path: path.into(), size });
         }
         let text = std::fs::read_to_string(path).map_err(read)?;
+        let seen = editing::OnDisk::of(text.as_bytes());
         let mut project =
             Project::parse(&text).map_err(|problem| ProjectError::Invalid { path: path.into(), problem })?;
         project.base_dir = path.parent().map_or_else(|| PathBuf::from("."), Path::to_path_buf);
         if project.base_dir.as_os_str().is_empty() {
             project.base_dir = PathBuf::from(".");
         }
-        Ok(project)
+        Ok((project, seen))
     }
 
     /// Parses and checks a project from JSON text (paths stay relative); an older version is
@@ -330,6 +352,17 @@ impl Project {
                 );
             }
         }
+        let preset = &v.colour_map.preset;
+        if v.colour_map.file.is_none() && !crate::colour::preset_names().iter().any(|n| n.eq_ignore_ascii_case(preset))
+        {
+            let close = crate::errors::closest(preset, crate::colour::preset_names())
+                .map_or_else(String::new, |c| format!(" (did you mean '{c}'?)"));
+            return Err(format!(
+                "visuals.colour_map.preset: '{preset}' is not a colour map{close}; the presets are {} (terrafuse render --list-colour-maps)",
+                crate::colour::preset_names().join(", ")
+            )
+            .into());
+        }
         if let Some([lo, hi]) = v.colour_map.range_m
             && !(lo.is_finite() && hi.is_finite() && lo < hi)
         {
@@ -345,6 +378,11 @@ impl Project {
         if !(6..=MAX_QUADS).contains(&d.max_quads) {
             return Err(
                 format!("detail.max_quads {} must lie within 6 (the cube's faces) … {MAX_QUADS}", d.max_quads).into()
+            );
+        }
+        if !(1..=MAX_EDIT_TILES).contains(&d.max_edit_tiles) {
+            return Err(
+                format!("detail.max_edit_tiles {} must lie within 1 … {MAX_EDIT_TILES}", d.max_edit_tiles).into()
             );
         }
         for (field, mib) in [("cpu_cache_mib", d.cpu_cache_mib), ("gpu_cache_mib", d.gpu_cache_mib)] {

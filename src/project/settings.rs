@@ -261,11 +261,24 @@ pub struct DetailSpec {
     pub cpu_cache_mib: u64,
     /// GPU cache budget, MiB.
     pub gpu_cache_mib: u64,
+    /// Most tiles (257² heights, 258 KiB each) one brush stroke or erosion run may write: a
+    /// larger one is refused before it starts (`brush` and `erode` take `--max-tiles` to raise
+    /// it once).
+    pub max_edit_tiles: u64,
 }
+
+/// The default of [`DetailSpec::max_edit_tiles`]: 2 048 tiles, about 530 MiB of heights.
+pub const DEFAULT_MAX_EDIT_TILES: u64 = 2048;
 
 impl Default for DetailSpec {
     fn default() -> DetailSpec {
-        DetailSpec { lod_threshold_px: 1.5, max_quads: 128, cpu_cache_mib: 1024, gpu_cache_mib: 768 }
+        DetailSpec {
+            lod_threshold_px: 1.5,
+            max_quads: 128,
+            cpu_cache_mib: 1024,
+            gpu_cache_mib: 768,
+            max_edit_tiles: DEFAULT_MAX_EDIT_TILES,
+        }
     }
 }
 

@@ -15,9 +15,12 @@ pub mod place;
 use std::sync::Arc;
 use std::time::Instant;
 
+use crate::edit::kernel::CpuRasteriser;
 use crate::edit::raster::EditRaster;
+use crate::erosion::layer::CpuStepper;
 use crate::gpu::GpuContext;
-use crate::layers::{LayerKind, LayerPayload, LayerSpec};
+use crate::layers::{LayerKind, LayerPayload, LayerSpec, Operand};
+use crate::progress::Watch;
 use crate::project::checks::CheckTarget;
 use crate::project::{CheckSpec, Project};
 use crate::scene::Edits;
@@ -113,6 +116,12 @@ pub struct Replayed {
 /// Rebuilds every edit and erosion layer of `project` on `engine` (caches are neither read nor
 /// written).
 pub fn replay(project: &Project, engine: Engine) -> Result<Replayed, ReplayError> {
+    replay_watched(project, engine, &Watch::default())
+}
+
+/// [`replay`], each layer's operations counted on `watch` (a phase per run, or `strokes`) and
+/// stopped between operations or steps when it is cancelled.
+pub fn replay_watched(project: &Project, engine: Engine, watch: &Watch) -> Result<Replayed, ReplayError> {
     let t = Instant::now();
     let (mut scene, _) = Scene::open_with(project, Edits::Empty)?;
     let open_seconds = t.elapsed().as_secs_f64();
@@ -140,16 +149,19 @@ pub fn replay(project: &Project, engine: Engine) -> Result<Replayed, ReplayError
             (LayerPayload::Erosion(runs), Engine::Gpu(ctx), Some((_, erosion))) => {
                 let stepper =
                     crate::gpu::erosion::GpuStepper { device: &ctx.device, queue: &ctx.queue, kernel: erosion.clone() };
-                crate::erosion::layer::build_with(e, runs.in_effect(), &below, &stepper).map_err(|e| fail(e.into()))
-            }
-            (LayerPayload::Erosion(runs), ..) => {
-                crate::erosion::layer::build(e, runs.in_effect(), &below).map_err(|e| fail(e.into()))
-            }
-            (_, Engine::Gpu(ctx), Some((strokes, _))) => {
-                EditRaster::build_with(e, spec.applied_strokes(), &below, &strokes.on_context(ctx))
+                crate::erosion::layer::build_with(e, runs.in_effect(), &below, &stepper, watch)
                     .map_err(|e| fail(e.into()))
             }
-            _ => EditRaster::build(e, spec.applied_strokes(), &below).map_err(|e| fail(e.into())),
+            (LayerPayload::Erosion(runs), ..) => {
+                crate::erosion::layer::build_with(e, runs.in_effect(), &below, &CpuStepper, watch)
+                    .map_err(|e| fail(e.into()))
+            }
+            (_, Engine::Gpu(ctx), Some((strokes, _))) => {
+                EditRaster::build_with(e, spec.applied_strokes(), &below, &strokes.on_context(ctx), watch)
+                    .map_err(|e| fail(e.into()))
+            }
+            _ => EditRaster::build_with(e, spec.applied_strokes(), &below, &CpuRasteriser, watch)
+                .map_err(|e| fail(e.into())),
         }?;
         let seconds = t.elapsed().as_secs_f64();
         layers.push(LayerReplay {
@@ -198,27 +210,19 @@ pub fn evaluate(scene: &Scene, project: &Project, name: &str, check: &CheckSpec)
             (layer, place::view_quads(&e, camera, level).map_err(fail)?)
         }
     };
+    // A layer is composed alone as every comparison takes it: a layer of deltas over a zero plane,
+    // so that its check reads its own deltas (not nothing, as a layer added to no terrain would).
     let alone;
     let scene = match layer {
         Some(layer) => {
-            alone = scene_of_layer(scene, index_of(layer)?).map_err(|e| failed(e.into()))?;
+            index_of(layer)?;
+            alone = scene.of_operand(&Operand::Layer(layer.to_string())).map_err(|e| failed(e.into()))?;
             &alone
         }
         None => scene,
     };
     let composed = scene.compose_cpu(&quads).map_err(failed)?;
     Ok(digest::of_tiles(composed.iter().map(|(q, h)| (*q, h.as_slice()))))
-}
-
-/// The scene with only layer `index` visible (composed alone).
-fn scene_of_layer(scene: &Scene, index: usize) -> Result<Scene, crate::layers::LayerError> {
-    let mut alone = scene.clone();
-    for k in 0..alone.stack.layers.len() {
-        let mut spec = alone.stack.layers[k].spec.clone();
-        spec.visible = k == index;
-        alone.stack.set(k, spec)?;
-    }
-    Ok(alone)
 }
 
 /// How far a layer rebuilt on the GPU may be from the CPU reference, metres: the sum over its

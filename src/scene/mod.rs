@@ -10,6 +10,7 @@ mod compose_cpu;
 pub mod dataset;
 pub mod flight;
 pub mod loader;
+mod operand;
 pub mod patches;
 pub(crate) mod quads;
 pub mod select;
@@ -24,8 +25,10 @@ use std::sync::Arc;
 use crate::colour::Ramp;
 use crate::ecm::QuadId;
 use crate::edit::EditRaster;
+use crate::files::lock::Lock;
 use crate::geodesy::Ellipsoid;
 use crate::layers::{LayerSpec, QuadPlan, Stack};
+use crate::progress::Watch;
 use crate::project::{ColourMapSpec, DetailSpec, Project, Visuals};
 use crate::store::{ImportOptions, LevelChoice, Resampling, Store, StoreError, VerticalDatum};
 use crate::{Invalid, colour::ColourError, edit::StrokeError, erosion::layer::OperationError, layers::LayerError};
@@ -50,6 +53,15 @@ pub enum SceneError {
     /// The colour map.
     #[error(transparent)]
     Colour(#[from] ColourError),
+    /// Another process imported into a dataset layer's store for longer than the wait.
+    #[error("layer '{layer}'")]
+    StoreLock {
+        /// The layer.
+        layer: String,
+        /// Who held the store.
+        #[source]
+        source: crate::files::lock::LockError,
+    },
     /// A dataset layer's store or dataset cannot serve it.
     #[error("layer '{layer}': {problem}")]
     Dataset {
@@ -239,6 +251,12 @@ impl Scene {
 
     /// [`Scene::open`], with the edit and erosion layers' rasters as `edits` says.
     pub fn open_with(project: &Project, edits: Edits) -> Result<(Scene, OpenReport), SceneError> {
+        Scene::open_watched(project, edits, &Watch::default())
+    }
+
+    /// [`Scene::open_with`], the strokes and runs of layers rebuilt from their operations
+    /// counted on `watch` and stopped when it is cancelled.
+    pub fn open_watched(project: &Project, edits: Edits, watch: &Watch) -> Result<(Scene, OpenReport), SceneError> {
         let ellipsoid = project.ellipsoid()?;
         let mut report = OpenReport::default();
         let stack = Stack::new(ellipsoid, &project.layers)?;
@@ -261,7 +279,7 @@ impl Scene {
         for (index, d) in project.layers.iter().enumerate() {
             if d.holds_deltas() {
                 match edits {
-                    Edits::Cached => report.edits.push(scene.attach_edit(index)?),
+                    Edits::Cached => report.edits.push(scene.attach_edit_watched(index, watch)?),
                     Edits::Empty => scene.set_edit(index, EditRaster::new(ellipsoid, 0)),
                 }
                 continue;
@@ -270,6 +288,15 @@ impl Scene {
                 continue;
             }
             if let Some(opts) = import_needed(project, d)? {
+                // Two processes opening the project at once import its store one after the other:
+                // the second finds the dataset complete once the first is done.
+                let _lock = Lock::acquire(&opts.store, "terrafuse (importing a dataset)", IMPORT_WAIT, &mut |_| {})
+                    .map_err(|source| SceneError::StoreLock { layer: d.name.clone(), source })?;
+                let Some(opts) = import_needed(project, d)? else {
+                    let info = open_dataset(project, d)?;
+                    scene.attach(index, info)?;
+                    continue;
+                };
                 let r = crate::store::import(&opts)?;
                 report.imported.push(format!(
                     "imported {} into {} (levels 0–{}, {:.1} s)",
@@ -291,6 +318,11 @@ impl Scene {
     /// built from its strokes in effect (and cached); records its range. Returns a line saying
     /// which.
     pub fn attach_edit(&mut self, index: usize) -> Result<String, SceneError> {
+        self.attach_edit_watched(index, &Watch::default())
+    }
+
+    /// [`Scene::attach_edit`], a rebuild counted on `watch` and stopped when it is cancelled.
+    pub fn attach_edit_watched(&mut self, index: usize, watch: &Watch) -> Result<String, SceneError> {
         let t = std::time::Instant::now();
         let spec = &self.stack.layers[index].spec;
         let name = spec.name.clone();
@@ -308,11 +340,14 @@ impl Scene {
         }
         let below = self.below(index)?;
         let layer = &self.stack.layers[index];
+        let below = |q| Ok(below.heights_cpu(q)?);
         let raster = if erosion {
-            crate::erosion::layer::build(self.ellipsoid, layer.spec.applied_runs(), &|q| Ok(below.heights_cpu(q)?))
+            let cpu = crate::erosion::layer::CpuStepper;
+            crate::erosion::layer::build_with(self.ellipsoid, layer.spec.applied_runs(), &below, &cpu, watch)
                 .map_err(|source| SceneError::Runs { layer: layer.spec.name.clone(), source })?
         } else {
-            EditRaster::build(self.ellipsoid, layer.spec.applied_strokes(), &|q| Ok(below.heights_cpu(q)?))
+            let cpu = crate::edit::kernel::CpuRasteriser;
+            EditRaster::build_with(self.ellipsoid, layer.spec.applied_strokes(), &below, &cpu, watch)
                 .map_err(|source| SceneError::Strokes { layer: layer.spec.name.clone(), source })?
         };
         let mut line =
@@ -463,6 +498,9 @@ impl Scene {
 fn to_json<T: serde::Serialize + ?Sized>(value: &T) -> String {
     serde_json::to_string(value).unwrap_or_default()
 }
+
+/// How long opening a project waits for another process importing the same store.
+const IMPORT_WAIT: std::time::Duration = std::time::Duration::from_secs(3600);
 
 /// What importing a dataset layer's sources into its store takes, when the store lacks a
 /// complete copy of it (None: nothing to import). Errors name the layer and the store.

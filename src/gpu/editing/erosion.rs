@@ -18,6 +18,7 @@ use crate::gpu::context::GpuError;
 use crate::gpu::erosion::GpuRun;
 use crate::gpu::renderer::Renderer;
 use crate::layers::{DifferenceStyle, ErosionLayer, LayerError, LayerPayload, LayerSpec, Operand};
+use crate::progress::Watch;
 use crate::scene::Scene;
 
 /// The drape's layers: the field, the zero it is drawn against, the difference drawn.
@@ -120,13 +121,20 @@ impl Editor {
             .below(index)
             .map_err(|e| LayerError::caused(&spec.name, "runs", "the layers below cannot be read", e))?;
         let applied = spec.applied_runs().len();
-        let outcome = layer::apply(&mut raster, applied, &op, &|q| Ok(below.heights_cpu(q)?), &layer::CpuStepper)
-            .map_err(|e| LayerError {
-                layer: spec.name.clone(),
-                field: format!("runs[{applied}].{}", e.field),
-                problem: e.problem,
-                cause: e.cause,
-            })?;
+        let outcome = layer::apply(
+            &mut raster,
+            applied,
+            &op,
+            &|q| Ok(below.heights_cpu(q)?),
+            &layer::CpuStepper,
+            &Watch::default(),
+        )
+        .map_err(|e| LayerError {
+            layer: spec.name.clone(),
+            field: format!("runs[{applied}].{}", e.field),
+            problem: e.problem,
+            cause: e.cause,
+        })?;
         spec.record_run(op)?;
         r.with_scene(|s| {
             s.set_edit(index, raster);
@@ -160,7 +168,7 @@ impl Editor {
             layer::undo_to(&mut raster, &runs, now, applied, &below).map_err(fail)?;
         } else {
             for (k, op) in runs.iter().enumerate().take(applied).skip(now) {
-                layer::apply(&mut raster, k, op, &below, &layer::CpuStepper).map_err(fail)?;
+                layer::apply(&mut raster, k, op, &below, &layer::CpuStepper, &Watch::default()).map_err(fail)?;
             }
         }
         let applied = (applied < runs.len()).then_some(applied);

@@ -38,6 +38,8 @@ pub(super) struct Opening {
     /// Restored from this recovery file (the project then has unsaved changes).
     restored: Option<PathBuf>,
     imported: Vec<String>,
+    /// What the project file held as it was read.
+    on_disk: Option<crate::project::editing::OnDisk>,
 }
 
 /// The file bar's state.
@@ -105,12 +107,20 @@ impl App {
         self.message = format!("opening {}…", path.display());
         self.file.dialog = None;
         self.file.opening = Some(std::thread::spawn(move || {
-            let mut project = Project::load(restored.as_deref().unwrap_or(&path))?;
+            // What the project file holds as it is read (not the recovery file's): the window
+            // saves only while the file still holds it.
+            let (mut project, on_disk) = match &restored {
+                Some(r) => (Project::load(r)?, crate::project::editing::OnDisk::read(&path)),
+                None => {
+                    let (project, seen) = Project::load_seen(&path)?;
+                    (project, Some(seen))
+                }
+            };
             project.base_dir = crate::files::folder_of(&path).into();
             let (scene, report) =
                 Scene::open(&project).map_err(|e| format!("{}: {}", path.display(), crate::errors::chain(&e)))?;
             let camera = opening_camera(&project);
-            Ok(Opening { project, path, scene, camera, restored, imported: report.imported })
+            Ok(Opening { project, path, scene, camera, restored, imported: report.imported, on_disk })
         }));
     }
 
@@ -149,15 +159,17 @@ impl App {
         if let Err(e) = recent.add(&opened.path) {
             self.message = format!("the recent list was not kept: {}", crate::errors::chain(&e));
         }
+        let camera = self.disk.reload_camera.take().unwrap_or(opened.camera);
         let next = App::new(
             opened.project,
             opened.path.clone(),
             (renderer, editor),
-            opened.camera,
+            camera,
             None,
             self.outcome.clone(),
             self.device.clone(),
-        );
+        )
+        .with_disk(opened.on_disk);
         *self = next;
         self.file.recent = recent;
         self.message = match &opened.restored {
@@ -179,13 +191,16 @@ impl App {
     /// folder; the window then edits the new file.
     pub fn save_as(&mut self, path: &Path) {
         let dir = crate::files::folder_of(path);
-        let (old_path, old_project) = (self.project_path.clone(), self.project.clone());
+        let (old_path, old_project, old_disk) = (self.project_path.clone(), self.project.clone(), self.disk.on_disk);
         self.project.rebase(dir);
         self.project_path = path.to_path_buf();
+        // The user chose this file: what it holds now may be written over.
+        self.disk.on_disk = crate::project::editing::OnDisk::read(path);
         self.save_project();
         if self.unsaved {
             // Not written: the message says why; keep editing the old file.
             (self.project_path, self.project) = (old_path, old_project);
+            self.remember_disk(old_disk);
             return;
         }
         recovery::remove(&old_path);
@@ -228,6 +243,14 @@ impl App {
             return;
         }
         self.sync_project();
+        // Two windows on one project share its recovery file: one writes it at a time (the other
+        // tries again at its next autosave).
+        let target = recovery::path_of(&self.project_path);
+        let Ok(_lock) =
+            crate::files::lock::Lock::acquire(&target, "terrafuse view (autosave)", Duration::ZERO, &mut |_| {})
+        else {
+            return;
+        };
         match recovery::write(&self.project, &self.project_path) {
             Ok(_) => self.file.autosaved = self.file.changes,
             Err(e) => self.message = format!("autosave failed: {}", crate::errors::chain(&e)),

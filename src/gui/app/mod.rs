@@ -10,13 +10,15 @@ use glam::DVec3;
 
 use super::navigate;
 use super::viewport::{Viewport, frame_line};
+use crate::files::lock::LockError;
 use crate::geodesy;
 use crate::gpu::{Editor, FrameStats, Renderer};
-use crate::project::{CameraSpec, Project, Visuals};
+use crate::project::{CameraSpec, Project, ProjectError, Visuals};
 use crate::scene::Camera;
 use crate::scene::resolve_ramp;
 
 mod brush;
+mod disk;
 mod drainage;
 mod erosion;
 mod erosion_brush;
@@ -110,6 +112,8 @@ pub struct App {
     file: file::FileState,
     /// Recording and replaying a camera flight.
     flight: flight::FlightTool,
+    /// The project file as other processes change it.
+    disk: disk::DiskState,
 }
 
 impl App {
@@ -168,6 +172,7 @@ impl App {
             swipe_request: None,
             profile: Default::default(),
             file: Default::default(),
+            disk: Default::default(),
         }
     }
 
@@ -312,7 +317,7 @@ impl App {
 
     fn save_project(&mut self) {
         self.sync_project();
-        match self.project.save(&self.project_path) {
+        match self.write_project() {
             Ok(()) => {
                 self.unsaved = false;
                 self.file.autosaved = self.file.changes;
@@ -334,7 +339,10 @@ impl App {
                     }
                 }
             }
-            Err(e) => self.message = e.to_string(),
+            Err(ProjectError::Lock(LockError::Busy { holder, .. })) => {
+                self.message = format!("waiting for {holder} to finish changing the project: saving when it is done");
+            }
+            Err(e) => self.message = crate::errors::chain(&e),
         }
     }
 
@@ -715,8 +723,10 @@ impl eframe::App for App {
         }
         self.screenshot(ui);
         self.autosave();
+        self.watch_disk();
         self.update_title(ui.ctx());
         self.file_dialogs(ui.ctx());
+        self.conflict_dialog(ui.ctx());
         if self.file.opening.is_some() {
             ui.ctx().request_repaint_after(Duration::from_millis(50));
         }
