@@ -167,12 +167,17 @@ fn strokes_undo_and_redo_from_the_command_line_and_bad_strokes_leave_the_file_as
     ]);
     assert!(report.contains("1 undone strokes dropped"), "{report}");
     assert_eq!(strokes(&path), (n + 1, n + 1));
-    // A new edit layer is made on top when named.
+    // A name the project does not have is refused (the nearest named), unless --create makes it.
+    let out =
+        terrafuse(&["brush", p, "--layer", "scuplt", "--tool", "raise", "--radius-m", "9000", "--path", "1,2"], "");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("did you mean 'sculpt'? add --create"), "{err}");
     let report = run(&[
         "brush",
         p,
         "--layer",
         "more",
+        "--create",
         "--tool",
         "noise",
         "--radius-m",
@@ -224,6 +229,18 @@ fn strokes_undo_and_redo_from_the_command_line_and_bad_strokes_leave_the_file_as
             "--height-m: is the flatten height",
         ),
         (vec!["--undo", "99"], "--undo 99: only"),
+        (
+            vec!["--tool", "raise", "--radius-m", "-5", "--strength-m", "1", "--path", "0,0"],
+            "--radius-m: -5 must be a distance in metres",
+        ),
+        (
+            vec!["--tool", "raise", "--radius-m", "100", "--strength-m", "1", "--path", "-2,420;0,44"],
+            "--path: point 0 [-2, 420] is not [lat, lon] in degrees (latitude within ±90, longitude within ±180)",
+        ),
+        (
+            vec!["--tool", "raise", "--radius-m", "100", "--strength-m", "1", "--path", "-2,42;0,44", "--level", "10"],
+            "tiles (1.7 GiB of heights), over the budget of 2048 from the project's detail.max_edit_tiles",
+        ),
     ] {
         let mut all = vec!["brush", p, "--layer", "sculpt"];
         all.extend(args.iter().copied());

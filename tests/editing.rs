@@ -346,3 +346,59 @@ fn editing_commands_refuse_bad_flags_and_change_nothing_when_they_do() {
         })
         .unwrap();
 }
+
+#[test]
+fn coregister_apply_refuses_bad_flags_and_changes_nothing_when_it_does() {
+    // The co-registration that stores its correction in a layer: random operands and flags.
+    let dir = common::out_path("editing/coregister");
+    let project = common::sample_project("erzurum-compare", &dir);
+    let names = prop::sample::select(&["blurred", "srtm", "bogus", "blurred - srtm"][..]);
+    let flags = prop::collection::vec(
+        (
+            prop::sample::select(&["--pipeline", "--level", "--region", "--stable", "--wait"][..]),
+            prop::sample::select(
+                &[
+                    "nuth_kaab",
+                    "deramp:1",
+                    "deramp:9",
+                    "",
+                    "bogus",
+                    "terrain_bias:slope",
+                    "vertical",
+                    "-1",
+                    "0",
+                    "30",
+                    "9",
+                    "40.2,39.4,40.6,39.8",
+                    "200,0,210,1",
+                    "srtm",
+                    "nan",
+                ][..],
+            ),
+        ),
+        0..4,
+    );
+    let path = project.to_string_lossy().into_owned();
+    let strategy = (names.clone(), names, flags).prop_map(move |(a, b, f)| {
+        let mut args = vec!["coregister".to_string(), path.clone(), a.to_string(), "--to".into(), b.to_string()];
+        args.push("--apply".into());
+        f.into_iter().for_each(|(k, v)| args.extend([k.to_string(), v.to_string()]));
+        args
+    });
+    let folder = project.parent().unwrap().to_path_buf();
+    let mut runner = proptest::test_runner::TestRunner::new(ProptestConfig { cases: 12, ..ProptestConfig::default() });
+    runner
+        .run(&strategy, |args| {
+            let before = walk(&folder);
+            let code = std::panic::catch_unwind(|| run_in_process(&args));
+            prop_assert!(code.is_ok(), "panicked on {args:?}");
+            if code.unwrap() != 0 {
+                let after = walk(&folder);
+                let changed: Vec<&String> =
+                    before.keys().chain(after.keys()).filter(|k| before.get(*k) != after.get(*k)).collect();
+                prop_assert!(changed.is_empty(), "refused {args:?} but changed {changed:?}");
+            }
+            Ok(())
+        })
+        .unwrap();
+}

@@ -219,7 +219,8 @@ fn terrafuse_erode_runs_reports_json_undoes_redoes_and_refuses_bad_input_untouch
     let p = path.to_str().unwrap();
     let region = "40.50,39.60,40.53,39.62";
     let out = erode(&[
-        p, "--layer", "wash", "--region", region, "--level", "9", "--steps", "30", "--seed", "4", "--cpu", "--json",
+        p, "--layer", "wash", "--create", "--region", region, "--level", "9", "--steps", "30", "--seed", "4", "--cpu",
+        "--json",
     ]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();

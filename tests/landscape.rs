@@ -205,7 +205,7 @@ fn terrafuse_erode_stream_power_reports_the_issues_json_records_the_run_and_refu
     let path = common::sample_project("erzurum", &dir);
     let p = path.to_str().unwrap();
     let erode = |args: &[&str]| {
-        common::terrafuse(&[&["erode", p, "--layer", "land", "--model", "stream-power"], args].concat(), "")
+        common::terrafuse(&[&["erode", p, "--layer", "land", "--create", "--model", "stream-power"], args].concat(), "")
     };
     let region = ["--region", "40.50,39.60,40.60,39.68", "--level", "8"];
     let out = erode(

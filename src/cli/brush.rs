@@ -2,13 +2,12 @@
 //! and saves the project atomically, so brushing sessions can be scripted and checked. The stroke
 //! is checked and rasterised before anything is written: a refused stroke leaves the file as it was.
 
-use super::edit_target::target_layer;
+use super::edit_target::{Holds, target_layer};
 use super::{CliError, Feedback, WaitArgs, Within};
 use std::fmt::Write as _;
 use std::path::PathBuf;
 
 use crate::edit::{Falloff, Stroke, Tool};
-use crate::layers::LayerKind;
 use crate::project::Project;
 use crate::scene::{Edits, Scene};
 use crate::store::grid::spacing_m;
@@ -168,7 +167,7 @@ fn change_of(project: &mut Project, request: &BrushRequest) -> Result<(usize, St
     };
     let ellipsoid = project.ellipsoid()?;
     let mut out = String::new();
-    let index = target_layer(project, &request.layer, LayerKind::Edit, request.create, &mut out)?;
+    let index = target_layer(project, &request.layer, Holds::Strokes, request.create, &mut out)?;
     if undo_or_redo {
         let spec = &mut project.layers[index];
         let to = spec.move_applied(request.undo, request.redo)?;

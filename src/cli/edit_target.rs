@@ -6,22 +6,54 @@
 use std::fmt::Write as _;
 
 use super::CliError;
-use crate::layers::{LayerKind, LayerSpec};
+use crate::layers::LayerSpec;
 use crate::project::Project;
 
-/// The index of layer `name` of `kind` (edit or erosion) in `project`; with `create`, a new
-/// one on top when there is none (a line in `out` says so). A missing layer without `create`,
-/// or one of another kind, is refused with the project's layers and a close name.
+/// What a command changes: an edit layer's strokes or an erosion layer's runs.
+#[derive(Clone, Copy, PartialEq, Eq)]
+pub enum Holds {
+    /// An edit layer (`brush`).
+    Strokes,
+    /// An erosion layer (`erode`).
+    Runs,
+}
+
+impl Holds {
+    /// Whether `spec` is such a layer.
+    fn of(self, spec: &LayerSpec) -> bool {
+        match self {
+            Holds::Strokes => spec.as_edit().is_some(),
+            Holds::Runs => spec.as_erosion().is_some(),
+        }
+    }
+
+    /// A new, empty layer of this kind.
+    fn layer(self, name: &str) -> LayerSpec {
+        match self {
+            Holds::Strokes => LayerSpec::edit(name),
+            Holds::Runs => LayerSpec::erosion(name),
+        }
+    }
+
+    /// `edit` or `erosion`, as its layers are named.
+    fn kind_name(self) -> &'static str {
+        self.layer("").kind().name()
+    }
+}
+
+/// The index of the layer `name` of `project` that `holds` strokes or runs; with `create`, a new
+/// one on top when there is none (a line in `out` says so). A missing layer without `create`, or
+/// one of another kind, is refused with the project's layers and a close name.
 pub fn target_layer(
     project: &mut Project,
     name: &str,
-    kind: LayerKind,
+    holds: Holds,
     create: bool,
     out: &mut String,
 ) -> Result<usize, CliError> {
-    let kind_name = kind.name();
+    let kind_name = holds.kind_name();
     match project.layers.iter().position(|l| l.name == name) {
-        Some(i) if project.layers[i].kind() == kind => {
+        Some(i) if holds.of(&project.layers[i]) => {
             if create {
                 let _ = writeln!(out, "layer '{name}' is already there: --create adds nothing");
             }
@@ -30,15 +62,11 @@ pub fn target_layer(
         Some(i) => Err(format!(
             "--layer {name}: a {} layer, not an {kind_name} layer ({})",
             project.layers[i].kind().name(),
-            layers_of(project, kind)
+            layers_of(project, holds)
         )
         .into()),
         None if create => {
-            let spec = match kind {
-                LayerKind::Erosion => LayerSpec::erosion(name),
-                _ => LayerSpec::edit(name),
-            };
-            project.layers.push(spec);
+            project.layers.push(holds.layer(name));
             let _ = writeln!(out, "made {kind_name} layer '{name}' on top of the stack");
             Ok(project.layers.len() - 1)
         }
@@ -51,7 +79,7 @@ pub fn target_layer(
             Err(format!(
                 "--layer {name}: no such layer in {} ({}); {hint}add --create to make a new {kind_name} layer on top",
                 project.base_dir.display(),
-                layers_of(project, kind)
+                layers_of(project, holds)
             )
             .into())
         }
@@ -59,10 +87,10 @@ pub fn target_layer(
 }
 
 /// `its edit layers: a, b` or `it has no edit layer; its layers: x, y`.
-fn layers_of(project: &Project, kind: LayerKind) -> String {
-    let of_kind: Vec<&str> = project.layers.iter().filter(|l| l.kind() == kind).map(|l| l.name.as_str()).collect();
+fn layers_of(project: &Project, holds: Holds) -> String {
+    let of_kind: Vec<&str> = project.layers.iter().filter(|l| holds.of(l)).map(|l| l.name.as_str()).collect();
     let all: Vec<&str> = project.layers.iter().map(|l| l.name.as_str()).collect();
-    let kind_name = kind.name();
+    let kind_name = holds.kind_name();
     match (of_kind.is_empty(), all.is_empty()) {
         (false, _) => format!("its {kind_name} layers: {}", of_kind.join(", ")),
         (true, false) => format!("it has no {kind_name} layer; its layers: {}", all.join(", ")),

@@ -3,7 +3,7 @@
 //! moves its undo position, caches the layer's change of height beside the project and saves the
 //! project atomically. A run that cannot be made leaves the file as it was.
 
-use super::edit_target::target_layer;
+use super::edit_target::{Holds, target_layer};
 use super::{CliError, Feedback, WaitArgs, Within};
 use std::fmt::Write as _;
 use std::path::PathBuf;
@@ -14,7 +14,6 @@ use crate::erosion::operation::{Device, Model, Operation};
 use crate::erosion::params::{Params, gravity_of_body};
 use crate::gpu::GpuContext;
 use crate::gpu::erosion::{ErosionKernel, GpuStepper};
-use crate::layers::LayerKind;
 use crate::project::Project;
 use crate::project::editing::Held;
 use crate::scene::{Edits, Scene};
@@ -334,7 +333,7 @@ fn change_of(project: &mut Project, request: &ErodeRequest) -> Result<(usize, St
     };
     let region = request.region.as_deref().map(super::geo::parse_box).transpose()?;
     let mut out = String::new();
-    let index = target_layer(project, &request.layer, LayerKind::Erosion, request.create, &mut out)?;
+    let index = target_layer(project, &request.layer, Holds::Runs, request.create, &mut out)?;
     if undo_or_redo {
         let total = project.layers[index].runs().len();
         let to = project.layers[index].move_applied(request.undo, request.redo)?;

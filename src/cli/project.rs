@@ -69,6 +69,13 @@ pub fn project_check(path: &Path) -> Result<String, CliError> {
                 let _ = write!(line, ": {} of {} strokes applied", edit.in_effect().len(), edit.strokes.len());
             }
             LayerPayload::Erosion(erosion) => {
+                // Each run's region placed as a replay places it (a box too large for one region, or
+                // one reaching the opposite face, is refused there).
+                let ellipsoid = project.ellipsoid()?;
+                for (j, run) in erosion.runs.iter().enumerate() {
+                    crate::erosion::region::Region::from_box(&ellipsoid, run.region, run.level)
+                        .map_err(|e| format!("{}: {e}", field(&format!("runs[{j}].region"))))?;
+                }
                 let _ = write!(line, ": {} of {} runs applied", erosion.in_effect().len(), erosion.runs.len());
             }
             _ => {}
