@@ -108,9 +108,10 @@ pub fn check_budget_of(budget: (Option<u64>, u64), tiles: f64, what: &str) -> Re
     let limit = flag.unwrap_or(project);
     if tiles > limit as f64 {
         let source = if flag.is_some() { "--max-tiles" } else { "the project's detail.max_edit_tiles" };
+        let mib = tiles * 257.0 * 257.0 * 4.0 / f64::from(1u32 << 20);
+        let size = if mib < 1024.0 { format!("{mib:.0} MiB") } else { format!("{:.1} GiB", mib / 1024.0) };
         return Err(format!(
-            "{what} would write up to {tiles:.0} tiles ({:.1} GiB of heights), over the budget of {limit} from {source}: make it smaller (a coarser --level, a shorter path, a smaller radius or box), or raise the budget with --max-tiles {}",
-            tiles * 257.0 * 257.0 * 4.0 / f64::from(1u32 << 30),
+            "{what} would write up to {tiles:.0} tiles ({size} of heights), over the budget of {limit} from {source}: make it smaller (a coarser --level, a shorter path, a smaller radius or box), or raise the budget with --max-tiles {}",
             (tiles.ceil() as u64).max(limit + 1)
         )
         .into());

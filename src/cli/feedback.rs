@@ -11,6 +11,7 @@ use std::time::Duration;
 use indicatif::{ProgressBar, ProgressStyle};
 
 use super::{CliError, Console};
+use crate::files::lock::LockError;
 use crate::progress::Watch;
 use crate::project::Project;
 use crate::project::editing::{Changer, DEFAULT_WAIT, Held};
@@ -64,12 +65,19 @@ pub fn change(path: &Path, holder: &str, wait: &WaitArgs, fb: &mut Feedback) -> 
     let mut waiting = |who: &str| note(&format!("terrafuse: waiting for {who} to finish changing {}", path.display()));
     Project::load_to_change(path, Changer { holder, wait: wait.duration()?, waiting: &mut waiting }).map_err(
         |e| match e {
-            crate::project::ProjectError::Lock(l @ crate::files::lock::LockError::Busy { .. }) => {
-                format!("{} (wait longer with --wait SECONDS)", crate::errors::chain(&l)).into()
-            }
+            crate::project::ProjectError::Lock(l) => lock_error(l),
             other => other.into(),
         },
     )
+}
+
+/// A lock that could not be taken; the flag that waits longer where another process held it.
+pub fn lock_error(e: LockError) -> CliError {
+    let text = crate::errors::chain(&e);
+    match e {
+        LockError::Busy { .. } => format!("{text} (wait longer with --wait SECONDS)").into(),
+        _ => text.into(),
+    }
 }
 
 /// Runs `work` with a progress bar on standard error when `show` and the console is a

@@ -115,7 +115,7 @@ pub fn project_upgrade(
     let lock = crate::files::lock::Lock::acquire(target, "terrafuse project upgrade", wait.duration()?, &mut |who| {
         (fb.note)(&format!("terrafuse: waiting for {who} to finish changing {}", target.display()))
     })
-    .map_err(|e| format!("{} (wait longer with --wait SECONDS)", crate::errors::chain(&e)))?;
+    .map_err(super::feedback::lock_error)?;
     let text = std::fs::read_to_string(path).map_err(CliError::file(path, "cannot read"))?;
     let from = crate::project::migrate::header(&text).within(path.display())?;
     let mut project = Project::load(path)?;
