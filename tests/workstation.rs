@@ -845,6 +845,7 @@ fn a_change_a_command_makes_while_the_window_has_unsaved_edits_is_never_written_
     // The window sees the change within a second and asks; "decide later", then a save: refused,
     // and the command's stroke stays in the file.
     wait_until(&mut h, "the conflict is offered", &|a| a.disk_conflict());
+    h.render().unwrap().save(dir.join("conflict.png")).unwrap(); // for people, not compared
     h.get_by_label("decide later").click_accesskit();
     h.run_steps(2);
     h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::S);
