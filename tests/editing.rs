@@ -32,6 +32,13 @@ fn brushing_copy(name: &str) -> PathBuf {
     fresh
 }
 
+/// `terrafuse brush PATH --layer sculpt --tool raise` along `points`, waiting `wait` seconds.
+fn raise(path: &Path, points: &str, wait: &str) -> std::process::Output {
+    let p = path.to_str().unwrap();
+    let stroke = ["--tool", "raise", "--radius-m", "20000", "--strength-m", "100", "--path", points];
+    terrafuse(&[&["brush", p, "--layer", "sculpt"][..], &stroke, &["--wait", wait]].concat())
+}
+
 fn strokes(path: &Path) -> usize {
     Project::load(path).unwrap().layers.iter().find(|l| l.name == "sculpt").unwrap().strokes().len()
 }
@@ -75,22 +82,7 @@ fn a_command_waits_for_the_holder_names_it_and_gives_up_changing_nothing() {
     let before = std::fs::read(&path).unwrap();
     let held = Lock::acquire(&path, "a test holding the project", Duration::ZERO, &mut |_| {}).unwrap();
     let t = Instant::now();
-    let out = terrafuse(&[
-        "brush",
-        path.to_str().unwrap(),
-        "--layer",
-        "sculpt",
-        "--tool",
-        "raise",
-        "--radius-m",
-        "20000",
-        "--strength-m",
-        "100",
-        "--path",
-        "1,40",
-        "--wait",
-        "1",
-    ]);
+    let out = raise(&path, "1,40", "1");
     let said = text(&out);
     assert_eq!(out.status.code(), Some(1), "{said}");
     assert!(t.elapsed() >= Duration::from_secs(1), "it waited");
@@ -125,22 +117,7 @@ fn a_killed_holder_leaves_the_lock_to_the_next_command_and_its_run_unsaved() {
     child.kill().unwrap(); // SIGKILL
     child.wait().unwrap();
     let t = Instant::now();
-    let out = terrafuse(&[
-        "brush",
-        path.to_str().unwrap(),
-        "--layer",
-        "sculpt",
-        "--tool",
-        "raise",
-        "--radius-m",
-        "20000",
-        "--strength-m",
-        "100",
-        "--path",
-        "1,40",
-        "--wait",
-        "20",
-    ]);
+    let out = raise(&path, "1,40", "20");
     assert!(out.status.success(), "{}", text(&out));
     assert!(!text(&out).contains("waiting for"), "the kernel released the lock with the process: {}", text(&out));
     assert!(t.elapsed() < Duration::from_secs(20));

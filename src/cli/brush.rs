@@ -2,8 +2,8 @@
 //! and saves the project atomically, so brushing sessions can be scripted and checked. The stroke
 //! is checked and rasterised before anything is written: a refused stroke leaves the file as it was.
 
-use super::edit_target::{Holds, target_layer};
-use super::{CliError, Feedback, WaitArgs, Within};
+use super::edit_target::{ChangeArgs, Holds, target_layer};
+use super::{CliError, Feedback, Within};
 use std::fmt::Write as _;
 use std::path::PathBuf;
 
@@ -58,17 +58,9 @@ pub struct BrushRequest {
     /// Redo this many strokes (no stroke).
     #[arg(long, allow_negative_numbers = true)]
     pub redo: Option<usize>,
-    /// Make the edit layer on top of the stack when the project has none of that name (without
-    /// it, an unknown --layer is refused, so a typo never makes a layer).
-    #[arg(long)]
-    pub create: bool,
-    /// The most tiles the stroke may write at its level (default: the project's
-    /// detail.max_edit_tiles, 2048); a larger stroke is refused before any of it is made.
-    #[arg(long = "max-tiles", allow_negative_numbers = true)]
-    pub max_tiles: Option<u64>,
-    /// How long to wait for another process changing the project.
+    /// --create, --max-tiles, --wait.
     #[command(flatten)]
-    pub wait: WaitArgs,
+    pub change: ChangeArgs,
 }
 
 fn parse_path(text: &str) -> Result<Vec<[f64; 2]>, CliError> {
@@ -101,10 +93,10 @@ fn named<T: Copy>(what: &str, name: &str, all: &[T], name_of: fn(T) -> &'static 
 /// leaves the project and its stores as they were.
 pub fn brush_command(request: &BrushRequest, fb: &mut Feedback) -> Result<String, CliError> {
     let path = &request.project;
-    if request.wait.duration()? > std::time::Duration::ZERO {
+    if request.change.wait.duration()? > std::time::Duration::ZERO {
         change_of(&mut Project::load(path)?, request)?;
     }
-    let (mut project, held) = super::feedback::change(path, "terrafuse brush", &request.wait, fb)?;
+    let (mut project, held) = super::feedback::change(path, "terrafuse brush", &request.change.wait, fb)?;
     let (index, mut out) = change_of(&mut project, request)?;
     // Rasterised before saving, with the project's layers (smooth, flatten and ramp read the
     // terrain below): a stroke that cannot be is refused and nothing is written.
@@ -167,7 +159,7 @@ fn change_of(project: &mut Project, request: &BrushRequest) -> Result<(usize, St
     };
     let ellipsoid = project.ellipsoid()?;
     let mut out = String::new();
-    let index = target_layer(project, &request.layer, Holds::Strokes, request.create, &mut out)?;
+    let index = target_layer(project, &request.layer, Holds::Strokes, request.change.create, &mut out)?;
     if undo_or_redo {
         let spec = &mut project.layers[index];
         let to = spec.move_applied(request.undo, request.redo)?;
@@ -177,7 +169,7 @@ fn change_of(project: &mut Project, request: &BrushRequest) -> Result<(usize, St
     }
     let tool = request.tool.as_deref().unwrap_or_default();
     let stroke = stroke_of(request, tool, ellipsoid.a_m(), &ellipsoid)?;
-    let budget = (request.max_tiles, project.detail.max_edit_tiles);
+    let budget = (request.change.max_tiles, project.detail.max_edit_tiles);
     check_footprint(&ellipsoid, project.layers[index].applied_strokes(), &stroke, budget)?;
     let dabs = crate::edit::dabs::dab_centres(&ellipsoid, &stroke).within("--path")?;
     let spec = &mut project.layers[index];

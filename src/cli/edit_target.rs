@@ -5,9 +5,25 @@
 
 use std::fmt::Write as _;
 
-use super::CliError;
+use super::{CliError, WaitArgs};
 use crate::layers::LayerSpec;
 use crate::project::Project;
+
+/// The flags `brush` and `erode` share: the layer made when missing, the budget, the wait.
+#[derive(clap::Args, Clone, Debug, Default)]
+pub struct ChangeArgs {
+    /// Make the layer (on top of the stack) when the project has none of that name; without it,
+    /// an unknown --layer is refused, so a typo never makes a layer.
+    #[arg(long)]
+    pub create: bool,
+    /// The most tiles the stroke or run may write at its level (default: the project's
+    /// detail.max_edit_tiles, 2048); a larger one is refused before any of it is made.
+    #[arg(long = "max-tiles", allow_negative_numbers = true)]
+    pub max_tiles: Option<u64>,
+    /// How long to wait for another process changing the project.
+    #[command(flatten)]
+    pub wait: WaitArgs,
+}
 
 /// What a command changes: an edit layer's strokes or an erosion layer's runs.
 #[derive(Clone, Copy, PartialEq, Eq)]

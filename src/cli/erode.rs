@@ -3,8 +3,8 @@
 //! moves its undo position, caches the layer's change of height beside the project and saves the
 //! project atomically. A run that cannot be made leaves the file as it was.
 
-use super::edit_target::{Holds, target_layer};
-use super::{CliError, Feedback, WaitArgs, Within};
+use super::edit_target::{ChangeArgs, Holds, target_layer};
+use super::{CliError, Feedback, Within};
 use std::fmt::Write as _;
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -106,17 +106,9 @@ pub struct ErodeRequest {
     /// Redo this many runs (no run).
     #[arg(long, allow_negative_numbers = true)]
     pub redo: Option<usize>,
-    /// Make the erosion layer on top of the stack when the project has none of that name
-    /// (without it, an unknown --layer is refused, so a typo never makes a layer).
-    #[arg(long)]
-    pub create: bool,
-    /// The most tiles the run may write at its level (default: the project's
-    /// detail.max_edit_tiles, 2048); a larger run is refused before it starts.
-    #[arg(long = "max-tiles", allow_negative_numbers = true)]
-    pub max_tiles: Option<u64>,
-    /// How long to wait for another process changing the project.
+    /// --create, --max-tiles, --wait.
     #[command(flatten)]
-    pub wait: WaitArgs,
+    pub change: ChangeArgs,
 }
 
 impl ErodeRequest {
@@ -173,10 +165,10 @@ pub fn erode_command(request: &ErodeRequest, fb: &mut Feedback) -> Result<String
     let path = &request.project;
     // Checked before waiting for another process that holds the project: a bad flag is refused
     // at once; then again on the project as it is once held.
-    if request.wait.duration()? > std::time::Duration::ZERO {
+    if request.change.wait.duration()? > std::time::Duration::ZERO {
         change_of(&mut Project::load(path)?, request)?;
     }
-    let (mut project, held) = super::feedback::change(path, "terrafuse erode", &request.wait, fb)?;
+    let (mut project, held) = super::feedback::change(path, "terrafuse erode", &request.change.wait, fb)?;
     let (index, mut out, op) = change_of(&mut project, request)?;
     let Some(mut op) = op else {
         return finish(&project, &held, index, out, fb);
@@ -333,7 +325,7 @@ fn change_of(project: &mut Project, request: &ErodeRequest) -> Result<(usize, St
     };
     let region = request.region.as_deref().map(super::geo::parse_box).transpose()?;
     let mut out = String::new();
-    let index = target_layer(project, &request.layer, Holds::Runs, request.create, &mut out)?;
+    let index = target_layer(project, &request.layer, Holds::Runs, request.change.create, &mut out)?;
     if undo_or_redo {
         let total = project.layers[index].runs().len();
         let to = project.layers[index].move_applied(request.undo, request.redo)?;
@@ -378,7 +370,7 @@ fn change_of(project: &mut Project, request: &ErodeRequest) -> Result<(usize, St
         crate::erosion::region::Region::from_box(&ellipsoid, region, level).map_err(|e| format!("--region: {e}"))?;
     let tiles = (placed.width / 256 * (placed.height / 256)) as f64;
     let what = format!("the run on {} × {} cells at level {level}", placed.width, placed.height);
-    super::edit_target::check_budget_of((request.max_tiles, project.detail.max_edit_tiles), tiles, &what)?;
+    super::edit_target::check_budget_of((request.change.max_tiles, project.detail.max_edit_tiles), tiles, &what)?;
     Ok((index, out, Some(op)))
 }
 
