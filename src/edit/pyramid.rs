@@ -107,6 +107,12 @@ impl Pyramid {
         }
     }
 
+    /// Every coarse quad that may have a non-zero mean: the strict ancestors of raster tiles and
+    /// their neighbours.
+    pub fn coarse_quads(&self) -> BTreeSet<QuadId> {
+        self.above.iter().flat_map(|q| with_neighbours(*q)).collect()
+    }
+
     /// Whether a quad coarser than the raster may have a non-zero mean: a raster tile lies under
     /// it or under one of its neighbours.
     pub fn near(&self, quad: QuadId) -> bool {
@@ -133,20 +139,31 @@ impl Pyramid {
             Raster(&'a [f32]),
             Mean(Arc<Vec<f32>>),
         }
-        let mut children: HashMap<QuadId, Option<Child<'a>>> = HashMap::new();
+        // The region's samples come row by row from a few child quads (at most the quad's four
+        // children and a ring of their neighbours): a short list searched from the last one
+        // found, not a hash per sample (which made a coarse tile take seconds).
+        let mut children: Vec<(QuadId, Option<Child<'a>>)> = Vec::with_capacity(16);
+        let mut last = 0usize;
         let mut region = vec![0f32; AREA_MEAN_SPAN * AREA_MEAN_SPAN];
         fill_area_mean_region(quad, &mut region, &mut |face, child_level, i, j| {
             let Some((f, i, j)) = fold_sample(face, child_level, i, j) else { return f32::NAN };
             let (q, li, lj) = quad_of_sample(f, child_level, i, j);
-            let child = children.entry(q).or_insert_with(|| {
-                if child_level == level {
-                    tile(q).map(Child::Raster)
-                } else {
-                    self.mean(q, level, tile).map(Child::Mean)
-                }
-            });
+            if children.get(last).is_none_or(|c| c.0 != q) {
+                last = match children.iter().position(|c| c.0 == q) {
+                    Some(k) => k,
+                    None => {
+                        let child = if child_level == level {
+                            tile(q).map(Child::Raster)
+                        } else {
+                            self.mean(q, level, tile).map(Child::Mean)
+                        };
+                        children.push((q, child));
+                        children.len() - 1
+                    }
+                };
+            }
             let k = lj as usize * GRID as usize + li as usize;
-            match child {
+            match &children[last].1 {
                 Some(Child::Raster(t)) => t[k],
                 Some(Child::Mean(t)) => t[k],
                 None => 0.0,

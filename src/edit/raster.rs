@@ -56,7 +56,7 @@ pub struct EditRaster {
     /// δ per touched quad, 257² row by row from the south, metres.
     pub tiles: BTreeMap<QuadId, Vec<f32>>,
     /// The coarser levels' area means, made on demand.
-    pyramid: Pyramid,
+    pub(super) pyramid: Pyramid,
     /// Bumped by every change.
     pub generation: u32,
     /// Per quad of the raster's level, the generation that last changed it (see
@@ -426,6 +426,14 @@ impl EditRaster {
         }
         let mean = self.pyramid.mean(quad, self.level, &|q| self.tiles.get(&q).map(Vec::as_slice))?;
         Some(mean.to_vec())
+    }
+
+    /// Makes every coarse tile now, so that the thread that draws the raster later only reads
+    /// them (a raster built on a worker thread, warmed there).
+    pub fn warm(&self) {
+        for quad in self.pyramid.coarse_quads() {
+            let _ = self.pyramid.mean(quad, self.level, &|q| self.tiles.get(&q).map(Vec::as_slice));
+        }
     }
 
     /// The smallest and largest δ over the tiles, metres ((0, 0) without tiles).

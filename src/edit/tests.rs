@@ -370,3 +370,26 @@ fn coarse_levels_are_area_means_that_keep_a_small_edits_volume_and_follow_undo()
         assert!(r.grid(*q).is_none(), "{q} after undo");
     }
 }
+
+#[test]
+fn coarse_tiles_made_ahead_equal_those_made_when_asked_for_bit_for_bit() {
+    let e = Ellipsoid::MOON;
+    let strokes = vec![
+        stroke(Tool::Raise, 4000.0, 30.0, 9, &[[10.0, 20.0], [10.05, 20.1], [10.0, 20.2]]),
+        stroke(Tool::Lower, 2500.0, 12.0, 9, &[[10.3, 20.5]]),
+    ];
+    let cold = EditRaster::build(e, &strokes, &rough_below).unwrap();
+    let warm = cold.clone();
+    warm.warm();
+    let quads = cold.pyramid.coarse_quads();
+    assert!(quads.iter().any(|q| q.level == 0) && quads.iter().any(|q| q.level == 8), "{} coarse quads", quads.len());
+    // Asked for from the coarsest down (the reverse of how `warm` reaches them), one by one.
+    for q in quads.iter().rev() {
+        let (a, b) = (cold.grid(*q), warm.grid(*q));
+        assert_eq!(
+            a.map(|v| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>()),
+            b.map(|v| v.iter().map(|x| x.to_bits()).collect()),
+            "{q:?}"
+        );
+    }
+}
