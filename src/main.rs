@@ -45,6 +45,18 @@ fn trace() -> Trace {
     }
 }
 
+/// The window driven from a folder with its frames slowed, for the tests that drive the real
+/// window: `TERRAFUSE_DEBUG_WINDOW` (the folder), `TERRAFUSE_FRAME_DELAY_MS` (default 0).
+fn debug_hook() -> Option<terrafuse::gui::app::DebugHook> {
+    let dir = PathBuf::from(std::env::var_os("TERRAFUSE_DEBUG_WINDOW")?);
+    let delay_ms = std::env::var("TERRAFUSE_FRAME_DELAY_MS").ok().and_then(|v| v.parse::<u64>().ok()).unwrap_or(0);
+    Some(terrafuse::gui::app::DebugHook {
+        dir,
+        frame_delay: std::time::Duration::from_millis(delay_ms),
+        ..Default::default()
+    })
+}
+
 /// Opens the workstation (`terrafuse view`, or `terrafuse` alone).
 fn workstation(opts: &terrafuse::gui::ViewOptions) -> Result<()> {
     if std::env::var_os("DISPLAY").is_none() {
@@ -119,6 +131,7 @@ fn run(args: Args) -> Result<ExitCode> {
                 screenshot: None,
                 timeout: std::time::Duration::from_secs(300),
                 config_dir: config,
+                debug: debug_hook(),
             }
         }
         Some(Command::View { project, look, width, height, screenshot, timeout }) => {
@@ -135,6 +148,7 @@ fn run(args: Args) -> Result<ExitCode> {
                 screenshot,
                 timeout: std::time::Duration::from_secs_f64(timeout),
                 config_dir: config_dir(),
+                debug: debug_hook(),
             }
         }
         Some(command) => {

@@ -210,3 +210,231 @@ fn bad_input_is_refused_before_a_window_opens() {
     let e = String::from_utf8_lossy(&o.stderr);
     assert!(!o.status.success() && e.contains("/nonexistent/project.json"), "{e}");
 }
+
+/// The window's own state, as its debug hook writes it each frame (`gui::app::debug_hook`).
+fn window_state(dir: &Path) -> Option<serde_json::Value> {
+    serde_json::from_str(&std::fs::read_to_string(dir.join("state.json")).ok()?).ok()
+}
+
+/// Waits until the window's state passes `done` (or panics after `limit`), returning it.
+fn wait_state(dir: &Path, limit: Duration, what: &str, done: impl Fn(&serde_json::Value) -> bool) -> serde_json::Value {
+    let start = Instant::now();
+    loop {
+        if let Some(s) = window_state(dir)
+            && done(&s)
+        {
+            return s;
+        }
+        assert!(start.elapsed() < limit, "{what}: {:?}", window_state(dir));
+        std::thread::sleep(Duration::from_millis(50));
+    }
+}
+
+/// Runs `xdotool` with its commands on `display`.
+fn xdotool(display: &str, args: &[String]) -> String {
+    let out = Command::new("xdotool")
+        .args(args)
+        .env("DISPLAY", display)
+        .output()
+        .unwrap_or_else(|e| panic!("cannot run xdotool ({e}): install it with scripts/install-deps"));
+    assert!(out.status.success(), "xdotool {args:?}: {}", String::from_utf8_lossy(&out.stderr));
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+/// A drag with the left button from `from` to `to` (screen pixels) in `steps` moves over
+/// `seconds`, as a hand does it.
+fn drag_args(from: (f64, f64), to: (f64, f64), steps: usize, seconds: f64) -> Vec<String> {
+    let mut a: Vec<String> =
+        vec!["mousemove".into(), format!("{:.0}", from.0), format!("{:.0}", from.1), "mousedown".into(), "1".into()];
+    for k in 1..=steps {
+        let t = k as f64 / steps as f64;
+        a.extend([
+            "sleep".into(),
+            format!("{:.3}", seconds / steps as f64),
+            "mousemove".into(),
+            format!("{:.0}", from.0 + (to.0 - from.0) * t),
+            format!("{:.0}", from.1 + (to.1 - from.1) * t),
+        ]);
+    }
+    a.extend(["mouseup".into(), "1".into()]);
+    a
+}
+
+#[test]
+fn the_real_window_takes_every_event_between_slow_frames() {
+    use terrafuse::geodesy::{Ellipsoid, Geodetic, ecef_from_geodetic, geodetic_from_ecef};
+    use terrafuse::project::{CameraSpec, Project};
+    use terrafuse::scene::Camera;
+    // A flat Moon (a constant layer at 0 m): the terrain under a pixel is the ray's crossing of
+    // the sphere, which the test computes itself from the window's camera.
+    let dir = common::scratch("gui/real-window");
+    let mut p = Project::new("moon");
+    p.layers.push(terrafuse::layers::LayerSpec::constant("datum", 0.0));
+    p.layers.push(terrafuse::layers::LayerSpec::edit("sculpt"));
+    let path = dir.join("flat.json");
+    p.save(&path).unwrap();
+    let debug = dir.join("debug");
+    std::fs::create_dir_all(&debug).unwrap();
+    let x = Xvfb::start();
+    let mut window = Command::new(env!("CARGO_BIN_EXE_terrafuse"))
+        .args(["view", path.to_str().unwrap(), "--camera", "0,0,400000,0,-90,45", "--width", "1000", "--height", "760"])
+        .env("DISPLAY", &x.display)
+        .env_remove("WAYLAND_DISPLAY")
+        .env("TERRAFUSE_DEBUG_WINDOW", &debug)
+        .env("TERRAFUSE_FRAME_DELAY_MS", "1000")
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    struct Kill<'a>(&'a mut Child);
+    impl Drop for Kill<'_> {
+        fn drop(&mut self) {
+            let _ = self.0.kill();
+            let _ = self.0.wait();
+        }
+    }
+    let _window = Kill(&mut window);
+    let settled = wait_state(&debug, Duration::from_secs(120), "the window draws", |s| {
+        s["frame"].as_u64().unwrap_or(0) >= 3 && s["viewport_px"].is_array()
+    });
+    let id = xdotool(&x.display, &["search".into(), "--sync".into(), "--name".into(), "Terrafuse".into()]);
+    let id = id.lines().next().unwrap().trim().to_string();
+    let geometry = xdotool(&x.display, &["getwindowgeometry".into(), "--shell".into(), id.clone()]);
+    let at = |key: &str| -> f64 {
+        geometry.lines().find_map(|l| l.strip_prefix(&format!("{key}="))).unwrap().trim().parse().unwrap()
+    };
+    let (wx, wy) = (at("X"), at("Y"));
+    // No window manager gives the window the keyboard: the test does, as a desktop would.
+    xdotool(&x.display, &["windowfocus".into(), "--sync".into(), id.clone()]);
+    let vp: Vec<f64> = settled["viewport_px"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
+    let target: Vec<u32> = settled["target"].as_array().unwrap().iter().map(|v| v.as_u64().unwrap() as u32).collect();
+    let (tw, th) = (target[0], target[1]);
+    // A screen pixel's target pixel, and back.
+    let to_target =
+        |s: (f64, f64)| ((s.0 - wx - vp[0]) * f64::from(tw) / vp[2], (s.1 - wy - vp[1]) * f64::from(th) / vp[3]);
+    let centre = (wx + vp[0] + 0.5 * vp[2], wy + vp[1] + 0.5 * vp[3]);
+    let e = Ellipsoid::MOON;
+    let camera_of = |s: &serde_json::Value| {
+        let c: Vec<f64> = s["camera"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
+        Camera::new(&e, CameraSpec { lat: c[0], lon: c[1], alt: c[2], heading: c[3], pitch: c[4], fov: c[5] }, 1.0)
+    };
+    let under = |cam: &Camera, s: (f64, f64)| {
+        let (px, py) = to_target(s);
+        terrafuse::gui::navigate::fallback_target(&e, cam, cam.ray(px, py, tw, th))
+    };
+    let on_screen = |cam: &Camera, p: glam::DVec3| {
+        let (x, y, _) = cam.project(p - cam.position, tw, th).unwrap();
+        (x * vp[2] / f64::from(tw) + wx + vp[0], y * vp[3] / f64::from(th) + wy + vp[1])
+    };
+    let frames = |s: &serde_json::Value| s["frame"].as_u64().unwrap();
+
+    // 1. A 300 px drag over a second (a frame lasts a second): the grabbed point ends 300 px on.
+    let before = window_state(&debug).unwrap();
+    let grabbed = under(&camera_of(&before), centre);
+    let to = (centre.0 + 300.0, centre.1);
+    xdotool(&x.display, &drag_args(centre, to, 10, 1.0));
+    let n = frames(&window_state(&debug).unwrap());
+    let after = wait_state(&debug, Duration::from_secs(30), "the drag is drawn", |s| {
+        frames(s) >= n + 3 && s["camera"] != before["camera"]
+    });
+    let landed = on_screen(&camera_of(&after), grabbed);
+    let off = ((landed.0 - to.0).powi(2) + (landed.1 - to.1).powi(2)).sqrt();
+    assert!(
+        off <= 0.02 * 300.0,
+        "the grabbed point is {off:.1} px from the cursor: at {landed:?}, cursor {to:?}; before {before}, after {after}"
+    );
+
+    // 2. A stroke drawn over a second starts where the button went down and ends where it came up.
+    std::fs::write(debug.join("commands"), "tab brush\nbrush on\n").unwrap();
+    wait_state(&debug, Duration::from_secs(30), "the brush is armed", |s| s["brush_armed"] == true);
+    let camera = camera_of(&window_state(&debug).unwrap());
+    let (from, to) = ((centre.0 - 150.0, centre.1 + 40.0), (centre.0 + 150.0, centre.1 - 40.0));
+    xdotool(&x.display, &drag_args(from, to, 12, 1.0));
+    let stroked = wait_state(&debug, Duration::from_secs(60), "the stroke is kept", |s| s["layers"]["sculpt"][0] == 1);
+    let path = stroked["last_stroke_path"].as_array().unwrap().clone();
+    let point = |v: &serde_json::Value| {
+        let (lat, lon) = (v[0].as_f64().unwrap(), v[1].as_f64().unwrap());
+        on_screen(
+            &camera,
+            ecef_from_geodetic(&e, Geodetic { lat_rad: lat.to_radians(), lon_rad: lon.to_radians(), height_m: 0.0 }),
+        )
+    };
+    let (first, last) = (point(&path[0]), point(path.last().unwrap()));
+    let dist = |a: (f64, f64), b: (f64, f64)| ((a.0 - b.0).powi(2) + (a.1 - b.1).powi(2)).sqrt();
+    assert!(dist(first, from) <= 2.0, "the stroke starts at {first:?}, the press was at {from:?}");
+    assert!(dist(last, to) <= 2.0, "the stroke ends at {last:?}, the release was at {to:?}");
+    assert!(path.len() >= 3, "it follows the path drawn: {} points", path.len());
+    let _ = geodetic_from_ecef(&e, grabbed);
+
+    // 3. Ctrl+Z tapped for 100 ms undoes exactly one stroke (no repeat, the modifier of the press).
+    xdotool(&x.display, &["mousemove".into(), format!("{:.0}", centre.0), format!("{:.0}", centre.1)]);
+    xdotool(
+        &x.display,
+        &[
+            "keydown".into(),
+            "ctrl".into(),
+            "keydown".into(),
+            "z".into(),
+            "sleep".into(),
+            "0.1".into(),
+            "keyup".into(),
+            "z".into(),
+            "keyup".into(),
+            "ctrl".into(),
+        ],
+    );
+    let n = frames(&window_state(&debug).unwrap());
+    let undone = wait_state(&debug, Duration::from_secs(30), "the undo", |s| frames(s) >= n + 2);
+    assert_eq!(undone["layers"]["sculpt"], serde_json::json!([1, 0]), "one stroke undone: {undone}");
+
+    // 4. On the Erosion tab (the brush still ticked on Brush), a left drag moves the globe.
+    std::fs::write(debug.join("commands"), "tab erosion\n").unwrap();
+    wait_state(&debug, Duration::from_secs(30), "the erosion tab", |s| s["tab"] == "Erosion");
+    let before = window_state(&debug).unwrap();
+    xdotool(&x.display, &drag_args(centre, (centre.0 - 120.0, centre.1), 6, 0.6));
+    let n = frames(&before);
+    let after = wait_state(&debug, Duration::from_secs(30), "the drag is drawn", |s| frames(s) >= n + 3);
+    assert_eq!(after["layers"]["sculpt"], serde_json::json!([1, 0]), "no stroke was painted: {after}");
+    assert_ne!(after["camera"], before["camera"], "the drag moved the globe");
+
+    // 5. While an erosion run goes on (its progress shown on the terrain), a frame costs what
+    //    drawing costs (the median of the last frames: showing progress recomposes quads, which
+    //    on a software GPU takes seconds, so it is paced) and a double click zooms within two
+    //    frames.
+    let median = |s: &serde_json::Value| {
+        let mut v: Vec<f64> = s["recent_ms"].as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect();
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    let idle_ms = median(&after);
+    std::fs::write(debug.join("commands"), "erosion 1000000 5000\n").unwrap();
+    let drawn = |s: &serde_json::Value| s["drawn"].as_u64().unwrap();
+    let shown = wait_state(&debug, Duration::from_secs(120), "the run's progress shows", |s| {
+        s["erosion"].as_array().is_some_and(|e| e[0].as_u64().unwrap_or(0) > 0) && drawn(s) > drawn(&after) + 1
+    });
+    let n = frames(&shown);
+    let later = wait_state(&debug, Duration::from_secs(60), "frames during the run", |s| frames(s) >= n + 8);
+    let run_ms = median(&later);
+    assert!(
+        run_ms < 2.0 * idle_ms + 200.0,
+        "frames during the run took {run_ms:.0} ms (idle {idle_ms:.0} ms): {later}"
+    );
+    let alt = |s: &serde_json::Value| s["camera"][2].as_f64().unwrap();
+    let (n, before_alt) = (frames(&later), alt(&later));
+    xdotool(
+        &x.display,
+        &[
+            "mousemove".into(),
+            format!("{:.0}", centre.0),
+            format!("{:.0}", centre.1),
+            "click".into(),
+            "--repeat".into(),
+            "2".into(),
+            "--delay".into(),
+            "80".into(),
+            "1".into(),
+        ],
+    );
+    let zoomed = wait_state(&debug, Duration::from_secs(30), "the double click", |s| alt(s) < 0.8 * before_alt);
+    assert!(frames(&zoomed) <= n + 2, "the double click took {} frames", frames(&zoomed) - n);
+}

@@ -32,6 +32,7 @@ fn harness_of_size(project: &std::path::Path, view: &str, size: egui::Vec2) -> H
         screenshot: None,
         timeout: Duration::from_secs(60),
         config_dir: None,
+        debug: None,
     })
     .unwrap();
     Harness::builder()
@@ -250,18 +251,22 @@ fn the_workstation_draws_probes_navigates_and_saves() {
     assert_eq!(h.state().stack().layers[0].spec.name, "lola_global");
 }
 
-/// Steps (10 ms apart, at most `steps` times) while the window is `busy`, then two more; panics
-/// naming `what` if it never stops.
+/// Steps (10 ms apart) while the window is `busy`, then two more; panics naming `what` if it is
+/// still busy after `steps` steps and five minutes (work on worker threads is niced, and a loaded
+/// machine running the other tests in parallel slows it, not what it does).
 fn step_while(h: &mut Harness<'static, App>, steps: usize, what: &str, busy: impl Fn(&App) -> bool) {
-    for _ in 0..steps {
+    let deadline = std::time::Instant::now() + Duration::from_secs(300);
+    let mut taken = 0;
+    while taken < steps || std::time::Instant::now() < deadline {
         h.step();
+        taken += 1;
         if !busy(h.state()) {
             h.run_steps(2);
             return;
         }
         std::thread::sleep(Duration::from_millis(10));
     }
-    panic!("{what} did not finish");
+    panic!("{what} did not finish in {taken} steps");
 }
 
 /// Steps until the background import or opening of a dataset is over.
@@ -434,13 +439,17 @@ fn the_compare_section_shows_statistics_and_applies_a_coregistration() {
     h.get_by_label_contains(&format!("mean dh {:+.3} ± {:.3} m (1σ)", u.mean_dh_m, u.mean_dh_sigma_m));
     h.get_by_label_contains("variogram of dh / σ: spherical ranges");
     h.render().unwrap().save(dir.join("uncertainty.png")).unwrap(); // for people, not compared
-    // "show difference" puts another difference layer on top; it is the one drawn.
+    // "show difference" with that difference drawn already adds no copy of it: it says which
+    // layer draws it, and the project is not changed.
+    let (layers, unsaved) = (h.state().stack().layers.len(), h.state().unsaved());
     h.get_by_label("show difference").click_accesskit();
     h.run_steps(2);
     let stack = h.state().stack();
-    let top = &stack.layers.last().unwrap().spec;
-    assert_eq!((top.name.as_str(), top.kind()), ("blurred - srtm 2", terrafuse::layers::LayerKind::Difference));
-    assert_eq!(stack.drawn_difference(), Some(stack.layers.len() - 1));
+    assert_eq!(stack.layers.len(), layers, "no second difference layer");
+    let drawn = &stack.layers[stack.drawn_difference().expect("a drawn difference")].spec;
+    assert_eq!((drawn.name.as_str(), drawn.kind()), ("blurred - srtm", terrafuse::layers::LayerKind::Difference));
+    assert_eq!(h.state().unsaved(), unsaved, "showing what is shown changes nothing");
+    h.get_by_label_contains("blurred - srtm is drawn by layer 'blurred - srtm'");
     settle(&mut h);
 }
 
@@ -641,13 +650,12 @@ fn the_erosion_section_starts_steps_runs_keeps_undoes_and_brushes_a_run() {
     h.get_by_label("start").click_accesskit();
     h.run_steps(2);
     assert_eq!(h.state().erosion_progress(), Some((0, 6)), "{}", h.state().message());
-    // One step, then the rest at two a frame.
+    // One step, then the rest, on the run's own thread (lavapipe is no hardware GPU).
     h.get_by_label("step").click_accesskit();
-    h.run_steps(2);
-    assert_eq!(h.state().erosion_progress(), Some((1, 6)), "{}", h.state().message());
+    step_while(&mut h, 600, "one step", |a| a.erosion_progress() != Some((1, 6)));
     h.get_by_label("run").click_accesskit();
-    h.run_steps(6);
-    assert_eq!(h.state().erosion_progress(), Some((6, 6)), "{}", h.state().message());
+    step_while(&mut h, 600, "the run", |a| a.erosion_progress() != Some((6, 6)));
+    h.run_steps(2);
     assert!(h.query_by_label("pause").is_none(), "paused when the steps are done");
     // The water is draped over the terrain while the run is on, by layers the project never holds.
     let live =
@@ -682,7 +690,9 @@ fn the_erosion_section_starts_steps_runs_keeps_undoes_and_brushes_a_run() {
     let r = h.state().viewport_rect_px().unwrap();
     let (x, y) = (r.center().x, r.center().y);
     drag(&mut h, egui::pos2(x - 60.0, y), egui::pos2(x + 60.0, y));
-    h.run_steps(2);
+    step_while(&mut h, 3000, "the brush's run", |a| {
+        a.project().layers.iter().find(|l| l.name == "erosion").unwrap().runs().len() < 4
+    });
     assert_eq!(h.state().camera(), camera, "the erosion brush does not move the camera");
     assert_eq!(runs(&h), (4, 4), "{}", h.state().message());
     let brushed = h.state().project().layers.iter().find(|l| l.name == "erosion").unwrap().runs()[3].clone();
@@ -694,7 +704,9 @@ fn the_erosion_section_starts_steps_runs_keeps_undoes_and_brushes_a_run() {
     h.state_mut().set_landscape(2e4, 1e4);
     h.run_steps(2);
     h.get_by_label("run landscape").click_accesskit();
-    h.run_steps(2);
+    step_while(&mut h, 3000, "the landscape run", |a| {
+        a.project().layers.iter().find(|l| l.name == "erosion").unwrap().runs().len() < 5
+    });
     assert_eq!(runs(&h), (5, 5), "{}", h.state().message());
     assert!(h.state().message().starts_with("landscape run 4 kept: 2 steps"), "{}", h.state().message());
     let evolved = h.state().project().layers.iter().find(|l| l.name == "erosion").unwrap().runs()[4].clone();
@@ -715,6 +727,9 @@ fn the_erosion_section_starts_steps_runs_keeps_undoes_and_brushes_a_run() {
     h.get_by_label("uplift brush (left drag raises rock)").click_accesskit();
     h.run_steps(2);
     drag(&mut h, egui::pos2(x - 60.0, y), egui::pos2(x + 60.0, y));
+    step_while(&mut h, 3000, "the uplift brush's run", |a| {
+        a.project().layers.iter().find(|l| l.name == "erosion").unwrap().runs().len() < 6
+    });
     h.run_steps(2);
     assert_eq!(runs(&h), (6, 6), "{}", h.state().message());
     let raised = h.state().project().layers.iter().find(|l| l.name == "erosion").unwrap().runs()[5].clone();
@@ -725,6 +740,131 @@ fn the_erosion_section_starts_steps_runs_keeps_undoes_and_brushes_a_run() {
     h.run_steps(2);
     assert!(!live(&h), "unticked, the drainage goes");
     settle(&mut h);
+}
+
+/// A press at `from`, moves to `to` and the release there, all before the next frame.
+fn drag_in_one_frame(h: &mut Harness<'static, App>, from: egui::Pos2, to: egui::Pos2) {
+    let button = |pos, pressed| egui::Event::PointerButton {
+        pos,
+        button: egui::PointerButton::Primary,
+        pressed,
+        modifiers: egui::Modifiers::NONE,
+    };
+    h.event(egui::Event::PointerMoved(from));
+    h.event(button(from, true));
+    for k in 1..=5 {
+        h.event(egui::Event::PointerMoved(from + (to - from) * (k as f32 / 5.0)));
+    }
+    h.event(button(to, false));
+    h.step();
+}
+
+#[test]
+fn a_press_its_moves_and_its_release_between_two_frames_are_all_taken() {
+    let dir = common::out_path("workstation-events");
+    let _ = std::fs::remove_dir_all(&dir);
+    let project = sample_project("moon-brushing", &dir);
+    let mut h = harness_of_size(&project, "sculpt", egui::vec2(900.0, 1700.0));
+    settle(&mut h);
+    let home = h.state().camera();
+    let r = h.state().viewport_rect_px().unwrap();
+    let c = r.center();
+
+    // A flick whose press, moves and release all fall into one frame moves the globe as far as
+    // the same drag spread over frames.
+    drag_in_one_frame(&mut h, c, c + egui::vec2(200.0, 0.0));
+    let flicked = h.state().camera();
+    assert!((flicked.lon - home.lon).abs() > 0.3, "the flick moved the globe: {flicked:?} from {home:?}");
+    h.key_press(egui::Key::H);
+    h.run_steps(2);
+    assert_eq!(h.state().camera(), home, "H goes home");
+    settle(&mut h);
+    drag(&mut h, c, c + egui::vec2(200.0, 0.0));
+    let dragged = h.state().camera();
+    assert!(
+        (flicked.lon - dragged.lon).abs() < 0.01 * (dragged.lon - home.lon).abs(),
+        "one frame {flicked:?}, several {dragged:?}"
+    );
+    h.key_press(egui::Key::H);
+    h.run_steps(2);
+    settle(&mut h);
+
+    // A stroke drawn between two frames starts where the button went down.
+    let strokes = |h: &Harness<'static, App>| {
+        let l = h.state().project().layers.iter().find(|l| l.name == "sculpt").unwrap();
+        (l.strokes().len(), l.applied_strokes().len())
+    };
+    let (n, _) = strokes(&h);
+    h.get_by_label("Brush").click_accesskit();
+    h.run_steps(2);
+    h.get_by_label("brush (left drag paints)").click_accesskit();
+    h.run_steps(2);
+    let press = c + egui::vec2(-90.0, 30.0);
+    h.hover_at(press);
+    settle(&mut h);
+    let under = h.state().hit().expect("terrain under the press");
+    let g = terrafuse::geodesy::geodetic_from_ecef(&Ellipsoid::MOON, under.ecef);
+    drag_in_one_frame(&mut h, press, press + egui::vec2(180.0, -60.0));
+    step_while(&mut h, 600, "the stroke", |a| {
+        a.project().layers.iter().find(|l| l.name == "sculpt").unwrap().strokes().len() < n + 1
+    });
+    let stroke = h.state().project().layers.iter().find(|l| l.name == "sculpt").unwrap().strokes()[n].clone();
+    let first = stroke.path[0];
+    // Within a pixel: at this view a pixel is about 300 m, 0.01° on the Moon.
+    assert!(
+        (first[0] - g.lat_rad.to_degrees()).abs() < 0.01 && (first[1] - g.lon_rad.to_degrees()).abs() < 0.01,
+        "the stroke starts at {first:?}, the press was over {:?}",
+        (g.lat_rad.to_degrees(), g.lon_rad.to_degrees())
+    );
+    assert!(stroke.path.len() >= 3, "the moves are in the path: {:?}", stroke.path);
+    assert_eq!(strokes(&h), (n + 1, n + 1));
+
+    // Ctrl+Z pressed and released between two frames undoes exactly one stroke.
+    let key = |pressed, modifiers| egui::Event::Key {
+        key: egui::Key::Z,
+        physical_key: None,
+        pressed,
+        repeat: false,
+        modifiers,
+    };
+    h.event(key(true, egui::Modifiers::COMMAND));
+    h.event(key(false, egui::Modifiers::COMMAND));
+    h.event(egui::Event::ModifiersChanged(egui::Modifiers::NONE));
+    h.run_steps(2);
+    assert_eq!(strokes(&h), (n + 1, n), "{}", h.state().message());
+    // Held down, the key undoes once; its repeats (pressed again while down) nothing more.
+    h.event(key(true, egui::Modifiers::COMMAND));
+    h.run_steps(2);
+    for _ in 0..3 {
+        h.event(key(true, egui::Modifiers::COMMAND));
+        h.step();
+    }
+    h.event(key(false, egui::Modifiers::COMMAND));
+    h.event(egui::Event::ModifiersChanged(egui::Modifiers::NONE));
+    h.run_steps(2);
+    assert_eq!(strokes(&h), (n + 1, n - 1), "a repeat is not a press");
+
+    // Another tab disarms the brush: a left drag there moves the globe and paints nothing.
+    h.get_by_label("Erosion").click_accesskit();
+    h.run_steps(2);
+    let before = h.state().camera();
+    drag(&mut h, c, c + egui::vec2(-120.0, 0.0));
+    h.run_steps(4);
+    assert_eq!(strokes(&h), (n + 1, n - 1), "no stroke on the Erosion tab");
+    assert_ne!(h.state().camera(), before, "the drag moved the globe");
+    assert!(!h.state().brush_state().0, "leaving the Brush tab disarmed the brush");
+
+    // An erosion run started on a new layer and discarded leaves the project as it was.
+    let layers_before = h.state().project().layers.len();
+    let unsaved = h.state().unsaved();
+    h.state_mut().set_erosion(4, 3000.0);
+    h.get_by_label("start").click_accesskit();
+    h.run_steps(2);
+    assert_eq!(h.state().project().layers.len(), layers_before + 1, "{}", h.state().message());
+    h.get_by_label("discard").click_accesskit();
+    h.run_steps(2);
+    assert_eq!(h.state().project().layers.len(), layers_before, "the run's new layer went with it");
+    assert_eq!(h.state().unsaved(), unsaved);
 }
 
 /// Steps until the project being opened has been taken over.

@@ -28,6 +28,8 @@ pub struct AddDataset {
     /// The raster's vertical datum: ellipsoidal, egm96 or egm2008.
     pub vertical: String,
     job: Option<Job>,
+    /// The desktop's file dialog for the path.
+    pick: crate::gui::file_pick::FilePick,
 }
 
 struct Job {
@@ -150,6 +152,7 @@ impl AddDataset {
                 let label = ui.label("file");
                 ui.add(egui::TextEdit::singleline(&mut self.path).hint_text("raster (.tif, …) or store (.gpkg)"))
                     .labelled_by(label.id);
+                self.pick.button(ui, crate::gui::file_pick::Purpose::Dataset, &mut self.path);
             });
             ui.horizontal(|ui| {
                 let label = ui.label("name");

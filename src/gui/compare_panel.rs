@@ -41,6 +41,8 @@ pub struct ComparePanel {
     comparison: Option<Result<Comparison, GuiError>>,
     coregistration: Option<Result<Coregistration, GuiError>>,
     uncertainty: Option<Result<Uncertainty, GuiError>>,
+    /// Where the computation in flight stands, and its cancel switch.
+    watch: std::sync::Arc<crate::progress::Watch>,
 }
 
 impl ComparePanel {
@@ -127,11 +129,18 @@ impl ComparePanel {
         let mut action = CompareAction::None;
         ui.horizontal(|ui| {
             let idle = !self.busy() && self.a != self.b;
+            if idle {
+                // A new computation counts on a new watch (the last one may be cancelled).
+                self.watch = Default::default();
+            }
+            let watch = Some(self.watch.clone());
             if ui.add_enabled(idle, egui::Button::new("compare")).clicked() {
                 let (p, a, b) = (project.clone(), self.a.clone(), self.b.clone());
-                self.comparing = Some(std::thread::spawn(move || {
+                let watch = watch.clone();
+                self.comparing = Some(crate::gui::background::spawn("compare", move || {
                     // A comparison too large for memory spills to the temporary folder.
-                    let opts = CompareOptions { scratch: Some(std::env::temp_dir()), ..CompareOptions::default() };
+                    let opts =
+                        CompareOptions { scratch: Some(std::env::temp_dir()), watch, ..CompareOptions::default() };
                     Ok(compare(&p, &a, &b, &opts)?)
                 }));
             }
@@ -143,8 +152,9 @@ impl ComparePanel {
                 let (p, a, b) = (project.clone(), self.a.clone(), self.b.clone());
                 let text =
                     if self.pipeline.trim().is_empty() { "nuth_kaab".to_string() } else { self.pipeline.clone() };
-                self.coregistering = Some(std::thread::spawn(move || {
-                    let opts = CoregOptions { pipeline: Step::parse_list(&text)?, ..CoregOptions::default() };
+                let watch = watch.clone();
+                self.coregistering = Some(crate::gui::background::spawn("coregister", move || {
+                    let opts = CoregOptions { pipeline: Step::parse_list(&text)?, watch, ..CoregOptions::default() };
                     Ok(coregister(&p, &a, &b, &opts)?)
                 }));
             }
@@ -156,8 +166,9 @@ impl ComparePanel {
                 .clicked()
             {
                 let (p, a, b) = (project.clone(), self.a.clone(), self.b.clone());
+                let opts = UncertaintyOptions { watch: watch.clone(), ..UncertaintyOptions::default() };
                 self.estimating =
-                    Some(std::thread::spawn(move || Ok(uncertainty(&p, &a, &b, &UncertaintyOptions::default())?)));
+                    Some(crate::gui::background::spawn("uncertainty", move || Ok(uncertainty(&p, &a, &b, &opts)?)));
             }
             if ui
                 .add_enabled(self.a != self.b, egui::Button::new("show difference"))
@@ -171,6 +182,18 @@ impl ComparePanel {
                 ui.ctx().request_repaint_after(std::time::Duration::from_millis(100));
             }
         });
+        if self.busy() {
+            ui.horizontal(|ui| {
+                let p = self.watch.progress();
+                let fraction = if p.total > 0 { p.done as f32 / p.total as f32 } else { 0.0 };
+                let text =
+                    if p.total > 0 { format!("{}: {} of {}", p.phase, p.done, p.total) } else { p.phase.clone() };
+                ui.add(egui::ProgressBar::new(fraction).text(text).desired_width(220.0));
+                if ui.button("cancel").clicked() {
+                    self.watch.cancel();
+                }
+            });
+        }
         match &self.comparison {
             Some(Ok(c)) => comparison_ui(ui, c),
             Some(Err(e)) => {

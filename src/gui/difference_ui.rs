@@ -150,7 +150,8 @@ impl AutoRange {
             return changed;
         }
         let (p, s) = (project.clone(), spec.clone());
-        let handle = std::thread::spawn(move || Ok(crate::compare::difference_range(&p, &s)?));
+        let handle =
+            crate::gui::background::spawn("difference-range", move || Ok(crate::compare::difference_range(&p, &s)?));
         self.job = Some((key, handle));
         changed
     }

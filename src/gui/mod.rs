@@ -3,10 +3,12 @@
 
 pub mod add_dataset;
 pub mod app;
+pub mod background;
 pub mod cluster_import;
 pub mod compare_panel;
 pub mod difference_ui;
 mod error;
+pub mod file_pick;
 pub mod layers_panel;
 pub mod navigate;
 pub mod recent;
@@ -43,6 +45,8 @@ pub struct ViewOptions {
     pub timeout: Duration,
     /// The workstation's configuration folder (the recent projects); None keeps nothing.
     pub config_dir: Option<PathBuf>,
+    /// Driven from a folder, frames slowed (the real-window tests; `TERRAFUSE_DEBUG_WINDOW`).
+    pub debug: Option<app::DebugHook>,
 }
 
 /// The device eframe asks for: the adapter's own limits (large storage buffers for the GPU
@@ -69,6 +73,7 @@ pub struct Opened {
     recent: recent::Recent,
     recovery: Option<crate::project::recovery::Recovery>,
     on_disk: crate::project::editing::OnDisk,
+    debug: Option<app::DebugHook>,
 }
 
 impl Opened {
@@ -123,6 +128,7 @@ pub fn open(opts: &ViewOptions) -> Result<Opened, GuiError> {
         outcome: Arc::new(Mutex::new(None)),
         imported: report.imported,
         on_disk,
+        debug: opts.debug.clone(),
     })
 }
 
@@ -151,7 +157,8 @@ pub fn build_app(cc: &eframe::CreationContext<'_>, opened: Opened) -> Result<app
         device,
     )
     .with_file(opened.recent, opened.recovery)
-    .with_disk(Some(opened.on_disk)))
+    .with_disk(Some(opened.on_disk))
+    .with_debug(opened.debug))
 }
 
 /// The renderer's view of eframe's device.

@@ -82,6 +82,22 @@ pub struct Hit {
 /// Bytes between probe records in the read-back buffer (copy offsets must be 256-aligned).
 const PROBE_STRIDE: u64 = 256;
 
+/// A query's answers: each pixel asked and the surface point there (None where nothing is drawn).
+pub type Answers = Vec<((u32, u32), Option<DVec3>)>;
+
+/// The most pixels one query reads back (a stroke's path points of a frame or two).
+pub const QUERY_MAX: usize = 256;
+
+/// The surface points asked for at pixels of the last rendered frame (a stroke's path), read
+/// back without waiting, like the probe.
+struct Queries {
+    read: Readback,
+    /// The eye of the frame the pending query reads, and its pixels.
+    asked: Option<(DVec3, Vec<(u32, u32)>)>,
+    /// What came back and was not taken yet.
+    done: Option<Answers>,
+}
+
 /// The viewport's targets, their egui texture and the pending read-backs.
 pub struct Viewport {
     targets: FrameTargets,
@@ -97,6 +113,7 @@ pub struct Viewport {
     pub gpu_ms: Option<f64>,
     /// Eye and quads of the last rendered frame (probes copied later read that frame).
     rendered: Option<(DVec3, Vec<QuadId>)>,
+    queries: Queries,
 }
 
 /// What a probe read: the eye of its frame (positions are relative to it), the pixels (cursor,
@@ -137,7 +154,62 @@ impl Viewport {
             hits: [None, None],
             gpu_ms: None,
             rendered: None,
+            queries: Queries {
+                read: Readback::new(device, "viewport queries", QUERY_MAX as u64 * PROBE_STRIDE),
+                asked: None,
+                done: None,
+            },
         }
+    }
+
+    /// Asks for the surface points (ECEF) under `pixels` (target pixels, at most [`QUERY_MAX`])
+    /// of the last rendered frame; false while an earlier query has not come back (ask again on
+    /// a later frame) or before the first frame.
+    pub fn query(&mut self, rs: &egui_wgpu::RenderState, pixels: &[(u32, u32)]) -> bool {
+        let (Some(surface), Some((eye, _))) = (&self.targets.surface, &self.rendered) else {
+            return false;
+        };
+        if !self.queries.read.idle() || self.queries.asked.is_some() || pixels.is_empty() {
+            return false;
+        }
+        let (w, h) = self.size();
+        let pixels: Vec<(u32, u32)> =
+            pixels.iter().take(QUERY_MAX).map(|&(x, y)| (x.min(w - 1), y.min(h - 1))).collect();
+        let mut encoder = rs.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("query") });
+        for (k, &(x, y)) in pixels.iter().enumerate() {
+            encoder.copy_texture_to_buffer(
+                wgpu::TexelCopyTextureInfo {
+                    texture: surface,
+                    mip_level: 0,
+                    origin: wgpu::Origin3d { x, y, z: 0 },
+                    aspect: wgpu::TextureAspect::All,
+                },
+                wgpu::TexelCopyBufferInfo {
+                    buffer: &self.queries.read.buffer,
+                    layout: wgpu::TexelCopyBufferLayout {
+                        offset: k as u64 * PROBE_STRIDE,
+                        bytes_per_row: None,
+                        rows_per_image: None,
+                    },
+                },
+                wgpu::Extent3d { width: 1, height: 1, depth_or_array_layers: 1 },
+            );
+        }
+        rs.queue.submit([encoder.finish()]);
+        self.queries.read.begin();
+        self.queries.asked = Some((*eye, pixels));
+        true
+    }
+
+    /// The last query's answers once they came back (in the order asked): each pixel and the
+    /// surface point there (None where nothing was drawn).
+    pub fn take_queried(&mut self) -> Option<Answers> {
+        self.queries.done.take()
+    }
+
+    /// Whether a query is in flight or its answers are waiting to be taken.
+    pub fn querying(&self) -> bool {
+        self.queries.asked.is_some() || self.queries.done.is_some()
     }
 
     /// The target size, pixels.
@@ -266,6 +338,29 @@ impl Viewport {
                     },
                 });
             }
+            any = true;
+        }
+        let queried = self.queries.read.take();
+        if queried.is_none()
+            && self.queries.read.idle()
+            && let Some((_, pixels)) = self.queries.asked.take()
+        {
+            // The read-back failed: nothing is known under those pixels.
+            self.queries.done = Some(pixels.into_iter().map(|p| (p, None)).collect());
+        }
+        if let Some(bytes) = queried
+            && let Some((eye, pixels)) = self.queries.asked.take()
+        {
+            let answers = pixels
+                .into_iter()
+                .enumerate()
+                .map(|(k, pixel)| {
+                    let s: [f32; 4] = bytemuck::pod_read_unaligned(&bytes[k * PROBE_STRIDE as usize..][..16]);
+                    let rel = DVec3::new(f64::from(s[0]), f64::from(s[1]), f64::from(s[2]));
+                    (pixel, (rel != DVec3::ZERO).then_some(eye + rel))
+                })
+                .collect();
+            self.queries.done = Some(answers);
             any = true;
         }
         if let Some((_, _, read)) = &self.timing

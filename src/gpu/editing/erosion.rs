@@ -70,13 +70,10 @@ impl Editor {
         Some(GpuRun::new(&self.device, &self.queue, kernel.clone(), run))
     }
 
-    /// Shows a run in progress on erosion layer `index`: the layer holds `base` (its raster
-    /// before the run) plus the change `run` has made so far; only the region's quads are
-    /// recomposed.
-    pub fn show_erosion(&self, r: &mut Renderer, index: usize, base: &EditRaster, region: &Region, run: &Run) {
-        let mut raster = base.clone();
-        raster.apply_tiles(usize::MAX, layer::tiles_with(base, region, run));
-        raster.clear_history();
+    /// Shows a run in progress on erosion layer `index`: `raster` is its raster before the run
+    /// plus the change made so far (see `EditRaster::warm` for making it on the run's thread);
+    /// only the quads it changed are recomposed.
+    pub fn show_erosion(&self, r: &mut Renderer, index: usize, raster: EditRaster) {
         r.with_scene(|s| s.set_edit(index, raster));
     }
 
@@ -112,35 +109,33 @@ impl Editor {
         Ok((spec, outcome))
     }
 
-    /// Runs `op` whole on erosion layer `index` (a stream-power run: its years are taken at once
-    /// on the CPU reference) and records it as [`Editor::commit_erosion`] records a stepped run.
-    pub fn run_whole(&self, r: &mut Renderer, index: usize, op: Operation) -> Result<(LayerSpec, Outcome), LayerError> {
-        let (mut spec, mut raster) = erosion_layer(r.scene(), index)?;
+    /// What a run taken whole off the interface thread needs of erosion layer `index`: its spec,
+    /// its raster and the layers below it (a scene of their own, for the run's thread).
+    pub fn whole_run_inputs(&self, r: &Renderer, index: usize) -> Result<(LayerSpec, EditRaster, Scene), LayerError> {
+        let (spec, raster) = erosion_layer(r.scene(), index)?;
         let below = r
             .scene()
             .below(index)
             .map_err(|e| LayerError::caused(&spec.name, "runs", "the layers below cannot be read", e))?;
-        let applied = spec.applied_runs().len();
-        let outcome = layer::apply(
-            &mut raster,
-            applied,
-            &op,
-            &|q| Ok(below.heights_cpu(q)?),
-            &layer::CpuStepper,
-            &Watch::default(),
-        )
-        .map_err(|e| LayerError {
-            layer: spec.name.clone(),
-            field: format!("runs[{applied}].{}", e.field),
-            problem: e.problem,
-            cause: e.cause,
-        })?;
+        Ok((spec, raster, below))
+    }
+
+    /// Records a run taken whole (`raster`: the layer with it added, as [`layer::apply`] left it)
+    /// on erosion layer `index` whose spec was `spec`. Returns the layer's new spec.
+    pub fn commit_whole(
+        &self,
+        r: &mut Renderer,
+        index: usize,
+        mut spec: LayerSpec,
+        op: Operation,
+        raster: EditRaster,
+    ) -> Result<LayerSpec, LayerError> {
         spec.record_run(op)?;
         r.with_scene(|s| {
             s.set_edit(index, raster);
             s.stack.set_runs(index, spec.runs().to_vec(), None);
         });
-        Ok((spec, outcome))
+        Ok(spec)
     }
 
     /// Moves erosion layer `index`'s undo position to `applied` runs (back: restoring the quads

@@ -1,13 +1,13 @@
 //! Brushing in the workstation: the *Brush* section (tool, radius, strength, falloff, spacing, the
 //! edit layer painted on, undo and redo), the footprint drawn on the terrain under the cursor, and
-//! strokes by left drag while the brush is on (navigation stays on the other buttons and on
-//! Shift/Ctrl + left). The path is the terrain point under the cursor each frame (the probe's, or
-//! the mean sphere's until the probe catches up); while dragging, the stroke so far is applied
-//! provisionally every few frames (the previous provisional version undone from the undo history,
-//! which is instant), and on release the whole stroke replaces it, through
-//! `Editor::apply_stroke`, as `terrafuse brush` would append it.
-//! Ctrl+Z and Ctrl+Shift+Z undo and redo on the edit layer.
-
+//! strokes by left drag while the brush is armed (navigation stays on the other buttons and on
+//! Shift/Ctrl + left). The brush is armed on the *Brush* tab only, unless *keep armed on other
+//! tabs* pins it; armed, the cursor is a crosshair, and on another tab the viewport says so.
+//! The stroke's points come from the pointer's events ([`super::pointer`]): the terrain under
+//! each press, move and release, read back from the surface target. While dragging, the stroke
+//! so far is applied provisionally every few frames (the previous provisional version undone from
+//! the undo history, which is instant); once released and every point is known, the whole
+//! stroke replaces it, through `Editor::apply_stroke`, as `terrafuse brush` would append it.
 use super::*;
 use crate::edit::{Falloff, Stroke, Tool};
 use crate::layers::LayerSpec;
@@ -27,9 +27,10 @@ pub(crate) struct BrushTool {
     /// Flatten: to this height (else to the terrain's under the stroke's first point).
     flatten_to: Option<f64>,
     layer: String,
-    /// The path so far, `[lat, lon]` degrees.
-    pub(crate) path: Vec<[f64; 2]>,
-    painting: bool,
+    /// Armed on every tab, not only on *Brush*.
+    pub(crate) pinned: bool,
+    /// A stroke released and still being turned into points.
+    pub(crate) input: Option<super::pointer::StrokeInput>,
     /// While dragging: the edit layer and its strokes in effect before the stroke, once the
     /// stroke so far has been applied provisionally (the terrain updates during the drag).
     preview: Option<(usize, usize)>,
@@ -49,8 +50,8 @@ impl Default for BrushTool {
             seed: 1,
             flatten_to: None,
             layer: "sculpt".into(),
-            path: Vec::new(),
-            painting: false,
+            pinned: false,
+            input: None,
             preview: None,
             last_preview: None,
         }
@@ -73,6 +74,7 @@ impl BrushTool {
         let b = self;
         ui.checkbox(&mut b.on, "brush (left drag paints)")
             .on_hover_text("navigate with the right or middle button, or Shift/Ctrl + left");
+        ui.checkbox(&mut b.pinned, "keep armed on other tabs").on_hover_text("else leaving this tab disarms the brush");
         egui::ComboBox::from_label("tool").selected_text(b.tool.name()).show_ui(ui, |ui| {
             for t in Tool::ALL {
                 ui.selectable_value(&mut b.tool, t, t.name());
@@ -137,6 +139,18 @@ impl BrushTool {
     }
 }
 
+impl BrushTool {
+    /// The tool's name (`raise`, …).
+    pub(crate) fn tool_name(&self) -> &'static str {
+        self.tool.name()
+    }
+
+    /// The edit layer it paints on.
+    pub(crate) fn layer_name(&self) -> &str {
+        &self.layer
+    }
+}
+
 impl App {
     /// The *Brush* section, its action applied.
     pub(super) fn brush_ui(&mut self, ui: &mut egui::Ui) {
@@ -147,23 +161,8 @@ impl App {
         }
     }
 
-    /// Ctrl+Z and Ctrl+Shift+Z (when no text field has the keyboard).
-    pub(super) fn brush_keys(&mut self, ui: &egui::Ui) {
-        if ui.ctx().egui_wants_keyboard_input() {
-            return;
-        }
-        let (undo, redo) = ui.input(|i| {
-            let z = i.key_pressed(egui::Key::Z) && i.modifiers.command;
-            (z && !i.modifiers.shift, z && i.modifiers.shift)
-        });
-        if undo {
-            self.move_undo(-1);
-        } else if redo {
-            self.move_undo(1);
-        }
-    }
-
-    fn move_undo(&mut self, by: i64) {
+    /// Moves the brush's edit layer's undo position by `by` strokes (Ctrl+Z, Ctrl+Shift+Z).
+    pub(super) fn move_undo(&mut self, by: i64) {
         let Some(index) = self.project.layers.iter().position(|l| l.name == self.brush.layer) else { return };
         let applied = self.project.layers[index].applied_strokes().len() as i64 + by;
         let total = self.project.layers[index].strokes().len() as i64;
@@ -181,85 +180,72 @@ impl App {
         }
     }
 
-    /// Takes the viewport's input while the brush is on: the footprint follows the cursor, a left
-    /// drag records a stroke, its release applies it. True when the input was the brush's.
-    pub(super) fn paint(&mut self, ui: &egui::Ui, response: &egui::Response, rect: egui::Rect) -> bool {
-        if !self.brush.on {
+    /// Whether a left drag on the viewport paints: the brush is on, and this is its tab or it
+    /// is pinned.
+    pub(super) fn brush_armed(&self) -> bool {
+        self.brush.on && (self.tab == side_panel::Tab::Brush || self.brush.pinned)
+    }
+
+    /// The brush's footprint under the cursor while it is armed (a ring on the terrain), and the
+    /// crosshair cursor over the viewport.
+    pub(super) fn brush_hover(&mut self, ui: &egui::Ui, response: &egui::Response, rect: egui::Rect) {
+        if !self.brush_armed() {
             self.renderer.set_brush_ring(None);
-            return false;
+            return;
         }
-        let under = response.hover_pos().or(response.interact_pointer_pos()).and_then(|p| self.surface_at(p, rect));
+        let under = response.hover_pos().and_then(|p| self.surface_at(p, rect));
         let ring = under.map(|p| (p, self.brush.radius_m * self.renderer.scene().visuals.exaggeration.max(1.0)));
         self.renderer.set_brush_ring(ring);
         if response.hovered() {
             self.dirty = true; // the ring moves with the cursor
+            ui.ctx().set_cursor_icon(egui::CursorIcon::Crosshair);
         }
-        let modifiers = ui.input(|i| i.modifiers);
-        let plain = !modifiers.shift && !modifiers.command;
-        if response.clicked_by(egui::PointerButton::Primary) && plain {
-            // A click is one dab.
-            if let Some(p) = under {
-                let g = geodesy::geodetic_from_ecef(&self.renderer.scene().ellipsoid, p);
-                self.apply_brush_stroke(vec![[g.lat_rad.to_degrees(), g.lon_rad.to_degrees()]]);
-            }
-            return true;
-        }
-        if response.drag_started_by(egui::PointerButton::Primary) && plain {
-            self.brush.painting = true;
-            self.brush.path.clear();
-        }
-        if !self.brush.painting {
-            return false;
-        }
-        if let Some(p) = under {
-            let g = geodesy::geodetic_from_ecef(&self.renderer.scene().ellipsoid, p);
-            let point = [g.lat_rad.to_degrees(), g.lon_rad.to_degrees()];
-            if self.brush.path.last() != Some(&point) {
-                self.brush.path.push(point);
-                let due = self.brush.last_preview.is_none_or(|t| t.elapsed() > Duration::from_millis(80));
-                // A ramp needs its two ends before it shows.
-                let shows = self.brush.tool != Tool::Ramp || self.brush.path.len() >= 2;
-                if due && shows && response.dragged() && !response.drag_stopped() {
-                    self.brush.last_preview = Some(Instant::now());
-                    let path = self.brush.path.clone();
-                    self.apply_brush_stroke(path);
-                }
-            }
-        }
-        if response.drag_stopped() || !response.dragged() {
-            self.brush.painting = false;
-            self.brush.last_preview = None;
-            let path = std::mem::take(&mut self.brush.path);
-            if !path.is_empty() {
-                self.apply_brush_stroke(path);
-            }
-        }
-        true
     }
 
-    /// The terrain point (ECEF) under a window position: the probe's when it is for that pixel,
-    /// else the mean sphere's.
+    /// Each frame: the stroke being drawn turned into points; shown provisionally every few
+    /// frames while the button is down, applied whole once released and complete.
+    pub(super) fn brush_frame(&mut self) {
+        let busy = self.pointer_busy();
+        let due = self.brush.last_preview.is_none_or(|t| t.elapsed() > Duration::from_millis(80));
+        let ramp = self.brush.tool == Tool::Ramp;
+        let preview = match &mut self.gesture {
+            // A ramp needs its two ends before it shows.
+            Some(super::pointer::Gesture::Brush(s)) if due && (!ramp || s.path.len() >= 2) => {
+                s.grew().then(|| s.path.clone())
+            }
+            _ => None,
+        };
+        if let Some(path) = preview {
+            self.brush.last_preview = Some(Instant::now());
+            self.apply_brush_stroke(path, true);
+            return;
+        }
+        if !self.brush.input.as_ref().is_some_and(|s| s.complete(busy)) {
+            return;
+        }
+        let path = self.brush.input.take().map(|s| s.path).unwrap_or_default();
+        self.brush.last_preview = None;
+        if path.is_empty() {
+            // Nothing under the stroke (off the globe): the provisional one goes.
+            if let Some((index, before)) = self.brush.preview.take()
+                && let Ok(spec) = self.editor.set_applied(&mut self.renderer, index, before)
+            {
+                self.project.layers[index] = spec;
+            }
+        } else {
+            self.apply_brush_stroke(path, false);
+        }
+    }
+
+    /// The terrain point (ECEF) under a window position on the viewport `rect`: the probe's when
+    /// it is for that pixel, else the mean sphere's.
     pub(super) fn surface_at(&self, pos: egui::Pos2, rect: egui::Rect) -> Option<DVec3> {
-        let vp = self.viewport.as_ref()?;
-        let (w, h) = vp.size();
-        let px = (
-            f64::from((pos.x - rect.min.x) / rect.width()) * f64::from(w),
-            f64::from((pos.y - rect.min.y) / rect.height()) * f64::from(h),
-        );
-        let hit = vp.hits[0]
-            .filter(|hit| (f64::from(hit.pixel.0) - px.0).abs() < 3.0 && (f64::from(hit.pixel.1) - px.1).abs() < 3.0);
-        Some(hit.map_or_else(
-            || {
-                let cam = self.placed();
-                navigate::fallback_target(&self.renderer.scene().ellipsoid, &cam, cam.ray(px.0, px.1, w, h))
-            },
-            |hit| hit.ecef,
-        ))
+        self.surface_under(self.target_px(pos, rect)?)
     }
 
     /// Appends a stroke along `path` to the brush's edit layer (made on top of the stack when the
     /// project has none of that name).
-    pub(crate) fn apply_brush_stroke(&mut self, path: Vec<[f64; 2]>) {
+    pub(crate) fn apply_brush_stroke(&mut self, path: Vec<[f64; 2]>, provisional: bool) {
         // The provisional version of this stroke, if any, goes first (instant: from the history).
         if let Some((index, before)) = self.brush.preview.take() {
             match self.editor.set_applied(&mut self.renderer, index, before) {
@@ -304,9 +290,9 @@ impl App {
         let before = self.project.layers[index].applied_strokes().len();
         // While dragging, the stroke so far is shown from the GPU rasteriser (where the adapter
         // is hardware); the stroke kept, on release, is the CPU reference's.
-        match self.editor.apply_stroke_on(&mut self.renderer, index, stroke, self.brush.painting) {
+        match self.editor.apply_stroke_on(&mut self.renderer, index, stroke, provisional) {
             Ok(spec) => {
-                if self.brush.painting {
+                if provisional {
                     self.brush.preview = Some((index, before));
                 }
                 self.message = format!(

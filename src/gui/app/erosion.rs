@@ -1,14 +1,16 @@
 //! Erosion in the workstation: the *Erosion* section. A region (a box around the terrain at the
 //! view's centre, rounded out to whole quads of a level), a preset, the steps and seed; *start*
-//! prepares the run on the terrain the erosion layer sees, *run* and *pause* take a few steps per
-//! frame (on the GPU on hardware adapters, else the CPU reference) so that the view stays
-//! interactive, *step* takes one; the live time step, CFL bound, speeds and budgets show as it
-//! runs, the terrain change shows on the layer a few times a second, and water depth, sediment or
-//! the change of height show as a map of the region. *keep* records the run (its steps so far) on
-//! the layer as `terrafuse erode` would; *discard* drops it. The erosion brush is in
-//! `erosion_brush.rs`, stream power in `landscape.rs`, the drainage overlay in `drainage.rs`.
-//! Undo and redo move the layer's position among its runs.
+//! prepares the run on the terrain the erosion layer sees, *run* and *pause* go on and stop
+//! (the CPU reference steps on a thread of its own, `erosion_run.rs`, the GPU's kernels without
+//! blocking the frame), *step* takes one; the live time step, CFL bound, speeds and budgets show
+//! as it runs, the terrain change shows on the layer a few times a second, and water depth,
+//! sediment or the change of height show as a map of the region. *keep* records the run (its
+//! steps so far) on the layer as `terrafuse erode` would; *discard* drops it, and the layer too
+//! when *start* made it. The erosion brush is in `erosion_brush.rs`, stream power in
+//! `landscape.rs`, the drainage overlay in `drainage.rs`. Undo and redo move the layer's position
+//! among its runs.
 
+use super::erosion_run::{Engine, Figures, Snapshot, Worker};
 use super::*;
 use crate::edit::EditRaster;
 use crate::erosion::landscape::LandscapeParams;
@@ -16,9 +18,11 @@ use crate::erosion::operation::{BrushPath, Device, Model, Operation};
 use crate::erosion::params::{Params, gravity_of_body};
 use crate::erosion::region::Region;
 use crate::erosion::sim::Run;
-use crate::gpu::erosion::GpuRun;
-use crate::gui::GuiError;
 use crate::layers::LayerSpec;
+
+/// A run's progress shows at most once in this many times what showing it last cost (at least
+/// every 0.4 s): frames in between only draw.
+const SHOW_PACE: f64 = 4.0;
 
 /// What the region map shows.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -44,18 +48,33 @@ pub(crate) struct ErosionTool {
     seed: u64,
     overlay: Overlay,
     /// Whether the overlay is also draped over the terrain.
-    drape: bool,
+    pub(super) drape: bool,
     pub(crate) session: Option<Session>,
     map: Option<egui::TextureHandle>,
     /// The erosion brush.
     pub(crate) brush: bool,
     pub(super) brush_radius_m: f64,
-    pub(super) path: Vec<[f64; 2]>,
-    pub(super) painting: bool,
+    /// The brush's path released and still being turned into points.
+    pub(crate) input: Option<super::pointer::StrokeInput>,
     /// The window's context (for the map's texture and the pixel scale).
     ctx: Option<egui::Context>,
     /// The drainage overlay.
     pub(crate) drainage: super::drainage::DrainageTool,
+    /// A stream-power run taken whole on its thread.
+    pub(crate) landscape_job: Option<LandscapeJob>,
+}
+
+/// A stream-power run on a thread of its own.
+pub(crate) struct LandscapeJob {
+    pub(super) index: usize,
+    pub(super) op: Operation,
+    /// *run landscape* made the erosion layer (removed again if the run fails).
+    pub(super) made_layer: bool,
+    /// Its steps, and its cancel switch.
+    pub(super) watch: std::sync::Arc<crate::progress::Watch>,
+    pub(super) handle: std::thread::JoinHandle<
+        Result<(LayerSpec, EditRaster, crate::erosion::layer::Outcome), crate::erosion::layer::OperationError>,
+    >,
 }
 
 impl Default for ErosionTool {
@@ -76,18 +95,12 @@ impl Default for ErosionTool {
             map: None,
             brush: false,
             brush_radius_m: 500.0,
-            path: Vec::new(),
-            painting: false,
+            input: None,
             ctx: None,
             drainage: Default::default(),
+            landscape_job: None,
         }
     }
-}
-
-/// Where the run's steps are taken.
-pub(crate) enum Engine {
-    Cpu(Box<Run>),
-    Gpu(Box<GpuRun>),
 }
 
 /// A run in progress.
@@ -98,55 +111,76 @@ pub(crate) struct Session {
     /// The layer's raster before the run.
     base: EditRaster,
     engine: Engine,
-    /// The run as last seen (the CPU's own; the GPU's as last downloaded).
-    pub(crate) running: bool,
-    seconds: f64,
+    /// The GPU's run goes on (the CPU's thread knows for itself).
+    gpu_running: bool,
+    /// The GPU's steps' seconds.
+    gpu_seconds: f64,
     last_shown: Option<Instant>,
+    /// The figures as last shown.
+    figures: Figures,
+    /// The GPU's live figures, read back without waiting.
     live: Option<crate::gpu::erosion::Report>,
+    /// *start* made the erosion layer: *discard* removes it again.
+    made_layer: bool,
+    /// An erosion brush's run: kept once its steps are done.
+    keep_when_done: bool,
 }
 
 impl Session {
-    fn run(&self) -> &Run {
+    pub(super) fn steps(&self) -> u64 {
         match &self.engine {
-            Engine::Cpu(run) => run,
-            Engine::Gpu(gpu) => gpu.host(),
-        }
-    }
-
-    fn steps(&self) -> u64 {
-        match &self.engine {
-            Engine::Cpu(run) => run.steps,
+            Engine::Cpu(w) => w.steps(),
             Engine::Gpu(gpu) => gpu.steps(),
         }
     }
 
-    /// Takes `n` steps (the GPU's without waiting).
+    /// Whether its steps go on.
+    pub(crate) fn running(&self) -> bool {
+        match &self.engine {
+            Engine::Cpu(w) => w.running(),
+            Engine::Gpu(_) => self.gpu_running,
+        }
+    }
+
+    /// Runs on to the run's steps, or pauses.
+    pub(crate) fn set_running(&mut self, on: bool) {
+        match &self.engine {
+            Engine::Cpu(w) => w.set(on, if on { self.op.steps } else { w.steps() }),
+            Engine::Gpu(_) => self.gpu_running = on,
+        }
+    }
+
+    fn seconds(&self) -> f64 {
+        match &self.engine {
+            Engine::Cpu(w) => w.seconds(),
+            Engine::Gpu(_) => self.gpu_seconds,
+        }
+    }
+
+    /// Takes `n` steps on the GPU (without waiting), or asks the CPU's thread for `n` more.
     pub(super) fn step(&mut self, n: u32) -> Result<(), GuiError> {
-        let t = Instant::now();
         match &mut self.engine {
-            Engine::Cpu(run) => {
-                for _ in 0..n {
-                    run.step();
-                }
-            }
+            Engine::Cpu(w) => w.set(true, w.steps() + u64::from(n)),
             Engine::Gpu(gpu) => {
+                let t = Instant::now();
                 gpu.step(n)?;
                 gpu.request_report();
                 if let Some(r) = gpu.poll_report() {
                     self.live = Some(r);
                 }
+                self.gpu_seconds += t.elapsed().as_secs_f64();
             }
         }
-        self.seconds += t.elapsed().as_secs_f64();
         Ok(())
     }
 
-    /// The run brought up to date (the GPU's downloaded).
-    fn sync(&mut self) -> Result<&Run, GuiError> {
-        if let Engine::Gpu(gpu) = &mut self.engine {
-            gpu.download()?;
+    /// Stops the run and takes it back with its seconds (the GPU's downloaded).
+    fn finish(self) -> Result<(Run, f64), GuiError> {
+        let seconds = self.seconds();
+        match self.engine {
+            Engine::Cpu(w) => Ok((w.finish()?, seconds)),
+            Engine::Gpu(mut gpu) => Ok((gpu.download()?.clone(), seconds)),
         }
-        Ok(self.run())
     }
 }
 
@@ -229,11 +263,11 @@ impl ErosionTool {
             {
                 action = Some(ErosionAction::Start);
             }
-            let running = self.session.as_ref().is_some_and(|s| s.running);
+            let running = self.session.as_ref().is_some_and(|s| s.running());
             if ui.add_enabled(busy, egui::Button::new(if running { "pause" } else { "run" })).clicked()
                 && let Some(s) = &mut self.session
             {
-                s.running = !s.running;
+                s.set_running(!running);
             }
             if ui.add_enabled(busy && !running, egui::Button::new("step")).clicked() {
                 action = Some(ErosionAction::Step);
@@ -252,23 +286,23 @@ impl ErosionTool {
         });
         ui.add(egui::Slider::new(&mut t.brush_radius_m, 10.0..=20_000.0).logarithmic(true).text("brush radius m"));
         if let Some(s) = &self.session {
-            let run = s.run();
             let steps = s.steps();
-            let device = if matches!(s.engine, Engine::Gpu(_)) { "GPU" } else { "CPU reference" };
+            let device = if matches!(s.engine, Engine::Gpu(_)) { "GPU" } else { "CPU reference, on its own thread" };
             ui.label(format!(
                 "{steps} of {} steps on the {device}, {} × {} cells at level {}, {:.1} s",
-                s.op.steps, s.region.width, s.region.height, s.region.level, s.seconds
+                s.op.steps,
+                s.region.width,
+                s.region.height,
+                s.region.level,
+                s.seconds()
             ));
-            let unit = run.unit_m3();
+            ui.add(egui::ProgressBar::new(steps as f32 / s.op.steps.max(1) as f32).desired_width(220.0));
+            let f = &s.figures;
             let (budget, dt, bound, speed, depth) = match (&s.engine, &s.live) {
                 (Engine::Gpu(_), Some(r)) => (r.budget, r.next_dt_s, r.cfl_bound_s, r.max_speed_m_s, r.max_depth_m),
-                _ => {
-                    let max_speed = run.state.speed_m_s.iter().fold(0f64, |m, v| m.max(*v));
-                    let max_depth = (0..run.grid.len()).map(|i| run.depth_m(i)).fold(0f64, f64::max);
-                    let bound = run.cfl_bound_s();
-                    (run.budget, run.params.dt_s.min(bound), bound, max_speed, max_depth)
-                }
+                _ => (f.budget, f.dt_s, f.cfl_bound_s, f.max_speed_m_s, f.max_depth_m),
             };
+            let unit = f.unit_m3;
             ui.label(format!("Δt {dt:.4} s (CFL bound {bound:.4} s), |v| ≤ {speed:.2} m/s, depth ≤ {depth:.3} m"));
             ui.label(format!(
                 "water at the start {:.1} m³, rain {:.1} m³, evaporated {:.1} m³, out {:.1} m³ of water, {:.3} m³ of soil",
@@ -278,7 +312,7 @@ impl ErosionTool {
                 budget.water_out as f64 * unit,
                 budget.soil_out as f64 * unit
             ));
-            let (w, soil) = run.unexplained();
+            let (w, soil) = f.unexplained;
             ui.label(format!("unexplained (as last read): water {w} units, soil {soil} units"));
             ui.horizontal(|ui| {
                 let t = &mut self.overlay;
@@ -287,8 +321,14 @@ impl ErosionTool {
                 ui.selectable_value(t, Overlay::Change, "change");
                 ui.checkbox(&mut self.drape, "on the terrain");
             });
+            if let Engine::Cpu(w) = &s.engine {
+                w.set_overlay(self.overlay);
+            }
             if let Some(map) = &self.map {
-                ui.image((map.id(), egui::vec2(200.0, 200.0)));
+                // At the region's true aspect, 200 points along its longer side.
+                let [w, h] = map.size();
+                let k = 200.0 / w.max(h).max(1) as f32;
+                ui.image((map.id(), egui::vec2(w as f32 * k, h as f32 * k)));
             }
         }
         self.undo_ui(ui, project).or(action)
@@ -349,14 +389,7 @@ impl App {
             Some(ErosionAction::Start) => self.start_erosion(None),
             Some(ErosionAction::Step) => self.erosion_steps(1, true),
             Some(ErosionAction::Keep) => self.keep_erosion(),
-            Some(ErosionAction::Discard) => {
-                if let Some(s) = self.erosion.session.take() {
-                    let _ = self.editor.set_erosion_overlay(&mut self.renderer, None);
-                    self.editor.discard_erosion(&mut self.renderer, s.index, s.base);
-                    self.dirty = true;
-                    self.update_drainage();
-                }
-            }
+            Some(ErosionAction::Discard) => self.discard_erosion(),
             Some(ErosionAction::Undo) => self.move_erosion_undo(-1),
             Some(ErosionAction::Redo) => self.move_erosion_undo(1),
             Some(ErosionAction::Drainage) => self.update_drainage(),
@@ -364,57 +397,112 @@ impl App {
         }
     }
 
-    /// Every frame: a running session takes its steps, and its progress shows.
+    /// Every frame: a running session's progress shows (the CPU's snapshots as its thread makes
+    /// them; the GPU takes its steps here, without waiting); an erosion brush's run, once done,
+    /// is kept.
     pub(super) fn erosion_frame(&mut self, ctx: &egui::Context) {
         self.erosion.ctx = Some(ctx.clone());
-        let Some(s) = &self.erosion.session else { return };
-        if s.running {
+        self.landscape_frame(ctx);
+        let Some(s) = &mut self.erosion.session else { return };
+        let was_running = s.running();
+        if let Engine::Gpu(_) = s.engine
+            && s.gpu_running
+        {
             let left = s.op.steps.saturating_sub(s.steps());
             let n = (self.erosion.per_frame as u64).min(left) as u32;
             self.erosion_steps(n, false);
-            if let Some(s) = &mut self.erosion.session
-                && s.steps() >= s.op.steps
-            {
-                s.running = false;
-                self.message = format!("erosion: {} steps done (keep or discard)", s.steps());
-            }
-            ctx.request_repaint();
+        }
+        if let Some(wait) = self.show_erosion_progress() {
+            ctx.request_repaint_after(wait);
+        }
+        let Some(s) = &mut self.erosion.session else { return };
+        let done = s.steps() >= s.op.steps;
+        if done && s.gpu_running {
+            s.gpu_running = false;
+        }
+        if done && s.keep_when_done {
+            self.keep_erosion();
+            return;
+        }
+        if done && was_running {
+            self.message = format!("erosion: {} steps done (keep or discard)", s.steps());
+        }
+        if s.running() || was_running {
+            ctx.request_repaint_after(Duration::from_millis(50));
         }
     }
 
-    /// Takes `n` steps; shows the progress on the layer and the map now (`show`) or when due.
+    /// Takes `n` steps on the GPU, or asks the CPU's thread for them; shows the progress now
+    /// (`show`) or when due.
     fn erosion_steps(&mut self, n: u32, show: bool) {
         let Some(s) = &mut self.erosion.session else { return };
         if let Err(e) = s.step(n) {
             self.message = format!("erosion: {}", crate::errors::chain(&e));
-            s.running = false;
+            s.set_running(false);
             return;
         }
-        let due = show || !s.running || s.last_shown.is_none_or(|t| t.elapsed() > Duration::from_millis(400));
-        if !due {
-            return;
+        if show && let Engine::Gpu(_) = s.engine {
+            s.last_shown = None;
         }
-        s.last_shown = Some(Instant::now());
-        let run = match s.sync() {
-            Ok(run) => run.clone(),
-            Err(e) => {
-                self.message = format!("erosion: {}", crate::errors::chain(&e));
-                return;
+    }
+
+    /// Shows the run as it stands: the CPU thread's latest snapshot, or the GPU's downloaded
+    /// when due (a few times a second, or after a single step). Returns how long to wait before
+    /// asking again when it is too early to show.
+    fn show_erosion_progress(&mut self) -> Option<Duration> {
+        let s = self.erosion.session.as_mut()?;
+        // Showing progress recomposes the region's quads; where that is slow (a software GPU)
+        // the frames between stay as cheap as drawing, so that the window answers the user.
+        let pace = Duration::from_secs_f64(SHOW_PACE * self.compose_ms / 1e3).max(Duration::from_millis(400));
+        if let Some(t) = s.last_shown
+            && t.elapsed() < pace
+        {
+            return Some(pace - t.elapsed());
+        }
+        let snapshot = match &mut s.engine {
+            Engine::Cpu(w) => w.take_snapshot(),
+            Engine::Gpu(gpu) => {
+                if gpu.steps() == 0 {
+                    None
+                } else {
+                    match gpu.download() {
+                        Ok(run) => Some(Snapshot::of(run, &s.base, &s.region, self.erosion.overlay)),
+                        Err(e) => {
+                            self.message = format!("erosion: {}", crate::errors::chain(&e));
+                            s.gpu_running = false;
+                            None
+                        }
+                    }
+                }
             }
         };
-        let (index, base, region) = (s.index, s.base.clone(), s.region);
-        self.editor.show_erosion(&mut self.renderer, index, &base, &region, &run);
-        let image = region_map(&run, self.erosion.overlay);
-        self.set_map(image);
-        let drape = self.erosion.drape.then(|| {
-            let values = field(&run, self.erosion.overlay);
-            let range = values.iter().filter(|v| v.is_finite()).fold(0f64, |m, v| m.max(v.abs()));
-            (crate::erosion::layer::field_raster(base.ellipsoid, &region, &values), &region, range)
-        });
+        let snapshot = snapshot?;
+        s.last_shown = Some(Instant::now());
+        s.figures = snapshot.figures;
+        let (index, region) = (s.index, s.region);
+        self.editor.show_erosion(&mut self.renderer, index, snapshot.raster);
+        self.set_map(snapshot.map);
+        let drape = self.erosion.drape.then_some((snapshot.field.0, &region, snapshot.field.1));
         if let Err(e) = self.editor.set_erosion_overlay(&mut self.renderer, drape) {
             self.message = format!("erosion overlay: {}", crate::errors::chain(&e));
         }
         self.dirty = true;
+        None
+    }
+
+    /// Drops the run in progress: the layer as it was, and gone again when *start* made it.
+    pub(crate) fn discard_erosion(&mut self) {
+        let Some(s) = self.erosion.session.take() else { return };
+        let _ = self.editor.set_erosion_overlay(&mut self.renderer, None);
+        let (index, made) = (s.index, s.made_layer);
+        let base = s.base.clone();
+        if let Err(e) = s.finish() {
+            self.message = format!("erosion: {}", crate::errors::chain(&e));
+        }
+        self.editor.discard_erosion(&mut self.renderer, index, base);
+        self.forget_made_layer(index, made);
+        self.dirty = true;
+        self.update_drainage();
     }
 
     fn set_map(&mut self, image: egui::ColorImage) {
@@ -491,8 +579,8 @@ impl App {
             device: Device::Cpu,
         };
         let name = t.layer.clone();
-        let index = match index {
-            Some(i) if self.project.layers[i].as_erosion().is_some() => i,
+        let (index, made_layer) = match index {
+            Some(i) if self.project.layers[i].as_erosion().is_some() => (i, false),
             Some(_) => {
                 self.message = format!("erosion: '{name}' is not an erosion layer");
                 return;
@@ -505,21 +593,23 @@ impl App {
                     return;
                 }
                 self.project.layers.push(spec);
-                top
+                (top, true)
             }
         };
         if op.model == Model::StreamPower {
-            self.run_landscape(index, op);
+            self.start_landscape(index, op, made_layer);
             return;
         }
         let (region, run, base) = match self.editor.prepare_erosion(&self.renderer, index, &op) {
             Ok(prepared) => prepared,
             Err(e) => {
                 self.message = format!("erosion: {}", crate::errors::chain(&e));
+                self.forget_made_layer(index, made_layer);
                 return;
             }
         };
         let mut op = op;
+        let figures = Figures::of(&run);
         let engine = match self.editor.erosion_on_gpu(&run) {
             Some(Ok(gpu)) => {
                 op.device = Device::Gpu;
@@ -527,43 +617,65 @@ impl App {
             }
             Some(Err(e)) => {
                 self.message = format!("erosion on the GPU: {}; on the CPU instead", crate::errors::chain(&e));
-                Engine::Cpu(Box::new(run))
+                Engine::Cpu(Worker::start(run, base.clone(), region, self.erosion.overlay))
             }
-            None => Engine::Cpu(Box::new(run)),
+            None => Engine::Cpu(Worker::start(run, base.clone(), region, self.erosion.overlay)),
         };
         self.message = format!("erosion: {} × {} cells at level {level}", region.width, region.height);
+        let keep_when_done = op.brush.is_some();
         self.erosion.session = Some(Session {
             index,
             op,
             region,
             base,
             engine,
-            running: false,
-            seconds: 0.0,
+            gpu_running: false,
+            gpu_seconds: 0.0,
             last_shown: None,
+            figures,
             live: None,
+            made_layer,
+            keep_when_done,
         });
+    }
+
+    /// Removes the erosion layer a refused or discarded run made (an empty one: the project as
+    /// it was before *start*).
+    pub(super) fn forget_made_layer(&mut self, index: usize, made: bool) {
+        if !made || !self.project.layers.get(index).is_some_and(|l| l.runs().is_empty()) {
+            return;
+        }
+        match self.renderer.remove_layer(index) {
+            Ok(()) => {
+                self.project.layers.remove(index);
+            }
+            Err(e) => self.message = e.to_string(),
+        }
     }
 
     /// Records the session's run (its steps so far) on the layer.
     pub(crate) fn keep_erosion(&mut self) {
-        let Some(mut s) = self.erosion.session.take() else { return };
+        let Some(s) = self.erosion.session.take() else { return };
         if let Err(e) = self.editor.set_erosion_overlay(&mut self.renderer, None) {
             self.message = format!("erosion overlay: {}", crate::errors::chain(&e));
         }
-        let run = match s.sync() {
-            Ok(run) => run.clone(),
+        let (index, op, base, region, made) = (s.index, s.op.clone(), s.base.clone(), s.region, s.made_layer);
+        let (run, seconds) = match s.finish() {
+            Ok(finished) => finished,
             Err(e) => {
                 self.message = format!("erosion: {}", crate::errors::chain(&e));
+                self.editor.discard_erosion(&mut self.renderer, index, base);
+                self.forget_made_layer(index, made);
                 return;
             }
         };
         if run.steps == 0 {
-            self.editor.discard_erosion(&mut self.renderer, s.index, s.base);
+            self.editor.discard_erosion(&mut self.renderer, index, base);
+            self.forget_made_layer(index, made);
             self.message = "erosion: no step taken, nothing kept".into();
             return;
         }
-        match self.editor.commit_erosion(&mut self.renderer, s.index, s.op, s.base, s.region, &run, s.seconds) {
+        match self.editor.commit_erosion(&mut self.renderer, index, op, base, region, &run, seconds) {
             Ok((spec, o)) => {
                 self.message = format!(
                     "erosion run {} kept: {} steps, {:.1} s simulated, change {:.2} … {:.2} m",
@@ -573,7 +685,7 @@ impl App {
                     o.range_m.0,
                     o.range_m.1
                 );
-                self.project.layers[s.index] = spec;
+                self.project.layers[index] = spec;
                 self.mark_unsaved();
             }
             Err(e) => self.message = e.to_string(),
@@ -604,7 +716,7 @@ impl App {
 
 /// Per cell, what the overlay shows, metres (NaN where there is nothing to show: dry, no
 /// sediment, unchanged).
-fn field(run: &Run, overlay: Overlay) -> Vec<f64> {
+pub(super) fn field(run: &Run, overlay: Overlay) -> Vec<f64> {
     let g = &run.grid;
     (0..g.len())
         .map(|i| {
@@ -620,7 +732,7 @@ fn field(run: &Run, overlay: Overlay) -> Vec<f64> {
 
 /// The region's water depth, sediment or change of height as a picture (north up), at most 256
 /// pixels a side: blue for water, brown for sediment, red-blue for the change (lowered red).
-fn region_map(run: &Run, overlay: Overlay) -> egui::ColorImage {
+pub(super) fn region_map(run: &Run, overlay: Overlay) -> egui::ColorImage {
     let g = &run.grid;
     let step = g.width.max(g.height).div_ceil(256).max(1);
     let (w, h) = (g.width.div_ceil(step), g.height.div_ceil(step));

@@ -56,6 +56,8 @@ pub(super) struct FileState {
     pub last_autosave: Option<Instant>,
     /// The title last given to the window.
     pub title: String,
+    /// The desktop's file dialog for the open dialog's path.
+    pub pick: crate::gui::file_pick::FilePick,
 }
 
 /// The camera a project opens at: its default view, or the whole body from straight above.
@@ -370,10 +372,18 @@ impl App {
                 Dialog::SaveAs { path } => ("Save the project as", path),
             };
             let label = ui.label(title).id;
-            let edit = ui.add(egui::TextEdit::singleline(path).desired_width(420.0)).labelled_by(label);
-            if edit.lost_focus() && ui.input(|i| i.key_pressed(egui::Key::Enter)) {
-                go = true;
-            }
+            let purpose = if title.starts_with("Open") {
+                crate::gui::file_pick::Purpose::OpenProject
+            } else {
+                crate::gui::file_pick::Purpose::SaveProject
+            };
+            ui.horizontal(|ui| {
+                let edit = ui.add(egui::TextEdit::singleline(path).desired_width(420.0)).labelled_by(label);
+                if edit.lost_focus() && ui.input(|i| i.key_pressed(egui::Key::Enter)) {
+                    go = true;
+                }
+                self.file.pick.button(ui, purpose, path);
+            });
             ui.horizontal(|ui| {
                 go |= ui.button("ok").clicked();
                 cancel = ui.button("cancel").clicked();

@@ -1,6 +1,7 @@
 //! Landscape evolution in the *Erosion* section: the stream-power settings (years, time step,
 //! uplift, K, m, n, K_d, deposition, routing, the uplift brush) and *run landscape*, which takes
-//! the whole run at once on the CPU reference and keeps it on the erosion layer.
+//! the whole run on the CPU reference on a thread of its own (a progress bar and *cancel* in the
+//! panel, the window answering meanwhile) and keeps it on the erosion layer when done.
 
 use super::erosion::{ErosionAction, ErosionTool};
 use super::*;
@@ -45,7 +46,18 @@ impl ErosionTool {
         if let Err(e) = &check {
             ui.colored_label(egui::Color32::LIGHT_RED, e.to_string());
         }
-        let idle = self.session.is_none();
+        if let Some(job) = &self.landscape_job {
+            let p = job.watch.progress();
+            ui.add(
+                egui::ProgressBar::new(p.done as f32 / p.total.max(1) as f32)
+                    .text(format!("{} of {} steps", p.done, p.total))
+                    .desired_width(220.0),
+            );
+            if ui.button("cancel").on_hover_text("stops the run; the layer stays as it was").clicked() {
+                job.watch.cancel();
+            }
+        }
+        let idle = self.session.is_none() && self.landscape_job.is_none();
         if ui
             .add_enabled(idle && check.is_ok(), egui::Button::new("run landscape"))
             .on_hover_text(
@@ -68,23 +80,68 @@ impl App {
         self.erosion.landscape.dt_years = dt_years;
     }
 
-    /// Runs a stream-power operation whole on erosion layer `index` and keeps it.
-    pub(super) fn run_landscape(&mut self, index: usize, op: Operation) {
-        let steps = op.steps;
-        match self.editor.run_whole(&mut self.renderer, index, op) {
-            Ok((spec, o)) => {
-                let years = o.landscape.map_or(0.0, |f| f.simulated_years);
-                self.message = format!(
-                    "landscape run {} kept: {steps} steps, {years} years in {:.1} s, change {:.1} … {:.1} m",
-                    spec.runs().len() - 1,
-                    o.seconds,
-                    o.range_m.0,
-                    o.range_m.1
-                );
-                self.project.layers[index] = spec;
-                self.mark_unsaved();
+    /// Starts a stream-power operation whole on erosion layer `index` on a thread of its own;
+    /// [`App::landscape_frame`] keeps it when done.
+    pub(super) fn start_landscape(&mut self, index: usize, op: Operation, made_layer: bool) {
+        let (spec, mut raster, below) = match self.editor.whole_run_inputs(&self.renderer, index) {
+            Ok(inputs) => inputs,
+            Err(e) => {
+                self.message = format!("landscape: {}", crate::errors::chain(&e));
+                self.forget_made_layer(index, made_layer);
+                return;
             }
-            Err(e) => self.message = format!("landscape: {}", crate::errors::chain(&e)),
+        };
+        let watch = std::sync::Arc::new(crate::progress::Watch::default());
+        let (w, run) = (watch.clone(), op.clone());
+        let handle = crate::gui::background::spawn("landscape-run", move || {
+            let applied = spec.applied_runs().len();
+            let stepper = crate::erosion::layer::CpuStepper;
+            let outcome =
+                crate::erosion::layer::apply(&mut raster, applied, &run, &|q| Ok(below.heights_cpu(q)?), &stepper, &w)?;
+            Ok((spec, raster, outcome))
+        });
+        self.message = format!("landscape: {} steps on a thread of their own", op.steps);
+        self.erosion.landscape_job = Some(super::erosion::LandscapeJob { index, op, made_layer, watch, handle });
+    }
+
+    /// Each frame: a landscape run that has finished is kept (or its failure said, and a layer it
+    /// made removed).
+    pub(super) fn landscape_frame(&mut self, ctx: &egui::Context) {
+        let Some(job) = &self.erosion.landscape_job else { return };
+        if !job.handle.is_finished() {
+            ctx.request_repaint_after(Duration::from_millis(100));
+            return;
+        }
+        let job = self.erosion.landscape_job.take().expect("checked above");
+        let (index, steps, made) = (job.index, job.op.steps, job.made_layer);
+        let result = job.handle.join().unwrap_or_else(|_| {
+            Err(crate::erosion::layer::OperationError {
+                index: 0,
+                field: "runs".into(),
+                problem: "the run's thread stopped".into(),
+                cause: None,
+            })
+        });
+        match result {
+            Ok((spec, raster, o)) => match self.editor.commit_whole(&mut self.renderer, index, spec, job.op, raster) {
+                Ok(spec) => {
+                    let years = o.landscape.map_or(0.0, |f| f.simulated_years);
+                    self.message = format!(
+                        "landscape run {} kept: {steps} steps, {years} years in {:.1} s, change {:.1} … {:.1} m",
+                        spec.runs().len() - 1,
+                        o.seconds,
+                        o.range_m.0,
+                        o.range_m.1
+                    );
+                    self.project.layers[index] = spec;
+                    self.mark_unsaved();
+                }
+                Err(e) => self.message = format!("landscape: {}", crate::errors::chain(&e)),
+            },
+            Err(e) => {
+                self.message = format!("landscape: {}", crate::errors::chain(&e));
+                self.forget_made_layer(index, made);
+            }
         }
         self.dirty = true;
         self.update_drainage();

@@ -50,6 +50,34 @@ impl App {
         Ok(())
     }
 
+    /// Draws A − B over the terrain: the difference layer of these two operands already in the
+    /// stack (shown, if it was hidden), else a new one on top.
+    pub(super) fn show_difference(&mut self, a: &str, b: &str) {
+        let of = [crate::layers::Operand::Layer(a.into()), crate::layers::Operand::Layer(b.into())];
+        let existing = self.project.layers.iter().position(|l| l.as_difference().is_some_and(|d| d.of == of));
+        let result = match existing {
+            Some(k) if self.project.layers[k].visible => Ok(false),
+            Some(k) => {
+                let spec = LayerSpec { visible: true, ..self.project.layers[k].clone() };
+                self.apply_layer_action(LayerAction::Update(k, spec)).map(|()| true)
+            }
+            None => self.insert_layer(crate::gui::difference_ui::new_layer(&self.project, a, b)).map(|()| true),
+        };
+        match (result, existing) {
+            (Ok(changed), Some(k)) => {
+                if changed {
+                    self.stack_changed();
+                }
+                self.message = format!("{a} - {b} is drawn by layer '{}'", self.project.layers[k].name);
+            }
+            (Ok(_), None) => {
+                self.stack_changed();
+                self.message = format!("drawing {a} - {b} over the terrain (layer on top of the stack)");
+            }
+            (Err(e), _) => self.message = crate::errors::chain(&e),
+        }
+    }
+
     /// Puts a new layer (not a dataset's) on top of the stack.
     pub(super) fn insert_layer(&mut self, spec: LayerSpec) -> Result<(), LayerError> {
         let top = self.project.layers.len();

@@ -18,15 +18,19 @@ use crate::scene::Camera;
 use crate::scene::resolve_ramp;
 
 mod brush;
+mod debug_hook;
 mod disk;
 mod drainage;
 mod erosion;
 mod erosion_brush;
+mod erosion_run;
 pub mod file;
+pub use debug_hook::DebugHook;
 mod flight;
 mod landscape;
 mod layers;
 mod legend;
+mod pointer;
 mod profile;
 mod side_panel;
 mod swipe;
@@ -41,17 +45,6 @@ pub struct ScreenshotJob {
 
 /// What a screenshot run reports: the report, or why it failed.
 pub type Outcome = Arc<Mutex<Option<Result<String, GuiError>>>>;
-
-/// How a drag moves the camera.
-#[derive(Clone, Copy, Debug, PartialEq)]
-enum Drag {
-    /// The grabbed point follows the cursor.
-    Globe(DVec3),
-    /// Orbit about a point.
-    Orbit(DVec3),
-    /// Turn in place.
-    Look,
-}
 
 /// The workstation.
 pub struct App {
@@ -71,7 +64,16 @@ pub struct App {
     started: Instant,
     frames: u64,
     last_frame_ms: f64,
-    drag: Option<Drag>,
+    /// What the last frame that composed quads took, ms: what showing a run's progress costs.
+    compose_ms: f64,
+    /// The gesture a press on the viewport started (navigation or a stroke), from events.
+    gesture: Option<pointer::Gesture>,
+    /// The button held since a press on the viewport.
+    held: Option<egui::PointerButton>,
+    /// A globe drag's exact anchor, still to be read back.
+    anchor_query: Option<pointer::AnchorQuery>,
+    /// What the surface read-back in flight was asked for.
+    asked: Option<pointer::Asked>,
     hover: Option<(u32, u32)>,
     view_name: String,
     /// The tab shown below the layers: view settings or a tool.
@@ -114,6 +116,8 @@ pub struct App {
     flight: flight::FlightTool,
     /// The project file as other processes change it.
     disk: disk::DiskState,
+    /// Driven from a folder, frames slowed (the real-window tests).
+    debug: Option<DebugHook>,
 }
 
 impl App {
@@ -145,7 +149,11 @@ impl App {
             started: Instant::now(),
             frames: 0,
             last_frame_ms: 0.0,
-            drag: None,
+            compose_ms: 0.0,
+            gesture: None,
+            held: None,
+            anchor_query: None,
+            asked: None,
             hover: None,
             view_name: String::new(),
             tab: side_panel::Tab::View,
@@ -173,7 +181,14 @@ impl App {
             profile: Default::default(),
             file: Default::default(),
             disk: Default::default(),
+            debug: None,
         }
+    }
+
+    /// Drives the window from `hook`'s folder and slows its frames (the real-window tests).
+    pub fn with_debug(mut self, hook: Option<DebugHook>) -> App {
+        self.debug = hook;
+        self
     }
 
     /// Gives the window the recent projects and a recovery file to offer (when it opens).
@@ -232,7 +247,11 @@ impl App {
 
     /// Whether the brush is on, and the stroke in progress (its path so far).
     pub fn brush_state(&self) -> (bool, usize) {
-        (self.brush.on, self.brush.path.len())
+        let drawn = match &self.gesture {
+            Some(pointer::Gesture::Brush(s)) => s.path.len(),
+            _ => self.brush.input.as_ref().map_or(0, |s| s.path.len()),
+        };
+        (self.brush.on, drawn)
     }
 
     /// Turns the brush on or off (tests; people tick *brush*).
@@ -359,8 +378,11 @@ impl App {
         }
     }
 
+    /// Two lines of fixed height, whatever they hold (a long message is cut short, whole on
+    /// hover), so that the layout never jumps and the viewport never shrinks for a message.
     fn status_bar(&self, ui: &mut egui::Ui) {
-        ui.horizontal_wrapped(|ui| {
+        ui.style_mut().wrap_mode = Some(egui::TextWrapMode::Truncate);
+        ui.horizontal(|ui| {
             match self.viewport.as_ref().and_then(|v| v.hits[0]) {
                 Some(hit) => {
                     let g = geodesy::geodetic_from_ecef(&self.renderer.scene().ellipsoid, hit.ecef);
@@ -390,111 +412,32 @@ impl App {
             ui.separator();
             ui.label(format!("CPU {:.1} ms", self.last_frame_ms))
                 .on_hover_text("preparing and recording the last drawn frame");
-            if !self.message.is_empty() {
-                ui.separator();
-                ui.label(&self.message);
-            }
+        });
+        ui.horizontal(|ui| {
+            let text = if self.message.is_empty() { " " } else { self.message.as_str() };
+            ui.add(egui::Label::new(text).truncate()).on_hover_text(&self.message);
         });
     }
 
-    /// Moves the camera from the viewport's input.
+    /// The cursor's pixel (for the probe), the wheel's and a pinch's zoom towards the terrain
+    /// under the cursor, and a double click's. Drags are the pointer's events' (`pointer.rs`).
     fn navigate(&mut self, ui: &egui::Ui, response: &egui::Response, rect: egui::Rect) {
-        let Some(vp) = &self.viewport else { return };
-        let ((w, h), hits) = (vp.size(), vp.hits);
-        let e = self.renderer.scene().ellipsoid;
-        let cam = self.placed();
-        let to_px = |p: egui::Pos2| {
-            (
-                f64::from((p.x - rect.min.x) / rect.width()) * f64::from(w),
-                f64::from((p.y - rect.min.y) / rect.height()) * f64::from(h),
-            )
-        };
-        // The terrain point under a pixel: the probe's when it is for that pixel, else the
-        // ellipsoid's mean sphere.
-        let under = |p: (f64, f64)| -> DVec3 {
-            let hit = hits[0]
-                .filter(|h| (f64::from(h.pixel.0) - p.0).abs() < 3.0 && (f64::from(h.pixel.1) - p.1).abs() < 3.0);
-            hit.map_or_else(|| navigate::fallback_target(&e, &cam, cam.ray(p.0, p.1, w, h)), |h| h.ecef)
-        };
-        let centre = hits[1].map(|h| h.ecef);
-        let modifiers = ui.input(|i| i.modifiers);
-        if let Some(pos) = response.hover_pos() {
-            let p = to_px(pos);
-            self.hover = Some((p.0 as u32, p.1 as u32));
-        } else {
-            self.hover = None;
+        self.hover = response.hover_pos().and_then(|pos| self.target_px(pos, rect)).map(|p| (p.0 as u32, p.1 as u32));
+        if !response.hovered() {
+            return;
         }
-
-        if response.drag_started() {
-            let p = response.interact_pointer_pos().map(to_px).unwrap_or((0.5 * f64::from(w), 0.5 * f64::from(h)));
-            let primary = response.drag_started_by(egui::PointerButton::Primary);
-            self.drag =
-                Some(if response.drag_started_by(egui::PointerButton::Middle) || (primary && modifiers.shift) {
-                    Drag::Look
-                } else if response.drag_started_by(egui::PointerButton::Secondary) || (primary && modifiers.command) {
-                    Drag::Orbit(centre.unwrap_or_else(|| under(p)))
-                } else {
-                    Drag::Globe(under(p))
-                });
+        let Some((w, h)) = self.viewport.as_ref().map(|v| v.size()) else { return };
+        let (scroll, zoom) = ui.input(|i| (i.smooth_scroll_delta().y, i.zoom_delta()));
+        let mut factor = (-f64::from(scroll) * 0.003).exp() / f64::from(zoom);
+        if response.double_clicked() {
+            factor *= 0.5;
         }
-        if response.dragged() {
-            let delta = response.drag_delta();
-            let (dx, dy) = (f64::from(delta.x), f64::from(delta.y));
-            let spec = match self.drag {
-                Some(Drag::Globe(anchor)) => response.interact_pointer_pos().map(|pos| {
-                    let p = to_px(pos);
-                    navigate::drag_globe(&e, &cam, anchor, cam.ray(p.0, p.1, w, h))
-                }),
-                Some(Drag::Orbit(pivot)) => Some(navigate::orbit(&e, &cam, pivot, dx * 0.3, dy * 0.3)),
-                Some(Drag::Look) => Some(navigate::look(&self.camera, dx * 0.1, -dy * 0.1)),
-                None => None,
-            };
-            if let Some(spec) = spec {
-                self.set_camera(spec);
-            }
-        }
-        if response.drag_stopped() {
-            self.drag = None;
-        }
-
-        if response.hovered() {
-            let (scroll, zoom) = ui.input(|i| (i.smooth_scroll_delta().y, i.zoom_delta()));
-            let mut factor = (-f64::from(scroll) * 0.003).exp() / f64::from(zoom);
-            if response.double_clicked() {
-                factor *= 0.5;
-            }
-            if (factor - 1.0).abs() > 1e-6 {
-                let p = response.hover_pos().map(to_px).unwrap_or((0.5 * f64::from(w), 0.5 * f64::from(h)));
-                self.set_camera(navigate::zoom(&e, &cam, under(p), factor));
-            }
-        }
-
-        if !ui.ctx().egui_wants_keyboard_input() {
-            let (dt, keys) = ui.input(|i| {
-                let k = |a: egui::Key, b: egui::Key| f64::from(u8::from(i.key_down(a) || i.key_down(b)));
-                (
-                    f64::from(i.stable_dt.min(0.1)),
-                    [
-                        k(egui::Key::W, egui::Key::ArrowUp) - k(egui::Key::S, egui::Key::ArrowDown),
-                        k(egui::Key::D, egui::Key::ArrowRight) - k(egui::Key::A, egui::Key::ArrowLeft),
-                        k(egui::Key::E, egui::Key::PageUp) - k(egui::Key::Q, egui::Key::PageDown),
-                        f64::from(u8::from(i.key_pressed(egui::Key::N))),
-                        f64::from(u8::from(i.key_pressed(egui::Key::H))),
-                    ],
-                )
-            });
-            if keys[..3].iter().any(|k| *k != 0.0) {
-                // A second crosses the distance to the terrain in view (or the height above it).
-                let scale = centre.map_or(self.camera.alt.abs(), |c| (c - cam.position).length()).max(10.0);
-                let v = scale * dt;
-                self.set_camera(navigate::fly(&e, &cam, keys[0] * v, keys[1] * v, keys[2] * v));
-                ui.ctx().request_repaint();
-            }
-            if keys[3] > 0.0 {
-                self.set_camera(CameraSpec { heading: 0.0, ..self.camera });
-            }
-            if keys[4] > 0.0 {
-                self.set_camera(self.home);
+        if (factor - 1.0).abs() > 1e-6 {
+            let p = response.hover_pos().and_then(|pos| self.target_px(pos, rect));
+            let p = p.unwrap_or((0.5 * f64::from(w), 0.5 * f64::from(h)));
+            if let Some(under) = self.surface_under(p) {
+                let e = self.renderer.scene().ellipsoid;
+                self.set_camera(navigate::zoom(&e, &self.placed(), under, factor));
             }
         }
     }
@@ -537,6 +480,9 @@ impl App {
                 }
                 self.frames += 1;
                 self.last_frame_ms = t.elapsed().as_secs_f64() * 1e3;
+                if !self.stats.composed.is_empty() {
+                    self.compose_ms = self.last_frame_ms;
+                }
             }
             self.dirty = false;
         } else if self.hover.is_some() && vp.hits[0].is_none_or(|h| h.pixel != cursor) {
@@ -675,6 +621,7 @@ fn write_screenshot(path: &std::path::Path, image: &egui::ColorImage) -> Result<
 
 impl eframe::App for App {
     fn ui(&mut self, ui: &mut egui::Ui, frame: &mut eframe::Frame) {
+        let started = Instant::now();
         self.finish_open(frame);
         egui::Panel::top("file").show(ui, |ui| self.file_bar(ui));
         egui::Panel::bottom("status").show(ui, |ui| self.status_bar(ui));
@@ -697,15 +644,28 @@ impl eframe::App for App {
             {
                 self.message = e.to_string();
             }
-            self.brush_keys(ui);
+            // The pointer's events on the viewport, in the order they happened (a press, its
+            // moves and its release may all fall between two frames).
+            let steps = pointer::viewport_steps(ui.ctx(), response.layer_id, view, &mut self.held);
+            self.keys(ui);
             self.erosion_frame(ui.ctx());
             self.flight_frame(ui.ctx());
-            if !self.drag_swipe(ui, &response, rect)
-                && !self.pick_profile(&response, view)
-                && !self.paint(ui, &response, view)
-                && !self.erode_paint(ui, &response, view)
-            {
+            if !self.drag_swipe(&steps, rect) && !self.pick_profile(&response, view) {
+                self.pointer_steps(&steps, view);
                 self.navigate(ui, &response, view);
+            }
+            self.brush_hover(ui, &response, view);
+            if let Some(rs) = frame.wgpu_render_state() {
+                self.pointer_frame(rs);
+            }
+            self.brush_frame();
+            self.erosion_brush_frame();
+            if self.gesture.is_some()
+                || self.brush.input.is_some()
+                || self.erosion.input.is_some()
+                || self.pointer_busy()
+            {
+                ui.ctx().request_repaint();
             }
             self.render(frame, size_px);
             if !self.paint_swipe(ui, rect)
@@ -717,6 +677,7 @@ impl eframe::App for App {
             if self.viewport.is_some() {
                 self.legend(ui, view);
             }
+            self.mode_banner(ui, view);
         });
         if self.stats.pending > 0 || self.stats.uploads > 0 || self.stats.requested > 0 || !self.swipe_settled() {
             ui.ctx().request_repaint_after(Duration::from_millis(30));
@@ -731,5 +692,6 @@ impl eframe::App for App {
             ui.ctx().request_repaint_after(Duration::from_millis(50));
         }
         self.close_guard(ui.ctx());
+        self.debug_frame(ui.ctx(), started.elapsed());
     }
 }

@@ -69,7 +69,7 @@ impl App {
             let line = ProfileLine { from, to: point };
             self.profile.line = Some(line);
             let project = self.project.clone();
-            self.profile.job = Some(std::thread::spawn(move || {
+            self.profile.job = Some(crate::gui::background::spawn("profile", move || {
                 let opts = ProfileOptions { from: line.from, to: line.to, samples: Some(SAMPLES), level: None };
                 Ok(profile(&project, &opts)?)
             }));

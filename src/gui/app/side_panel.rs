@@ -27,6 +27,11 @@ impl Tab {
         (Tab::Erosion, "Erosion"),
         (Tab::Project, "Project"),
     ];
+
+    /// The tab of a name (`brush`, `Erosion`, …).
+    pub(crate) fn named(name: &str) -> Option<Tab> {
+        Tab::ALL.iter().find(|(_, n)| n.eq_ignore_ascii_case(name)).map(|(t, _)| *t)
+    }
 }
 
 impl App {
@@ -64,7 +69,7 @@ impl App {
             if let Some(e) = &self.difference_range.error {
                 ui.colored_label(egui::Color32::LIGHT_RED, format!("difference range: {e}"));
             }
-            self.layers_ui(ui);
+            // Adding a dataset comes before the list, reachable without scrolling past it.
             match self.add_dataset.ui(ui, &self.project) {
                 Some(Ok((spec, info))) => {
                     let name = spec.name.clone();
@@ -88,6 +93,7 @@ impl App {
                     self.message = e.to_string();
                 }
             }
+            self.layers_ui(ui);
         });
         ui.separator();
         ui.horizontal_wrapped(|ui| {
@@ -95,6 +101,13 @@ impl App {
                 ui.selectable_value(&mut self.tab, tab, name);
             }
         });
+        // A tool acts on its own tab: leaving it disarms it (the brush unless pinned).
+        if self.tab != Tab::Brush && !self.brush.pinned {
+            self.brush.on = false;
+        }
+        if self.tab != Tab::Erosion {
+            self.erosion.brush = false;
+        }
         ui.separator();
         egui::ScrollArea::vertical().id_salt("tab").show(ui, |ui| match self.tab {
             Tab::View => self.view_settings(ui),
@@ -262,16 +275,7 @@ impl App {
     fn compare_tab(&mut self, ui: &mut egui::Ui) {
         match self.compare.ui(ui, &self.project) {
             crate::gui::compare_panel::CompareAction::Apply(c) => self.apply_coregistration(&c),
-            crate::gui::compare_panel::CompareAction::ShowDifference { a, b } => {
-                let spec = crate::gui::difference_ui::new_layer(&self.project, &a, &b);
-                match self.insert_layer(spec) {
-                    Ok(()) => {
-                        self.stack_changed();
-                        self.message = format!("drawing {a} - {b} over the terrain (layer on top of the stack)");
-                    }
-                    Err(e) => self.message = crate::errors::chain(&e),
-                }
-            }
+            crate::gui::compare_panel::CompareAction::ShowDifference { a, b } => self.show_difference(&a, &b),
             crate::gui::compare_panel::CompareAction::None => {}
         }
         self.profile_ui(ui);

@@ -118,30 +118,32 @@ impl App {
         })
     }
 
-    /// Moves the line when a drag starts on it; true while the line is being dragged (the camera
-    /// then stays).
-    pub(super) fn drag_swipe(&mut self, ui: &egui::Ui, response: &egui::Response, rect: egui::Rect) -> bool {
+    /// Moves the line when a press lands on it, from the pointer's events (`steps`, in points):
+    /// true while the line is being dragged, the camera then staying.
+    pub(super) fn drag_swipe(&mut self, steps: &[pointer::Step], rect: egui::Rect) -> bool {
         let Some(s) = &mut self.swipe else { return false };
         if s.side_by_side {
             return false;
         }
-        let line_x = rect.left() + s.position * rect.width();
-        // Where the press began decides (the pointer has moved by the time a drag is seen).
-        if response.drag_started()
-            && let Some(p) = ui.input(|i| i.pointer.press_origin()).or_else(|| response.interact_pointer_pos())
-        {
-            s.dragging = (p.x - line_x).abs() <= GRAB_PT;
+        let was = s.dragging;
+        for step in steps {
+            match *step {
+                pointer::Step::Press { pos, button: egui::PointerButton::Primary, .. } => {
+                    let line_x = rect.left() + s.position * rect.width();
+                    s.dragging = (pos.x - line_x).abs() <= GRAB_PT;
+                }
+                pointer::Step::Move { pos } if s.dragging => {
+                    s.position = ((pos.x - rect.left()) / rect.width()).clamp(0.0, 1.0);
+                }
+                pointer::Step::Release { pos } if s.dragging => {
+                    s.position = ((pos.x - rect.left()) / rect.width()).clamp(0.0, 1.0);
+                    s.dragging = false;
+                    return true;
+                }
+                _ => {}
+            }
         }
-        if !s.dragging {
-            return false;
-        }
-        if let Some(p) = ui.input(|i| i.pointer.latest_pos()) {
-            s.position = ((p.x - rect.left()) / rect.width()).clamp(0.0, 1.0);
-        }
-        if response.drag_stopped() || !response.dragged() {
-            s.dragging = false;
-        }
-        true
+        was || s.dragging
     }
 
     /// Paints both pictures, split at the line, and the line.
