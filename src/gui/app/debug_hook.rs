@@ -43,7 +43,7 @@ impl App {
         if let Ok(text) = std::fs::read_to_string(&commands) {
             let _ = std::fs::remove_file(&commands);
             for line in text.lines() {
-                self.debug_command(line.trim());
+                self.debug_command(ctx, line.trim());
             }
         }
         let strokes: serde_json::Map<String, serde_json::Value> = self
@@ -88,8 +88,8 @@ impl App {
         std::thread::sleep(hook.frame_delay);
     }
 
-    /// One command: `tab NAME`, `brush on|off`, `drape on|off` (the run's overlay on the terrain), `erosion STEPS HALF_M` (a run started and run).
-    fn debug_command(&mut self, line: &str) {
+    /// One command: `tab NAME`, `brush on|off`, `drape on|off` (the run's overlay on the terrain), `shot PATH` (the window as a PNG), `erosion STEPS HALF_M` (a run started and run).
+    fn debug_command(&mut self, ctx: &egui::Context, line: &str) {
         let words: Vec<&str> = line.split_whitespace().collect();
         match words.as_slice() {
             ["tab", name] => {
@@ -99,6 +99,12 @@ impl App {
             }
             ["brush", on] => self.brush.on = *on == "on",
             ["drape", on] => self.erosion.drape = *on == "on",
+            ["shot", path] => {
+                let path = std::path::PathBuf::from(path);
+                ctx.request_screenshot(move |image| {
+                    let _ = write_screenshot(&path, &image);
+                });
+            }
             ["erosion", steps, half_m] => {
                 if let (Ok(steps), Ok(half_m)) = (steps.parse(), half_m.parse()) {
                     self.set_erosion(steps, half_m);

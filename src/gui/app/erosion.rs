@@ -453,7 +453,7 @@ impl App {
         let s = self.erosion.session.as_mut()?;
         // Showing progress recomposes the region's quads; where that is slow (a software GPU)
         // the frames between stay as cheap as drawing, so that the window answers the user.
-        let pace = Duration::from_secs_f64(SHOW_PACE * self.compose_ms / 1e3).max(Duration::from_millis(400));
+        let pace = Duration::from_secs_f64(SHOW_PACE * self.progress_ms.0 / 1e3).max(Duration::from_millis(400));
         if let Some(t) = s.last_shown
             && t.elapsed() < pace
         {
@@ -487,6 +487,7 @@ impl App {
             self.message = format!("erosion overlay: {}", crate::errors::chain(&e));
         }
         self.dirty = true;
+        self.progress_ms.1 = true;
         None
     }
 

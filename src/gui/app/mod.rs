@@ -64,8 +64,9 @@ pub struct App {
     started: Instant,
     frames: u64,
     last_frame_ms: f64,
-    /// What the last frame that composed quads took, ms: what showing a run's progress costs.
-    compose_ms: f64,
+    /// What drawing a run's progress last cost, ms (the frame after it was handed to the
+    /// renderer), and whether the next drawn frame is such a frame.
+    progress_ms: (f64, bool),
     /// The gesture a press on the viewport started (navigation or a stroke), from events.
     gesture: Option<pointer::Gesture>,
     /// The button held since a press on the viewport.
@@ -149,7 +150,7 @@ impl App {
             started: Instant::now(),
             frames: 0,
             last_frame_ms: 0.0,
-            compose_ms: 0.0,
+            progress_ms: (0.0, false),
             gesture: None,
             held: None,
             anchor_query: None,
@@ -480,8 +481,8 @@ impl App {
                 }
                 self.frames += 1;
                 self.last_frame_ms = t.elapsed().as_secs_f64() * 1e3;
-                if !self.stats.composed.is_empty() {
-                    self.compose_ms = self.last_frame_ms;
+                if self.progress_ms.1 {
+                    self.progress_ms = (self.last_frame_ms, false);
                 }
             }
             self.dirty = false;
