@@ -251,6 +251,20 @@ fn the_workstation_draws_probes_navigates_and_saves() {
     assert_eq!(h.state().stack().layers[0].spec.name, "lola_global");
 }
 
+/// The strokes of the layer `sculpt` and how many are applied.
+fn sculpt_strokes(h: &Harness<'static, App>) -> (usize, usize) {
+    let l = h.state().project().layers.iter().find(|l| l.name == "sculpt").unwrap();
+    (l.strokes().len(), l.applied_strokes().len())
+}
+
+/// Opens the Brush tab and ticks *brush (left drag paints)*.
+fn arm_the_brush(h: &mut Harness<'static, App>) {
+    h.get_by_label("Brush").click_accesskit();
+    h.run_steps(2);
+    h.get_by_label("brush (left drag paints)").click_accesskit();
+    h.run_steps(2);
+}
+
 /// Steps (10 ms apart) while the window is `busy`, then two more; panics naming `what` if it is
 /// still busy after `steps` steps and five minutes (work on worker threads is niced, and a loaded
 /// machine running the other tests in parallel slows it, not what it does).
@@ -581,15 +595,9 @@ fn a_left_drag_with_the_brush_on_paints_a_stroke_and_ctrl_z_undoes_it() {
     let project = sample_project("moon-brushing", &dir);
     let mut h = harness_of_size(&project, "sculpt", egui::vec2(900.0, 1700.0));
     settle(&mut h);
-    let strokes = |h: &Harness<'static, App>| {
-        let l = h.state().project().layers.iter().find(|l| l.name == "sculpt").unwrap();
-        (l.strokes().len(), l.applied_strokes().len())
-    };
+    let strokes = |h: &Harness<'static, App>| sculpt_strokes(h);
     let (n, _) = strokes(&h);
-    h.get_by_label("Brush").click_accesskit();
-    h.run_steps(2);
-    h.get_by_label("brush (left drag paints)").click_accesskit();
-    h.run_steps(2);
+    arm_the_brush(&mut h);
     assert!(h.state().brush_state().0, "the brush is on");
     let camera = h.state().camera();
     let r = h.state().viewport_rect_px().unwrap();
@@ -790,15 +798,9 @@ fn a_press_its_moves_and_its_release_between_two_frames_are_all_taken() {
     settle(&mut h);
 
     // A stroke drawn between two frames starts where the button went down.
-    let strokes = |h: &Harness<'static, App>| {
-        let l = h.state().project().layers.iter().find(|l| l.name == "sculpt").unwrap();
-        (l.strokes().len(), l.applied_strokes().len())
-    };
+    let strokes = |h: &Harness<'static, App>| sculpt_strokes(h);
     let (n, _) = strokes(&h);
-    h.get_by_label("Brush").click_accesskit();
-    h.run_steps(2);
-    h.get_by_label("brush (left drag paints)").click_accesskit();
-    h.run_steps(2);
+    arm_the_brush(&mut h);
     let press = c + egui::vec2(-90.0, 30.0);
     h.hover_at(press);
     settle(&mut h);
