@@ -11,6 +11,7 @@ pub mod dataset;
 pub mod flight;
 pub mod loader;
 mod operand;
+pub mod patch_error;
 pub mod patches;
 pub(crate) mod quads;
 pub mod select;
