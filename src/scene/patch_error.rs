@@ -6,6 +6,11 @@
 //!
 //! The mesh is the one `gpu::terrain::patch_indices` draws: each cell of the stride's grid cut
 //! along the diagonal from its (0, 0) corner to its (1, 1) corner, linear on each triangle.
+//!
+//! These errors are against the quad's own samples. A quad drawn coarser than its data's finest
+//! level also misses the finer samples; the error the selection needs adds theirs level by level
+//! (each level's error saturated with its children's, as Lindstrom & Pascucci's nested errors
+//! are), which is the next step, on the GPU as the quads compose.
 
 use super::patches::{PATCH_CELLS, PATCHES_PER_EDGE, STRIDES};
 use crate::store::grid::GRID;
@@ -22,35 +27,41 @@ pub fn mesh_height(h00: f64, h10: f64, h01: f64, h11: f64, u: f64, v: f64) -> f6
 /// metres: `vertex(stride, i, j)` is the height the mesh at that stride draws at sample (i, j) of
 /// the quad (its own sample, or an ancestor's where coarser strides read coarser data).
 pub fn patch_errors(heights: &[f32], px: u32, py: u32, vertex: &dyn Fn(u32, u32, u32) -> f64) -> [f64; STRIDES.len()] {
-    debug_assert_eq!(heights.len(), (GRID * GRID) as usize);
-    let (i0, j0) = (px * PATCH_CELLS, py * PATCH_CELLS);
     let mut errors = [0f64; STRIDES.len()];
     for (k, &s) in STRIDES.iter().enumerate() {
-        let mut worst = 0f64;
-        for cj in (0..PATCH_CELLS).step_by(s as usize) {
-            for ci in (0..PATCH_CELLS).step_by(s as usize) {
-                let (a, b) = (i0 + ci, j0 + cj);
-                let corners = [vertex(s, a, b), vertex(s, a + s, b), vertex(s, a, b + s), vertex(s, a + s, b + s)];
-                if corners.iter().any(|h| !h.is_finite()) {
-                    continue;
-                }
-                let [h00, h10, h01, h11] = corners;
-                for dj in 0..=s {
-                    for di in 0..=s {
-                        let h = f64::from(heights[((b + dj) * GRID + a + di) as usize]);
-                        if !h.is_finite() {
-                            continue;
-                        }
-                        let drawn =
-                            mesh_height(h00, h10, h01, h11, f64::from(di) / f64::from(s), f64::from(dj) / f64::from(s));
-                        worst = worst.max((h - drawn).abs());
-                    }
-                }
-            }
-        }
+        let worst = stride_error(heights, px, py, s, vertex);
         errors[k] = if k == 0 { worst } else { worst.max(errors[k - 1]) };
     }
     errors
+}
+
+/// The largest vertical miss of the patch's mesh at `stride` alone (not made monotone): what a
+/// patch drawn at that stride shows wrong. Arguments as for [`patch_errors`].
+pub fn stride_error(heights: &[f32], px: u32, py: u32, stride: u32, vertex: &dyn Fn(u32, u32, u32) -> f64) -> f64 {
+    debug_assert_eq!(heights.len(), (GRID * GRID) as usize);
+    let (i0, j0, s) = (px * PATCH_CELLS, py * PATCH_CELLS, stride);
+    let mut worst = 0f64;
+    for cj in (0..PATCH_CELLS).step_by(s as usize) {
+        for ci in (0..PATCH_CELLS).step_by(s as usize) {
+            let (a, b) = (i0 + ci, j0 + cj);
+            let corners = [vertex(s, a, b), vertex(s, a + s, b), vertex(s, a, b + s), vertex(s, a + s, b + s)];
+            if corners.iter().any(|h| !h.is_finite()) {
+                continue;
+            }
+            let [h00, h10, h01, h11] = corners;
+            for dj in 0..=s {
+                for di in 0..=s {
+                    let h = f64::from(heights[((b + dj) * GRID + a + di) as usize]);
+                    if !h.is_finite() {
+                        continue;
+                    }
+                    let (u, v) = (f64::from(di) / f64::from(s), f64::from(dj) / f64::from(s));
+                    worst = worst.max((h - mesh_height(h00, h10, h01, h11, u, v)).abs());
+                }
+            }
+        }
+    }
+    worst
 }
 
 /// δ of every patch of a quad at every stride, row by row from the south (64 patches), with the
