@@ -1,11 +1,13 @@
 // The ECM terrain: one instanced draw per stride of the selected quads' patches (32 × 32 sample
-// spacings of a quad, drawn every stride samples). Vertex stage: the camera-centric
-// single-precision reconstruction P = A′ + (patch + oₑ + h₀·δn + (h − h₀)·nₑ) with skirts;
-// fragment stage: colour ramp, isolines and hillshade computed per pixel from the elevation, and
-// the drawn difference layer's dh in a diverging colour map with its own isolines. The ramp
-// colours the height or a terrain attribute: slope, aspect and hillshade per pixel from the
-// shading normal, the window attributes (curvatures, TPI, TRI, roughness) per vertex from the
-// 3 × 3 window of the data it draws.
+// spacings of a quad, drawn every stride samples). Vertex stage: geometry only, the
+// camera-centric single-precision reconstruction P = A′ + (patch + oₑ + h₀·δn + (h − h₀)·nₑ) with
+// skirts and geomorphing. Fragment stage: what the user reads, from the composed data at the
+// pixel, not from the vertices: the quad's heights at the pixel's sample coordinates (bilinear,
+// by hand: storage reads), their gradient for the normal, and from those the colour ramp (over
+// the height or a terrain attribute: slope, aspect and hillshade from the normal, curvatures,
+// TPI, TRI and roughness from the samples' 3 × 3 windows), isolines, hillshade and the drawn
+// difference layer's dh in a diverging colour map with its own isolines. A coarse mesh and the
+// finest one therefore show the same colours and lines but within a pixel of silhouettes.
 //!include shared/ecm.wgsl
 //!include shared/shading.wgsl
 //!include shared/attributes.wgsl
@@ -101,24 +103,16 @@ struct VertexOut {
     @builtin(position) clip: vec4<f32>,
     // Camera-relative position, metres.
     @location(0) rel: vec3<f32>,
-    // Height in metres (not exaggerated).
-    @location(1) height: f32,
-    // 1 where the sample has data.
-    @location(2) valid: f32,
     // Ellipsoid normal.
-    @location(3) up: vec3<f32>,
-    // Surface tangents along the sample axes (∂P/∂i, ∂P/∂j), metres per sample.
-    @location(4) along_i: vec3<f32>,
-    @location(5) along_j: vec3<f32>,
-    // Which quad, and the sample coordinates with 1 for a skirt vertex (probe output).
-    @location(6) @interpolate(flat) quad: u32,
-    @location(7) @interpolate(flat) sample: vec3<u32>,
-    // The drawn difference A − B (metres) and 1 where it has data.
-    @location(8) dh: f32,
-    @location(9) dh_valid: f32,
-    // The window attribute the ramp colours and 1 where its window has data.
-    @location(10) attr: f32,
-    @location(11) attr_valid: f32,
+    @location(1) up: vec3<f32>,
+    // The ellipsoid's tangents along the sample axes (∂P/∂i, ∂P/∂j), metres per sample.
+    @location(2) along_i: vec3<f32>,
+    @location(3) along_j: vec3<f32>,
+    // The vertex's sample coordinates in its quad (the fragment reads the data there).
+    @location(4) coords: vec2<f32>,
+    // Which quad; bit 0 a skirt vertex, the patch's stride above it (probe output).
+    @location(5) @interpolate(flat) quad: u32,
+    @location(6) @interpolate(flat) kind: u32,
 }
 
 fn map_value(which: u32, slot: u32, c: vec2<u32>) -> vec3<f32> {
@@ -219,21 +213,6 @@ fn local_position(q: Quad, i: u32, j: u32, h: f32) -> vec3<f32> {
     return ecm_local_with_maps(base, o, n, dn, h0, h);
 }
 
-// What a vertex draws before the skirt: its position relative to A′, ellipsoid normal, shown
-// height, tangents and drawn difference.
-struct Sample {
-    local: vec3<f32>,
-    up: vec3<f32>,
-    height: f32,
-    valid: f32,
-    along_i: vec3<f32>,
-    along_j: vec3<f32>,
-    dh: f32,
-    dh_valid: f32,
-    attr: f32,
-    attr_valid: f32,
-}
-
 // The attribute the ramp colours (ATTRIBUTE_*), or none (the height).
 fn coloured_attribute() -> u32 {
     return select(NO_SLOT, u32(frame.iso_width.w + 0.5) - 1u, frame.iso_width.w > 0.5);
@@ -250,14 +229,6 @@ fn ancestor_height(q: Quad, k: u32, a: u32, b: u32) -> f32 {
         return NODATA_BELOW * 2.0;
     }
     return heights[slot * N * N + b * N + a];
-}
-
-// Whether the data k ≤ 5 levels above the quad's is held (k = 0: the quad's own).
-fn held(q: Quad, k: u32) -> bool {
-    if k == 0u {
-        return q.slots.z != NO_SLOT;
-    }
-    return k <= 5u && select(q.ancestry[1].x, q.ancestry[0][min(k, 4u) - 1u], k <= 4u) != NO_SLOT;
 }
 
 // The window attribute `code` of the data k levels above the quad's at that level's sample
@@ -282,101 +253,31 @@ fn level_window(q: Quad, k: u32, a: u32, b: u32, axes: vec4<f32>, code: u32) -> 
     return vec2<f32>(attribute_at(code, z, axes, HILLSHADE_LIGHT), 1.0);
 }
 
-// The window attribute of the data k levels above the quad's at the point of its sample (i, j):
-// bilinear between the windows of the four samples of that level around it.
-fn level_attribute(q: Quad, i: u32, j: u32, k: u32, axes: vec4<f32>, code: u32) -> vec2<f32> {
-    let m = (1u << k) - 1u;
-    // (i, j) in the ancestor's samples: an integer part and a fraction.
-    let gi = i + (N - 1u) * (q.ancestry[1].z & m);
-    let gj = j + (N - 1u) * (q.ancestry[1].w & m);
-    let a = gi >> k;
-    let b = gj >> k;
-    let f = vec2<f32>(f32(gi & m), f32(gj & m)) / f32(1u << k);
-    let scaled = axes * f32(1u << k);
-    var sum = vec2<f32>(0.0, 0.0);
-    for (var c = 0u; c < 4u; c++) {
-        let w = select(1.0 - f.x, f.x, (c & 1u) == 1u) * select(1.0 - f.y, f.y, c >= 2u);
-        if w > 0.0 {
-            let v = level_window(q, k, min(a + (c & 1u), N - 1u), min(b + c / 2u, N - 1u), scaled, code);
-            sum += vec2<f32>(w * v.x, select(0.0, w, v.y > 0.5));
-        }
-    }
-    // Valid only where every window that counts is.
-    return vec2<f32>(sum.x, select(0.0, 1.0, sum.y > 0.999));
-}
-
-// The window attribute `code` (curvatures, TPI, TRI, roughness) at sample (i, j), at distance
-// `distance` from the camera, and 1 where its windows have data. The attribute is a function of
-// the place and the camera, not of the quad or stride that draws it: it is taken at the level
-// whose samples cover the level-of-detail threshold there (which the quads drawn there are never
-// coarser than), continuous between the two levels around it, so no quad or patch boundary
-// shows and nothing pops as the camera moves. Its windows step over that level's samples (the
-// steps along i and j measured on the ellipsoid); its heights are the true ones, whatever the
-// exaggeration. Data more than five levels up is not held: the attribute is then that level's.
-fn window_attribute(q: Quad, i: u32, j: u32, distance: f32, code: u32) -> vec2<f32> {
-    if q.slots.z == NO_SLOT {
-        return vec2<f32>(0.0, 0.0);
-    }
+// The ellipsoid tangents along the quad's sample axes at sample (i, j), metres per sample
+// (central differences of the ellipsoid points, one-sided at the quad's edges): the fragment
+// stage adds the data's slope along the normal to them.
+fn ellipsoid_tangents(q: Quad, i: u32, j: u32) -> array<vec3<f32>, 2> {
     let i0 = max(i, 1u) - 1u;
     let i1 = min(i + 1u, N - 1u);
     let j0 = max(j, 1u) - 1u;
     let j1 = min(j + 1u, N - 1u);
-    // The steps along i and j in an orthonormal frame of the tangent plane (x along i).
-    let x = (surface_point(q, i1, j) - surface_point(q, i0, j)) / f32(i1 - i0);
-    let y = (surface_point(q, i, j1) - surface_point(q, i, j0)) / f32(j1 - j0);
-    let ex = normalize(x);
-    let axes = vec4<f32>(length(x), 0.0, dot(y, ex), length(y - ex * dot(y, ex)));
-    // Levels up to the one whose sample spans the threshold here.
-    let up = clamp(log2(max(distance / (length(x) * frame.morph.x), 1.0)), 0.0, 5.0);
-    // Down to the nearest level held (an ancestor whose composition is not current is not).
-    var k0 = u32(min(floor(up), q.params.y));
-    while k0 > 0u && !held(q, k0) {
-        k0 -= 1u;
-    }
-    let t = select(clamp(up - f32(k0), 0.0, 1.0), 0.0, k0 + 1u > u32(min(floor(up) + 1.0, q.params.y)) || !held(q, k0 + 1u));
-    var v = level_attribute(q, i, j, k0, axes, code);
-    if t > 0.0 {
-        let w = level_attribute(q, i, j, k0 + 1u, axes, code);
-        v = vec2<f32>(mix(v.x, w.x, t), min(v.y, w.y));
-    }
-    return v;
+    return array<vec3<f32>, 2>(
+        (surface_point(q, i1, j) - surface_point(q, i0, j)) / f32(i1 - i0),
+        (surface_point(q, i, j1) - surface_point(q, i, j0)) / f32(j1 - j0),
+    );
 }
 
-// Sample (i, j) (a multiple of 2^k) with the data of level k above the quad's.
-fn sample_at(q: Quad, i: u32, j: u32, k: u32) -> Sample {
-    var out: Sample;
-    let raw = raw_height_at(q, i, j, k);
-    let valid = raw > NODATA_BELOW;
+// Where a vertex lies, before its skirt: relative to A′, and its ellipsoid normal. A vertex of a
+// patch every 2^k samples (i, j multiples of 2^k) stands on the data of level k above the quad's.
+struct Place {
+    local: vec3<f32>,
+    up: vec3<f32>,
+}
+
+fn place_at(q: Quad, i: u32, j: u32, k: u32) -> Place {
+    var out: Place;
     out.up = ellipsoid_normal(q, i, j);
     out.local = local_position(q, i, j, geometry_height_at(q, i, j, k));
-    out.height = select(q.params.z, raw, valid);
-    out.valid = select(0.0, 1.0, valid);
-    // Tangents from the neighbouring samples of that data, 2^k apart (one-sided at the quad's
-    // edges): the ellipsoid point's change plus the height's change along this sample's normal
-    // (the normal's own turn over one sample, ~10⁻⁴ rad at level 0, is left out: it only tilts
-    // the shading normal); per sample.
-    let d = 1u << k;
-    let i0 = max(i, d) - d;
-    let i1 = min(i + d, N - 1u);
-    let j0 = max(j, d) - d;
-    let j1 = min(j + d, N - 1u);
-    out.along_i = (surface_point(q, i1, j) - surface_point(q, i0, j) + out.up * (geometry_height_at(q, i1, j, k) - geometry_height_at(q, i0, j, k))) / f32(i1 - i0);
-    out.along_j = (surface_point(q, i, j1) - surface_point(q, i, j0) + out.up * (geometry_height_at(q, i, j1, k) - geometry_height_at(q, i, j0, k))) / f32(j1 - j0);
-    out.dh = 0.0;
-    out.dh_valid = 0.0;
-    if frame.difference.w > 0.5 && q.slots.z != NO_SLOT {
-        let dh = overlay[data_index(q, i, j, k)];
-        out.dh = select(0.0, dh, dh > NODATA_BELOW);
-        out.dh_valid = select(0.0, 1.0, dh > NODATA_BELOW);
-    }
-    out.attr = 0.0;
-    out.attr_valid = 0.0;
-    let code = coloured_attribute();
-    if code != NO_SLOT && code >= ATTRIBUTE_CURVATURE {
-        let w = window_attribute(q, i, j, length(q.anchor.xyz + out.local), code);
-        out.attr = w.x;
-        out.attr_valid = w.y;
-    }
     return out;
 }
 
@@ -392,7 +293,6 @@ fn morph_factor(q: Quad, stride: u32, distance: f32) -> f32 {
     let rho = 2.0 * f32(stride) * q.lod.x * frame.morph.x / max(distance, 1e-6);
     return clamp((frame.morph.y - rho) / (frame.morph.y - frame.morph.w), 0.0, 1.0);
 }
-
 @vertex
 fn vs_main(@builtin(vertex_index) vertex: u32, @builtin(instance_index) instance: u32) -> VertexOut {
     // Vertex b·(n+1) + a is the patch's sample (a, b) at its stride; (n+1)² more, the same sample
@@ -407,47 +307,29 @@ fn vs_main(@builtin(vertex_index) vertex: u32, @builtin(instance_index) instance
     let i = p.i0 + a * p.stride;
     let j = p.j0 + b * p.stride;
 
-    // A patch every 2^k samples draws the data of level k above the quad's.
+    // A patch every 2^k samples stands on the data of level k above the quad's.
     let k = firstTrailingBit(p.stride);
-    var s = sample_at(q, i, j, k);
+    var s = place_at(q, i, j, k);
     // Toward twice the stride: a vertex the coarser mesh lacks (odd a or b) slides to the coarser
     // mesh's point there, the midpoint of its two neighbours at twice the stride along the edge,
     // or along the cell's cut for a cell centre; one it has takes that mesh's data (a level up).
-    // At m = 1 the patch draws the coarser mesh exactly.
+    // At m = 1 the patch draws the coarser mesh exactly. Only the geometry morphs: what the
+    // pixels show is read from the data in the fragment stage.
     let da = a % 2u;
     let db = b % 2u;
     let m = morph_factor(q, p.stride, length(q.anchor.xyz + s.local));
     if MORPH && m > 0.0 {
-        var t: Sample;
+        var t: Place;
         if da + db > 0u {
-            let n1 = sample_at(q, i - da * p.stride, j - db * p.stride, k + 1u);
-            let n2 = sample_at(q, i + da * p.stride, j + db * p.stride, k + 1u);
+            let n1 = place_at(q, i - da * p.stride, j - db * p.stride, k + 1u);
+            let n2 = place_at(q, i + da * p.stride, j + db * p.stride, k + 1u);
             t.local = 0.5 * (n1.local + n2.local);
             t.up = 0.5 * (n1.up + n2.up);
-            t.height = 0.5 * (n1.height + n2.height);
-            t.valid = min(n1.valid, n2.valid);
-            t.along_i = 0.5 * (n1.along_i + n2.along_i);
-            t.along_j = 0.5 * (n1.along_j + n2.along_j);
-            t.dh = 0.5 * (n1.dh + n2.dh);
-            t.dh_valid = min(n1.dh_valid, n2.dh_valid);
-            t.attr = 0.5 * (n1.attr + n2.attr);
-            t.attr_valid = min(n1.attr_valid, n2.attr_valid);
         } else {
-            t = sample_at(q, i, j, k + 1u);
+            t = place_at(q, i, j, k + 1u);
         }
         s.local = mix(s.local, t.local, m);
         s.up = normalize(mix(s.up, t.up, m));
-        if t.valid > 0.5 && s.valid > 0.5 {
-            s.height = mix(s.height, t.height, m);
-        }
-        s.along_i = mix(s.along_i, t.along_i, m);
-        s.along_j = mix(s.along_j, t.along_j, m);
-        if t.dh_valid > 0.5 && s.dh_valid > 0.5 {
-            s.dh = mix(s.dh, t.dh, m);
-        }
-        if t.attr_valid > 0.5 && s.attr_valid > 0.5 {
-            s.attr = mix(s.attr, t.attr, m);
-        }
     }
     var local = s.local;
     if skirt {
@@ -455,23 +337,181 @@ fn vs_main(@builtin(vertex_index) vertex: u32, @builtin(instance_index) instance
         // height change over a stride, at most the quad's relief (params.w).
         local = local - s.up * max(q.params.x, min(q.params.x * f32(p.stride), q.params.w));
     }
+    let tangents = ellipsoid_tangents(q, i, j);
 
     var out: VertexOut;
     out.rel = q.anchor.xyz + local;
     out.clip = frame.view_proj * vec4<f32>(out.rel, 1.0);
-    out.height = s.height;
-    out.valid = s.valid;
     out.up = s.up;
-    out.along_i = s.along_i;
-    out.along_j = s.along_j;
+    out.along_i = tangents[0];
+    out.along_j = tangents[1];
+    out.coords = vec2<f32>(f32(i), f32(j));
     out.quad = p.quad;
-    // z: bit 0 a skirt vertex, the stride above it (the probe's id.w carries both).
-    out.sample = vec3<u32>(i, j, select(0u, 1u, skirt) | (p.stride << 1u));
-    out.dh = s.dh;
-    out.dh_valid = s.dh_valid;
-    out.attr = s.attr;
-    out.attr_valid = s.attr_valid;
+    // Bit 0 a skirt vertex, the stride above it (the probe's id.w carries both).
+    out.kind = select(0u, 1u, skirt) | (p.stride << 1u);
     return out;
+}
+
+// The composed data at a pixel: its quad's heights at the pixel's sample coordinates.
+struct Pixel {
+    // Metres (not exaggerated): bilinear between the four samples around, or the nearest one
+    // where one of them has no data; the no-data fill where that has none either.
+    height: f32,
+    // 1 where the pixel has data.
+    valid: f32,
+    // ∂h/∂i and ∂h/∂j, metres per sample: the four samples' central differences, bilinear.
+    gradient: vec2<f32>,
+    // The drawn difference A − B (metres), and 1 where it has data.
+    dh: f32,
+    dh_valid: f32,
+    // ∂dh/∂i and ∂dh/∂j of its bilinear cell, metres per sample (0 where a corner has no data).
+    dh_gradient: vec2<f32>,
+    // The sample (a, b) at or below the pixel, and the fraction beyond it.
+    cell: vec2<u32>,
+    fraction: vec2<f32>,
+}
+
+// Sample (i, j) of a height slot, the indices held inside the quad.
+fn slot_height(slot: u32, i: i32, j: i32) -> f32 {
+    let a = u32(clamp(i, 0, i32(N) - 1));
+    let b = u32(clamp(j, 0, i32(N) - 1));
+    return heights[slot * N * N + b * N + a];
+}
+
+// The central difference of a height slot at sample (a, b) along (di, dj), metres per sample:
+// one-sided at the quad's edge or beside a sample without data, 0 with neither neighbour.
+fn slot_slope(slot: u32, a: i32, b: i32, di: i32, dj: i32, h: f32) -> f32 {
+    let last = i32(N) - 1;
+    let lo_in = select(b > 0, a > 0, di != 0);
+    let hi_in = select(b < last, a < last, di != 0);
+    var lo = slot_height(slot, a - di, b - dj);
+    var hi = slot_height(slot, a + di, b + dj);
+    let lo_ok = lo_in && lo > NODATA_BELOW;
+    let hi_ok = hi_in && hi > NODATA_BELOW;
+    lo = select(h, lo, lo_ok);
+    hi = select(h, hi, hi_ok);
+    let span = f32(u32(lo_ok) + u32(hi_ok));
+    return select(0.0, (hi - lo) / max(span, 1.0), span > 0.0);
+}
+
+fn pixel_data(q: Quad, coords: vec2<f32>) -> Pixel {
+    var out: Pixel;
+    let x = clamp(coords, vec2<f32>(0.0), vec2<f32>(f32(N - 1u)));
+    let cell = min(vec2<u32>(floor(x)), vec2<u32>(N - 2u));
+    let f = x - vec2<f32>(cell);
+    out.cell = cell;
+    out.fraction = f;
+    out.height = q.params.z;
+    out.valid = 0.0;
+    out.gradient = vec2<f32>(0.0);
+    out.dh = 0.0;
+    out.dh_valid = 0.0;
+    out.dh_gradient = vec2<f32>(0.0);
+    let slot = q.slots.z;
+    if slot == NO_SLOT {
+        return out;
+    }
+    let a = i32(cell.x);
+    let b = i32(cell.y);
+    let h = array<f32, 4>(slot_height(slot, a, b), slot_height(slot, a + 1, b), slot_height(slot, a, b + 1), slot_height(slot, a + 1, b + 1));
+    let w = array<f32, 4>((1.0 - f.x) * (1.0 - f.y), f.x * (1.0 - f.y), (1.0 - f.x) * f.y, f.x * f.y);
+    let all = h[0] > NODATA_BELOW && h[1] > NODATA_BELOW && h[2] > NODATA_BELOW && h[3] > NODATA_BELOW;
+    if all {
+        var sum = 0.0;
+        var g = vec2<f32>(0.0);
+        for (var c = 0u; c < 4u; c++) {
+            let ca = a + i32(c & 1u);
+            let cb = b + i32(c / 2u);
+            sum += w[c] * h[c];
+            g += w[c] * vec2<f32>(slot_slope(slot, ca, cb, 1, 0, h[c]), slot_slope(slot, ca, cb, 0, 1, h[c]));
+        }
+        out.height = sum;
+        out.valid = 1.0;
+        out.gradient = g;
+    } else {
+        // The nearest sample: its height, flat.
+        let c = u32(f.x >= 0.5) + 2u * u32(f.y >= 0.5);
+        if h[c] > NODATA_BELOW {
+            out.height = h[c];
+            out.valid = 1.0;
+        }
+    }
+    if frame.difference.w > 0.5 {
+        let base = slot * N * N + cell.y * N + cell.x;
+        let d = array<f32, 4>(overlay[base], overlay[base + 1u], overlay[base + N], overlay[base + N + 1u]);
+        if d[0] > NODATA_BELOW && d[1] > NODATA_BELOW && d[2] > NODATA_BELOW && d[3] > NODATA_BELOW {
+            out.dh = w[0] * d[0] + w[1] * d[1] + w[2] * d[2] + w[3] * d[3];
+            out.dh_valid = 1.0;
+            out.dh_gradient = vec2<f32>((d[1] - d[0]) * (1.0 - f.y) + (d[3] - d[2]) * f.y, (d[2] - d[0]) * (1.0 - f.x) + (d[3] - d[1]) * f.x);
+        } else {
+            let c = u32(f.x >= 0.5) + 2u * u32(f.y >= 0.5);
+            out.dh = select(0.0, d[c], d[c] > NODATA_BELOW);
+            out.dh_valid = select(0.0, 1.0, d[c] > NODATA_BELOW);
+        }
+    }
+    return out;
+}
+
+// Whether the data k ≤ 5 levels above the quad's is held (k = 0: the quad's own).
+fn held(q: Quad, k: u32) -> bool {
+    if k == 0u {
+        return q.slots.z != NO_SLOT;
+    }
+    return k <= 5u && select(q.ancestry[1].x, q.ancestry[0][min(k, 4u) - 1u], k <= 4u) != NO_SLOT;
+}
+
+// The window attribute of the data k levels above the quad's at the point of its sample
+// coordinates `coords`: bilinear between the windows of the four samples of that level around it.
+fn level_attribute(q: Quad, coords: vec2<f32>, k: u32, axes: vec4<f32>, code: u32) -> vec2<f32> {
+    let m = (1u << k) - 1u;
+    let offset = f32(N - 1u) * vec2<f32>(f32(q.ancestry[1].z & m), f32(q.ancestry[1].w & m));
+    let g = clamp((coords + offset) / f32(1u << k), vec2<f32>(0.0), vec2<f32>(f32(N - 1u)));
+    let cell = min(vec2<u32>(floor(g)), vec2<u32>(N - 2u));
+    let f = g - vec2<f32>(cell);
+    let scaled = axes * f32(1u << k);
+    var sum = vec2<f32>(0.0, 0.0);
+    for (var c = 0u; c < 4u; c++) {
+        let w = select(1.0 - f.x, f.x, (c & 1u) == 1u) * select(1.0 - f.y, f.y, c >= 2u);
+        if w > 0.0 {
+            let v = level_window(q, k, cell.x + (c & 1u), cell.y + c / 2u, scaled, code);
+            sum += vec2<f32>(w * v.x, select(0.0, w, v.y > 0.5));
+        }
+    }
+    // Valid only where every window that counts is.
+    return vec2<f32>(sum.x, select(0.0, 1.0, sum.y > 0.999));
+}
+
+// The window attribute `code` (curvatures, TPI, TRI, roughness) at the pixel, at `distance` from
+// the camera, and 1 where its windows have data. The attribute is a function of the place and
+// the camera, not of the quad or stride that draws it (TPI, TRI and roughness grow with the
+// window's spacing, curvature is smoothed by it): it is taken at the level whose samples cover
+// the level-of-detail threshold there (which the quads drawn there are never coarser than),
+// continuous between the two levels around it, so no quad or patch boundary shows and nothing
+// pops as the camera moves. Its windows step over that level's samples (the steps along i and j
+// measured on the ellipsoid); its heights are the true ones, whatever the exaggeration. Data
+// more than five levels up is not held: the attribute is then that level's. CPU reference:
+// attributes::attribute_at of the same windows (tests/render.rs: a dome's curvature).
+fn pixel_attribute(q: Quad, coords: vec2<f32>, along_i: vec3<f32>, along_j: vec3<f32>, distance: f32, code: u32) -> vec2<f32> {
+    if q.slots.z == NO_SLOT {
+        return vec2<f32>(0.0, 0.0);
+    }
+    // The steps along i and j in an orthonormal frame of the tangent plane (x along i).
+    let ex = normalize(along_i);
+    let axes = vec4<f32>(length(along_i), 0.0, dot(along_j, ex), length(along_j - ex * dot(along_j, ex)));
+    // Levels up to the one whose sample spans the threshold here.
+    let up = clamp(log2(max(distance / (length(along_i) * frame.morph.x), 1.0)), 0.0, 5.0);
+    // Down to the nearest level held (an ancestor whose composition is not current is not).
+    var k0 = u32(min(floor(up), q.params.y));
+    while k0 > 0u && !held(q, k0) {
+        k0 -= 1u;
+    }
+    let t = select(clamp(up - f32(k0), 0.0, 1.0), 0.0, k0 + 1u > u32(min(floor(up) + 1.0, q.params.y)) || !held(q, k0 + 1u));
+    var v = level_attribute(q, coords, k0, axes, code);
+    if t > 0.0 {
+        let w = level_attribute(q, coords, k0 + 1u, axes, code);
+        v = vec2<f32>(mix(v.x, w.x, t), min(v.y, w.y));
+    }
+    return v;
 }
 
 // The ramp's sRGB colour at height h: below/above beyond the stops, linear between them, a step
@@ -510,31 +550,33 @@ fn ramp_colour(h: f32) -> vec4<f32> {
     return a.colour + (b.colour - a.colour) * w;
 }
 
-// The pixel's colour, sRGB-encoded 0–1. fw_iso and fw_dh: the pixel's footprint in height and
-// dh isoline intervals.
-fn shade(in: VertexOut, fw_iso: f32, fw_dh: f32, fw_brush: f32) -> vec4<f32> {
-    if in.valid < 0.5 {
+// The pixel's colour, sRGB-encoded 0–1, from the data at the pixel. fw_iso, fw_dh and fw_brush:
+// the pixel's footprint in height and dh isoline intervals and in metres from the brush's centre.
+fn shade(in: VertexOut, q: Quad, px: Pixel, fw_iso: f32, fw_dh: f32, fw_brush: f32) -> vec4<f32> {
+    if px.valid < 0.5 {
         return frame.nodata;
     }
-    // The ramp over the height, or over an attribute of the surface as drawn (iso_width.w):
-    // slope, aspect and hillshade from the shading normal, the others from the vertices' windows.
-    var value = in.height;
+    // The surface normal of the data at the pixel, with the exaggeration drawn.
+    let up = normalize(in.up);
+    let e = frame.viewport.z;
+    var n = normalize(cross(in.along_i + up * (e * px.gradient.x), in.along_j + up * (e * px.gradient.y)));
+    if dot(n, up) < 0.0 {
+        n = -n;
+    }
+    // The ramp over the height, or over an attribute of the data: slope, aspect and hillshade
+    // from the normal, the others from the samples' windows.
     var base = frame.nodata;
     let code = coloured_attribute();
     if code == NO_SLOT {
-        base = ramp_colour(value);
+        base = ramp_colour(px.height);
     } else if code >= ATTRIBUTE_CURVATURE {
-        if in.attr_valid > 0.5 {
-            base = ramp_colour(in.attr);
+        let a = pixel_attribute(q, in.coords, in.along_i, in.along_j, length(in.rel), code);
+        if a.y > 0.5 {
+            base = ramp_colour(a.x);
         }
     } else {
-        let up = normalize(in.up);
-        var n = normalize(cross(in.along_i, in.along_j));
-        if dot(n, up) < 0.0 {
-            n = -n;
-        }
-        let sa = slope_aspect(n, up, frame.viewport.z);
-        value = select(sa.x, sa.y, code == ATTRIBUTE_ASPECT);
+        let sa = slope_aspect(n, up, e);
+        var value = select(sa.x, sa.y, code == ATTRIBUTE_ASPECT);
         if code == ATTRIBUTE_HILLSHADE {
             value = hillshade_value(radians(sa.x), sa.y, HILLSHADE_LIGHT);
         }
@@ -544,21 +586,16 @@ fn shade(in: VertexOut, fw_iso: f32, fw_dh: f32, fw_brush: f32) -> vec4<f32> {
     if frame.difference.w > 0.5 {
         // dh draped over the ramp by the layer's opacity; where A or B has no data, the ramp in grey.
         var over = vec3<f32>(dot(colour, vec3<f32>(0.2126, 0.7152, 0.0722)));
-        if in.dh_valid > 0.5 {
-            over = srgb_to_linear(diverging_colour(in.dh / frame.difference.x));
+        if px.dh_valid > 0.5 {
+            over = srgb_to_linear(diverging_colour(px.dh / frame.difference.x));
         }
         colour = mix(colour, over, frame.difference.z);
     }
     if frame.sun.w > 0.5 {
-        let up = normalize(in.up);
-        var n = normalize(cross(in.along_i, in.along_j));
-        if dot(n, up) < 0.0 {
-            n = -n;
-        }
         colour = colour * hillshade(n, up, frame.sun.x, frame.sun.y, frame.sun.z);
     }
     if frame.iso.w > 0.5 {
-        let x = (in.height - frame.iso.y) / frame.iso.x;
+        let x = (px.height - frame.iso.y) / frame.iso.x;
         let k = round(x);
         let every = frame.iso.z;
         let major = every > 0.5 && abs(k - every * round(k / every)) < 0.5;
@@ -573,10 +610,10 @@ fn shade(in: VertexOut, fw_iso: f32, fw_dh: f32, fw_brush: f32) -> vec4<f32> {
         let coverage = clamp(1.5 - abs(d - frame.brush.w) / max(fw_brush, 1e-6), 0.0, 1.0);
         colour = mix(colour, vec3<f32>(1.0), coverage);
     }
-    if frame.difference.w > 0.5 && frame.difference.y > 0.0 && in.dh_valid > 0.5 {
+    if frame.difference.w > 0.5 && frame.difference.y > 0.0 && px.dh_valid > 0.5 {
         // Isolines of dh at ±k·interval, k ≥ 1, dark grey (zero is the map's white already; its
         // line would trace the noise of two equal surfaces).
-        let x = in.dh / frame.difference.y;
+        let x = px.dh / frame.difference.y;
         let zero = abs(round(x)) < 0.5;
         let coverage = select(isoline_coverage(x, fw_dh, frame.iso_width.x, frame.iso_width.z, 1.0), 0.0, zero);
         colour = mix(colour, vec3<f32>(0.02), coverage);
@@ -584,33 +621,51 @@ fn shade(in: VertexOut, fw_iso: f32, fw_dh: f32, fw_brush: f32) -> vec4<f32> {
     return vec4<f32>(linear_to_srgb(colour), 1.0);
 }
 
+// The pixel's data and colour.
+struct Shaded {
+    colour: vec4<f32>,
+    px: Pixel,
+}
+
+fn shade_pixel(in: VertexOut) -> Shaded {
+    // The sample coordinates' change across the pixel, taken before any branch; the height's
+    // from them and the data's gradient (its change within the pixel, not between the 2 × 2
+    // pixels a derivative differences, which a bilinear cell's kinks would make jump).
+    let dx = dpdx(in.coords);
+    let dy = dpdy(in.coords);
+    let q = quads[in.quad];
+    let px = pixel_data(q, in.coords);
+    let fw_iso = (abs(dot(px.gradient, dx)) + abs(dot(px.gradient, dy))) / frame.iso.x;
+    let fw_dh = (abs(dot(px.dh_gradient, dx)) + abs(dot(px.dh_gradient, dy))) / max(frame.difference.y, 1e-6);
+    let fw_brush = fwidth(length(in.rel - frame.brush.xyz));
+    return Shaded(shade(in, q, px, fw_iso, fw_dh, fw_brush), px);
+}
+
 @fragment
 fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
-    // Derivatives in uniform control flow, before any branch.
-    let fw_iso = fwidth(in.height / frame.iso.x);
-    let fw_dh = fwidth(in.dh / max(frame.difference.y, 1e-6));
-    let fw_brush = fwidth(length(in.rel - frame.brush.xyz));
-    return shade(in, fw_iso, fw_dh, fw_brush);
+    return shade_pixel(in).colour;
 }
+
+// The probe's unit of sample coordinates: 1/256 of a sample (gpu::targets::PROBE_SUBSAMPLES).
+const PROBE_SUBSAMPLES: f32 = 256.0;
 
 struct ProbeOut {
     @location(0) colour: vec4<f32>,
-    // Camera-relative position (metres) and height (metres).
+    // Camera-relative position (metres) and the height the pixel read (metres).
     @location(1) surface: vec4<f32>,
-    // Quad index + 1, sample i, sample j; w: bit 0 the sample has data, bit 1 a skirt vertex,
-    // the patch's stride from bit 2 on.
+    // Quad index + 1, the sample coordinates the pixel read (i, j) in 1/256 of a sample; w: bit 0
+    // the pixel has data, bit 1 a skirt, the patch's stride from bit 2 on.
     @location(2) id: vec4<u32>,
 }
 
-// The test and benchmark variant: the colour and, per pixel, where the surface is.
+// The test and benchmark variant: the colour and, per pixel, where the surface is and what it read.
 @fragment
 fn fs_probe(in: VertexOut) -> ProbeOut {
-    let fw_iso = fwidth(in.height / frame.iso.x);
-    let fw_dh = fwidth(in.dh / max(frame.difference.y, 1e-6));
-    let fw_brush = fwidth(length(in.rel - frame.brush.xyz));
+    let s = shade_pixel(in);
     var out: ProbeOut;
-    out.colour = shade(in, fw_iso, fw_dh, fw_brush);
-    out.surface = vec4<f32>(in.rel, in.height);
-    out.id = vec4<u32>(in.quad + 1u, in.sample.x, in.sample.y, select(0u, 1u, in.valid > 0.5) + 2u * in.sample.z);
+    out.colour = s.colour;
+    out.surface = vec4<f32>(in.rel, s.px.height);
+    let at = vec2<u32>(round(clamp(in.coords, vec2<f32>(0.0), vec2<f32>(f32(N - 1u))) * PROBE_SUBSAMPLES));
+    out.id = vec4<u32>(in.quad + 1u, at.x, at.y, select(0u, 1u, s.px.valid > 0.5) + 2u * in.kind);
     return out;
 }

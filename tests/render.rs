@@ -10,7 +10,7 @@ use std::time::Duration;
 use common::{repo_path, terrafuse};
 use terrafuse::ecm::geometry::{QuadFrame, sample_st, vertex_f32};
 use terrafuse::ecm::{CubeProjection, Face, QuadId};
-use terrafuse::gpu::{DrawMode, GpuContext, IMAGE_FORMAT, RenderedImage, Renderer};
+use terrafuse::gpu::{DrawMode, GpuContext, IMAGE_FORMAT, PROBE_SUBSAMPLES, RenderedImage, Renderer};
 use terrafuse::project::{CameraSpec, Project};
 use terrafuse::scene::Scene;
 use terrafuse::scene::patches::{data_sample, morph_factor, morph_neighbours};
@@ -82,7 +82,7 @@ fn check_vertex_positions(morph: bool) {
         }
         let index = (id[0] - 1) as usize;
         let quad = drawn[index];
-        let (i, j, stride) = (id[1], id[2], id[3] >> 2);
+        let (i, j, stride) = (id[1] / PROBE_SUBSAMPLES, id[2] / PROBE_SUBSAMPLES, id[3] >> 2);
         let g = geometries.entry(quad).or_insert_with(|| r.reference_geometry(quad));
         // A patch every 2^k samples shows the data k levels up (its ancestor's, where the quad
         // has data and the ancestor is on the GPU).
@@ -178,6 +178,51 @@ fn check_vertex_positions(morph: bool) {
 
 fn byte_diff(a: &[u8], b: [f64; 4]) -> f64 {
     (0..3).map(|c| (f64::from(a[c]) - b[c]).abs()).fold(0.0, f64::max)
+}
+
+#[test]
+fn each_pixel_reads_the_cpu_composition_where_it_stands() {
+    // The fragment stage reads the composed heights at the pixel, bilinear between the four
+    // samples around its sample coordinates, whatever stride drew it. The probe returns those
+    // coordinates (to 1/256 of a sample) and the height it read; the CPU composition of the
+    // quad, interpolated there in f64, agrees within the coordinates' rounding times the slope
+    // and the f32 rounding of the heights, on a stack with brushed layers.
+    let path = project("moon-brushing");
+    let mut r = renderer(&path, |_| {});
+    let p = Project::load(&path).unwrap();
+    let image = draw(&mut r, &p.view(None).unwrap(), 240, 180, DrawMode::Probe);
+    let (surface, ids) = (image.surface.unwrap(), image.ids.unwrap());
+    let drawn = r.drawn().to_vec();
+    let mut composed: std::collections::HashMap<QuadId, Vec<f32>> = Default::default();
+    let (mut checked, mut worst, mut strides) = (0, 0f64, std::collections::BTreeSet::new());
+    for (k, id) in ids.iter().enumerate().step_by(3) {
+        if id[0] == 0 || id[3] & 1 == 0 || id[3] & 2 != 0 {
+            continue; // nothing drawn, no data or a skirt
+        }
+        let quad = drawn[(id[0] - 1) as usize];
+        let h = composed.entry(quad).or_insert_with(|| r.scene().heights_cpu(quad).unwrap());
+        let (x, y) = (f64::from(id[1]) / 256.0, f64::from(id[2]) / 256.0);
+        let (a, b) = ((x.floor() as usize).min(255), (y.floor() as usize).min(255));
+        let (fx, fy) = (x - a as f64, y - b as f64);
+        let at = |i: usize, j: usize| f64::from(h[j * 257 + i]);
+        let c = [at(a, b), at(a + 1, b), at(a, b + 1), at(a + 1, b + 1)];
+        if c.iter().any(|v| !v.is_finite()) {
+            continue;
+        }
+        let want = c[0] * (1.0 - fx) * (1.0 - fy) + c[1] * fx * (1.0 - fy) + c[2] * (1.0 - fx) * fy + c[3] * fx * fy;
+        let slope = (c[1] - c[0]).abs().max((c[3] - c[2]).abs()) + (c[2] - c[0]).abs().max((c[3] - c[1]).abs());
+        let tolerance = slope / 256.0 + 4e-7 * want.abs() + 1e-3;
+        let got = f64::from(surface[k][3]);
+        assert!(
+            (got - want).abs() <= tolerance,
+            "pixel {k} of {quad} at ({x}, {y}): read {got} m, the CPU composition {want} m (±{tolerance})"
+        );
+        worst = worst.max((got - want).abs());
+        strides.insert(id[3] >> 2);
+        checked += 1;
+    }
+    assert!(checked > 2000, "{checked} pixels checked");
+    eprintln!("{checked} pixels of {} quads at strides {strides:?}: within {worst:.2e} m", composed.len());
 }
 
 #[test]
@@ -408,7 +453,8 @@ fn every_drawn_vertex_lies_in_its_patch_box_at_its_stride() {
             if id[0] == 0 || id[3] & 2 != 0 {
                 continue; // nothing drawn here, or a skirt vertex
             }
-            let (index, i, j, stride) = ((id[0] - 1) as usize, id[1], id[2], id[3] >> 2);
+            let (index, i, j, stride) =
+                ((id[0] - 1) as usize, id[1] / PROBE_SUBSAMPLES, id[2] / PROBE_SUBSAMPLES, id[3] >> 2);
             let rel = glam::DVec3::new(f64::from(surface[k][0]), f64::from(surface[k][1]), f64::from(surface[k][2]));
             let p = eye + rel;
             // f32 camera-relative positions: 10⁻⁶ of the distance, and a centimetre.
@@ -951,7 +997,7 @@ fn colour_by_slope_and_aspect_draws_a_planes_slope_and_aspect_whatever_the_exagg
 }
 
 #[test]
-fn colour_by_curvature_draws_a_domes_curvature_per_vertex_whatever_the_exaggeration() {
+fn colour_by_curvature_draws_a_domes_curvature_per_pixel_whatever_the_exaggeration() {
     // A dome of radius R = 20 km, z = 1500 − (e² + n²)/(2R) in the local metres of 40.1°E 39.6°N,
     // imported with cubic resampling (exact for a quadratic): its curvature −2(z_xx + z_yy) is
     // 4/R per metre, 0.02 per 100 m, at every sample whatever the spacing drawn, and the ramp

@@ -4,6 +4,9 @@
 
 use super::context::GpuError;
 
+/// The probe's unit of sample coordinates, per sample (the terrain shader's `PROBE_SUBSAMPLES`).
+pub const PROBE_SUBSAMPLES: u32 = 256;
+
 /// The colour format of images the renderer writes (the shader encodes sRGB itself, as a window
 /// surface of egui-wgpu needs).
 pub const IMAGE_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
@@ -24,8 +27,9 @@ pub struct RenderedImage {
     /// Per pixel: camera-relative surface position (metres) and height (metres); NaN-free zeros
     /// where nothing was drawn. Only with the probe.
     pub surface: Option<Vec<[f32; 4]>>,
-    /// Per pixel: quad index + 1 (0: nothing), sample i, sample j, flags (bit 0 data, bit 1
-    /// skirt). Only with the probe.
+    /// Per pixel: quad index + 1 (0: nothing), the sample coordinates i and j the pixel's data
+    /// were read at in 1/[`PROBE_SUBSAMPLES`] of a sample, flags (bit 0 data, bit 1 skirt, the
+    /// patch's stride from bit 2 on). Only with the probe.
     pub ids: Option<Vec<[u32; 4]>>,
     /// GPU time of the terrain pass, milliseconds (where timestamps exist).
     pub gpu_ms: Option<f64>,

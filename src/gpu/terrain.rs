@@ -141,13 +141,14 @@ impl TerrainPass {
             label: Some("terrain"),
             entries: &[
                 entry(0, both, wgpu::BufferBindingType::Uniform),
-                entry(1, wgpu::ShaderStages::VERTEX, read),
-                entry(2, wgpu::ShaderStages::VERTEX, read),
+                // The quads and their heights: the fragment stage reads the data at each pixel.
+                entry(1, both, read),
+                entry(2, both, read),
                 entry(3, wgpu::ShaderStages::VERTEX, read),
                 entry(4, wgpu::ShaderStages::VERTEX, read),
                 entry(5, wgpu::ShaderStages::VERTEX, read),
                 entry(6, wgpu::ShaderStages::FRAGMENT, read),
-                entry(7, wgpu::ShaderStages::VERTEX, read),
+                entry(7, wgpu::ShaderStages::FRAGMENT, read),
                 entry(8, wgpu::ShaderStages::VERTEX, read),
             ],
         });

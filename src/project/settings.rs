@@ -44,17 +44,17 @@ pub enum ColourBy {
     Aspect,
     /// The hillshade, 1–255, lit from 315° at 45°, per pixel.
     Hillshade,
-    /// The curvature, 100/m, per vertex from the 3 × 3 window of the data drawn.
+    /// The curvature, 100/m, per pixel from the 3 × 3 windows of the data there.
     Curvature,
-    /// The planform curvature, 100/m, per vertex.
+    /// The planform curvature, 100/m, per pixel.
     PlanformCurvature,
-    /// The profile curvature, 100/m, per vertex.
+    /// The profile curvature, 100/m, per pixel.
     ProfileCurvature,
-    /// The topographic position index, metres, per vertex.
+    /// The topographic position index, metres, per pixel.
     Tpi,
-    /// The terrain ruggedness index, metres, per vertex.
+    /// The terrain ruggedness index, metres, per pixel.
     Tri,
-    /// The roughness, metres, per vertex.
+    /// The roughness, metres, per pixel.
     Roughness,
 }
 
