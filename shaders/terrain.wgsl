@@ -79,6 +79,9 @@ struct Patch {
     j0: u32,
     // Samples between two vertices.
     stride: u32,
+    // Where its vertices morph toward twice the stride: ρ = reach / distance (metres).
+    reach: f32,
+    pad: array<f32, 3>,
 }
 
 struct RampStop {
@@ -281,18 +284,19 @@ fn place_at(q: Quad, i: u32, j: u32, k: u32) -> Place {
     return out;
 }
 
-// Geomorphing (CDLOD, Strugar 2009): how far a vertex of a patch at `stride` has moved toward the
-// patch's mesh at twice the stride, from its projected spacing ρ = 2·stride·spacing·focal/(t·d)
-// (the coarser mesh's spacing over t): 1 up to the band's start (1.1: the coarser mesh would do
-// there, with a margin for the camera's step between frames), 0 from its end on. CPU twin:
+// Geomorphing (CDLOD, Strugar 2009, with the morph distance from the patch's error as
+// Ulrich's chunked LOD has it): how far a vertex of a patch has moved toward the patch's mesh at
+// twice the stride, from ρ = reach / d, the distance at which the coarser mesh's error projects
+// to τ / 1.1 over the vertex's own: 1 up to the band's start (1.1), 0 from its end on. CPU twin:
 // scene::patches::morph_factor.
-fn morph_factor(q: Quad, stride: u32, distance: f32) -> f32 {
-    if frame.morph.z < 0.5 || stride >= PATCH_CELLS {
+fn morph_factor(p: Patch, distance: f32) -> f32 {
+    if frame.morph.z < 0.5 || p.stride >= PATCH_CELLS {
         return 0.0;
     }
-    let rho = 2.0 * f32(stride) * q.lod.x * frame.morph.x / max(distance, 1e-6);
+    let rho = p.reach / max(distance, 1e-6);
     return clamp((frame.morph.y - rho) / (frame.morph.y - frame.morph.w), 0.0, 1.0);
 }
+
 @vertex
 fn vs_main(@builtin(vertex_index) vertex: u32, @builtin(instance_index) instance: u32) -> VertexOut {
     // Vertex b·(n+1) + a is the patch's sample (a, b) at its stride; (n+1)² more, the same sample
@@ -317,7 +321,7 @@ fn vs_main(@builtin(vertex_index) vertex: u32, @builtin(instance_index) instance
     // pixels show is read from the data in the fragment stage.
     let da = a % 2u;
     let db = b % 2u;
-    let m = morph_factor(q, p.stride, length(q.anchor.xyz + s.local));
+    let m = morph_factor(p, length(q.anchor.xyz + s.local));
     if MORPH && m > 0.0 {
         var t: Place;
         if da + db > 0u {

@@ -27,6 +27,7 @@ fn harness_of_size(project: &std::path::Path, view: &str, size: egui::Vec2) -> H
         view: Some(view.into()),
         camera: None,
         lod_threshold: None,
+        pixel_error: None,
         width: size.x as u32,
         height: size.y as u32,
         screenshot: None,

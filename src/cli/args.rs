@@ -222,9 +222,14 @@ pub struct LookArgs {
     /// A camera: lat,lon,alt,heading,pitch[,fov] (degrees, metres above the ellipsoid).
     #[arg(long, allow_hyphen_values = true)]
     pub camera: Option<String>,
-    /// Split quads while a sample covers more than this many pixels (the project's default).
+    /// Split quads while a sample covers more than this many pixels (the project's default): the
+    /// data's level, and the floor of the geometry's.
     #[arg(long, allow_negative_numbers = true)]
     pub lod_threshold: Option<f64>,
+    /// Draw the mesh as coarsely as keeps its geometric error under this many pixels on screen
+    /// (the project's `detail.max_pixel_error`, default 1).
+    #[arg(long, allow_negative_numbers = true)]
+    pub pixel_error: Option<f64>,
 }
 
 /// `terrafuse import`.

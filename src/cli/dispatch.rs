@@ -91,6 +91,7 @@ pub fn run(command: Command, c: &mut Console) -> Result<u8, CliError> {
                 width,
                 height,
                 lod_threshold: look.lod_threshold,
+                pixel_error: look.pixel_error,
                 geomorph: !no_geomorph,
             };
             let err = &mut *c.err;
@@ -110,6 +111,7 @@ pub fn run(command: Command, c: &mut Console) -> Result<u8, CliError> {
                 view: look.view.as_deref(),
                 camera: look.camera.as_deref(),
                 lod_threshold: look.lod_threshold,
+                pixel_error: look.pixel_error,
                 swipe: swipe.as_deref(),
                 trace: c.trace,
             };

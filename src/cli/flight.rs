@@ -29,6 +29,8 @@ pub struct FlightRequest<'a> {
     pub height: u32,
     /// Overrides the project's level-of-detail threshold.
     pub lod_threshold: Option<f64>,
+    /// `--pixel-error` (else the project's).
+    pub pixel_error: Option<f64>,
     /// Whether vertices morph between strides (off: to measure what morphing hides).
     pub geomorph: bool,
 }
@@ -50,6 +52,8 @@ pub struct FlightFrame {
     pub levels: String,
     /// The largest on-screen jump of the terrain from a change of density since the last frame.
     pub pop_px: f64,
+    /// The largest projected geometric error of what was drawn, pixels.
+    pub max_error_px: f64,
     /// The GPU terrain pass, ms (NaN without timestamp queries).
     pub gpu_ms: f64,
     /// CPU frame preparation, ms.
@@ -58,12 +62,22 @@ pub struct FlightFrame {
 
 /// The CSV of a flight's frames.
 pub fn frames_csv(frames: &[FlightFrame]) -> String {
-    let mut out = String::from("frame,quads,patches,triangles,terrain_pixels,levels,pop_px,gpu_ms,cpu_ms\n");
+    let mut out =
+        String::from("frame,quads,patches,triangles,terrain_pixels,levels,pop_px,max_error_px,gpu_ms,cpu_ms\n");
     for f in frames {
         let _ = writeln!(
             out,
-            "{},{},{},{},{},{},{:.4},{:.3},{:.3}",
-            f.frame, f.quads, f.patches, f.triangles, f.terrain_pixels, f.levels, f.pop_px, f.gpu_ms, f.cpu_ms
+            "{},{},{},{},{},{},{:.4},{:.4},{:.3},{:.3}",
+            f.frame,
+            f.quads,
+            f.patches,
+            f.triangles,
+            f.terrain_pixels,
+            f.levels,
+            f.pop_px,
+            f.max_error_px,
+            f.gpu_ms,
+            f.cpu_ms
         );
     }
     out
@@ -78,11 +92,7 @@ pub fn render_flight(request: &FlightRequest, log: &mut dyn FnMut(&str)) -> Resu
     if request.width == 0 || request.height == 0 || request.width > 16384 || request.height > 16384 {
         return Err(format!("image size {}x{} must lie within 1–16384 pixels", request.width, request.height).into());
     }
-    if let Some(t) = request.lod_threshold
-        && !(t.is_finite() && t > 0.0)
-    {
-        return Err(format!("--lod-threshold {t} must be a positive number of pixels").into());
-    }
+    super::render::check_detail(request.lod_threshold, request.pixel_error)?;
     let project = Project::load(request.project)?;
     let fov = project.camera(None, None)?.fov;
     let flight = Flight::parse(request.flight, fov).within("--flight")?;
@@ -90,9 +100,7 @@ pub fn render_flight(request: &FlightRequest, log: &mut dyn FnMut(&str)) -> Resu
     let cameras = flight.cameras(&ellipsoid, request.frames).within("--frames")?;
     std::fs::create_dir_all(request.out_dir).map_err(CliError::file(request.out_dir, "cannot create"))?;
     let (_, mut renderer, lines) = open_renderer(request.project)?;
-    if let Some(t) = request.lod_threshold {
-        renderer.set_threshold(t);
-    }
+    super::render::apply_detail(&mut renderer, request.lod_threshold, request.pixel_error);
     renderer.set_geomorph(request.geomorph);
     let mut frames = Vec::with_capacity(cameras.len());
     let mut previous: Option<DensityLayout> = None;
@@ -118,6 +126,7 @@ pub fn render_flight(request: &FlightRequest, log: &mut dyn FnMut(&str)) -> Resu
             terrain_pixels: probe.ids.as_ref().map_or(0, |ids| ids.iter().filter(|id| id[0] > 0).count()),
             levels: levels(&stats),
             pop_px: pop,
+            max_error_px: stats.max_error_px,
             gpu_ms: image.gpu_ms.unwrap_or(f64::NAN),
             cpu_ms: stats.prepare_ms,
         });
@@ -131,6 +140,7 @@ pub fn render_flight(request: &FlightRequest, log: &mut dyn FnMut(&str)) -> Resu
     let n = frames.len() as f64;
     let worst_pop = frames.iter().map(|f| f.pop_px).fold(0.0, f64::max);
     let density = frames.iter().map(|f| f.triangles as f64 / f.terrain_pixels.max(1) as f64).fold(0.0, f64::max);
+    let worst_error = frames.iter().map(|f| f.max_error_px).fold(0.0, f64::max);
     let _ = writeln!(
         out,
         "flight: {} frames of {}x{} at t = {} px per sample, geomorphing {}",
@@ -142,7 +152,8 @@ pub fn render_flight(request: &FlightRequest, log: &mut dyn FnMut(&str)) -> Resu
     );
     let _ = writeln!(
         out,
-        "triangles per terrain pixel: at most {density:.2}; pop: at most {worst_pop:.3} px; gpu {:.2} ms, cpu {:.3} ms a frame on average",
+        "triangles per terrain pixel: at most {density:.2}; max_error_px: at most {worst_error:.3} (pixel error {} px); pop: at most {worst_pop:.3} px; gpu {:.2} ms, cpu {:.3} ms a frame on average",
+        renderer.scene().detail.max_pixel_error,
         frames.iter().map(|f| f.gpu_ms).sum::<f64>() / n,
         frames.iter().map(|f| f.cpu_ms).sum::<f64>() / n
     );

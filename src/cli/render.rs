@@ -26,6 +26,8 @@ pub struct RenderRequest<'a> {
     pub camera: Option<&'a str>,
     /// Overrides the project's level-of-detail threshold.
     pub lod_threshold: Option<f64>,
+    /// `--pixel-error`: the geometric error allowed on screen, pixels (else the project's).
+    pub pixel_error: Option<f64>,
     /// `A,B[,POSITION]`: layer A left of a vertical line at POSITION (0–1 of the width, default
     /// 0.5), layer B right of it.
     pub swipe: Option<&'a str>,
@@ -187,15 +189,9 @@ pub fn render(request: &RenderRequest, log: &mut dyn FnMut(&str)) -> Result<Stri
     // A saved swipe brings its view, unless the command names one.
     let saved_view = request.swipe.and_then(|s| project.comparison.swipes.get(s)).and_then(|s| s.view.as_deref());
     let camera = request_camera(&project, request.view.or(saved_view), request.camera)?;
-    if let Some(t) = request.lod_threshold
-        && !(t.is_finite() && t > 0.0)
-    {
-        return Err(format!("--lod-threshold {t} must be a positive number of pixels").into());
-    }
+    check_detail(request.lod_threshold, request.pixel_error)?;
     let (_, mut renderer, lines) = open_renderer(request.project)?;
-    if let Some(t) = request.lod_threshold {
-        renderer.set_threshold(t);
-    }
+    apply_detail(&mut renderer, request.lod_threshold, request.pixel_error);
     renderer.set_geomorph(request.geomorph);
     if let Some(s) = &swipe {
         // Each side is rendered as its own project would be, by a renderer of its own (a
@@ -204,9 +200,7 @@ pub fn render(request: &RenderRequest, log: &mut dyn FnMut(&str)) -> Result<Stri
         let (scene, _) = Scene::open(&side)?;
         renderer = Renderer::new(&GpuContext::headless()?, scene, IMAGE_FORMAT)?;
         resolve_difference_range(&side, &mut renderer)?;
-        if let Some(t) = request.lod_threshold {
-            renderer.set_threshold(t);
-        }
+        apply_detail(&mut renderer, request.lod_threshold, request.pixel_error);
     }
     let (debug, quads) = (request.trace != Trace::Off, request.trace == Trace::Quads);
     let stats = renderer.settle_traced(&camera, request.width, request.height, Duration::from_secs(300), &mut |s, busy| {
@@ -238,9 +232,7 @@ pub fn render(request: &RenderRequest, log: &mut dyn FnMut(&str)) -> Result<Stri
         let (scene, _) = Scene::open(&side)?;
         let mut right_renderer = Renderer::new(&GpuContext::headless()?, scene, IMAGE_FORMAT)?;
         resolve_difference_range(&side, &mut right_renderer)?;
-        if let Some(t) = request.lod_threshold {
-            right_renderer.set_threshold(t);
-        }
+        apply_detail(&mut right_renderer, request.lod_threshold, request.pixel_error);
         let right_stats = right_renderer.settle(&camera, request.width, request.height, Duration::from_secs(300));
         let right = right_renderer.render_image(DrawMode::Colour)?;
         image = composite(&image, &right, s.position);
@@ -262,16 +254,39 @@ pub fn render(request: &RenderRequest, log: &mut dyn FnMut(&str)) -> Result<Stri
         "camera: lat {} lon {} alt {} m heading {} pitch {} fov {}",
         camera.lat, camera.lon, camera.alt, camera.heading, camera.pitch, camera.fov
     );
-    out.push_str(&frame_report(&stats, image.gpu_ms, renderer.scene().detail.lod_threshold_px));
+    out.push_str(&frame_report(&stats, image.gpu_ms, &renderer.scene().detail));
     let _ = writeln!(out, "wrote {} ({}x{})", request.out.display(), image.width, image.height);
     Ok(out)
 }
 
+/// Refuses a level-of-detail threshold or pixel error that is not a positive number of pixels.
+pub fn check_detail(lod_threshold: Option<f64>, pixel_error: Option<f64>) -> Result<(), CliError> {
+    for (flag, v) in [("--lod-threshold", lod_threshold), ("--pixel-error", pixel_error)] {
+        if let Some(v) = v
+            && !(v.is_finite() && v > 0.0)
+        {
+            return Err(format!("{flag} {v} must be a positive number of pixels").into());
+        }
+    }
+    Ok(())
+}
+
+/// Applies `--lod-threshold` and `--pixel-error` where given.
+pub fn apply_detail(renderer: &mut Renderer, lod_threshold: Option<f64>, pixel_error: Option<f64>) {
+    if let Some(t) = lod_threshold {
+        renderer.set_threshold(t);
+    }
+    if let Some(e) = pixel_error {
+        renderer.set_pixel_error(e);
+    }
+}
+
 /// The lines that describe a frame.
-pub fn frame_report(stats: &FrameStats, gpu_ms: Option<f64>, threshold_px: f64) -> String {
+pub fn frame_report(stats: &FrameStats, gpu_ms: Option<f64>, detail: &crate::project::DetailSpec) -> String {
     let mut out = String::new();
     let s = &stats.selection;
     let levels: Vec<String> = s.per_level().iter().map(|(l, n)| format!("L{l}:{n}")).collect();
+    let threshold_px = detail.lod_threshold_px;
     let _ = writeln!(out, "quads: {} ({}), t = {threshold_px} px per sample", s.quads.len(), levels.join(" "));
     let _ = writeln!(
         out,
@@ -297,6 +312,11 @@ pub fn frame_report(stats: &FrameStats, gpu_ms: Option<f64>, threshold_px: f64) 
         p.culled_horizon
     );
     let _ = writeln!(out, "triangles: {} ({} quads without static maps)", stats.triangles, stats.flat_quads);
+    let _ = writeln!(
+        out,
+        "max_error_px: {:.3} (the largest geometric error drawn, on screen; pixel error {} px)",
+        stats.max_error_px, detail.max_pixel_error
+    );
     let _ = writeln!(out, "cpu: selection {:.3} ms, frame preparation {:.3} ms", stats.select_ms, stats.prepare_ms);
     match gpu_ms {
         Some(ms) => {

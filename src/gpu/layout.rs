@@ -10,6 +10,7 @@ mod tests {
     use super::super::attributes::AttributeParams;
     use super::super::compose::{ComposeJob, JobLayer, OctaveOrigin};
     use super::super::erosion::{Control, GpuParams};
+    use super::super::patch_errors::ErrorJob;
     use super::super::shading::ShadingProbe;
     use super::super::uniforms::{FrameUniform, PatchInstance, QuadInstance};
     use crate::gpu::brush::StrokeTile;
@@ -72,7 +73,8 @@ mod tests {
                 "Quad",
                 layout!(QuadInstance { anchor, corners, normals, sym, slots, params, lod, ancestry }),
             ),
-            ("PatchInstance", "terrain.wgsl", "Patch", layout!(PatchInstance { quad, i0, j0, stride })),
+            ("PatchInstance", "terrain.wgsl", "Patch", layout!(PatchInstance { quad, i0, j0, stride, reach, pad })),
+            ("ErrorJob", "render/patch_errors.wgsl", "Job", layout!(ErrorJob { slot, ancestry })),
             (
                 "ComposeJob",
                 "compose/compose.wgsl",

@@ -11,6 +11,7 @@ pub mod context;
 pub mod editing;
 pub mod erosion;
 mod layout;
+mod patch_errors;
 pub mod pops;
 pub mod renderer;
 pub mod shaders;

@@ -18,27 +18,23 @@ use crate::ecm::geometry::surface_and_normal;
 use crate::ecm::{CubeProjection, FacePoint, QuadId};
 use crate::scene::patches::{PATCH_CELLS, PATCHES_PER_EDGE, data_sample, morph_factor, morph_neighbours};
 
-/// Where a frame drew which density: per drawn quad, its sample spacing and each patch's
-/// stride (0 where the patch was culled).
+/// Where a frame drew which density: per drawn quad, each patch's stride (0 where the patch was
+/// culled) and reach (where its vertices morph).
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct DensityLayout {
-    quads: HashMap<QuadId, (f64, [u32; 64])>,
+    quads: HashMap<QuadId, [(u32, f64); 64]>,
 }
 
 impl DensityLayout {
     /// The layout of the renderer's prepared frame.
     pub fn of(renderer: &Renderer) -> DensityLayout {
-        let mut quads: HashMap<QuadId, (f64, [u32; 64])> = renderer
-            .drawn()
-            .iter()
-            .zip(renderer.instances())
-            .map(|(q, inst)| (*q, (f64::from(inst.lod[0]), [0; 64])))
-            .collect();
+        let mut quads: HashMap<QuadId, [(u32, f64); 64]> =
+            renderer.drawn().iter().map(|q| (*q, [(0, 0.0); 64])).collect();
         for p in &renderer.patches().patches {
             if let Some(q) = renderer.drawn().get(p.quad as usize)
                 && let Some(entry) = quads.get_mut(q)
             {
-                entry.1[(p.py * PATCHES_PER_EDGE + p.px) as usize] = p.stride;
+                entry[(p.py * PATCHES_PER_EDGE + p.px) as usize] = (p.stride, f64::from(p.reach_m));
             }
         }
         DensityLayout { quads }
@@ -48,8 +44,8 @@ impl DensityLayout {
     fn patches(&self) -> HashSet<(QuadId, usize, u32)> {
         self.quads
             .iter()
-            .flat_map(|(q, (_, strides))| {
-                strides.iter().enumerate().filter(|(_, s)| **s > 0).map(move |(k, s)| (*q, k, *s))
+            .flat_map(|(q, patches)| {
+                patches.iter().enumerate().filter(|(_, p)| p.0 > 0).map(move |(k, p)| (*q, k, p.0))
             })
             .collect()
     }
@@ -88,7 +84,6 @@ impl DensityLayout {
 struct Surfaces<'a> {
     renderer: &'a Renderer,
     camera: DVec3,
-    focal_over_t: f64,
     morph: bool,
     exaggeration: f64,
     heights: HashMap<QuadId, Option<Arc<Vec<f32>>>>,
@@ -137,11 +132,11 @@ impl Surfaces<'_> {
     }
 
     /// The vertex (a, b) of a quad's patch drawn at `stride`, morphed as the shader morphs it.
-    fn vertex(&mut self, quad: QuadId, spacing: f64, patch: (u32, u32), stride: u32, a: u32, b: u32) -> Option<DVec3> {
+    fn vertex(&mut self, quad: QuadId, reach: f64, patch: (u32, u32), stride: u32, a: u32, b: u32) -> Option<DVec3> {
         let (i, j) = (patch.0 * PATCH_CELLS + a * stride, patch.1 * PATCH_CELLS + b * stride);
         let k = stride.trailing_zeros();
         let own = self.position(quad, i, j, k)?;
-        let m = if self.morph { morph_factor(stride, spacing, own.length(), self.focal_over_t, 1.0) } else { 0.0 };
+        let m = if self.morph { morph_factor(stride, reach, own.length()) } else { 0.0 };
         if m <= 0.0 {
             return Some(own);
         }
@@ -160,10 +155,10 @@ impl Surfaces<'_> {
     /// patch mesh that covers it.
     fn surface(&mut self, layout: &DensityLayout, quad: QuadId, x: f64, y: f64) -> Option<DVec3> {
         let (q, x, y) = layout.locate(quad, x, y)?;
-        let (spacing, strides) = layout.quads[&q];
+        let patches = layout.quads[&q];
         let cells = f64::from(PATCH_CELLS);
         let (px, py) = (((x / cells) as u32).min(7), ((y / cells) as u32).min(7));
-        let stride = strides[(py * PATCHES_PER_EDGE + px) as usize];
+        let (stride, reach) = patches[(py * PATCHES_PER_EDGE + px) as usize];
         if stride == 0 {
             return None;
         }
@@ -171,7 +166,7 @@ impl Surfaces<'_> {
         let (u, v) = ((x - f64::from(px) * cells) / f64::from(stride), (y - f64::from(py) * cells) / f64::from(stride));
         let (a, b) = ((u.floor() as u32).min(n - 1), (v.floor() as u32).min(n - 1));
         let (fu, fv) = (u - f64::from(a), v - f64::from(b));
-        let mut corner = |da: u32, db: u32| self.vertex(q, spacing, (px, py), stride, a + da, b + db);
+        let mut corner = |da: u32, db: u32| self.vertex(q, reach, (px, py), stride, a + da, b + db);
         let (v00, v11) = (corner(0, 0)?, corner(1, 1)?);
         // The cell's cut runs from (a, b) to (a+1, b+1), as the index buffers cut it.
         Some(if fu >= fv {
@@ -192,7 +187,6 @@ pub fn pop_px(renderer: &Renderer, old: &DensityLayout, new: &DensityLayout) -> 
     let mut surfaces = Surfaces {
         renderer,
         camera: camera.position,
-        focal_over_t: camera.focal_px(height) / renderer.scene().detail.lod_threshold_px,
         morph: renderer.geomorphs(),
         exaggeration: renderer.scene().visuals.exaggeration,
         heights: HashMap::new(),

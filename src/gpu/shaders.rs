@@ -17,6 +17,7 @@ pub const FILES: &[(&str, &str)] = &[
     ("erosion/erosion.wgsl", include_str!("../../shaders/erosion/erosion.wgsl")),
     ("probe/shading.wgsl", include_str!("../../shaders/probe/shading.wgsl")),
     ("attributes/attributes.wgsl", include_str!("../../shaders/attributes/attributes.wgsl")),
+    ("render/patch_errors.wgsl", include_str!("../../shaders/render/patch_errors.wgsl")),
 ];
 
 /// The include that [`super::codes::wgsl`] generates: the codes shared with the CPU.
@@ -80,7 +81,7 @@ mod tests {
         // Every file on disk is embedded (none forgotten) ...
         let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("shaders");
         let mut on_disk = Vec::new();
-        for sub in ["", "shared", "compose", "edit", "erosion", "probe", "attributes"] {
+        for sub in ["", "shared", "compose", "edit", "erosion", "probe", "attributes", "render"] {
             for entry in std::fs::read_dir(dir.join(sub)).unwrap() {
                 let path = entry.unwrap().path();
                 if path.extension().is_some_and(|e| e == "wgsl") {

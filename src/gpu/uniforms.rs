@@ -53,23 +53,37 @@ impl QuadInstance {
     pub fn has_maps(&self) -> bool {
         self.slots[1] != NO_SLOT
     }
+
+    /// The levels above the quad (1 … 5) whose composed data its coarser strides stood on.
+    pub fn ancestors_used(&self) -> Vec<u8> {
+        let a = self.ancestry;
+        [a[0][0], a[0][1], a[0][2], a[0][3], a[1][0]]
+            .iter()
+            .enumerate()
+            .filter(|(_, s)| **s != NO_SLOT)
+            .map(|(k, _)| k as u8 + 1)
+            .collect()
+    }
 }
 /// One patch's record for the shader (`Patch` in terrain.wgsl; keep in sync): the quad's index
-/// in the quad records, the sample (i, j) of its first corner, its stride in samples.
+/// in the quad records, the sample (i, j) of its first corner, its stride in samples, and its
+/// reach (metres: where its vertices morph toward twice the stride), padded to 32 bytes.
 #[repr(C)]
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Pod, Zeroable)]
+#[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
 pub struct PatchInstance {
     pub(crate) quad: u32,
     pub(crate) i0: u32,
     pub(crate) j0: u32,
     pub(crate) stride: u32,
+    pub(crate) reach: f32,
+    pub(crate) pad: [f32; 3],
 }
 
 impl PatchInstance {
     /// The record of a selected patch.
     pub(crate) fn of(p: &crate::scene::patches::Patch) -> PatchInstance {
         let (i0, j0) = p.origin();
-        PatchInstance { quad: p.quad, i0, j0, stride: p.stride }
+        PatchInstance { quad: p.quad, i0, j0, stride: p.stride, reach: p.reach_m, pad: [0.0; 3] }
     }
 }
 
@@ -83,4 +97,4 @@ pub(crate) fn rgba(c: [u8; 4]) -> [f32; 4] {
 
 const _: () = assert!(std::mem::size_of::<FrameUniform>() == 64 + 11 * 16);
 const _: () = assert!(std::mem::size_of::<QuadInstance>() == 16 * (1 + 4 + 4 + 3 + 1 + 1 + 1 + 2));
-const _: () = assert!(std::mem::size_of::<PatchInstance>() == 16);
+const _: () = assert!(std::mem::size_of::<PatchInstance>() == 32);

@@ -35,6 +35,8 @@ pub struct ViewOptions {
     pub camera: Option<String>,
     /// Overrides the project's level-of-detail threshold.
     pub lod_threshold: Option<f64>,
+    /// Overrides the project's pixel error (`detail.max_pixel_error`).
+    pub pixel_error: Option<f64>,
     /// Window size, logical pixels.
     pub width: u32,
     /// Window size, logical pixels.
@@ -94,10 +96,12 @@ pub fn open(opts: &ViewOptions) -> Result<Opened, GuiError> {
     } else {
         project.camera(opts.view.as_deref(), opts.camera.as_deref())?
     };
-    if let Some(t) = opts.lod_threshold
-        && !(t.is_finite() && t > 0.0)
-    {
-        return Err(format!("--lod-threshold {t} must be a positive number of pixels").into());
+    for (flag, v) in [("--lod-threshold", opts.lod_threshold), ("--pixel-error", opts.pixel_error)] {
+        if let Some(v) = v
+            && !(v.is_finite() && v > 0.0)
+        {
+            return Err(format!("{flag} {v} must be a positive number of pixels").into());
+        }
     }
     if let Some(path) = &opts.screenshot {
         check_writable(path)?;
@@ -106,6 +110,9 @@ pub fn open(opts: &ViewOptions) -> Result<Opened, GuiError> {
         Scene::open(&project).map_err(|e| format!("{}: {}", opts.project.display(), crate::errors::chain(&e)))?;
     if let Some(t) = opts.lod_threshold {
         scene.detail.lod_threshold_px = t;
+    }
+    if let Some(e) = opts.pixel_error {
+        scene.detail.max_pixel_error = e;
     }
     let mut recent = recent::Recent::load(opts.config_dir.as_deref());
     // A screenshot run is scripted: it neither lists the project nor offers a recovery.

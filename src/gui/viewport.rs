@@ -385,14 +385,17 @@ fn targets(device: &wgpu::Device, width: u32, height: u32) -> FrameTargets {
     )
 }
 
-/// One line about a frame: quads by level, triangles, what is still loading.
+/// One line about a frame: quads by level, triangles (and per pixel of the view), the largest
+/// geometric error drawn, what is still loading.
 pub fn frame_line(stats: &FrameStats) -> String {
     let levels: Vec<String> = stats.selection.per_level().iter().map(|(l, n)| format!("L{l}×{n}")).collect();
     format!(
-        "{} quads ({}), {:.2} M triangles, prepare {:.2} ms{}",
+        "{} quads ({}), {:.2} M triangles ({:.3} a pixel), error ≤ {:.2} px, prepare {:.2} ms{}",
         stats.selection.quads.len(),
         levels.join(" "),
         stats.triangles as f64 / 1e6,
+        stats.triangles as f64 / stats.pixels.max(1) as f64,
+        stats.max_error_px,
         stats.prepare_ms,
         if stats.pending > 0 { format!(", {} loading", stats.pending) } else { String::new() }
     )

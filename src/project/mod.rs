@@ -375,6 +375,11 @@ impl Project {
         if !(d.lod_threshold_px.is_finite() && d.lod_threshold_px > 0.0) {
             return Err(format!("detail.lod_threshold_px {} must be positive", d.lod_threshold_px).into());
         }
+        if !(d.max_pixel_error.is_finite() && d.max_pixel_error > 0.0) {
+            return Err(
+                format!("detail.max_pixel_error {} must be a positive number of pixels", d.max_pixel_error).into()
+            );
+        }
         if !(6..=MAX_QUADS).contains(&d.max_quads) {
             return Err(
                 format!("detail.max_quads {} must lie within 6 (the cube's faces) … {MAX_QUADS}", d.max_quads).into()

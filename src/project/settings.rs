@@ -253,8 +253,14 @@ impl Default for Visuals {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields, default)]
 pub struct DetailSpec {
-    /// Split a quad while a sample covers more than this many pixels (the paper's t).
+    /// Split a quad while a sample covers more than this many pixels (the paper's t): the data's
+    /// level at each place, and a floor for the geometry, never drawn finer than that data.
     pub lod_threshold_px: f64,
+    /// Draw each patch of the terrain's mesh as coarsely as keeps its geometric error (the
+    /// largest vertical miss between the data under it and the mesh) under this many pixels on
+    /// screen (τ). What the pixels show is read from the data whatever the mesh.
+    #[serde(skip_serializing_if = "is_default_pixel_error")]
+    pub max_pixel_error: f64,
     /// Most quads drawn in one frame.
     pub max_quads: usize,
     /// CPU cache budget, MiB.
@@ -267,6 +273,13 @@ pub struct DetailSpec {
     pub max_edit_tiles: u64,
 }
 
+/// The default of [`DetailSpec::max_pixel_error`]: a pixel.
+pub const DEFAULT_MAX_PIXEL_ERROR: f64 = 1.0;
+
+fn is_default_pixel_error(v: &f64) -> bool {
+    *v == DEFAULT_MAX_PIXEL_ERROR
+}
+
 /// The default of [`DetailSpec::max_edit_tiles`]: 2 048 tiles, about 530 MiB of heights.
 pub const DEFAULT_MAX_EDIT_TILES: u64 = 2048;
 
@@ -274,6 +287,7 @@ impl Default for DetailSpec {
     fn default() -> DetailSpec {
         DetailSpec {
             lod_threshold_px: 1.5,
+            max_pixel_error: DEFAULT_MAX_PIXEL_ERROR,
             max_quads: 128,
             cpu_cache_mib: 1024,
             gpu_cache_mib: 768,

@@ -1,12 +1,15 @@
 //! Per-patch density and culling: a drawn quad is drawn as 8 × 8 patches of 32 × 32 sample
-//! spacings, each culled against the frustum and the horizon on its own and drawn at the stride
-//! (1, 2, 4 … 32 samples) that its projected sample size needs under the threshold t, so that a
-//! quad much larger than the view costs only the part of it that shows, at the density that part
-//! needs. Patches of different strides meet at T-junctions; each patch has its own skirt ring,
-//! as quads do, so the seams stay closed.
+//! spacings, each culled against the frustum and the horizon on its own and drawn at the
+//! coarsest stride (1, 2, 4 … 32 samples) whose geometric error δ (the largest vertical miss
+//! between the data under the patch and the mesh that stride draws: [`super::patch_error`])
+//! projects under the pixel error τ at the patch's nearest point, so that a quad much larger than
+//! the view costs only the part of it that shows, and flat or smooth ground costs few triangles
+//! whatever its sampling. What the pixels show is read from the data in the fragment stage, so
+//! the mesh needs only to stand where the surface is. Patches of different strides meet at
+//! T-junctions; each patch has its own skirt ring, as quads do, so the seams stay closed.
 
 use super::camera::Camera;
-use super::select::{QuadInfo, SelectParams, cull_box, pixels_per_sample, tally};
+use super::select::{SelectParams, cull_box, tally};
 use crate::ecm::geometry::{QuadBounds, QuadGeometry};
 
 /// Patches along a quad's edge.
@@ -16,17 +19,20 @@ pub const PATCH_CELLS: u32 = 32;
 /// The strides a patch may be drawn at, in samples, finest first.
 pub const STRIDES: [u32; 6] = [1, 2, 4, 8, 16, 32];
 
-/// Where the morph band ends: a vertex of a patch at stride s whose coarser spacing 2s covers ρ
-/// times t pixels has morphed fully to the coarser mesh up to ρ = 1.1 (the band's start) and not
-/// at all from ρ = 1.6 on.
-/// A patch takes stride s when ρ passes 1 at its nearest point, where its farthest vertex, at most
-/// 16 % farther (a patch spans 32t/f ≈ 0.11 of its distance at t = 1.5 and a 60° view, with its
-/// diagonal and relief), has ρ ≥ 0.86; the coarser patch it replaces had 2ρ ≥ 1.72 > 1.6 there,
-/// unmorphed: so the change draws what was drawn before.
+/// Where the morph band ends: a vertex of a patch at stride s morphs toward the mesh at 2s by
+/// ρ = reach / d, its distance d against the patch's reach (where the coarser mesh's error,
+/// projected, is τ / [`MORPH_BAND_START`]): fully up to ρ = 1.1 (the band's start), not at all
+/// from ρ = 1.6 on.
+/// A patch takes stride s when ρ of stride s passes 1 at its nearest point; its errors are made
+/// to at least double per stride ([`effective_errors`]), so the coarser patch it replaces had
+/// ρ ≥ 2 × 0.86 = 1.72 > 1.6 at its farthest vertex where that lies at most 16 % farther
+/// (a patch spans a small part of its distance wherever its stride is fine): unmorphed, so the
+/// change draws what was drawn before.
 pub const MORPH_BAND_END: f64 = 1.6;
 /// Where the morph band starts: up to ρ = 1.1 a vertex has morphed fully, so that a change of
 /// stride or level that ρ passed by less than 10 % since the last frame (the camera's step) still
-/// finds every vertex of the finer patch on the coarser mesh.
+/// finds every vertex of the finer patch on the coarser mesh. A stride is taken where its error
+/// projects to at most τ / 1.1, so that a vertex morphed fully at ρ = 1.1 is within τ.
 pub const MORPH_BAND_START: f64 = 1.1;
 /// Levels above a quad whose data its coarser strides show (stride 32 shows the data 5 levels up).
 pub const DATA_LEVELS_UP: u32 = 5;
@@ -44,16 +50,35 @@ pub fn data_sample(quad: crate::ecm::QuadId, i: u32, j: u32, k: u32) -> (crate::
 }
 
 /// How far a vertex of a patch at `stride` has morphed toward the patch's mesh at twice the
-/// stride (0 … 1): `spacing_m` the quad's sample spacing, `distance_m` the vertex's from the eye,
-/// `focal_px` the camera's focal length in pixels. The terrain shader's `morph_factor` twin.
-pub fn morph_factor(stride: u32, spacing_m: f64, distance_m: f64, focal_px: f64, threshold_px: f64) -> f64 {
+/// stride (0 … 1): `reach_m` the patch's reach ([`morph_reach`]), `distance_m` the vertex's
+/// distance from the eye. The terrain shader's `morph_factor` twin.
+pub fn morph_factor(stride: u32, reach_m: f64, distance_m: f64) -> f64 {
     if stride >= PATCH_CELLS {
         return 0.0;
     }
-    let rho = 2.0 * f64::from(stride) * spacing_m * focal_px / (threshold_px * distance_m.max(1e-6));
+    let rho = reach_m / distance_m.max(1e-6);
     ((MORPH_BAND_END - rho) / (MORPH_BAND_END - MORPH_BAND_START)).clamp(0.0, 1.0)
 }
 
+/// A patch's reach at a stride whose next coarser stride has the (effective) error `coarser_m`:
+/// the distance at which that error, seen with a focal length of `focal_px`, projects to
+/// τ / [`MORPH_BAND_START`] pixels (`max_pixel_error_px` = τ); nearer, ρ = reach / d exceeds 1.
+pub fn morph_reach(coarser_m: f64, focal_px: f64, max_pixel_error_px: f64) -> f64 {
+    MORPH_BAND_START * coarser_m * focal_px / max_pixel_error_px.max(1e-6)
+}
+
+/// A patch's errors as selection and morphing use them, from δ per stride (metres, as drawn:
+/// exaggerated): monotone, and at least doubling from one stride to the next, as the sample
+/// spacing does, so that the morph bands of two strides never overlap (see [`MORPH_BAND_END`]).
+/// Never below δ, so a bound on these is a bound on the error.
+pub fn effective_errors(delta_m: &[f64; STRIDES.len()]) -> [f64; STRIDES.len()] {
+    let mut out = [0f64; STRIDES.len()];
+    for k in 0..STRIDES.len() {
+        // Twice the finer effective error is already at least every finer δ.
+        out[k] = if k == 0 { delta_m[0] } else { delta_m[k].max(2.0 * out[k - 1]) };
+    }
+    out
+}
 /// The two samples a vertex at patch grid position (a, b) slides toward when its patch morphs to
 /// twice its stride (offsets in samples, from the vertex): along the edge for odd a or b, along the
 /// cell's diagonal for both odd; none for a vertex the coarser mesh has.
@@ -78,17 +103,17 @@ pub const WEST: u8 = 8;
 pub const ALL_SIDES: u8 = 15;
 
 /// One patch to draw: which drawn quad, where in it, how densely, and which sides hang a skirt.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Patch {
-    /// The stride, samples (one of [`STRIDES`]); first, so that sorting groups the draws.
+    /// The stride, samples (one of [`STRIDES`]).
     pub stride: u32,
     /// Whether any of its vertices may morph this frame (drawn by the pipeline that morphs;
     /// the others by one without the morph's work).
     pub morphs: bool,
     /// The sides with a skirt ([`SOUTH`] | [`EAST`] | [`NORTH`] | [`WEST`]): those on the quad's
-    /// edge, and those whose neighbour in the quad is drawn at another stride or not at all. Two
-    /// patches of one quad at one stride compute their shared edge's vertices identically, so
-    /// no gap can open between them.
+    /// edge, and those whose neighbour in the quad is drawn at another stride or reach, or not at
+    /// all. Two patches of one quad at one stride and reach compute their shared edge's vertices
+    /// identically, so no gap can open between them.
     pub skirts: u8,
     /// The quad's index in the frame's drawn quads.
     pub quad: u32,
@@ -96,6 +121,11 @@ pub struct Patch {
     pub py: u32,
     /// The patch's column.
     pub px: u32,
+    /// Where its vertices morph toward twice the stride ([`morph_reach`], metres; 0 at the
+    /// coarsest stride, which does not morph).
+    pub reach_m: f32,
+    /// The largest projected geometric error of what it draws this frame, pixels.
+    pub error_px: f32,
 }
 
 impl Patch {
@@ -125,12 +155,14 @@ pub fn triangles_at(stride: u32, skirts: u8) -> u64 {
 /// The patches of one frame.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct PatchSelection {
-    /// Patches to draw, sorted by stride, then quad, row and column.
+    /// Patches to draw, sorted by stride, skirts and morphing, then quad, row and column.
     pub patches: Vec<Patch>,
     /// Patches of drawn quads dropped outside the frustum.
     pub culled_frustum: usize,
     /// Patches of drawn quads dropped behind the horizon.
     pub culled_horizon: usize,
+    /// The largest projected geometric error of what is drawn, pixels.
+    pub max_error_px: f64,
 }
 
 impl PatchSelection {
@@ -164,10 +196,41 @@ impl PatchSelection {
     }
 }
 
-/// The stride a patch needs: the largest of [`STRIDES`] whose spacing still covers at most
-/// `threshold_px` pixels at the patch's nearest point (1 when even one sample covers more).
-pub fn stride_for(pixels_per_sample: f64, threshold_px: f64) -> u32 {
-    STRIDES.iter().rev().copied().find(|&s| f64::from(s) * pixels_per_sample <= threshold_px).unwrap_or(1)
+/// The stride a patch needs: the coarsest of [`STRIDES`] whose effective error `errors_m[k]`,
+/// seen at `distance_m` with a focal length of `focal_px`, projects to at most τ / 1.1 pixels
+/// (`max_pixel_error_px` = τ; 1 when even stride 2 would not).
+pub fn stride_for(errors_m: &[f64; STRIDES.len()], distance_m: f64, focal_px: f64, max_pixel_error_px: f64) -> u32 {
+    let allowed = max_pixel_error_px / MORPH_BAND_START;
+    let k = (0..STRIDES.len()).rev().find(|&k| errors_m[k] * focal_px / distance_m.max(1e-6) <= allowed).unwrap_or(0);
+    STRIDES[k]
+}
+
+/// The largest projected error of a patch drawn at `stride` with effective errors `errors_m`
+/// (metres) whose vertices lie between `near_m` and `far_m` from the eye: each vertex draws its
+/// stride's mesh blended toward the coarser one by its morph factor, so its error is at most
+/// (1 − m)·δₛ + m·δ₂ₛ, seen at its distance; the largest is at the nearest point or where the
+/// morph band starts or ends.
+pub fn drawn_error_px(
+    errors_m: &[f64; STRIDES.len()],
+    stride: u32,
+    reach_m: f64,
+    near_m: f64,
+    far_m: f64,
+    focal_px: f64,
+) -> f64 {
+    let k = stride_index(stride);
+    let coarser = errors_m.get(k + 1).copied().unwrap_or(errors_m[k]);
+    let at = |d: f64| {
+        let m = morph_factor(stride, reach_m, d);
+        ((1.0 - m) * errors_m[k] + m * coarser) * focal_px / d.max(1e-6)
+    };
+    let mut worst = at(near_m);
+    for d in [reach_m / MORPH_BAND_START, reach_m / MORPH_BAND_END] {
+        if d > near_m && d < far_m {
+            worst = worst.max(at(d));
+        }
+    }
+    worst
 }
 
 /// The boxes of a quad's 64 patches (row-major: patch (px, py) at `py * 8 + px`) from its coarse
@@ -207,27 +270,28 @@ pub fn levels_drawn_at(k: usize) -> impl Iterator<Item = usize> {
     [0, k].into_iter().chain(morph)
 }
 
-/// One drawn quad as patch selection sees it: the quad's longest edge (metres) and its 64
-/// patches' boxes at each stride.
+/// One drawn quad as patch selection sees it: its 64 patches' boxes and errors at each stride.
 pub struct QuadPatches<'a> {
-    /// The quad's longest edge, metres (its sample spacing is this / 256).
-    pub edge_m: f64,
     /// Per patch (row-major), its boxes at each stride.
     pub bounds: &'a [StrideBoxes],
+    /// Per patch (row-major), its effective errors at each stride ([`effective_errors`],
+    /// metres as drawn).
+    pub errors_m: &'a [[f64; STRIDES.len()]],
 }
 
 /// The patches of the drawn quads (in their order) to draw: each culled on its own and at the
-/// stride its nearest point needs. With `adaptive` false every patch is drawn at stride 1 and
-/// none is culled: the quads drawn whole, as before patches (for comparisons and the vertex
-/// tests that want every sample). With `morph` (geomorphing on, adaptive patches), a patch
-/// `morphs` unless even its farthest point is past the morph band ([`morph_factor`] 0 there, so at
-/// every vertex).
+/// stride its nearest point needs under the pixel error `max_pixel_error_px`. With `adaptive`
+/// false every patch is drawn at stride 1 and none is culled: the quads drawn whole, as before
+/// patches (for comparisons and the vertex tests that want every sample). With `morph`
+/// (geomorphing on, adaptive patches), a patch `morphs` unless even its farthest point is past
+/// the morph band ([`morph_factor`] 0 there, so at every vertex).
 pub fn select_patches(
     camera: &Camera,
     params: &SelectParams,
     quads: &[QuadPatches],
     adaptive: bool,
     morph: bool,
+    max_pixel_error_px: f64,
 ) -> PatchSelection {
     let focal = camera.focal_px(params.height);
     let mut out = PatchSelection::default();
@@ -235,10 +299,11 @@ pub fn select_patches(
     for (k, q) in quads.iter().enumerate() {
         for (n, bounds) in q.bounds.iter().enumerate() {
             let (px, py) = (n as u32 % PATCHES_PER_EDGE, n as u32 / PATCHES_PER_EDGE);
+            let errors = &q.errors_m[n];
+            let near = bounds[0].distance_m(camera.position).max(camera.near_m);
             let stride = if adaptive {
                 // The stride from the patch's own surface; culled by what it draws at that stride.
-                let info = QuadInfo { bounds: bounds[0], edge_m: q.edge_m };
-                let stride = stride_for(pixels_per_sample(camera, &info, params.height), params.threshold_px);
+                let stride = stride_for(errors, near, focal, max_pixel_error_px);
                 let culled = cull_box(camera, &planes, params.occluder_m, &bounds[stride_index(stride)]);
                 if tally(culled, &mut out.culled_frustum, &mut out.culled_horizon) {
                     continue;
@@ -247,27 +312,45 @@ pub fn select_patches(
             } else {
                 1
             };
-            let morphs = morph && adaptive && {
-                // The shader measures from f32 positions: 1 % nearer counts as morphing.
-                let b = &bounds[stride_index(stride)];
-                let far = b.corners().iter().map(|c| (*c - camera.position).length()).fold(0.0, f64::max);
-                morph_factor(stride, q.edge_m / 256.0, far * 1.01, focal, params.threshold_px) > 0.0
-            };
-            out.patches.push(Patch { stride, morphs, skirts: ALL_SIDES, quad: k as u32, py, px });
+            let b = &bounds[stride_index(stride)];
+            let far = b.corners().iter().map(|c| (*c - camera.position).length()).fold(0.0, f64::max);
+            let coarser = errors.get(stride_index(stride) + 1).copied().unwrap_or(0.0);
+            let reach = if stride < PATCH_CELLS { morph_reach(coarser, focal, max_pixel_error_px) } else { 0.0 };
+            // The shader measures from f32 positions: 1 % nearer counts as morphing.
+            let morphs = morph && adaptive && morph_factor(stride, reach, far * 1.01) > 0.0;
+            let drawn_reach = if morphs { reach } else { f64::INFINITY };
+            let error_px = drawn_error_px(errors, stride, drawn_reach, near, far.max(near), focal);
+            out.max_error_px = out.max_error_px.max(error_px);
+            out.patches.push(Patch {
+                stride,
+                morphs,
+                skirts: ALL_SIDES,
+                quad: k as u32,
+                py,
+                px,
+                reach_m: reach as f32,
+                error_px: error_px as f32,
+            });
         }
     }
     hang_skirts(&mut out.patches);
-    out.patches.sort_unstable();
+    out.patches.sort_unstable_by_key(|p| (p.stride, p.skirts, p.morphs, p.quad, p.py, p.px));
     out
 }
 
+/// What decides where a patch's edge vertices stand: its stride, and its reach where it morphs.
+fn morph_key(p: &Patch) -> (u32, u32) {
+    (p.stride, if p.morphs { p.reach_m.to_bits() } else { u32::MAX })
+}
+
 /// Keeps the skirts a patch needs: on the quad's edge (where another quad, drawn from other
-/// values, meets it), and toward a neighbour drawn at another stride (a T-junction) or not at all.
+/// values, meets it), and toward a neighbour drawn at another stride (a T-junction), morphing by
+/// another reach, or not at all.
 fn hang_skirts(patches: &mut [Patch]) {
     let n = PATCHES_PER_EDGE as usize;
-    let mut strides: std::collections::HashMap<u32, Vec<u32>> = std::collections::HashMap::new();
+    let mut strides: std::collections::HashMap<u32, Vec<(u32, u32)>> = std::collections::HashMap::new();
     for p in patches.iter() {
-        strides.entry(p.quad).or_insert_with(|| vec![0; n * n])[p.py as usize * n + p.px as usize] = p.stride;
+        strides.entry(p.quad).or_insert_with(|| vec![(0, 0); n * n])[p.py as usize * n + p.px as usize] = morph_key(p);
     }
     for p in patches.iter_mut() {
         let grid = &strides[&p.quad];
@@ -278,7 +361,7 @@ fn hang_skirts(patches: &mut [Patch]) {
         };
         let mut skirts = 0;
         for (side, (dx, dy)) in [(SOUTH, (0, -1)), (EAST, (1, 0)), (NORTH, (0, 1)), (WEST, (-1, 0))] {
-            if neighbour(dx, dy) != Some(p.stride) {
+            if neighbour(dx, dy) != Some(morph_key(p)) {
                 skirts |= side;
             }
         }
@@ -303,24 +386,53 @@ mod tests {
         }
     }
 
-    fn quad_patches(quad: QuadId) -> (f64, Vec<StrideBoxes>) {
+    /// A quad's patch boxes, and errors of a smooth surface: δ = 5·s² m at stride s (a
+    /// parabola's), 0 at stride 1.
+    fn quad_patches(quad: QuadId) -> (f64, Vec<StrideBoxes>, Vec<[f64; STRIDES.len()]>) {
         let g = QuadGeometry::compute(&Ellipsoid::MOON, CubeProjection::Qsc, quad, 17);
         let q = g.corners_ecef;
         let edge = (q[1] - q[0]).length().max((q[2] - q[0]).length());
         let boxes = patch_bounds(&g, &[(-100.0, 100.0); 64], 1.0);
-        (edge, boxes.into_iter().map(|b| [b; STRIDES.len()]).collect())
+        let delta = STRIDES.map(|s| if s == 1 { 0.0 } else { 5.0 * f64::from(s * s) });
+        (edge, boxes.into_iter().map(|b| [b; STRIDES.len()]).collect(), vec![effective_errors(&delta); 64])
     }
 
     #[test]
-    fn strides_are_the_coarsest_that_keep_a_sample_under_the_threshold() {
-        assert_eq!(stride_for(2.0, 1.5), 1, "already too coarse: the finest");
-        assert_eq!(stride_for(1.5, 1.5), 1);
-        assert_eq!(stride_for(0.7, 1.5), 2);
-        assert_eq!(stride_for(0.1, 1.5), 8);
-        assert_eq!(stride_for(0.01, 1.5), 32, "never coarser than one cell a patch");
+    fn strides_are_the_coarsest_whose_error_projects_under_the_pixel_error() {
+        // δ̂ = 0, 1, 2, 4, 8, 16 m: seen from 10 km with f = 1000 px, 0.1 px a metre.
+        let errors = effective_errors(&[0.0, 1.0, 1.5, 4.0, 4.0, 16.0]);
+        assert_eq!(errors, [0.0, 1.0, 2.0, 4.0, 8.0, 16.0], "monotone and at least doubling");
+        assert_eq!(stride_for(&errors, 10_000.0, 1000.0, 1.0), 16, "1.6 px > 1/1.1 at 32");
+        assert_eq!(stride_for(&errors, 10_000.0, 1000.0, 0.5), 8);
+        assert_eq!(stride_for(&errors, 10.0, 1000.0, 1.0), 1, "already too coarse: the finest");
+        assert_eq!(stride_for(&[0.0; 6], 1.0, 1000.0, 1.0), 32, "a plane: one cell a patch");
+        // What a patch drawn there shows is within τ (with the morph toward the coarser mesh).
+        let reach = morph_reach(errors[5], 1000.0, 1.0);
+        let e = drawn_error_px(&errors, 16, reach, 10_000.0, 11_000.0, 1000.0);
+        assert!(e <= 1.0 && e > 0.5, "{e}");
         assert_eq!(triangles_at(1, ALL_SIDES), 2 * 32 * 32 + 8 * 32);
         assert_eq!(triangles_at(32, ALL_SIDES), 2 + 8);
         assert_eq!(triangles_at(1, SOUTH | WEST), 2 * 32 * 32 + 4 * 32);
+    }
+
+    #[test]
+    fn a_vertex_is_within_the_pixel_error_all_through_the_morph_band() {
+        // Between the band's ends a vertex blends the two meshes; its error seen at its distance
+        // never exceeds τ, whatever the errors' ratio (≥ 2 by construction).
+        for (fine, coarse) in [(1.0, 2.0), (1.0, 4.0), (0.1, 8.0), (0.0, 1.0)] {
+            let mut errors = [0.0; 6];
+            (errors[2], errors[3]) = (fine, coarse);
+            let reach = morph_reach(coarse, 800.0, 1.0);
+            for k in 1..400 {
+                let d = reach / MORPH_BAND_END * (1.0 + f64::from(k) / 100.0);
+                let e = drawn_error_px(&errors, 4, reach, d, d, 800.0);
+                let at_stride = fine * 800.0 / d;
+                // Where stride 4 is taken at all (its own error within τ / 1.1).
+                if at_stride <= 1.0 / MORPH_BAND_START {
+                    assert!(e <= 1.0 + 1e-9, "{fine}/{coarse} at {d}: {e}");
+                }
+            }
+        }
     }
 
     #[test]
@@ -348,7 +460,7 @@ mod tests {
     fn a_quad_larger_than_the_view_draws_only_the_patches_that_show_and_coarser_far_away() {
         // Looking obliquely at a level-3 quad from 20 km: part of it is off screen.
         let quad = QuadId::root(Face::Front).children().unwrap()[0].children().unwrap()[0].children().unwrap()[0];
-        let (edge_m, bounds) = quad_patches(quad);
+        let (_, bounds, errors) = quad_patches(quad);
         let corner = crate::ecm::geometry::quad_corners(&Ellipsoid::MOON, CubeProjection::Qsc, quad).0[0];
         let g = crate::geodesy::geodetic_from_ecef(&Ellipsoid::MOON, corner);
         let spec = CameraSpec {
@@ -360,8 +472,8 @@ mod tests {
             fov: 60.0,
         };
         let camera = Camera::new(&Ellipsoid::MOON, spec, 1.0);
-        let quads = [QuadPatches { edge_m, bounds: &bounds }];
-        let full = select_patches(&camera, &params(1.5), &quads, false, true);
+        let quads = [QuadPatches { bounds: &bounds, errors_m: &errors }];
+        let full = select_patches(&camera, &params(1.5), &quads, false, true, 1.0);
         assert!(full.patches.iter().all(|p| !p.morphs), "whole quads do not morph");
         assert_eq!(full.patches.len(), 64);
         // Whole: skirts only round the quad's edge (32 patch sides).
@@ -369,21 +481,27 @@ mod tests {
         let corner = full.patches.iter().find(|p| (p.px, p.py) == (0, 0)).unwrap();
         assert_eq!(corner.skirts, SOUTH | WEST);
         assert!(full.patches.iter().any(|p| (p.px, p.py) == (3, 4) && p.skirts == 0));
-        let near = select_patches(&camera, &params(1.5), &quads, true, true);
+        let near = select_patches(&camera, &params(1.5), &quads, true, true, 1.0);
         assert!(near.culled_frustum > 0, "{near:?}");
         assert!(near.triangles() < full.triangles(), "{} of {}", near.triangles(), full.triangles());
-        // From 500 km its samples cover about one pixel at the nearest corner, less beyond.
+        assert!(near.max_error_px <= 1.0, "{}", near.max_error_px);
+        // From 500 km, the parabola's error allows coarser strides, far ones coarser still.
         let camera = Camera::new(&Ellipsoid::MOON, CameraSpec { alt: 500_000.0, pitch: -40.0, ..spec }, 1.0);
-        let adaptive = select_patches(&camera, &params(1.5), &quads, true, true);
+        let adaptive = select_patches(&camera, &params(1.5), &quads, true, true, 1.0);
         assert!(adaptive.triangles() * 4 < full.triangles() * 3, "{} of {}", adaptive.triangles(), full.triangles());
+        assert!(adaptive.max_error_px <= 1.0, "{}", adaptive.max_error_px);
         let strides: std::collections::BTreeSet<u32> = adaptive.patches.iter().map(|p| p.stride).collect();
         assert!(strides.len() >= 2, "near and far patches at different strides: {strides:?}");
-        // Each drawn patch's stride keeps a sample at its nearest point under t, unless it is 1.
+        // Each drawn patch's stride keeps its error at its nearest point under τ / 1.1, and the
+        // next coarser one would not.
+        let focal = camera.focal_px(512);
         for p in &adaptive.patches {
-            let info = QuadInfo { bounds: bounds[(p.py * 8 + p.px) as usize][0], edge_m };
-            let px = pixels_per_sample(&camera, &info, 512);
-            assert!(p.stride == 1 || f64::from(p.stride) * px <= 1.5, "{p:?}: {px}");
-            assert!(p.stride == 32 || f64::from(2 * p.stride) * px > 1.5, "{p:?} could be coarser: {px}");
+            let n = (p.py * 8 + p.px) as usize;
+            let d = bounds[n][0].distance_m(camera.position).max(camera.near_m);
+            let k = stride_index(p.stride);
+            assert!(p.stride == 1 || errors[n][k] * focal / d <= 1.0 / 1.1, "{p:?}");
+            assert!(p.stride == 32 || errors[n][k + 1] * focal / d > 1.0 / 1.1, "{p:?} could be coarser");
+            assert!(f64::from(p.error_px) <= 1.0 + 1e-6, "{p:?}");
         }
         // Sorted into one run per stride.
         let groups = adaptive.groups();
@@ -391,14 +509,15 @@ mod tests {
         assert_eq!(kinds.len(), groups.len(), "one run per stride, set of skirts and morphing");
         assert_eq!(groups.iter().map(|g| g.4 as usize).sum::<usize>(), adaptive.patches.len());
         // A patch that does not morph has no point inside the band: its farthest corner's
-        // factor is 0, so every vertex's is; some do and some do not.
-        let focal = camera.focal_px(512);
+        // factor is 0, so every vertex's is.
         for p in adaptive.patches.iter().filter(|p| !p.morphs) {
-            let b = bounds[(p.py * 8 + p.px) as usize][stride_index(p.stride)];
+            let n = (p.py * 8 + p.px) as usize;
+            let b = bounds[n][stride_index(p.stride)];
             let far = b.corners().iter().map(|c| (*c - camera.position).length()).fold(0.0, f64::max);
-            assert_eq!(morph_factor(p.stride, edge_m / 256.0, far, focal, 1.5), 0.0, "{p:?}");
+            let k = stride_index(p.stride);
+            let reach = if p.stride < 32 { morph_reach(errors[n][k + 1], focal, 1.0) } else { 0.0 };
+            assert_eq!(morph_factor(p.stride, reach, far), 0.0, "{p:?}");
         }
-        assert!(adaptive.patches.iter().any(|p| p.morphs) && adaptive.patches.iter().any(|p| !p.morphs));
         // A side without a skirt has a neighbour in the quad drawn at the same stride.
         let at = |px: i32, py: i32| adaptive.patches.iter().find(|p| (p.px as i32, p.py as i32) == (px, py));
         let mut bare = 0;
@@ -406,11 +525,11 @@ mod tests {
             for (side, (dx, dy)) in [(SOUTH, (0, -1)), (EAST, (1, 0)), (NORTH, (0, 1)), (WEST, (-1, 0))] {
                 if p.skirts & side == 0 {
                     let n = at(p.px as i32 + dx, p.py as i32 + dy);
-                    assert_eq!(n.map(|n| n.stride), Some(p.stride), "{p:?}: side {side} bare");
+                    assert_eq!(n.map(morph_key), Some(morph_key(p)), "{p:?}: side {side} bare");
                     bare += 1;
                 }
             }
         }
-        assert!(bare > 0, "some sides between equal strides go without a skirt");
+        assert!(bare > 0, "some sides between equal strides and reaches go without a skirt");
     }
 }

@@ -15,6 +15,7 @@ mod stack;
 
 use super::compose::{ComposeBatch, ComposePass};
 use super::context::{GpuContext, GpuError};
+use super::patch_errors::{ErrorJob, ErrorKey, MAX_JOBS, PatchErrorPass, QuadErrors};
 use super::terrain::{TerrainPass, ramp_buffer};
 use super::uniforms::{FrameUniform, NO_SLOT, PatchInstance, QuadInstance, rgba, v4};
 use crate::ecm::geometry::{FlatRule, MapSymmetry, QuadFrame, QuadGeometry, Split};
@@ -25,7 +26,8 @@ use crate::scene::Camera;
 use crate::scene::Scene;
 use crate::scene::loader::{CpuCache, DataKey, Loaded, Loader, SAMPLES};
 use crate::scene::patches::{
-    DATA_LEVELS_UP, MORPH_BAND_END, MORPH_BAND_START, PATCHES_PER_EDGE, PatchSelection, QuadPatches, select_patches,
+    DATA_LEVELS_UP, MORPH_BAND_END, MORPH_BAND_START, PATCHES_PER_EDGE, PatchSelection, QuadPatches, STRIDES,
+    effective_errors, select_patches,
 };
 use crate::scene::quads::{QuadCache, Source, exaggerated_range, flat_rule_for};
 use crate::scene::select::{self, SelectParams, Selection};
@@ -34,6 +36,8 @@ use crate::store::grid::spacing_m;
 
 /// Stored for a sample without data (the shader tests `< -1e37`).
 const NODATA_STORED: f32 = -3.0e37;
+/// The height a vertex without data is drawn at, metres.
+const NO_DATA_FILL_M: f32 = 0.0;
 /// Most slots filled per frame, so that a burst of arrivals never stalls one.
 const UPLOADS_PER_FRAME: usize = 48;
 /// What one frame drew and what it cost.
@@ -56,6 +60,14 @@ pub struct FrameStats {
     pub blocked: usize,
     /// Triangles drawn (patch grids and skirts).
     pub triangles: u64,
+    /// The largest projected geometric error of what was drawn, pixels (computed in f64 from
+    /// the patches' δ).
+    pub max_error_px: f64,
+    /// Pixels of the frame (width × height).
+    pub pixels: u64,
+    /// Drawn quads whose patches' errors are not back from the GPU yet (drawn meanwhile with a
+    /// bound from their height range).
+    pub errors_pending: usize,
     /// The patches of the drawn quads: drawn (per stride) and culled.
     pub patches: PatchSelection,
     /// Quads drawn without static maps (past the flat rule).
@@ -120,6 +132,9 @@ pub struct Renderer {
     maps_pool: SlotPool,
     /// Per composed height slot, the stamp of the plan it was composed from.
     composed: HashMap<QuadId, u64>,
+    /// The patches' geometric errors on the GPU, and those that came back, per quad.
+    error_pass: PatchErrorPass,
+    errors: HashMap<QuadId, (ErrorKey, QuadErrors)>,
     compose: ComposePass,
     counters: ComposeCounters,
     scene: Scene,
@@ -193,6 +208,7 @@ impl Renderer {
         let ramp_buffer = ramp_buffer(&device, &scene.ramp);
         let terrain = TerrainPass::new(&device, format)?;
         let compose = ComposePass::new(&device)?;
+        let error_pass = PatchErrorPass::new(&device, &heights_buffer)?;
         let bind_group = terrain.bind_group(
             &device,
             [
@@ -229,6 +245,8 @@ impl Renderer {
             sources_pool: SlotPool::new(height_slots),
             maps_pool: SlotPool::new(map_slots),
             composed: HashMap::new(),
+            error_pass,
+            errors: HashMap::new(),
             compose,
             counters: ComposeCounters::default(),
             scene,
@@ -288,6 +306,11 @@ impl Renderer {
         let out = change(&mut self.scene);
         self.cache.plans.clear();
         out
+    }
+
+    /// Changes the geometric error the mesh may show on screen (pixels, τ).
+    pub fn set_pixel_error(&mut self, max_pixel_error: f64) {
+        self.scene.detail.max_pixel_error = max_pixel_error;
     }
 
     /// Changes the level-of-detail threshold (pixels per sample).
@@ -448,6 +471,40 @@ impl Renderer {
         self.cpu.insert(item);
     }
 
+    /// Takes the patch errors that came back from the GPU; forgets those of quads no longer
+    /// resident once they outnumber the height slots.
+    fn take_patch_errors(&mut self) {
+        let _ = self.device.poll(wgpu::PollType::Poll);
+        for (quad, key, errors) in self.error_pass.take_ready() {
+            self.errors.insert(quad, (key, errors));
+        }
+        if self.errors.len() > 2 * self.heights_pool.capacity as usize {
+            self.errors.retain(|q, _| self.heights_pool.get(*q).is_some());
+        }
+    }
+
+    /// The compositions a quad's coarser strides stand on, as one number: the stamps of the
+    /// ancestors current in `ancestry` (as [`Renderer::ancestry`] gives it), mixed with their
+    /// levels.
+    fn ancestors_key(&self, quad: QuadId, ancestry: &[[u32; 4]; 2]) -> u64 {
+        let slots = [ancestry[0][0], ancestry[0][1], ancestry[0][2], ancestry[0][3], ancestry[1][0]];
+        let mut key = 0xcbf2_9ce4_8422_2325u64;
+        for (k, slot) in slots.iter().enumerate().filter(|(_, s)| **s != NO_SLOT) {
+            let a = quad.ancestor_at(quad.level - (k as u8 + 1));
+            let stamp = self.composed.get(&a).copied().unwrap_or(0);
+            for v in [k as u64 + 1, u64::from(*slot), stamp] {
+                key = (key ^ v).wrapping_mul(0x0100_0000_01b3);
+            }
+        }
+        key
+    }
+
+    /// A quad's patch errors as the GPU computed them (true metres, per patch and stride), if
+    /// they are back and current: for tests.
+    pub fn patch_errors(&self, quad: QuadId) -> Option<&[[f32; STRIDES.len()]]> {
+        self.errors.get(&quad).map(|(_, e)| e.as_slice())
+    }
+
     /// Fills a GPU slot from the CPU cache; false if the data are not there or no slot is free.
     fn upload(&mut self, key: DataKey) -> bool {
         match key {
@@ -486,6 +543,7 @@ impl Renderer {
         self.frame += 1;
         let mut stats = FrameStats::default();
         self.take_arrivals(&mut stats.errors);
+        self.take_patch_errors();
         self.ensure_overlay();
         let camera = self.camera(spec);
         let exaggeration = self.scene.visuals.exaggeration;
@@ -607,9 +665,11 @@ impl Renderer {
             let _ = self.device.poll(wgpu::PollType::Poll);
         }
 
-        // Per-quad values, camera-relative, from f64; each quad's patch boxes.
+        // Per-quad values, camera-relative, from f64; each quad's patch boxes and errors.
         self.instances.clear();
         let mut patch_bounds = Vec::with_capacity(selection.quads.len());
+        let mut patch_errors = Vec::with_capacity(selection.quads.len());
+        let mut error_jobs = Vec::new();
         for &quad in &selection.quads {
             let plan = self.cache.plan(&self.scene, quad);
             let has = plan.has_data(&self.scene.stack);
@@ -629,7 +689,7 @@ impl Renderer {
             let height_slot = if has { self.heights_pool.get(quad).unwrap_or(NO_SLOT) } else { NO_SLOT };
             let flags = u32::from(symmetry.swap) | u32::from(symmetry.flip_x) << 1 | u32::from(symmetry.flip_y) << 2;
             let edge_m = info.map_or(0.0, |i| i.edge_m);
-            patch_bounds.push((edge_m, self.cache.patch_bounds(&self.scene, &plan, exaggeration, edge_m)));
+            patch_bounds.push(self.cache.patch_bounds(&self.scene, &plan, exaggeration, edge_m));
             let spacing = edge_m / f64::from(SAMPLES - 1);
             let r_min = e.b_m() * e.b_m() / e.a_m();
             let sag = spacing * spacing / (8.0 * r_min);
@@ -642,13 +702,41 @@ impl Renderer {
                 stats.flat_quads += 1;
             }
             let ancestry = self.ancestry(quad);
+            let current = height_slot != NO_SLOT && self.composed.get(&quad) == Some(&plan.stamp);
+            let key: ErrorKey = (plan.stamp, self.ancestors_key(quad, &ancestry));
+            let bound = relief + roughness * exaggeration;
+            patch_errors.push(match self.errors.get(&quad) {
+                _ if !has => vec![[0.0; STRIDES.len()]; 64],
+                Some((k, e)) if *k == key => {
+                    e.iter().map(|d| effective_errors(&d.map(|v| f64::from(v) * exaggeration))).collect()
+                }
+                _ => {
+                    if current && !self.error_pass.pending().any(|p| *p == (quad, key)) {
+                        error_jobs.push((
+                            quad,
+                            key,
+                            ErrorJob { slot: [height_slot, NO_DATA_FILL_M.to_bits(), 0, 0], ancestry },
+                        ));
+                    }
+                    stats.errors_pending += 1;
+                    // Until they come: the mesh stays within the patch's relief at every stride
+                    // but the finest, which draws every sample.
+                    let bound = STRIDES.map(|s| if s == 1 { 0.0 } else { bound });
+                    vec![effective_errors(&bound); 64]
+                }
+            });
             self.instances.push(QuadInstance {
                 anchor: v4(frame.anchor, frame.reference_height_m),
                 corners: frame.corners.map(|c| v4(c, 0.0)),
                 normals: frame.corner_normals.map(|n| v4(n, 0.0)),
                 sym: [m.x_axis, m.y_axis, m.z_axis].map(|c| v4(c.as_vec3(), 0.0)),
                 slots: [Split::of(quad).code(), map_slot, height_slot, flags],
-                params: [skirt as f32, f32::from(quad.level), 0.0, (relief + roughness * exaggeration + skirt) as f32],
+                params: [
+                    skirt as f32,
+                    f32::from(quad.level),
+                    NO_DATA_FILL_M,
+                    (relief + roughness * exaggeration + skirt) as f32,
+                ],
                 lod: [spacing as f32, 0.0, 0.0, 0.0],
                 ancestry,
             });
@@ -656,10 +744,14 @@ impl Renderer {
         if !self.instances.is_empty() {
             self.queue.write_buffer(&self.quad_buffer, 0, bytemuck::cast_slice(&self.instances));
         }
+        for jobs in error_jobs.chunks(MAX_JOBS).take(2) {
+            self.error_pass.submit(&self.device, &self.queue, jobs);
+        }
         let quads: Vec<QuadPatches> =
-            patch_bounds.iter().map(|(edge_m, b)| QuadPatches { edge_m: *edge_m, bounds: b }).collect();
-        self.patches = select_patches(&camera, &params, &quads, self.adaptive, self.geomorph);
-        self.patch_boxes = patch_bounds.iter().map(|(_, b)| b.clone()).collect();
+            patch_bounds.iter().zip(&patch_errors).map(|(b, e)| QuadPatches { bounds: b, errors_m: e }).collect();
+        let tau = self.scene.detail.max_pixel_error;
+        self.patches = select_patches(&camera, &params, &quads, self.adaptive, self.geomorph, tau);
+        self.patch_boxes = patch_bounds;
         let records: Vec<PatchInstance> = self.patches.patches.iter().map(PatchInstance::of).collect();
         if !records.is_empty() {
             self.queue.write_buffer(&self.patch_buffer, 0, bytemuck::cast_slice(&records));
@@ -667,8 +759,10 @@ impl Renderer {
         self.write_frame(&camera, width, height);
         self.drawn = selection.quads.clone();
         stats.triangles = self.patches.triangles();
+        stats.max_error_px = self.patches.max_error_px;
+        stats.pixels = u64::from(width) * u64::from(height);
         stats.patches = self.patches.clone();
-        stats.pending = selection.wanted.len() + stale;
+        stats.pending = selection.wanted.len() + stale + stats.errors_pending;
         stats.gpu_slots = (
             self.heights_pool.slots.len(),
             self.heights_pool.capacity,
@@ -721,6 +815,11 @@ impl Renderer {
                 }
             } else {
                 stalls = 0;
+            }
+            if stats.errors_pending > 0 && self.error_pass.pending().next().is_some() {
+                // The patches' errors are computing: wait for the GPU, not the loader.
+                let _ = self.device.poll(wgpu::PollType::wait_indefinitely());
+                continue;
             }
             if stats.uploads == 0
                 && let Some(item) = self.loader.wait(Duration::from_millis(200))

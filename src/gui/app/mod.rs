@@ -57,6 +57,8 @@ pub struct App {
     home: CameraSpec,
     visuals: Visuals,
     threshold_px: f64,
+    /// The geometric error the mesh may show, pixels (the project's `detail.max_pixel_error`).
+    pixel_error: f64,
     render_scale: f32,
     viewport: Option<Viewport>,
     stats: FrameStats,
@@ -134,6 +136,7 @@ impl App {
     ) -> App {
         let visuals = renderer.scene().visuals.clone();
         let threshold_px = renderer.scene().detail.lod_threshold_px;
+        let pixel_error = renderer.scene().detail.max_pixel_error;
         App {
             project,
             project_path,
@@ -143,6 +146,7 @@ impl App {
             home: camera,
             visuals,
             threshold_px,
+            pixel_error,
             render_scale: 1.0,
             viewport: None,
             stats: FrameStats::default(),
@@ -333,6 +337,7 @@ impl App {
     fn sync_project(&mut self) {
         self.project.visuals = self.visuals.clone();
         self.project.detail.lod_threshold_px = self.threshold_px;
+        self.project.detail.max_pixel_error = self.pixel_error;
     }
 
     fn save_project(&mut self) {

@@ -159,6 +159,17 @@ impl App {
                 self.dirty = true;
                 self.mark_unsaved();
             }
+            let e = self.pixel_error;
+            ui.add(egui::Slider::new(&mut self.pixel_error, 0.05..=8.0).logarithmic(true).text("pixel error, px"))
+                .on_hover_text(
+                    "the mesh is drawn as coarsely as keeps its geometric error under this on screen; \
+                     colours, isolines and shading are read from the data per pixel whatever the mesh",
+                );
+            if e != self.pixel_error {
+                self.renderer.set_pixel_error(self.pixel_error);
+                self.dirty = true;
+                self.mark_unsaved();
+            }
             let s = self.render_scale;
             ui.add(egui::Slider::new(&mut self.render_scale, 0.25..=1.0).text("render scale"))
                 .on_hover_text("renders fewer pixels and scales the image up (for software GPUs)");

@@ -67,6 +67,7 @@ impl App {
         };
         let mut renderer = Renderer::new(&ctx, scene, crate::gpu::IMAGE_FORMAT)?;
         renderer.set_threshold(self.threshold_px);
+        renderer.set_pixel_error(self.pixel_error);
         // A difference layer shown on the second side, with its colour range like the first's.
         if let Some(d) = renderer.scene().stack.drawn_difference() {
             let spec = renderer.scene().stack.layers[d].spec.clone();

@@ -1,0 +1,98 @@
+// The geometric error δ of each patch of a quad at each stride: the largest vertical distance, in
+// metres, between the quad's composed heights under the patch and the surface the patch's mesh
+// draws at that stride (each cell cut along its (0, 0)–(1, 1) diagonal, as terrain.rs's
+// patch_indices draws it, its vertices standing on the data of level k above the quad's as the
+// terrain shader's data_index reads it). One workgroup per (patch, stride, quad); each lane takes
+// every 64th of the patch's 33 × 33 samples against the cell that holds it. Samples and
+// vertices without data stand at the fill height. CPU reference: scene::patch_error::patch_errors (the same
+// meshes in f64; tests/render.rs compares the two).
+
+const N: u32 = 257u;
+const PATCH_CELLS: u32 = 32u;
+const PATCHES_PER_EDGE: u32 = 8u;
+const STRIDES: u32 = 6u;
+const NODATA_BELOW: f32 = -1.0e37;
+//!include generated/codes.wgsl
+
+struct Job {
+    // The quad's height slot, the height drawn where a vertex has no data (f32 bits: the
+    // terrain's Quad.params.z), unused ×2.
+    slot: vec4<u32>,
+    // As the terrain's Quad.ancestry: the height slots of the ancestors 1 … 5 levels up
+    // (NO_SLOT: none current), unused, the quad's x and y.
+    ancestry: array<vec4<u32>, 2>,
+}
+
+@group(0) @binding(0) var<storage, read> heights: array<f32>;
+@group(0) @binding(1) var<storage, read> jobs: array<Job>;
+// Per job, patch (row-major from the south) and stride: δ as the bits of a non-negative f32.
+@group(0) @binding(2) var<storage, read_write> errors: array<u32>;
+
+var<workgroup> worst: atomic<u32>;
+
+// The height the mesh at stride 2^k stands on at sample (i, j) (multiples of 2^k): the ancestor
+// k levels up's, where it is current, else the quad's own (the terrain shader's data_index);
+// where that has no data, the fill the terrain draws there.
+fn vertex_height(job: Job, i: u32, j: u32, k: u32) -> f32 {
+    let own = job.slot.x;
+    var slot = NO_SLOT;
+    if k > 0u {
+        slot = select(job.ancestry[1].x, job.ancestry[0][min(k, 4u) - 1u], k <= 4u);
+    }
+    var h = heights[own * N * N + j * N + i];
+    if slot != NO_SLOT {
+        let m = (1u << k) - 1u;
+        let ai = (i + (N - 1u) * (job.ancestry[1].z & m)) >> k;
+        let aj = (j + (N - 1u) * (job.ancestry[1].w & m)) >> k;
+        h = heights[slot * N * N + aj * N + ai];
+    }
+    return select(bitcast<f32>(job.slot.y), h, h > NODATA_BELOW);
+}
+
+// The mesh's height at (u, v) ∈ [0, 1]² of a cell (scene::patch_error::mesh_height).
+fn mesh_height(h00: f32, h10: f32, h01: f32, h11: f32, u: f32, v: f32) -> f32 {
+    if u >= v {
+        return h00 + u * (h10 - h00) + v * (h11 - h10);
+    }
+    return h00 + v * (h01 - h00) + u * (h11 - h01);
+}
+
+@compute @workgroup_size(64)
+fn patch_errors(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_index) lane: u32) {
+    let index = group.x;
+    let k = group.y;
+    let job = jobs[group.z];
+    if lane == 0u {
+        atomicStore(&worst, 0u);
+    }
+    workgroupBarrier();
+    let s = 1u << k;
+    let cells = PATCH_CELLS / s;
+    let i0 = (index % PATCHES_PER_EDGE) * PATCH_CELLS;
+    let j0 = (index / PATCHES_PER_EDGE) * PATCH_CELLS;
+    let own = job.slot.x;
+    for (var n = lane; n < (PATCH_CELLS + 1u) * (PATCH_CELLS + 1u); n += 64u) {
+        let di = n % (PATCH_CELLS + 1u);
+        let dj = n / (PATCH_CELLS + 1u);
+        let h = heights[own * N * N + (j0 + dj) * N + i0 + di];
+        if h <= NODATA_BELOW {
+            continue;
+        }
+        // The cell that holds the sample (the last one for the patch's far edges).
+        let ci = min(di / s, cells - 1u) * s;
+        let cj = min(dj / s, cells - 1u) * s;
+        let a = i0 + ci;
+        let b = j0 + cj;
+        let h00 = vertex_height(job, a, b, k);
+        let h10 = vertex_height(job, a + s, b, k);
+        let h01 = vertex_height(job, a, b + s, k);
+        let h11 = vertex_height(job, a + s, b + s, k);
+        let e = abs(h - mesh_height(h00, h10, h01, h11, f32(di - ci) / f32(s), f32(dj - cj) / f32(s)));
+        // Non-negative floats order as their bits.
+        atomicMax(&worst, bitcast<u32>(e));
+    }
+    workgroupBarrier();
+    if lane == 0u {
+        errors[(group.z * PATCHES_PER_EDGE * PATCHES_PER_EDGE + index) * STRIDES + k] = atomicLoad(&worst);
+    }
+}
