@@ -146,38 +146,11 @@ fn raw_height(q: Quad, i: u32, j: u32) -> f32 {
     return heights[q.slots.z * N * N + j * N + i];
 }
 
-// The data of level k above the quad's (0: its own) at its sample (i, j), a multiple of 2^k: the
-// ancestor k levels up holds it at ((i + 256·(x mod 2^k)) / 2^k, …). A patch drawn every 2^k
-// samples shows this data, which is what the ancestor would draw there, so a quad split or merged
-// draws what was drawn before. Without the ancestor's slot, the quad's own.
-fn data_index(q: Quad, i: u32, j: u32, k: u32) -> u32 {
-    var slot = q.slots.z;
-    if k > 0u && q.slots.z != NO_SLOT {
-        slot = select(q.ancestry[1].x, q.ancestry[0][min(k, 4u) - 1u], k <= 4u);
-    }
-    if slot == NO_SLOT {
-        return select(NO_SLOT, q.slots.z * N * N + j * N + i, q.slots.z != NO_SLOT);
-    }
-    if k == 0u {
-        return slot * N * N + j * N + i;
-    }
-    let m = (1u << k) - 1u;
-    let ai = (i + (N - 1u) * (q.ancestry[1].z & m)) >> k;
-    let aj = (j + (N - 1u) * (q.ancestry[1].w & m)) >> k;
-    return slot * N * N + aj * N + ai;
-}
-
-fn raw_height_at(q: Quad, i: u32, j: u32, k: u32) -> f32 {
-    let index = data_index(q, i, j, k);
-    if index == NO_SLOT {
-        return NODATA_BELOW * 2.0;
-    }
-    return heights[index];
-}
-
-// The height the geometry uses at data level k (exaggerated; the no-data fill where there is none).
-fn geometry_height_at(q: Quad, i: u32, j: u32, k: u32) -> f32 {
-    let raw = raw_height_at(q, i, j, k);
+// The height the geometry stands on at sample (i, j) (exaggerated; the no-data fill where there
+// is none): the quad's own data at every stride, so that what a stride draws, and its error, are
+// a function of the quad's composed heights alone, whatever else is resident.
+fn geometry_height(q: Quad, i: u32, j: u32) -> f32 {
+    let raw = raw_height(q, i, j);
     return select(q.params.z, raw, raw > NODATA_BELOW) * frame.viewport.z;
 }
 
@@ -270,17 +243,16 @@ fn ellipsoid_tangents(q: Quad, i: u32, j: u32) -> array<vec3<f32>, 2> {
     );
 }
 
-// Where a vertex lies, before its skirt: relative to A′, and its ellipsoid normal. A vertex of a
-// patch every 2^k samples (i, j multiples of 2^k) stands on the data of level k above the quad's.
+// Where a vertex lies, before its skirt: relative to A′, and its ellipsoid normal.
 struct Place {
     local: vec3<f32>,
     up: vec3<f32>,
 }
 
-fn place_at(q: Quad, i: u32, j: u32, k: u32) -> Place {
+fn place_at(q: Quad, i: u32, j: u32) -> Place {
     var out: Place;
     out.up = ellipsoid_normal(q, i, j);
-    out.local = local_position(q, i, j, geometry_height_at(q, i, j, k));
+    out.local = local_position(q, i, j, geometry_height(q, i, j));
     return out;
 }
 
@@ -311,29 +283,20 @@ fn vs_main(@builtin(vertex_index) vertex: u32, @builtin(instance_index) instance
     let i = p.i0 + a * p.stride;
     let j = p.j0 + b * p.stride;
 
-    // A patch every 2^k samples stands on the data of level k above the quad's.
-    let k = firstTrailingBit(p.stride);
-    var s = place_at(q, i, j, k);
+    var s = place_at(q, i, j);
     // Toward twice the stride: a vertex the coarser mesh lacks (odd a or b) slides to the coarser
     // mesh's point there, the midpoint of its two neighbours at twice the stride along the edge,
-    // or along the cell's cut for a cell centre; one it has takes that mesh's data (a level up).
-    // At m = 1 the patch draws the coarser mesh exactly. Only the geometry morphs: what the
-    // pixels show is read from the data in the fragment stage.
+    // or along the cell's cut for a cell centre; one it has stays. At m = 1 the patch draws the
+    // coarser mesh exactly. Only the geometry morphs: what the pixels show is read from the data
+    // in the fragment stage.
     let da = a % 2u;
     let db = b % 2u;
     let m = morph_factor(p, length(q.anchor.xyz + s.local));
-    if MORPH && m > 0.0 {
-        var t: Place;
-        if da + db > 0u {
-            let n1 = place_at(q, i - da * p.stride, j - db * p.stride, k + 1u);
-            let n2 = place_at(q, i + da * p.stride, j + db * p.stride, k + 1u);
-            t.local = 0.5 * (n1.local + n2.local);
-            t.up = 0.5 * (n1.up + n2.up);
-        } else {
-            t = place_at(q, i, j, k + 1u);
-        }
-        s.local = mix(s.local, t.local, m);
-        s.up = normalize(mix(s.up, t.up, m));
+    if MORPH && m > 0.0 && da + db > 0u {
+        let n1 = place_at(q, i - da * p.stride, j - db * p.stride);
+        let n2 = place_at(q, i + da * p.stride, j + db * p.stride);
+        s.local = mix(s.local, 0.5 * (n1.local + n2.local), m);
+        s.up = normalize(mix(s.up, 0.5 * (n1.up + n2.up), m));
     }
     var local = s.local;
     if skirt {

@@ -13,7 +13,7 @@ use terrafuse::ecm::{CubeProjection, Face, QuadId};
 use terrafuse::gpu::{DrawMode, GpuContext, IMAGE_FORMAT, PROBE_SUBSAMPLES, RenderedImage, Renderer};
 use terrafuse::project::{CameraSpec, Project};
 use terrafuse::scene::Scene;
-use terrafuse::scene::patches::{data_sample, morph_factor, morph_neighbours};
+use terrafuse::scene::patches::{morph_factor, morph_neighbours};
 
 fn out_dir() -> PathBuf {
     let dir = common::out_path("render");
@@ -96,22 +96,12 @@ fn check_vertex_positions(morph: bool) {
         }
         let reach = f64::from_bits(*reaches.first().unwrap());
         let g = geometries.entry(quad).or_insert_with(|| r.reference_geometry(quad));
-        // A patch every 2^k samples shows the data k levels up (its ancestor's, where the quad
-        // has data and the ancestor is on the GPU).
-        let lv = stride.trailing_zeros();
-        for level in [0, lv, lv + 1] {
-            let (a, _, _) = data_sample(quad, 0, 0, level);
-            composed.entry(a).or_insert_with(|| r.read_heights(a).unwrap());
-        }
-        let h = |i: u32, j: u32, level: u32| {
-            let own = composed[&quad].as_ref();
-            let (a, ai, aj) = data_sample(quad, i, j, level);
-            let (hs, index) = match (own, composed[&a].as_ref()) {
-                (Some(_), Some(up)) => (Some(up), aj * 257 + ai),
-                _ => (own, j * 257 + i),
-            };
-            hs.map_or(0.0, |hs| {
-                let v = hs[index as usize];
+        // The mesh stands on the quad's own samples at every stride.
+        let lv = 0;
+        composed.entry(quad).or_insert_with(|| r.read_heights(quad).unwrap());
+        let h = |i: u32, j: u32, _level: u32| {
+            composed[&quad].as_ref().map_or(0.0, |hs| {
+                let v = hs[(j * 257 + i) as usize];
                 if v.is_nan() { 0.0 } else { v }
             })
         };
@@ -191,33 +181,21 @@ fn byte_diff(a: &[u8], b: [f64; 4]) -> f64 {
 #[test]
 fn patch_errors_on_the_gpu_are_their_cpu_reference() {
     // δ of every patch at every stride from the kernel (shaders/render/patch_errors.wgsl) against
-    // scene::patch_error::patch_errors in f64 on the heights the GPU composed: the quad's own and
-    // those of the ancestors its coarser strides stand on. Within the f32 rounding of heights of
-    // 1–3.5 km and of the mesh's interpolation.
+    // scene::patch_error::patch_errors in f64 on the heights the GPU composed (the mesh stands on
+    // the quad's own samples at every stride; at 0 m where they have no data). Within the f32
+    // rounding of heights of 1–3.5 km and of the mesh's interpolation.
     use terrafuse::scene::patch_error::patch_errors;
     let path = project("erzurum");
     let mut r = renderer(&path, |_| {});
     draw(&mut r, &cam(39.3, 40.42, 30_000.0, 0.0, -45.0), 320, 240, DrawMode::Colour);
-    let (drawn, instances) = (r.drawn().to_vec(), r.instances().to_vec());
+    let drawn = r.drawn().to_vec();
     let (mut checked, mut worst, mut largest) = (0usize, 0f64, 0f64);
-    for (n, &quad) in drawn.iter().enumerate() {
+    for &quad in &drawn {
         let Some(gpu) = r.patch_errors(quad).map(<[_]>::to_vec) else { continue };
         let Some(own) = r.read_heights(quad).unwrap() else { continue };
-        let ancestors: std::collections::HashMap<u32, Vec<f32>> = instances[n]
-            .ancestors_used()
-            .into_iter()
-            .map(|k| (u32::from(k), r.read_heights(quad.ancestor_at(quad.level - k)).unwrap().unwrap()))
-            .collect();
         // Where a vertex has no data the terrain draws it at 0 m (the no-data fill).
-        let vertex = |stride: u32, i: u32, j: u32| {
-            let k = stride.trailing_zeros();
-            let h = match ancestors.get(&k) {
-                Some(h) => {
-                    let (_, ai, aj) = data_sample(quad, i, j, k);
-                    f64::from(h[(aj * 257 + ai) as usize])
-                }
-                None => f64::from(own[(j * 257 + i) as usize]),
-            };
+        let vertex = |_: u32, i: u32, j: u32| {
+            let h = f64::from(own[(j * 257 + i) as usize]);
             if h.is_nan() { 0.0 } else { h }
         };
         for (p, errors) in gpu.iter().enumerate() {

@@ -1,8 +1,8 @@
 // The geometric error δ of each patch of a quad at each stride: the largest vertical distance, in
 // metres, between the quad's composed heights under the patch and the surface the patch's mesh
 // draws at that stride (each cell cut along its (0, 0)–(1, 1) diagonal, as terrain.rs's
-// patch_indices draws it, its vertices standing on the data of level k above the quad's as the
-// terrain shader's data_index reads it). One workgroup per (patch, stride, quad); each lane takes
+// patch_indices draws it, its vertices standing on the quad's own samples, as the terrain's
+// geometry_height reads them). One workgroup per (patch, stride, quad); each lane takes
 // every 64th of the patch's 33 × 33 samples against the cell that holds it. Samples and
 // vertices without data stand at the fill height. CPU reference: scene::patch_error::patch_errors (the same
 // meshes in f64; tests/render.rs compares the two).
@@ -18,9 +18,6 @@ struct Job {
     // The quad's height slot, the height drawn where a vertex has no data (f32 bits: the
     // terrain's Quad.params.z), unused ×2.
     slot: vec4<u32>,
-    // As the terrain's Quad.ancestry: the height slots of the ancestors 1 … 5 levels up
-    // (NO_SLOT: none current), unused, the quad's x and y.
-    ancestry: array<vec4<u32>, 2>,
 }
 
 @group(0) @binding(0) var<storage, read> heights: array<f32>;
@@ -30,22 +27,10 @@ struct Job {
 
 var<workgroup> worst: atomic<u32>;
 
-// The height the mesh at stride 2^k stands on at sample (i, j) (multiples of 2^k): the ancestor
-// k levels up's, where it is current, else the quad's own (the terrain shader's data_index);
-// where that has no data, the fill the terrain draws there.
-fn vertex_height(job: Job, i: u32, j: u32, k: u32) -> f32 {
-    let own = job.slot.x;
-    var slot = NO_SLOT;
-    if k > 0u {
-        slot = select(job.ancestry[1].x, job.ancestry[0][min(k, 4u) - 1u], k <= 4u);
-    }
-    var h = heights[own * N * N + j * N + i];
-    if slot != NO_SLOT {
-        let m = (1u << k) - 1u;
-        let ai = (i + (N - 1u) * (job.ancestry[1].z & m)) >> k;
-        let aj = (j + (N - 1u) * (job.ancestry[1].w & m)) >> k;
-        h = heights[slot * N * N + aj * N + ai];
-    }
+// The height the mesh stands on at sample (i, j): the quad's own, or the fill the terrain draws
+// where it has no data (the terrain shader's geometry_height).
+fn vertex_height(job: Job, i: u32, j: u32) -> f32 {
+    let h = heights[job.slot.x * N * N + j * N + i];
     return select(bitcast<f32>(job.slot.y), h, h > NODATA_BELOW);
 }
 
@@ -83,10 +68,10 @@ fn patch_errors(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocati
         let cj = min(dj / s, cells - 1u) * s;
         let a = i0 + ci;
         let b = j0 + cj;
-        let h00 = vertex_height(job, a, b, k);
-        let h10 = vertex_height(job, a + s, b, k);
-        let h01 = vertex_height(job, a, b + s, k);
-        let h11 = vertex_height(job, a + s, b + s, k);
+        let h00 = vertex_height(job, a, b);
+        let h10 = vertex_height(job, a + s, b);
+        let h01 = vertex_height(job, a, b + s);
+        let h11 = vertex_height(job, a + s, b + s);
         let e = abs(h - mesh_height(h00, h10, h01, h11, f32(di - ci) / f32(s), f32(dj - cj) / f32(s)));
         // Non-negative floats order as their bits.
         atomicMax(&worst, bitcast<u32>(e));

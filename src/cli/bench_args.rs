@@ -156,15 +156,18 @@ pub enum Bench {
         #[command(flatten)]
         import: BenchImportArgs,
     },
-    /// Frame time against screen-space error over the level-of-detail threshold t, on the
-    /// projects' views (the camera path); writes render.csv and render.png.
+    /// Frame time against screen-space error over the pixel error τ (and the level-of-detail
+    /// threshold t), on the projects' views (the camera path); writes render.csv and render.png.
     Render {
         /// Project files.
         #[arg(long, value_delimiter = ',', default_values = [concat!(env!("CARGO_MANIFEST_DIR"), "/projects/moon-lola.json"), concat!(env!("CARGO_MANIFEST_DIR"), "/projects/erzurum.json")])]
         projects: Vec<PathBuf>,
-        /// Thresholds (pixels per sample); the smallest is the reference.
-        #[arg(long, value_delimiter = ',', default_values_t = [0.5, 1.0, 1.5, 2.0, 4.0, 8.0])]
+        /// Thresholds (pixels per sample); the smallest, with its quads whole, is the reference.
+        #[arg(long, value_delimiter = ',', default_values_t = [1.5])]
         thresholds: Vec<f64>,
+        /// Pixel errors τ for the adaptive rows (pixels).
+        #[arg(long, value_delimiter = ',', default_values_t = [0.05, 0.5, 1.0, 2.0, 4.0])]
+        pixel_errors: Vec<f64>,
         /// Image width.
         #[arg(long, default_value_t = 1280, allow_negative_numbers = true)]
         width: u32,

@@ -64,11 +64,22 @@ pub fn run(bench: Bench, c: &mut Console) -> Result<u8, CliError> {
             let (_, report) = super::bench_compose(&settings)?;
             c.print(format_args!("{report}wrote {}\n", out.join("compose.csv").display()))?;
         }
-        Bench::Render { projects, thresholds, width, height, frames, out } => {
+        Bench::Render { projects, thresholds, pixel_errors, width, height, frames, out } => {
             if !thresholds.iter().all(|t| t.is_finite() && *t > 0.0) {
                 return Err("--thresholds must be positive".into());
             }
-            let settings = super::RenderBenchSettings { projects, thresholds, width, height, frames, out: out.clone() };
+            if !pixel_errors.iter().all(|t| t.is_finite() && *t > 0.0) {
+                return Err("--pixel-errors must be positive".into());
+            }
+            let settings = super::RenderBenchSettings {
+                projects,
+                thresholds,
+                pixel_errors,
+                width,
+                height,
+                frames,
+                out: out.clone(),
+            };
             let (rows, report) = super::bench_render(&settings)?;
             c.print(&report)?;
             let (csv, png) = super::write_render_bench(&out, &rows)?;

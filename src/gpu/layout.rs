@@ -74,7 +74,7 @@ mod tests {
                 layout!(QuadInstance { anchor, corners, normals, sym, slots, params, lod, ancestry }),
             ),
             ("PatchInstance", "terrain.wgsl", "Patch", layout!(PatchInstance { quad, i0, j0, stride, reach, pad })),
-            ("ErrorJob", "render/patch_errors.wgsl", "Job", layout!(ErrorJob { slot, ancestry })),
+            ("ErrorJob", "render/patch_errors.wgsl", "Job", layout!(ErrorJob { slot })),
             (
                 "ComposeJob",
                 "compose/compose.wgsl",

@@ -1,7 +1,7 @@
 //! The patches' geometric errors δ on the GPU (`shaders/render/patch_errors.wgsl`): for each quad
 //! given, each of its 64 patches at each stride, the largest vertical miss between its composed
 //! heights and the mesh that stride draws. The renderer asks for a quad's errors once its heights
-//! are current (and again when the ancestors its coarser strides stand on change); the results
+//! are current (and again when it is recomposed); the results
 //! come back through a mapped buffer without waiting, a frame or two later, and until then the
 //! renderer bounds the error by the patch's height range. CPU reference:
 //! [`crate::scene::patch_error::patch_errors`].
@@ -23,16 +23,14 @@ const PER_QUAD: usize = (PATCHES_PER_EDGE * PATCHES_PER_EDGE) as usize * STRIDES
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct ErrorJob {
-    /// The quad's height slot, unused ×3.
+    /// The quad's height slot, the fill height drawn where a vertex has no data (f32 bits),
+    /// unused ×2.
     pub slot: [u32; 4],
-    /// As [`super::uniforms::QuadInstance::ancestry`].
-    pub ancestry: [[u32; 4]; 2],
 }
 
-/// What a quad's errors were computed from: its composition's stamp, and those of the ancestors
-/// whose data its coarser strides stood on (mixed with their levels: an ancestor recomposed, or
-/// one more or fewer current, makes another key).
-pub(crate) type ErrorKey = (u64, u64);
+/// What a quad's errors were computed from: its composition's stamp (the mesh stands on the
+/// quad's own heights at every stride, so nothing else decides them).
+pub(crate) type ErrorKey = u64;
 
 /// A quad's δ per patch (row-major from the south) at each of [`STRIDES`], metres.
 pub(crate) type QuadErrors = Vec<[f32; STRIDES.len()]>;

@@ -16,7 +16,7 @@ use super::context::GpuError;
 use super::renderer::Renderer;
 use crate::ecm::geometry::surface_and_normal;
 use crate::ecm::{CubeProjection, FacePoint, QuadId};
-use crate::scene::patches::{PATCH_CELLS, PATCHES_PER_EDGE, data_sample, morph_factor, morph_neighbours};
+use crate::scene::patches::{PATCH_CELLS, PATCHES_PER_EDGE, morph_factor, morph_neighbours};
 
 /// Where a frame drew which density: per drawn quad, each patch's stride (0 where the patch was
 /// culled) and reach (where its vertices morph).
@@ -87,7 +87,7 @@ struct Surfaces<'a> {
     morph: bool,
     exaggeration: f64,
     heights: HashMap<QuadId, Option<Arc<Vec<f32>>>>,
-    positions: HashMap<(QuadId, u32, u32, u32), Option<DVec3>>,
+    positions: HashMap<(QuadId, u32, u32), Option<DVec3>>,
 }
 
 impl Surfaces<'_> {
@@ -103,39 +103,30 @@ impl Surfaces<'_> {
             .clone()
     }
 
-    /// The exact camera-relative position of sample (i, j) of a quad at the height the data `k`
-    /// levels up give it (the quad's own where that ancestor has none on the GPU, as the shader
-    /// falls back).
-    fn position(&mut self, quad: QuadId, i: u32, j: u32, k: u32) -> Option<DVec3> {
-        if let Some(p) = self.positions.get(&(quad, i, j, k)) {
+    /// The exact camera-relative position of sample (i, j) of a quad at its own height (the mesh
+    /// stands on the quad's own samples at every stride).
+    fn position(&mut self, quad: QuadId, i: u32, j: u32) -> Option<DVec3> {
+        if let Some(p) = self.positions.get(&(quad, i, j)) {
             return *p;
         }
         let own = self.heights(quad)?;
-        let (a, ai, aj) = data_sample(quad, i, j, k);
-        let (heights, index) = match self.heights(a) {
-            Some(h) if !own.is_empty() && !h.is_empty() => (h, (aj * 257 + ai) as usize),
-            _ => (own, (j * 257 + i) as usize),
-        };
-        let p = Some(heights).map(|h| {
-            let raw = h.get(index).copied().unwrap_or(0.0);
-            let height = if raw.is_nan() { 0.0 } else { f64::from(raw) * self.exaggeration };
-            let (x, y) = quad.sample_xy(257, i, j);
-            let (s, n) = surface_and_normal(
-                &self.renderer.scene().ellipsoid,
-                CubeProjection::Qsc,
-                FacePoint { face: quad.face, x, y },
-            );
-            (s - self.camera) + n * height
-        });
-        self.positions.insert((quad, i, j, k), p);
+        let raw = own.get((j * 257 + i) as usize).copied().unwrap_or(0.0);
+        let height = if raw.is_nan() { 0.0 } else { f64::from(raw) * self.exaggeration };
+        let (x, y) = quad.sample_xy(257, i, j);
+        let (s, n) = surface_and_normal(
+            &self.renderer.scene().ellipsoid,
+            CubeProjection::Qsc,
+            FacePoint { face: quad.face, x, y },
+        );
+        let p = Some((s - self.camera) + n * height);
+        self.positions.insert((quad, i, j), p);
         p
     }
 
     /// The vertex (a, b) of a quad's patch drawn at `stride`, morphed as the shader morphs it.
     fn vertex(&mut self, quad: QuadId, reach: f64, patch: (u32, u32), stride: u32, a: u32, b: u32) -> Option<DVec3> {
         let (i, j) = (patch.0 * PATCH_CELLS + a * stride, patch.1 * PATCH_CELLS + b * stride);
-        let k = stride.trailing_zeros();
-        let own = self.position(quad, i, j, k)?;
+        let own = self.position(quad, i, j)?;
         let m = if self.morph { morph_factor(stride, reach, own.length()) } else { 0.0 };
         if m <= 0.0 {
             return Some(own);
@@ -144,9 +135,9 @@ impl Surfaces<'_> {
             Some([n1, n2]) => {
                 let at = |d: (i64, i64)| ((i64::from(i) + d.0) as u32, (i64::from(j) + d.1) as u32);
                 let (p1, p2) = (at(n1), at(n2));
-                (self.position(quad, p1.0, p1.1, k + 1)? + self.position(quad, p2.0, p2.1, k + 1)?) * 0.5
+                (self.position(quad, p1.0, p1.1)? + self.position(quad, p2.0, p2.1)?) * 0.5
             }
-            None => self.position(quad, i, j, k + 1)?,
+            None => own,
         };
         Some(own.lerp(target, m))
     }

@@ -53,17 +53,6 @@ impl QuadInstance {
     pub fn has_maps(&self) -> bool {
         self.slots[1] != NO_SLOT
     }
-
-    /// The levels above the quad (1 … 5) whose composed data its coarser strides stood on.
-    pub fn ancestors_used(&self) -> Vec<u8> {
-        let a = self.ancestry;
-        [a[0][0], a[0][1], a[0][2], a[0][3], a[1][0]]
-            .iter()
-            .enumerate()
-            .filter(|(_, s)| **s != NO_SLOT)
-            .map(|(k, _)| k as u8 + 1)
-            .collect()
-    }
 }
 /// One patch's record for the shader (`Patch` in terrain.wgsl; keep in sync): the quad's index
 /// in the quad records, the sample (i, j) of its first corner, its stride in samples, and its

@@ -483,22 +483,6 @@ impl Renderer {
         }
     }
 
-    /// The compositions a quad's coarser strides stand on, as one number: the stamps of the
-    /// ancestors current in `ancestry` (as [`Renderer::ancestry`] gives it), mixed with their
-    /// levels.
-    fn ancestors_key(&self, quad: QuadId, ancestry: &[[u32; 4]; 2]) -> u64 {
-        let slots = [ancestry[0][0], ancestry[0][1], ancestry[0][2], ancestry[0][3], ancestry[1][0]];
-        let mut key = 0xcbf2_9ce4_8422_2325u64;
-        for (k, slot) in slots.iter().enumerate().filter(|(_, s)| **s != NO_SLOT) {
-            let a = quad.ancestor_at(quad.level - (k as u8 + 1));
-            let stamp = self.composed.get(&a).copied().unwrap_or(0);
-            for v in [k as u64 + 1, u64::from(*slot), stamp] {
-                key = (key ^ v).wrapping_mul(0x0100_0000_01b3);
-            }
-        }
-        key
-    }
-
     /// A quad's patch errors as the GPU computed them (true metres, per patch and stride), if
     /// they are back and current: for tests.
     pub fn patch_errors(&self, quad: QuadId) -> Option<&[[f32; STRIDES.len()]]> {
@@ -703,7 +687,7 @@ impl Renderer {
             }
             let ancestry = self.ancestry(quad);
             let current = height_slot != NO_SLOT && self.composed.get(&quad) == Some(&plan.stamp);
-            let key: ErrorKey = (plan.stamp, self.ancestors_key(quad, &ancestry));
+            let key: ErrorKey = plan.stamp;
             let bound = relief + roughness * exaggeration;
             patch_errors.push(match self.errors.get(&quad) {
                 _ if !has => vec![[0.0; STRIDES.len()]; 64],
@@ -712,11 +696,7 @@ impl Renderer {
                 }
                 _ => {
                     if current && !self.error_pass.pending().any(|p| *p == (quad, key)) {
-                        error_jobs.push((
-                            quad,
-                            key,
-                            ErrorJob { slot: [height_slot, NO_DATA_FILL_M.to_bits(), 0, 0], ancestry },
-                        ));
+                        error_jobs.push((quad, key, ErrorJob { slot: [height_slot, NO_DATA_FILL_M.to_bits(), 0, 0] }));
                     }
                     stats.errors_pending += 1;
                     // Until they come: the mesh stays within the patch's relief at every stride
