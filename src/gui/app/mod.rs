@@ -475,10 +475,13 @@ impl App {
             if let Some(e) = stats.errors.last() {
                 self.message = e.clone();
             }
+            // A new mesh counts too: the patches' errors arrive a frame or two after their quad
+            // is composed and change the strides without any upload or composition.
             let changed = self.dirty
                 || stats.uploads > 0
                 || !stats.composed.is_empty()
-                || stats.selection.quads != self.stats.selection.quads;
+                || stats.selection.quads != self.stats.selection.quads
+                || stats.patches != self.stats.patches;
             self.stats = stats;
             if changed {
                 if let Err(e) = vp.render(rs, &self.renderer, [cursor, centre]) {
