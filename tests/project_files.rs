@@ -65,8 +65,25 @@ fn saves_killed_at_random_moments_leave_the_old_or_the_new_project() {
     let (mut kills, mut mid_write) = (0, 0);
     for k in 0..300 {
         let mut child = upgrade(if k % 2 == 0 { &b } else { &a });
-        let delay = run.mul_f64(rand::Rng::random_range(&mut rng, 0.05..1.1));
-        std::thread::sleep(delay.min(Duration::from_secs(10)));
+        if k % 4 == 3 {
+            // Every fourth: kill as soon as the save's temporary file shows, so that some kills
+            // land while it writes however short the write is against the process's start (a
+            // random delay alone missed it 168 times running on a loaded machine).
+            let t = Instant::now();
+            let writing = || {
+                std::fs::read_dir(&dir)
+                    .map(|d| {
+                        d.filter_map(Result::ok).any(|e| e.file_name().to_string_lossy().starts_with(".t.json.tmp-"))
+                    })
+                    .unwrap_or(false)
+            };
+            while child.try_wait().unwrap().is_none() && !writing() && t.elapsed() < run * 3 {
+                std::thread::sleep(Duration::from_micros(200));
+            }
+        } else {
+            let delay = run.mul_f64(rand::Rng::random_range(&mut rng, 0.05..1.1));
+            std::thread::sleep(delay.min(Duration::from_secs(10)));
+        }
         if child.try_wait().unwrap().is_none() {
             child.kill().unwrap();
             kills += 1;
