@@ -261,14 +261,7 @@ pub fn render(request: &RenderRequest, log: &mut dyn FnMut(&str)) -> Result<Stri
 
 /// Refuses a level-of-detail threshold or pixel error that is not a positive number of pixels.
 pub fn check_detail(lod_threshold: Option<f64>, pixel_error: Option<f64>) -> Result<(), CliError> {
-    for (flag, v) in [("--lod-threshold", lod_threshold), ("--pixel-error", pixel_error)] {
-        if let Some(v) = v
-            && !(v.is_finite() && v > 0.0)
-        {
-            return Err(format!("{flag} {v} must be a positive number of pixels").into());
-        }
-    }
-    Ok(())
+    crate::project::check_detail_overrides(lod_threshold, pixel_error).map_err(|e| e.to_string().into())
 }
 
 /// Applies `--lod-threshold` and `--pixel-error` where given.

@@ -96,13 +96,7 @@ pub fn open(opts: &ViewOptions) -> Result<Opened, GuiError> {
     } else {
         project.camera(opts.view.as_deref(), opts.camera.as_deref())?
     };
-    for (flag, v) in [("--lod-threshold", opts.lod_threshold), ("--pixel-error", opts.pixel_error)] {
-        if let Some(v) = v
-            && !(v.is_finite() && v > 0.0)
-        {
-            return Err(format!("{flag} {v} must be a positive number of pixels").into());
-        }
-    }
+    crate::project::check_detail_overrides(opts.lod_threshold, opts.pixel_error).map_err(|e| e.to_string())?;
     if let Some(path) = &opts.screenshot {
         check_writable(path)?;
     }

@@ -42,7 +42,8 @@ pub use self::camera::CameraSpec;
 pub use self::checks::CheckSpec;
 pub use self::migrate::DatasetSpec;
 pub use self::settings::{
-    ColourBy, ColourMapSpec, ComparisonSpec, DetailSpec, IsolineSpec, LightingSpec, ProfileLine, SwipeSpec, Visuals,
+    BadDetailOverride, ColourBy, ColourMapSpec, ComparisonSpec, DetailSpec, IsolineSpec, LightingSpec, ProfileLine,
+    SwipeSpec, Visuals, check_detail_overrides,
 };
 use crate::geodesy::Ellipsoid;
 use crate::layers::LayerSpec;

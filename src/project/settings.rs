@@ -273,6 +273,30 @@ pub struct DetailSpec {
     pub max_edit_tiles: u64,
 }
 
+/// A level-of-detail threshold or pixel error given on a command line that is not a positive
+/// number of pixels.
+#[derive(Debug, thiserror::Error)]
+#[error("{flag} {value} must be a positive number of pixels")]
+pub struct BadDetailOverride {
+    /// The flag, `--lod-threshold` or `--pixel-error`.
+    pub flag: &'static str,
+    /// What it was given.
+    pub value: f64,
+}
+
+/// Checks `--lod-threshold` and `--pixel-error` where given (the command line and the window share
+/// the rule).
+pub fn check_detail_overrides(lod_threshold: Option<f64>, pixel_error: Option<f64>) -> Result<(), BadDetailOverride> {
+    for (flag, value) in [("--lod-threshold", lod_threshold), ("--pixel-error", pixel_error)] {
+        if let Some(value) = value
+            && !(value.is_finite() && value > 0.0)
+        {
+            return Err(BadDetailOverride { flag, value });
+        }
+    }
+    Ok(())
+}
+
 /// The default of [`DetailSpec::max_pixel_error`]: a pixel.
 pub const DEFAULT_MAX_PIXEL_ERROR: f64 = 1.0;
 
