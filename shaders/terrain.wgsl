@@ -602,8 +602,10 @@ fn shade_pixel(in: VertexOut) -> Shaded {
     let dy = dpdy(in.coords);
     let q = quads[in.quad];
     let px = pixel_data(q, in.coords);
-    let fw_iso = (abs(dot(px.gradient, dx)) + abs(dot(px.gradient, dy))) / frame.iso.x;
-    let fw_dh = (abs(dot(px.dh_gradient, dx)) + abs(dot(px.dh_gradient, dy))) / max(frame.difference.y, 1e-6);
+    // The length of the screen gradient, not fwidth's sum of its two parts: a line is then as
+    // wide in pixels whichever way it runs (fwidth's would be √2 wider on a diagonal).
+    let fw_iso = length(vec2<f32>(dot(px.gradient, dx), dot(px.gradient, dy))) / frame.iso.x;
+    let fw_dh = length(vec2<f32>(dot(px.dh_gradient, dx), dot(px.dh_gradient, dy))) / max(frame.difference.y, 1e-6);
     let fw_brush = fwidth(length(in.rel - frame.brush.xyz));
     return Shaded(shade(in, q, px, fw_iso, fw_dh, fw_brush), px);
 }

@@ -1209,3 +1209,135 @@ fn colour_by_curvature_draws_a_domes_curvature_per_pixel_whatever_the_exaggerati
     let (lo, hi) = terrafuse::compare::attribute_range(&scene, &quads, attribute, 4).unwrap().unwrap();
     assert!(lo == -hi && (hi - 400.0 / r).abs() < 0.02 * 400.0 / r, "curvature range {lo} … {hi}");
 }
+
+#[test]
+fn isolines_of_a_tilted_plane_fall_on_their_true_place_and_are_drawn_their_width() {
+    // A plane linear in longitude and latitude, z = 1500 + 0.3·east + 0.15·north metres (local
+    // metres of 40.1°E 39.6°N), imported with cubic resampling (exact for it), with isolines every
+    // 100 m, 2 px wide, in pure red over a grey ramp, lighting off. Its isoline of height v is the
+    // line of points (lon, lat, v): projected with the f64 camera, that is where each line must be
+    // drawn, straight down and oblique, at the default pixel error and at the finest mesh. Along
+    // a row, a line's coverage (from the green channel against the render without isolines, in
+    // linear light) sums to w / |dy| (dy: the line's direction on screen, vertical part), centred
+    // on the true crossing.
+    let dir = common::scratch("isolines-of-a-plane");
+    let (ge, gn) = (0.3f64, 0.15f64);
+    let (m_lat, m_lon) = (111_034.0f64, 111_320.0 * 39.6f64.to_radians().cos());
+    let height = |lon: f64, lat: f64| 1500.0 + ge * (lon - 40.1) * m_lon + gn * (lat - 39.6) * m_lat;
+    let mut xyz = String::new();
+    for j in 0..=200 {
+        for i in 0..=200 {
+            let (lon, lat) = (40.0 + 0.001 * f64::from(i), 39.7 - 0.001 * f64::from(j));
+            xyz.push_str(&format!("{lon:.3} {lat:.3} {:.5}\n", height(lon, lat)));
+        }
+    }
+    std::fs::write(dir.join("plane.xyz"), xyz).unwrap();
+    let (xyz, tif, store) = (dir.join("plane.xyz"), dir.join("plane.tif"), dir.join("plane.gpkg"));
+    common::run_tool(
+        "gdal_translate",
+        &["-q", "-a_srs", "EPSG:4326", "-ot", "Float64", xyz.to_str().unwrap(), tif.to_str().unwrap()],
+        "",
+    );
+    let args = ["import", tif.to_str().unwrap(), "--store", store.to_str().unwrap(), "--resampling", "cubic"];
+    let run = common::terrafuse(&[&args[..], &["--body", "wgs84", "--quiet"]].concat(), "");
+    assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+    let (w, h, width_px, interval) = (320u32, 240u32, 2.0f64, 100.0f64);
+    let views = [
+        ("down", CameraSpec { lat: 39.6, lon: 40.1, alt: 6000.0, heading: 0.0, pitch: -90.0, fov: 40.0 }),
+        ("oblique", CameraSpec { lat: 39.56, lon: 40.1, alt: 4000.0, heading: 10.0, pitch: -40.0, fov: 40.0 }),
+    ];
+    let render = |name: &str, camera: &CameraSpec, isolines: bool, pixel_error: f64| {
+        let project = format!(
+            r#"{{"format": "terrafuse-project", "version": 4, "body": "wgs84",
+            "layers": [{{"name": "plane", "kind": "dataset", "store": "plane.gpkg"}}],
+            "detail": {{"max_pixel_error": {pixel_error}}},
+            "visuals": {{"colour_map": {{"preset": "grey", "range_m": [-5000.0, 5000.0]}},
+              "isolines": {{"enabled": {isolines}, "interval_m": {interval}, "offset_m": 0.0, "major_every": 0,
+                "width_px": {width_px}, "min_width_px": 1.0, "colour": [255, 0, 0, 255]}},
+              "lighting": {{"enabled": false}}, "exaggeration": 1.0}},
+            "views": {{"v": {{"lat": {}, "lon": {}, "alt": {}, "heading": {}, "pitch": {}, "fov": {}}}}},
+            "default_view": "v"}}"#,
+            camera.lat, camera.lon, camera.alt, camera.heading, camera.pitch, camera.fov
+        );
+        let p = dir.join(format!("{name}.json"));
+        std::fs::write(&p, project).unwrap();
+        let out = dir.join(format!("{name}.png"));
+        let args = ["render", p.to_str().unwrap(), "--out", out.to_str().unwrap(), "--width", "320", "--height", "240"];
+        let run = common::terrafuse(&args, "");
+        assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+        image::open(&out).unwrap().to_rgba8()
+    };
+    let linear = |c: u8| {
+        let c = f64::from(c) / 255.0;
+        if c <= 0.04045 { c / 12.92 } else { ((c + 0.055) / 1.055).powf(2.4) }
+    };
+    for (view, spec) in &views {
+        let camera = terrafuse::scene::camera::Camera::new(&terrafuse::geodesy::Ellipsoid::WGS84, *spec, 1.0);
+        // Each isoline on screen: a polyline of its points every 2 m or so of latitude.
+        let lines: Vec<Vec<(f64, f64)>> = (5..=25)
+            .map(|k| {
+                let v = f64::from(k) * interval;
+                (0..=10_000)
+                    .filter_map(|s| {
+                        let lat = 39.5 + 0.2 * f64::from(s) / 10_000.0;
+                        let lon = 40.1 + (v - 1500.0 - gn * (lat - 39.6) * m_lat) / (ge * m_lon);
+                        let p = terrafuse::geodesy::ecef_from_geodetic(
+                            &terrafuse::geodesy::Ellipsoid::WGS84,
+                            terrafuse::geodesy::Geodetic::from_degrees(lat, lon, v),
+                        );
+                        camera.project(p - camera.position, w, h).map(|(x, y, _)| (x, y))
+                    })
+                    .collect()
+            })
+            .collect();
+        let base = render(&format!("{view}-off"), spec, false, 1.0);
+        for pixel_error in [1.0, 0.05] {
+            let image = render(&format!("{view}-{pixel_error}"), spec, true, pixel_error);
+            let coverage = |x: u32, y: u32| {
+                let (on, off) = (linear(image.get_pixel(x, y).0[1]), linear(base.get_pixel(x, y).0[1]));
+                if off < 0.02 { f64::NAN } else { (1.0 - on / off).clamp(0.0, 1.0) }
+            };
+            let (mut crossings, mut worst_place, mut worst_width) = (0usize, 0f64, 0f64);
+            for y in 0..h {
+                let yc = f64::from(y) + 0.5;
+                for line in &lines {
+                    // Where the line crosses the row's centre, and its direction there.
+                    let Some((xt, dy)) = line.windows(2).find_map(|s| {
+                        let ((x0, y0), (x1, y1)) = (s[0], s[1]);
+                        ((y0 - yc) * (y1 - yc) <= 0.0 && y0 != y1).then(|| {
+                            let t = (yc - y0) / (y1 - y0);
+                            (x0 + t * (x1 - x0), ((y1 - y0) / (x1 - x0).hypot(y1 - y0)).abs())
+                        })
+                    }) else {
+                        continue;
+                    };
+                    let (lo, hi) = ((xt - 6.0).floor(), (xt + 6.0).ceil());
+                    if lo < 0.0 || hi >= f64::from(w) {
+                        continue;
+                    }
+                    let samples: Vec<(f64, f64)> =
+                        (lo as u32..=hi as u32).map(|x| (f64::from(x) + 0.5, coverage(x, y))).collect();
+                    if samples.iter().any(|s| s.1.is_nan()) {
+                        continue;
+                    }
+                    let total: f64 = samples.iter().map(|s| s.1).sum();
+                    let centre = samples.iter().map(|s| s.0 * s.1).sum::<f64>() / total.max(1e-9);
+                    let drawn_width = total * dy;
+                    crossings += 1;
+                    worst_place = worst_place.max((centre - xt).abs());
+                    worst_width = worst_width.max((drawn_width - width_px).abs());
+                    assert!(
+                        (centre - xt).abs() <= 0.5 && (drawn_width - width_px).abs() <= 0.5,
+                        "{view}, pixel error {pixel_error}: the line crossing row {y} at x = {xt:.2} is drawn at \
+                         {centre:.2}, {drawn_width:.2} px wide ({samples:?})"
+                    );
+                }
+            }
+            assert!(crossings > 1000, "{view}: {crossings} crossings");
+            eprintln!(
+                "{view}, pixel error {pixel_error}: {crossings} crossings, place within {worst_place:.3} px, width \
+                 {width_px} ± {worst_width:.3} px"
+            );
+        }
+    }
+}

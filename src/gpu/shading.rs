@@ -44,7 +44,7 @@ pub fn slope_aspect(n: Vec3, up: Vec3, exaggeration: f32) -> [f32; 2] {
 }
 
 /// Coverage (0–1) of an isoline at a pixel. `x`: height in units of the interval (lines at
-/// integers); `fw`: intervals per pixel (the shader's fwidth); `width` and `min_width` in pixels;
+/// integers); `fw`: intervals per pixel (the length of the shader's screen gradient); `width` and `min_width` in pixels;
 /// `spacing_factor`: intervals between lines of this kind (1 minor, k major). Lines thinner than
 /// `min_width` are drawn `min_width` wide and fainter; lines closer than 6 widths apart fade out.
 pub fn isoline_coverage(x: f32, fw: f32, width: f32, min_width: f32, spacing_factor: f32) -> f32 {
