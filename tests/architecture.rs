@@ -333,3 +333,24 @@ fn no_two_files_of_a_module_import_each_other() {
     }
     assert!(problems.is_empty(), "{}", problems.join("\n"));
 }
+
+#[test]
+fn library_errors_are_typed_not_strings() {
+    // A failure a caller may act on is a value of a thiserror type, never a `Result<_, String>`:
+    // a string can only be shown, not matched, and its causes are lost (issue 52).
+    let src = common::repo_path("src");
+    let mut problems = Vec::new();
+    for file in rust_files(&src) {
+        if module_of(&src, &file).is_none() {
+            continue;
+        }
+        let code = code_of(&std::fs::read_to_string(&file).unwrap());
+        for (k, line) in code.lines().enumerate() {
+            let squeezed: String = line.chars().filter(|c| !c.is_whitespace()).collect();
+            if squeezed.contains("Result<") && squeezed.contains(",String>") {
+                problems.push(format!("{}:{}: {}", file.display(), k + 1, line.trim()));
+            }
+        }
+    }
+    assert!(problems.is_empty(), "errors returned as strings:\n{}", problems.join("\n"));
+}

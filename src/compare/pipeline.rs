@@ -63,50 +63,72 @@ pub enum Step {
     Directional(f64),
 }
 
+/// What makes a text not a step of `--pipeline`.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum StepError {
+    /// A step that needs an argument has none.
+    #[error("'{step}' needs {what} ('{step}:…')")]
+    NeedsArgument {
+        /// The step's name.
+        step: String,
+        /// What it needs.
+        what: &'static str,
+    },
+    /// A deramp's order that is not 1, 2 or 3.
+    #[error("'{0}': the order must be 1, 2 or 3")]
+    Order(String),
+    /// A terrain bias over something that is not an attribute it bins by.
+    #[error("'{0}' is not an attribute (elevation, max_curvature or slope)")]
+    Attribute(String),
+    /// A directional bias's azimuth that is not a number.
+    #[error("'{0}': the azimuth must be a number of degrees")]
+    Azimuth(String),
+    /// No such step.
+    #[error("'{0}' is not a step (nuth_kaab, vertical, deramp:ORDER, terrain_bias:ATTRIBUTE, directional:AZIMUTH)")]
+    Unknown(String),
+    /// An argument given to a step that takes none.
+    #[error("'{0}' takes no argument")]
+    TakesNoArgument(String),
+}
+
 impl Step {
     /// Parses one step (`deramp:2`, `terrain_bias:elevation`, `directional:30` …).
-    pub fn parse(text: &str) -> Result<Step, String> {
+    pub fn parse(text: &str) -> Result<Step, StepError> {
         let (name, arg) = match text.split_once(':') {
             Some((n, a)) => (n.trim(), Some(a.trim())),
             None => (text.trim(), None),
         };
-        let need = |what: &str| arg.ok_or_else(|| format!("'{name}' needs {what} ('{name}:…')"));
+        let need = |what: &'static str| arg.ok_or_else(|| StepError::NeedsArgument { step: name.into(), what });
         let step = match name {
             "nuth_kaab" => Step::NuthKaab,
             "vertical" => Step::Vertical,
             "deramp" => match need("an order 1–3")?.parse::<u8>() {
                 Ok(order @ 1..=3) => Step::Deramp(order),
-                _ => return Err(format!("'{text}': the order must be 1, 2 or 3")),
+                _ => return Err(StepError::Order(text.into())),
             },
             "terrain_bias" => Step::TerrainBias(match need("an attribute")? {
                 "elevation" => Attribute::Elevation,
                 "max_curvature" => Attribute::MaxCurvature,
                 "slope" => Attribute::Slope,
-                other => {
-                    return Err(format!("'{other}' is not an attribute (elevation, max_curvature or slope)"));
-                }
+                other => return Err(StepError::Attribute(other.into())),
             }),
             "directional" => match need("an azimuth in degrees")?.parse::<f64>() {
                 Ok(az) if az.is_finite() => Step::Directional(az.rem_euclid(360.0)),
-                _ => return Err(format!("'{text}': the azimuth must be a number of degrees")),
+                _ => return Err(StepError::Azimuth(text.into())),
             },
-            other => {
-                return Err(format!(
-                    "'{other}' is not a step (nuth_kaab, vertical, deramp:ORDER, terrain_bias:ATTRIBUTE, directional:AZIMUTH)"
-                ));
-            }
+            other => return Err(StepError::Unknown(other.into())),
         };
         if arg.is_some() && matches!(step, Step::NuthKaab | Step::Vertical) {
-            return Err(format!("'{name}' takes no argument"));
+            return Err(StepError::TakesNoArgument(name.into()));
         }
         Ok(step)
     }
 
     /// Parses `--pipeline`'s comma-separated steps.
     pub fn parse_list(text: &str) -> Result<Vec<Step>, CompareError> {
-        let steps: Result<Vec<Step>, String> = text.split(',').map(Step::parse).collect();
+        let steps: Result<Vec<Step>, StepError> = text.split(',').map(Step::parse).collect();
         let problem = |problem: String| CompareError::Option { option: "--pipeline".into(), problem };
-        let steps = steps.map_err(problem)?;
+        let steps = steps.map_err(|e| problem(e.to_string()))?;
         if steps.is_empty() {
             return Err(problem("names no step".into()));
         }
@@ -282,7 +304,7 @@ impl Coregistration {
         if !biases.is_empty() {
             let (name, kind) = (out.name.clone(), out.kind());
             for b in &biases {
-                b.check().map_err(|problem| LayerError::field(&name, "correction", problem))?;
+                b.check().map_err(|problem| LayerError::field(&name, "correction", problem.to_string()))?;
             }
             let d = out.as_dataset_mut().ok_or_else(|| {
                 LayerError::field(&name, "correction", format!("corrects a dataset; a {} layer has none", kind.name()))

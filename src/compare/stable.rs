@@ -99,6 +99,14 @@ impl Stable {
 /// (west, south, east, north).
 type Polygon = (Vec<Vec<(f64, f64)>>, [f64; 4]);
 
+/// A polygon wider than 180° of longitude: one that crosses ±180°, which outlines do not take.
+#[derive(Clone, Copy, Debug, PartialEq, thiserror::Error)]
+#[error("a polygon spans {span_deg:.1}° of longitude (one crossing ±180° is not supported)")]
+pub struct AcrossAntimeridian {
+    /// Its span, degrees.
+    pub span_deg: f64,
+}
+
 /// The polygons of unstable terrain, in degrees of the body's geographic CRS.
 #[derive(Clone, Debug, Default)]
 pub struct Outlines {
@@ -123,7 +131,7 @@ impl Outlines {
                     Some(_) => geometry.transform_to(&target).map_err(|e| fail(format!("reprojecting: {e}")))?,
                     None => geometry.clone(),
                 };
-                out.add(&geometry).map_err(fail)?;
+                out.add(&geometry).map_err(|e| fail(e.to_string()))?;
             }
         }
         if out.polygons.is_empty() {
@@ -132,7 +140,7 @@ impl Outlines {
         Ok(out)
     }
 
-    fn add(&mut self, g: &gdal::vector::Geometry) -> Result<(), String> {
+    fn add(&mut self, g: &gdal::vector::Geometry) -> Result<(), AcrossAntimeridian> {
         let kind = gdal::vector::geometry_type_flatten(g.geometry_type());
         match kind {
             gdal::vector::OGRwkbGeometryType::wkbPolygon => {
@@ -153,16 +161,13 @@ impl Outlines {
     }
 
     /// Adds a polygon from its rings.
-    pub fn push(&mut self, rings: Vec<Vec<(f64, f64)>>) -> Result<(), String> {
+    pub fn push(&mut self, rings: Vec<Vec<(f64, f64)>>) -> Result<(), AcrossAntimeridian> {
         let mut b = [f64::INFINITY, f64::INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY];
         for &(x, y) in rings.iter().flatten() {
             b = [b[0].min(x), b[1].min(y), b[2].max(x), b[3].max(y)];
         }
         if b[2] - b[0] > 180.0 {
-            return Err(format!(
-                "a polygon spans {:.1}° of longitude (one crossing ±180° is not supported)",
-                b[2] - b[0]
-            ));
+            return Err(AcrossAntimeridian { span_deg: b[2] - b[0] });
         }
         if b[0].is_finite() {
             self.polygons.push((rings, b));

@@ -34,6 +34,15 @@ pub enum GuiError {
     /// A comparison.
     #[error("{}", chain(.0))]
     Compare(crate::compare::CompareError),
+    /// A camera flight's path.
+    #[error("{}", chain(.0))]
+    Flight(crate::scene::flight::FlightError),
+    /// A box around the view.
+    #[error("{}", chain(.0))]
+    Box(crate::geodesy::BoxError),
+    /// A failure below, kept whole with its causes.
+    #[error("{}", chain(&**.0))]
+    Failure(crate::errors::Failure),
     /// A file the workstation reads or writes.
     #[error("{}: {what}: {source}", path.display())]
     File {
@@ -65,6 +74,9 @@ from!(
     Layer(crate::layers::LayerError),
     Params(crate::erosion::params::ParamError),
     Compare(crate::compare::CompareError),
+    Flight(crate::scene::flight::FlightError),
+    Box(crate::geodesy::BoxError),
+    Failure(crate::errors::Failure),
 );
 
 impl From<String> for GuiError {

@@ -241,71 +241,142 @@ impl Bias {
     }
 
     /// Checks what a type cannot: finite numbers, the order and its coefficients, bins ascending,
-    /// the ranges, and that a layer's terrain bias reads its elevation. The problem, for the
-    /// layer's error.
-    pub fn check(&self) -> Result<(), String> {
-        let finite = |what: &str, v: &[f64]| match v.iter().all(|x| x.is_finite()) {
+    /// the ranges, and that a layer's terrain bias reads its elevation.
+    pub fn check(&self) -> Result<(), BiasError> {
+        let step = || self.step_name();
+        let finite = |what: &'static str, v: &[f64]| match v.iter().all(|x| x.is_finite()) {
             true => Ok(()),
-            false => Err(format!("{}: {what} must be finite", self.step_name())),
+            false => Err(BiasError::NotFinite { step: step(), what }),
         };
         if let Some([lon, lat]) = self.origin_deg()
             && !(lon.is_finite() && (-90.0..=90.0).contains(&lat))
         {
-            return Err(format!("{}: origin_deg [{lon}, {lat}] is not a longitude and latitude", self.step_name()));
+            return Err(BiasError::Origin { step: step(), lon, lat });
         }
         match self {
             Bias::Deramp { order, coefficients, box_km, .. } => {
                 if !(1..=3).contains(order) {
-                    return Err(format!("deramp: order {order} must be 1, 2 or 3"));
+                    return Err(BiasError::Order(*order));
                 }
                 let terms = polynomial_terms(*order).len();
                 if coefficients.len() != terms {
-                    return Err(format!(
-                        "deramp:{order}: has {} coefficients, its order has {terms} terms",
-                        coefficients.len()
-                    ));
+                    return Err(BiasError::Coefficients { order: *order, given: coefficients.len(), terms });
                 }
                 finite("coefficients", coefficients)?;
                 finite("box_km", box_km)?;
                 if box_km[0] > box_km[2] || box_km[1] > box_km[3] {
-                    return Err(format!("deramp:{order}: box_km {box_km:?} must be [west, south, east, north]"));
+                    return Err(BiasError::BoxOrder { order: *order, box_km: *box_km });
                 }
             }
             Bias::TerrainBias { attribute, bins } => {
                 if *attribute != Attribute::Elevation {
-                    return Err(format!(
-                        "terrain_bias:{}: a layer's terrain bias can read only its elevation (slope and \
-                         curvature need the neighbouring samples, which composition does not read)",
-                        attribute.name()
-                    ));
+                    return Err(BiasError::NotElevation(attribute.name()));
                 }
                 if bins.len() < 2 {
-                    return Err("terrain_bias: needs at least two bins".into());
+                    return Err(BiasError::TooFewBins);
                 }
                 finite("bins", bins.as_flattened())?;
                 if bins.windows(2).any(|w| w[0][0] >= w[1][0]) {
-                    return Err("terrain_bias: the bins' centres must rise".into());
+                    return Err(BiasError::BinsNotRising);
                 }
             }
             Bias::Directional { azimuth_deg, offset_m, sinusoids, range_m, .. } => {
                 finite("azimuth_deg and offset_m", &[*azimuth_deg, *offset_m])?;
                 finite("range_m", range_m)?;
                 if range_m[0] > range_m[1] {
-                    return Err(format!("{}: range_m {range_m:?} must rise", self.step_name()));
+                    return Err(BiasError::RangeNotRising { step: step(), range_m: *range_m });
                 }
                 if sinusoids.len() > MAX_SINUSOIDS {
-                    return Err(format!("{}: at most {MAX_SINUSOIDS} sinusoids", self.step_name()));
+                    return Err(BiasError::TooManySinusoids { step: step() });
                 }
                 for s in sinusoids {
                     finite("the sinusoids", &[s.wavelength_m, s.amplitude_m, s.phase_rad])?;
                     if s.wavelength_m <= 0.0 {
-                        return Err(format!("{}: wavelength_m {} must be positive", self.step_name(), s.wavelength_m));
+                        return Err(BiasError::Wavelength { step: step(), wavelength_m: s.wavelength_m });
                     }
                 }
             }
         }
         Ok(())
     }
+}
+
+/// What [`Bias::check`] refuses; `step` is the bias's step name (`deramp:2`, `directional:30` …).
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum BiasError {
+    /// A number that must be finite is not.
+    #[error("{step}: {what} must be finite")]
+    NotFinite {
+        /// The step.
+        step: String,
+        /// Which numbers.
+        what: &'static str,
+    },
+    /// The frame's origin is not a longitude and latitude.
+    #[error("{step}: origin_deg [{lon}, {lat}] is not a longitude and latitude")]
+    Origin {
+        /// The step.
+        step: String,
+        /// The longitude given.
+        lon: f64,
+        /// The latitude given.
+        lat: f64,
+    },
+    /// A deramp's order outside 1–3.
+    #[error("deramp: order {0} must be 1, 2 or 3")]
+    Order(u8),
+    /// A deramp's coefficients do not match its order.
+    #[error("deramp:{order}: has {given} coefficients, its order has {terms} terms")]
+    Coefficients {
+        /// The order.
+        order: u8,
+        /// Coefficients given.
+        given: usize,
+        /// Terms of the order.
+        terms: usize,
+    },
+    /// A deramp's box is not west, south, east, north.
+    #[error("deramp:{order}: box_km {box_km:?} must be [west, south, east, north]")]
+    BoxOrder {
+        /// The order.
+        order: u8,
+        /// The box given.
+        box_km: [f64; 4],
+    },
+    /// A layer's terrain bias over another attribute than the elevation.
+    #[error(
+        "terrain_bias:{0}: a layer's terrain bias can read only its elevation (slope and curvature need the \
+         neighbouring samples, which composition does not read)"
+    )]
+    NotElevation(&'static str),
+    /// Fewer than two bins.
+    #[error("terrain_bias: needs at least two bins")]
+    TooFewBins,
+    /// Bins not in rising order of their centres.
+    #[error("terrain_bias: the bins' centres must rise")]
+    BinsNotRising,
+    /// A directional bias's range that falls.
+    #[error("{step}: range_m {range_m:?} must rise")]
+    RangeNotRising {
+        /// The step.
+        step: String,
+        /// The range given.
+        range_m: [f64; 2],
+    },
+    /// More sinusoids than a layer carries.
+    #[error("{step}: at most {MAX_SINUSOIDS} sinusoids")]
+    TooManySinusoids {
+        /// The step.
+        step: String,
+    },
+    /// A wavelength that is not positive.
+    #[error("{step}: wavelength_m {wavelength_m} must be positive")]
+    Wavelength {
+        /// The step.
+        step: String,
+        /// The wavelength given.
+        wavelength_m: f64,
+    },
 }
 
 /// A local east-north tangent frame on the ellipsoid.
@@ -418,11 +489,11 @@ mod tests {
         if let Bias::Deramp { coefficients, .. } = &mut r {
             coefficients.push(1.0);
         }
-        assert!(r.check().unwrap_err().contains("has 4 coefficients, its order has 3 terms"));
+        assert!(r.check().unwrap_err().to_string().contains("has 4 coefficients, its order has 3 terms"));
         let slope = Bias::TerrainBias { attribute: Attribute::Slope, bins: vec![[0.0, 0.0], [1.0, 1.0]] };
-        assert!(slope.check().unwrap_err().contains("can read only its elevation"));
+        assert!(slope.check().unwrap_err().to_string().contains("can read only its elevation"));
         let falling = Bias::TerrainBias { attribute: Attribute::Elevation, bins: vec![[2.0, 0.0], [1.0, 1.0]] };
-        assert!(falling.check().unwrap_err().contains("must rise"));
+        assert!(falling.check().unwrap_err().to_string().contains("must rise"));
         assert!(ramp().check().is_ok());
     }
 }

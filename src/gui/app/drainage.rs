@@ -99,7 +99,7 @@ impl App {
     }
 
     /// Routes and drapes; the summary, or what went wrong.
-    fn drainage_drape(&mut self) -> Result<String, String> {
+    fn drainage_drape(&mut self) -> Result<String, GuiError> {
         let e = self.renderer.scene().ellipsoid;
         let bounds = self.view_box(self.erosion.half_m)?;
         // The erosion layer's level when it has runs (the runs' cells), else the section's, else
@@ -115,12 +115,12 @@ impl App {
             self.renderer.scene().detail_level().map_or(level, |d| level.min(d))
         };
         let level = layer_level.or(self.erosion.level).unwrap_or_else(coarse);
-        let region = Region::from_box(&e, bounds, level).map_err(|p| p.0)?;
+        let region = Region::from_box(&e, bounds, level)?;
         // The composed stack, without the drape itself (hidden layers compose nothing).
         let scene = self.renderer.scene();
-        let grid = region.grid(&e, &|q| Ok(scene.heights_cpu(q)?)).map_err(|e| crate::errors::chain(&*e))?;
+        let grid = region.grid(&e, &|q| Ok(scene.heights_cpu(q)?))?;
         if grid.base_m.iter().all(|h| h.is_nan()) {
-            return Err("the stack has no data around the view's centre".into());
+            return Err(GuiError::Message("the stack has no data around the view's centre".into()));
         }
         let t = &self.erosion.drainage;
         let drainage = Drainage::of(&grid, t.routing);
@@ -137,9 +137,7 @@ impl App {
             drainage.flow.lake_cells
         );
         let raster = crate::erosion::layer::field_raster(e, &region, &shade);
-        self.editor
-            .set_erosion_overlay(&mut self.renderer, Some((raster, &region, 1.0)))
-            .map_err(|e| crate::errors::chain(&e))?;
+        self.editor.set_erosion_overlay(&mut self.renderer, Some((raster, &region, 1.0)))?;
         Ok(summary)
     }
 

@@ -517,7 +517,7 @@ impl App {
 
     /// A box of half-size `half_m` around the terrain at the view's centre (an error message
     /// when the view shows no terrain there).
-    pub(super) fn view_box(&self, half_m: f64) -> Result<crate::geodesy::GeoBox, String> {
+    pub(super) fn view_box(&self, half_m: f64) -> Result<crate::geodesy::GeoBox, GuiError> {
         let e = self.renderer.scene().ellipsoid;
         let ppp = self.erosion.ctx.as_ref().map_or(1.0, egui::Context::pixels_per_point);
         let centre = self.viewport_rect_px().and_then(|rect| {
@@ -525,10 +525,9 @@ impl App {
                 egui::Rect::from_min_max((rect.min.to_vec2() / ppp).to_pos2(), (rect.max.to_vec2() / ppp).to_pos2());
             self.surface_at(r.center(), r)
         });
-        let Some(p) = centre else { return Err("no terrain at the view's centre".into()) };
+        let Some(p) = centre else { return Err(GuiError::Message("no terrain at the view's centre".into())) };
         let g = geodesy::geodetic_from_ecef(&e, p);
-        crate::erosion::placement::box_around(&e, g.lat_rad.to_degrees(), g.lon_rad.to_degrees(), half_m)
-            .map_err(|e| crate::errors::chain(&e))
+        Ok(crate::erosion::placement::box_around(&e, g.lat_rad.to_degrees(), g.lon_rad.to_degrees(), half_m)?)
     }
 
     /// Prepares a run on the erosion layer (made on top when missing): around the view's centre,

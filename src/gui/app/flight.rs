@@ -75,7 +75,7 @@ impl App {
                     if self.flight.playing.is_some() {
                         self.flight.playing = None;
                     } else if let Err(e) = self.play_flight() {
-                        self.flight.report = e;
+                        self.flight.report = e.to_string();
                     }
                 }
             });
@@ -108,10 +108,9 @@ impl App {
     }
 
     /// Starts replaying the path; the error says what is wrong with it.
-    pub fn play_flight(&mut self) -> Result<(), String> {
-        let flight = Flight::parse(&self.flight.text, self.camera.fov).map_err(|e| e.to_string())?;
-        let cameras =
-            flight.cameras(&self.renderer.scene().ellipsoid, self.flight.frames).map_err(|e| e.to_string())?;
+    pub fn play_flight(&mut self) -> Result<(), GuiError> {
+        let flight = Flight::parse(&self.flight.text, self.camera.fov)?;
+        let cameras = flight.cameras(&self.renderer.scene().ellipsoid, self.flight.frames)?;
         self.flight.recording = None;
         self.flight.playing = Some((cameras, 0));
         self.flight.drawn = (0.0, 0);

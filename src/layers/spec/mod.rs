@@ -923,7 +923,7 @@ fn check_dataset(d: &DatasetLayer, radius_m: f64) -> Result<(), (&'static str, S
         ));
     }
     for bias in &d.correction {
-        bias.check().map_err(|problem| ("correction", problem))?;
+        bias.check().map_err(|problem| ("correction", problem.to_string()))?;
     }
     Ok(())
 }
