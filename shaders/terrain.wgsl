@@ -22,6 +22,8 @@ const PATCH_CELLS: u32 = 32u;
 const MORPH: bool = true;
 // A height slot of no data, and the value a sample without data is stored as.
 const NODATA_BELOW: f32 = -1.0e37;
+// Newton steps that carry a pixel from the mesh's point to the data's along its ray (on_data).
+const PARALLAX_STEPS: u32 = 3u;
 
 struct Frame {
     // Camera-relative ECEF metres to reversed-Z clip space.
@@ -116,6 +118,8 @@ struct VertexOut {
     // Which quad; bit 0 a skirt vertex, the patch's stride above it (probe output).
     @location(5) @interpolate(flat) quad: u32,
     @location(6) @interpolate(flat) kind: u32,
+    // The height the mesh stands at (metres, exaggerated; a skirt's before it is lowered).
+    @location(7) mesh_h: f32,
 }
 
 fn map_value(which: u32, slot: u32, c: vec2<u32>) -> vec3<f32> {
@@ -247,12 +251,15 @@ fn ellipsoid_tangents(q: Quad, i: u32, j: u32) -> array<vec3<f32>, 2> {
 struct Place {
     local: vec3<f32>,
     up: vec3<f32>,
+    // The height it stands at (metres, exaggerated).
+    h: f32,
 }
 
 fn place_at(q: Quad, i: u32, j: u32) -> Place {
     var out: Place;
     out.up = ellipsoid_normal(q, i, j);
-    out.local = local_position(q, i, j, geometry_height(q, i, j));
+    out.h = geometry_height(q, i, j);
+    out.local = local_position(q, i, j, out.h);
     return out;
 }
 
@@ -297,6 +304,7 @@ fn vs_main(@builtin(vertex_index) vertex: u32, @builtin(instance_index) instance
         let n2 = place_at(q, i + da * p.stride, j + db * p.stride);
         s.local = mix(s.local, 0.5 * (n1.local + n2.local), m);
         s.up = normalize(mix(s.up, 0.5 * (n1.up + n2.up), m));
+        s.h = mix(s.h, 0.5 * (n1.h + n2.h), m);
     }
     var local = s.local;
     if skirt {
@@ -313,6 +321,7 @@ fn vs_main(@builtin(vertex_index) vertex: u32, @builtin(instance_index) instance
     out.along_i = tangents[0];
     out.along_j = tangents[1];
     out.coords = vec2<f32>(f32(i), f32(j));
+    out.mesh_h = s.h;
     out.quad = p.quad;
     // Bit 0 a skirt vertex, the stride above it (the probe's id.w carries both).
     out.kind = select(0u, 1u, skirt) | (p.stride << 1u);
@@ -517,9 +526,92 @@ fn ramp_colour(h: f32) -> vec4<f32> {
     return a.colour + (b.colour - a.colour) * w;
 }
 
+// The bilinear height of a height slot at sample coordinates c and its derivatives along i and
+// j (metres, metres per sample); w 1 where the cell's four samples have data.
+fn cell_height(slot: u32, c: vec2<f32>) -> vec4<f32> {
+    let x = clamp(c, vec2<f32>(0.0), vec2<f32>(f32(N - 1u)));
+    let cell = min(vec2<u32>(floor(x)), vec2<u32>(N - 2u));
+    let f = x - vec2<f32>(cell);
+    let a = i32(cell.x);
+    let b = i32(cell.y);
+    let h00 = slot_height(slot, a, b);
+    let h10 = slot_height(slot, a + 1, b);
+    let h01 = slot_height(slot, a, b + 1);
+    let h11 = slot_height(slot, a + 1, b + 1);
+    let valid = min(min(h00, h10), min(h01, h11)) > NODATA_BELOW;
+    let h = mix(mix(h00, h10, f.x), mix(h01, h11, f.x), f.y);
+    let di = mix(h10 - h00, h11 - h01, f.y);
+    let dj = mix(h01 - h00, h11 - h10, f.x);
+    return vec4<f32>(h, di, dj, select(0.0, 1.0, valid));
+}
+
+// Where a pixel reads the data (on_data): its sample coordinates, and the ray there in sample
+// coordinates per metre (rate) and metres of height per metre (climb), where it `moved` off the
+// mesh's point.
+struct Follow {
+    coords: vec2<f32>,
+    rate: vec2<f32>,
+    climb: f32,
+    moved: bool,
+}
+
+// Where the pixel's ray meets the data's surface, in the quad's sample coordinates. The mesh
+// stands within its error δ of the data, so where the ray meets the mesh is not the point of the
+// data the eye sees through the pixel, but δ·tan θ beside it (θ the ray's angle from the
+// vertical). Newton's method along the ray, from the mesh's point, on the data's bilinear
+// surface: the ray's height is the mesh's height there plus its climb, the data's height is read
+// where the ray is. Each step moves at most a few strides (a far root is a ridge in front, which
+// the mesh, within δ, already shows). Skirts, cells without data and rays along the surface keep
+// the mesh's point. Checked against f64 rather than a twin: tests/render.rs places the point
+// each pixel read on the ellipsoid and measures its distance from the pixel's ray, and compares
+// the height read with the CPU composition there.
+fn on_data(q: Quad, in: VertexOut) -> Follow {
+    var out = Follow(in.coords, vec2<f32>(0.0), 0.0, false);
+    let slot = q.slots.z;
+    if (in.kind & 1u) != 0u || slot == NO_SLOT {
+        return out;
+    }
+    let up = normalize(in.up);
+    let ray = normalize(in.rel);
+    // Sample coordinates per metre along the ray: its horizontal part in the tangents' basis.
+    let climb = dot(ray, up);
+    let across = ray - up * climb;
+    let ii = dot(in.along_i, in.along_i);
+    let ij = dot(in.along_i, in.along_j);
+    let jj = dot(in.along_j, in.along_j);
+    let det = ii * jj - ij * ij;
+    if det <= 0.0 {
+        return out;
+    }
+    let ri = dot(across, in.along_i);
+    let rj = dot(across, in.along_j);
+    let rate = vec2<f32>(jj * ri - ij * rj, ii * rj - ij * ri) / det;
+    let e = frame.viewport.z;
+    let reach = 2.0 * f32(max(in.kind >> 1u, 1u)) + 1.0;
+    let most = reach / max(length(rate), 1e-12);
+    var t = 0.0;
+    for (var k = 0u; k < PARALLAX_STEPS; k++) {
+        let d = cell_height(slot, in.coords + rate * t);
+        if d.w < 0.5 {
+            return out;
+        }
+        let miss = e * d.x - (in.mesh_h + climb * t);
+        let slope = e * dot(d.yz, rate) - climb;
+        if abs(slope) < 1e-4 {
+            return out;
+        }
+        t = clamp(t - miss / slope, -most, most);
+    }
+    out.coords = clamp(in.coords + rate * t, vec2<f32>(0.0), vec2<f32>(f32(N - 1u)));
+    out.rate = rate;
+    out.climb = climb;
+    out.moved = true;
+    return out;
+}
+
 // The pixel's colour, sRGB-encoded 0–1, from the data at the pixel. fw_iso, fw_dh and fw_brush:
 // the pixel's footprint in height and dh isoline intervals and in metres from the brush's centre.
-fn shade(in: VertexOut, q: Quad, px: Pixel, fw_iso: f32, fw_dh: f32, fw_brush: f32) -> vec4<f32> {
+fn shade(in: VertexOut, q: Quad, px: Pixel, coords: vec2<f32>, fw_iso: f32, fw_dh: f32, fw_brush: f32) -> vec4<f32> {
     if px.valid < 0.5 {
         return frame.nodata;
     }
@@ -537,7 +629,7 @@ fn shade(in: VertexOut, q: Quad, px: Pixel, fw_iso: f32, fw_dh: f32, fw_brush: f
     if code == NO_SLOT {
         base = ramp_colour(px.height);
     } else if code >= ATTRIBUTE_CURVATURE {
-        let a = pixel_attribute(q, in.coords, in.along_i, in.along_j, length(in.rel), code);
+        let a = pixel_attribute(q, coords, in.along_i, in.along_j, length(in.rel), code);
         if a.y > 0.5 {
             base = ramp_colour(a.x);
         }
@@ -592,27 +684,49 @@ fn shade(in: VertexOut, q: Quad, px: Pixel, fw_iso: f32, fw_dh: f32, fw_brush: f
 struct Shaded {
     colour: vec4<f32>,
     px: Pixel,
+    // The sample coordinates it read.
+    coords: vec2<f32>,
 }
 
-fn shade_pixel(in: VertexOut) -> Shaded {
-    // The sample coordinates' change across the pixel, taken before any branch; the height's
-    // from them and the data's gradient (its change within the pixel, not between the 2 × 2
-    // pixels a derivative differences, which a bilinear cell's kinks would make jump).
-    let dx = dpdx(in.coords);
-    let dy = dpdy(in.coords);
+// `follow`: read the data where the pixel's ray meets them (on_data), or where it meets the mesh
+// (the vertices' own samples, for the points the vertex tests draw).
+fn shade_pixel(in: VertexOut, follow: bool) -> Shaded {
+    // The mesh's sample coordinates and height across the pixel, taken before any branch (a
+    // derivative of the data read would difference storage reads across a 2 × 2 block, whose
+    // bilinear kinks and helper lanes made isolines fade on lavapipe).
+    let mesh_dx = dpdx(in.coords);
+    let mesh_dy = dpdy(in.coords);
+    let mesh_hx = dpdx(in.mesh_h);
+    let mesh_hy = dpdy(in.mesh_h);
     let q = quads[in.quad];
-    let px = pixel_data(q, in.coords);
+    var f = Follow(in.coords, vec2<f32>(0.0), 0.0, false);
+    if follow {
+        f = on_data(q, in);
+    }
+    let coords = f.coords;
+    let px = pixel_data(q, coords);
+    // The coordinates' change across the pixel where the ray meets the data, so that an
+    // isoline's footprint does not depend on the mesh: moving across the pixel, the mesh's point
+    // moves by (dc, dH) and the data's by dc + rate·dt, where e·∇h·(dc + rate·dt) = dH + climb·dt.
+    var dx = mesh_dx;
+    var dy = mesh_dy;
+    let e = frame.viewport.z;
+    let s = e * dot(px.gradient, f.rate) - f.climb;
+    if f.moved && abs(s) > 1e-4 {
+        dx = mesh_dx + f.rate * ((mesh_hx - e * dot(px.gradient, mesh_dx)) / s);
+        dy = mesh_dy + f.rate * ((mesh_hy - e * dot(px.gradient, mesh_dy)) / s);
+    }
     // The length of the screen gradient, not fwidth's sum of its two parts: a line is then as
     // wide in pixels whichever way it runs (fwidth's would be √2 wider on a diagonal).
     let fw_iso = length(vec2<f32>(dot(px.gradient, dx), dot(px.gradient, dy))) / frame.iso.x;
     let fw_dh = length(vec2<f32>(dot(px.dh_gradient, dx), dot(px.dh_gradient, dy))) / max(frame.difference.y, 1e-6);
     let fw_brush = fwidth(length(in.rel - frame.brush.xyz));
-    return Shaded(shade(in, q, px, fw_iso, fw_dh, fw_brush), px);
+    return Shaded(shade(in, q, px, coords, fw_iso, fw_dh, fw_brush), px, coords);
 }
 
 @fragment
 fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
-    return shade_pixel(in).colour;
+    return shade_pixel(in, true).colour;
 }
 
 // The probe's unit of sample coordinates: 1/256 of a sample (gpu::targets::PROBE_SUBSAMPLES).
@@ -630,11 +744,21 @@ struct ProbeOut {
 // The test and benchmark variant: the colour and, per pixel, where the surface is and what it read.
 @fragment
 fn fs_probe(in: VertexOut) -> ProbeOut {
-    let s = shade_pixel(in);
+    return probe(in, true);
+}
+
+// The vertex tests' variant: each vertex as a point, reading the data at its own sample.
+@fragment
+fn fs_points(in: VertexOut) -> ProbeOut {
+    return probe(in, false);
+}
+
+fn probe(in: VertexOut, follow: bool) -> ProbeOut {
+    let s = shade_pixel(in, follow);
     var out: ProbeOut;
     out.colour = s.colour;
     out.surface = vec4<f32>(in.rel, s.px.height);
-    let at = vec2<u32>(round(clamp(in.coords, vec2<f32>(0.0), vec2<f32>(f32(N - 1u))) * PROBE_SUBSAMPLES));
+    let at = vec2<u32>(round(clamp(s.coords, vec2<f32>(0.0), vec2<f32>(f32(N - 1u))) * PROBE_SUBSAMPLES));
     out.id = vec4<u32>(in.quad + 1u, at.x, at.y, select(0u, 1u, s.px.valid > 0.5) + 2u * in.kind);
     return out;
 }

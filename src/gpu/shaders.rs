@@ -98,7 +98,7 @@ mod tests {
             let source = super::composed(name).unwrap();
             let entries = super::validate(name, &source).unwrap_or_else(|e| panic!("{e}"));
             if *name == "terrain.wgsl" {
-                assert_eq!(entries, ["vs_main", "fs_main", "fs_probe"]);
+                assert_eq!(entries, ["vs_main", "fs_main", "fs_probe", "fs_points"]);
             }
             if *name == "compose/compose.wgsl" {
                 assert_eq!(entries, ["compose", "compose_difference"]);

@@ -200,7 +200,7 @@ impl TerrainPass {
             modules.each_ref().map(|m| make(m, "terrain probe", "fs_probe", &probe_targets, triangles));
         let points_pipeline = modules
             .each_ref()
-            .map(|m| make(m, "terrain points", "fs_probe", &probe_targets, wgpu::PrimitiveTopology::PointList));
+            .map(|m| make(m, "terrain points", "fs_points", &probe_targets, wgpu::PrimitiveTopology::PointList));
 
         Ok(TerrainPass { pipeline, probe_pipeline, points_pipeline, layout, index_ranges, index_buffer })
     }
