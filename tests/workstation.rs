@@ -1142,9 +1142,9 @@ fn a_flight_is_recorded_while_flying_and_replayed_along_its_path() {
     assert!((c.heading - 30.0).abs() < 1e-9 && (c.pitch + 30.0).abs() < 1e-9, "{c:?}");
     // A path that does not read is refused, named.
     h.state_mut().set_flight("39.3,40.4,30000,0,-60", 10);
-    let e = h.state_mut().play_flight().unwrap_err();
+    let e = h.state_mut().play_flight().unwrap_err().to_string();
     assert!(e.contains("at least two waypoints"), "{e}");
     h.state_mut().set_flight("39.3,40.4,x,0,-60;39.35,40.45,10000,30,-30", 10);
-    let e = h.state_mut().play_flight().unwrap_err();
+    let e = h.state_mut().play_flight().unwrap_err().to_string();
     assert!(e.contains("waypoint 1"), "{e}");
 }
