@@ -224,10 +224,9 @@ fn a_coarse_mesh_shows_the_same_pixels_as_the_finest() {
     // (0.05 px), 99 % of the terrain pixels away from silhouettes agree within 2/255 per channel,
     // and 99 % of those that read the same point of the same quad (within 0.01 of a sample).
     // Erzurum's view, straight down, and the Moon's Tycho view; the coarse mesh draws a fraction
-    // of the triangles. On Tycho (seen at 40° over a rim kilometres high) 98 % of all pixels: a
-    // ray that meets the mesh near a quad's edge but the data beyond it reads the edge of its
-    // own quad (there is no page table over the resident quads yet).
-    for (name, view, least) in [("erzurum", "30km", 0.99), ("erzurum", "down", 0.99), ("moon-lola", "tycho", 0.98)] {
+    // of the triangles. (Not yet the Moon's globe, where the coarse mesh's pixels read other
+    // points than the finest's: 79 % agree; BENCHMARKS.md.)
+    for (name, view, least) in [("erzurum", "30km", 0.99), ("erzurum", "down", 0.99), ("moon-lola", "tycho", 0.99)] {
         let path = project(name);
         let p = Project::load(&path).unwrap();
         let camera = match view {
@@ -280,7 +279,10 @@ fn a_coarse_mesh_shows_the_same_pixels_as_the_finest() {
             fine_stats.triangles,
             coarse_stats.max_error_px
         );
-        assert!(at_same_point > 2_000, "{name} {view}: {at_same_point} of {compared} pixels read the same point");
+        assert!(
+            at_same_point * 2 > compared,
+            "{name} {view}: {at_same_point} of {compared} pixels read the same point"
+        );
         assert!(coarse_stats.max_error_px <= 1.0 + 1e-9 && fine_stats.max_error_px <= 0.05 + 1e-9);
         assert!(coarse_stats.triangles * 2 < fine_stats.triangles, "{name} {view}");
         assert!(share_at_point >= 0.99, "{name} {view}: only {:.2} % the same", share_at_point * 100.0);

@@ -144,9 +144,10 @@ impl TerrainPass {
                 // The quads and their heights: the fragment stage reads the data at each pixel.
                 entry(1, both, read),
                 entry(2, both, read),
-                entry(3, wgpu::ShaderStages::VERTEX, read),
-                entry(4, wgpu::ShaderStages::VERTEX, read),
-                entry(5, wgpu::ShaderStages::VERTEX, read),
+                // The static maps: the fragment stage finds the mesh's height from the offsets.
+                entry(3, both, read),
+                entry(4, both, read),
+                entry(5, both, read),
                 entry(6, wgpu::ShaderStages::FRAGMENT, read),
                 entry(7, wgpu::ShaderStages::FRAGMENT, read),
                 entry(8, wgpu::ShaderStages::VERTEX, read),
