@@ -545,21 +545,96 @@ fn cell_height(slot: u32, c: vec2<f32>) -> vec4<f32> {
     return vec4<f32>(h, di, dj, select(0.0, 1.0, valid));
 }
 
-// The height above the ellipsoid (metres, exaggerated) of the mesh's point a pixel's ray met:
-// its offset along the vertical from the ellipsoid's point at its sample coordinates (bilinear
-// between the four samples' points, which stand at h₀). The vertices' heights interpolated are
-// not it where a triangle's chord sags below the ellipsoid's curve between its vertices, by
-// L²/8R: 2 km across a 170 km cell of the Moon seen whole.
-fn mesh_height(q: Quad, in: VertexOut, up: vec3<f32>) -> f32 {
-    let x = clamp(in.coords, vec2<f32>(0.0), vec2<f32>(f32(N - 1u)));
+// The ellipsoid's point (relative to A′, at h₀) at sample coordinates c: bilinear between the
+// four samples' points around it.
+fn ground(q: Quad, c: vec2<f32>) -> vec3<f32> {
+    return ground_frame(q, c).point;
+}
+
+// The ellipsoid at sample coordinates c: its point (relative to A′, at h₀) bilinear between the
+// four samples' points around it, the tangents along the sample axes (metres per sample) and
+// the unit normal, from the samples themselves rather than from the vertices' values, which a
+// large triangle interpolates linearly across a curved, non-linearly projected surface: so that
+// a pixel's normal, slope and light are the data's whatever mesh drew it.
+struct GroundFrame {
+    point: vec3<f32>,
+    along_i: vec3<f32>,
+    along_j: vec3<f32>,
+    up: vec3<f32>,
+}
+
+fn ground_frame(q: Quad, c: vec2<f32>) -> GroundFrame {
+    let x = clamp(c, vec2<f32>(0.0), vec2<f32>(f32(N - 1u)));
     let cell = min(vec2<u32>(floor(x)), vec2<u32>(N - 2u));
     let f = x - vec2<f32>(cell);
     let p00 = surface_point(q, cell.x, cell.y);
     let p10 = surface_point(q, cell.x + 1u, cell.y);
     let p01 = surface_point(q, cell.x, cell.y + 1u);
     let p11 = surface_point(q, cell.x + 1u, cell.y + 1u);
-    let ground = mix(mix(p00, p10, f.x), mix(p01, p11, f.x), f.y);
-    return dot(in.rel - (q.anchor.xyz + ground), up) + q.anchor.w;
+    let along_i = mix(p10 - p00, p11 - p01, f.y);
+    let along_j = mix(p01 - p00, p11 - p10, f.x);
+    let n = normalize(cross(along_i, along_j));
+    let outward = select(-n, n, dot(n, q.normals[0].xyz + q.normals[3].xyz) >= 0.0);
+    return GroundFrame(mix(mix(p00, p10, f.x), mix(p01, p11, f.x), f.y), along_i, along_j, outward);
+}
+
+// Where the mesh's point a pixel's ray met stands over the ellipsoid: the sample coordinates of
+// the ellipsoid's point under it (xy) and its height above that point (z, metres, exaggerated).
+// Neither is what the vertices' values interpolate to across a large triangle: its chord sags
+// below the ellipsoid's curve between its vertices by L²/8R (2 km across a 170 km cell of the
+// Moon seen whole), and the projection's coordinates are not linear along the chord, so the
+// point under the chord lies beside the interpolated coordinates (a third of a sample across a
+// stride-32 cell of a face-sized quad). Two steps of a fixed-point iteration: the horizontal
+// offset from the ellipsoid's point at the coordinates, taken back to coordinates through the
+// tangents (`to_coords`, the inverse of the tangents' basis on the tangent plane).
+fn under_mesh(q: Quad, in: VertexOut, up: vec3<f32>, to_coords: mat2x3<f32>) -> vec3<f32> {
+    var c = in.coords;
+    var off = in.rel - (q.anchor.xyz + ground(q, c));
+    for (var k = 0u; k < 2u; k++) {
+        let across = off - up * dot(off, up);
+        c = clamp(c + across * to_coords, vec2<f32>(0.0), vec2<f32>(f32(N - 1u)));
+        off = in.rel - (q.anchor.xyz + ground(q, c));
+    }
+    return vec3<f32>(c, dot(off, up) + q.anchor.w);
+}
+
+// The pixel's ray in the quad's terms: metres of height per metre along it (climb), sample
+// coordinates per metre along it (rate: its horizontal part in the tangents' basis), and the
+// rows of the tangents' inverse on the tangent plane (a horizontal offset · to_coords is its
+// offset in sample coordinates); not ok where the tangents are degenerate.
+struct Ray {
+    climb: f32,
+    rate: vec2<f32>,
+    to_coords: mat2x3<f32>,
+    ok: bool,
+}
+
+fn ray_in_quad(in: VertexOut, along_i: vec3<f32>, along_j: vec3<f32>, normal: vec3<f32>) -> Ray {
+    let up = normalize(normal);
+    let ray = normalize(in.rel);
+    let climb = dot(ray, up);
+    let across = ray - up * climb;
+    let ii = dot(along_i, along_i);
+    let ij = dot(along_i, along_j);
+    let jj = dot(along_j, along_j);
+    let det = ii * jj - ij * ij;
+    if det <= 0.0 {
+        return Ray(climb, vec2<f32>(0.0), mat2x3<f32>(vec3<f32>(0.0), vec3<f32>(0.0)), false);
+    }
+    let to_coords = mat2x3<f32>((along_i * jj - along_j * ij) / det, (along_j * ii - along_i * ij) / det);
+    return Ray(climb, across * to_coords, to_coords, true);
+}
+
+// The body's radius of curvature across a quad, metres: its corners' distance over their
+// normals' (the sphere's; the ellipsoid's differ by its flattening, a third of a per cent for the
+// Earth, which the term it serves does not feel). Infinite where the normals are too close to
+// tell apart in f32 (quads under a few hundred metres, where no ray runs far enough to bend).
+fn radius_of(q: Quad) -> f32 {
+    let turn = length(q.normals[3].xyz - q.normals[0].xyz);
+    if turn < 1e-5 {
+        return 3.4e38;
+    }
+    return length(q.corners[3].xyz - q.corners[0].xyz) / turn;
 }
 
 // Where a pixel reads the data (on_data): its sample coordinates, and the ray there in sample
@@ -582,45 +657,37 @@ struct Follow {
 // the mesh's point. Checked against f64 rather than a twin: tests/render.rs places the point
 // each pixel read on the ellipsoid and measures its distance from the pixel's ray, and compares
 // the height read with the CPU composition there.
-fn on_data(q: Quad, in: VertexOut) -> Follow {
+fn on_data(q: Quad, in: VertexOut, ray: Ray, under: vec3<f32>) -> Follow {
     var out = Follow(in.coords, vec2<f32>(0.0), 0.0, false);
     let slot = q.slots.z;
-    if (in.kind & 1u) != 0u || slot == NO_SLOT {
+    if (in.kind & 1u) != 0u || slot == NO_SLOT || !ray.ok {
         return out;
     }
-    let up = normalize(in.up);
-    let ray = normalize(in.rel);
-    // Sample coordinates per metre along the ray: its horizontal part in the tangents' basis.
-    let climb = dot(ray, up);
-    let across = ray - up * climb;
-    let ii = dot(in.along_i, in.along_i);
-    let ij = dot(in.along_i, in.along_j);
-    let jj = dot(in.along_j, in.along_j);
-    let det = ii * jj - ij * ij;
-    if det <= 0.0 {
-        return out;
-    }
-    let ri = dot(across, in.along_i);
-    let rj = dot(across, in.along_j);
-    let rate = vec2<f32>(jj * ri - ij * rj, ii * rj - ij * ri) / det;
+    let rate = ray.rate;
+    let climb = ray.climb;
     let e = frame.viewport.z;
-    let mesh_h = mesh_height(q, in, up);
+    let start = under.xy;
+    let mesh_h = under.z;
     let reach = 2.0 * f32(max(in.kind >> 1u, 1u)) + 1.0;
     let most = reach / max(length(rate), 1e-12);
+    // The body falls away under a straight ray: over a horizontal run x its height above the
+    // ellipsoid grows by x²/2R, which a face-sized quad's grazing rays feel (30 m over 10 km of
+    // the Moon, a tenth of a sample where the ground slopes by a tenth).
+    let bend = 0.5 * (1.0 - climb * climb) / radius_of(q);
     var t = 0.0;
     for (var k = 0u; k < PARALLAX_STEPS; k++) {
-        let d = cell_height(slot, in.coords + rate * t);
+        let d = cell_height(slot, start + rate * t);
         if d.w < 0.5 {
             return out;
         }
-        let miss = e * d.x - (mesh_h + climb * t);
-        let slope = e * dot(d.yz, rate) - climb;
+        let miss = e * d.x - (mesh_h + climb * t + bend * t * t);
+        let slope = e * dot(d.yz, rate) - climb - 2.0 * bend * t;
         if abs(slope) < 1e-4 {
             return out;
         }
         t = clamp(t - miss / slope, -most, most);
     }
-    out.coords = clamp(in.coords + rate * t, vec2<f32>(0.0), vec2<f32>(f32(N - 1u)));
+    out.coords = clamp(start + rate * t, vec2<f32>(0.0), vec2<f32>(f32(N - 1u)));
     out.rate = rate;
     out.climb = climb;
     out.moved = true;
@@ -633,10 +700,12 @@ fn shade(in: VertexOut, q: Quad, px: Pixel, coords: vec2<f32>, fw_iso: f32, fw_d
     if px.valid < 0.5 {
         return frame.nodata;
     }
-    // The surface normal of the data at the pixel, with the exaggeration drawn.
-    let up = normalize(in.up);
+    // The surface normal of the data at the pixel, with the exaggeration drawn, on the
+    // ellipsoid's own tangents there (not the vertices' interpolated ones).
+    let g = ground_frame(q, coords);
+    let up = g.up;
     let e = frame.viewport.z;
-    var n = normalize(cross(in.along_i + up * (e * px.gradient.x), in.along_j + up * (e * px.gradient.y)));
+    var n = normalize(cross(g.along_i + up * (e * px.gradient.x), g.along_j + up * (e * px.gradient.y)));
     if dot(n, up) < 0.0 {
         n = -n;
     }
@@ -647,7 +716,7 @@ fn shade(in: VertexOut, q: Quad, px: Pixel, coords: vec2<f32>, fw_iso: f32, fw_d
     if code == NO_SLOT {
         base = ramp_colour(px.height);
     } else if code >= ATTRIBUTE_CURVATURE {
-        let a = pixel_attribute(q, coords, in.along_i, in.along_j, length(in.rel), code);
+        let a = pixel_attribute(q, coords, g.along_i, g.along_j, length(in.rel), code);
         if a.y > 0.5 {
             base = ramp_colour(a.x);
         }
@@ -709,17 +778,27 @@ struct Shaded {
 // `follow`: read the data where the pixel's ray meets them (on_data), or where it meets the mesh
 // (the vertices' own samples, for the points the vertex tests draw).
 fn shade_pixel(in: VertexOut, follow: bool) -> Shaded {
-    // The mesh's sample coordinates and height across the pixel, taken before any branch (a
-    // derivative of the data read would difference storage reads across a 2 × 2 block, whose
-    // bilinear kinks and helper lanes made isolines fade on lavapipe).
-    let mesh_dx = dpdx(in.coords);
-    let mesh_dy = dpdy(in.coords);
-    let mesh_hx = dpdx(in.mesh_h);
-    let mesh_hy = dpdy(in.mesh_h);
+    // The mesh's point's move across the pixel, taken before any branch and from the varyings
+    // alone: a derivative of anything read from storage (the data, or the ellipsoid's points)
+    // differences reads across a 2 × 2 block, whose helper lanes made isolines fade on lavapipe.
+    let rel_dx = dpdx(in.rel);
+    let rel_dy = dpdy(in.rel);
     let q = quads[in.quad];
+    // Where that point stands over the ellipsoid (under_mesh), and the ray in the ellipsoid's
+    // own tangents there.
+    let near = ray_in_quad(in, in.along_i, in.along_j, in.up);
+    let under = under_mesh(q, in, normalize(in.up), near.to_coords);
+    let g = ground_frame(q, under.xy);
+    let ray = ray_in_quad(in, g.along_i, g.along_j, g.up);
+    // The move in sample coordinates (its horizontal part through the tangents' inverse) and in
+    // height (its vertical part).
+    let mesh_dx = rel_dx * ray.to_coords;
+    let mesh_dy = rel_dy * ray.to_coords;
+    let mesh_hx = dot(rel_dx, g.up);
+    let mesh_hy = dot(rel_dy, g.up);
     var f = Follow(in.coords, vec2<f32>(0.0), 0.0, false);
     if follow {
-        f = on_data(q, in);
+        f = on_data(q, in, ray, under);
     }
     let coords = f.coords;
     let px = pixel_data(q, coords);

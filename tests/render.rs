@@ -224,9 +224,16 @@ fn a_coarse_mesh_shows_the_same_pixels_as_the_finest() {
     // (0.05 px), 99 % of the terrain pixels away from silhouettes agree within 2/255 per channel,
     // and 99 % of those that read the same point of the same quad (within 0.01 of a sample).
     // Erzurum's view, straight down, and the Moon's Tycho view; the coarse mesh draws a fraction
-    // of the triangles. (Not yet the Moon's globe, where the coarse mesh's pixels read other
-    // points than the finest's: 79 % agree; BENCHMARKS.md.)
-    for (name, view, least) in [("erzurum", "30km", 0.99), ("erzurum", "down", 0.99), ("moon-lola", "tycho", 0.99)] {
+    // of the triangles. The Moon's globe, whose face-sized quads' coarse triangles span 10° of
+    // arc (where the chord's point and the projection's coordinates part most): 96 % and 97 %
+    // (96.8 % and 97.9 % measured; 79 % before the mesh's point was placed over the ellipsoid
+    // under it, BENCHMARKS.md).
+    for (name, view, least, least_at_point) in [
+        ("erzurum", "30km", 0.99, 0.99),
+        ("erzurum", "down", 0.99, 0.99),
+        ("moon-lola", "tycho", 0.99, 0.99),
+        ("moon-lola", "globe", 0.96, 0.97),
+    ] {
         let path = project(name);
         let p = Project::load(&path).unwrap();
         let camera = match view {
@@ -285,7 +292,7 @@ fn a_coarse_mesh_shows_the_same_pixels_as_the_finest() {
         );
         assert!(coarse_stats.max_error_px <= 1.0 + 1e-9 && fine_stats.max_error_px <= 0.05 + 1e-9);
         assert!(coarse_stats.triangles * 2 < fine_stats.triangles, "{name} {view}");
-        assert!(share_at_point >= 0.99, "{name} {view}: only {:.2} % the same", share_at_point * 100.0);
+        assert!(share_at_point >= least_at_point, "{name} {view}: only {:.2} % the same", share_at_point * 100.0);
         assert!(share >= least, "{name} {view}: only {:.2} % of all pixels the same", share * 100.0);
     }
 }
@@ -341,14 +348,20 @@ fn each_pixel_shows_the_data_where_its_ray_meets_them() {
     // beside the point of the data the eye sees through it. The fragment stage follows the ray
     // from the mesh to the data (`on_data`): the point each pixel read, its sample coordinates
     // and height from the probe placed on the ellipsoid in f64, lies on the pixel's ray. Erzurum
-    // from 30 km at 45° and straight down from 40 km, at the default pixel error.
-    let path = project("erzurum");
-    let mut r = renderer(&path, |_| {});
-    let e = r.scene().ellipsoid;
-    let exaggeration = r.scene().visuals.exaggeration;
-    for (name, camera) in
-        [("30km", cam(39.3, 40.42, 30_000.0, 0.0, -45.0)), ("down", cam(39.5, 40.5, 40_000.0, 0.0, -90.0))]
-    {
+    // from 30 km at 45° and straight down from 40 km, and the Moon's globe (face-sized quads,
+    // whose coarse triangles span 10° of arc), at the default pixel error: within 0.01 px at
+    // the median and 0.1 px at the 99th percentile; the globe within 0.1 and 0.3 (0.057 and
+    // 0.20 measured; 0.12 and 2.9 before the ray started under the mesh's point; not yet
+    // explained).
+    let globe = Project::load(&project("moon-lola")).unwrap().view(Some("globe")).unwrap();
+    for (body, name, camera, bound) in [
+        ("erzurum", "30km", cam(39.3, 40.42, 30_000.0, 0.0, -45.0), (0.01, 0.1)),
+        ("erzurum", "down", cam(39.5, 40.5, 40_000.0, 0.0, -90.0), (0.01, 0.1)),
+        ("moon-lola", "globe", globe, (0.1, 0.3)),
+    ] {
+        let mut r = renderer(&project(body), |_| {});
+        let e = r.scene().ellipsoid;
+        let exaggeration = r.scene().visuals.exaggeration;
         let (w, h) = (320u32, 240u32);
         let image = draw(&mut r, &camera, w, h, DrawMode::Probe);
         let (surface, ids) = (image.surface.unwrap(), image.ids.unwrap());
@@ -378,7 +391,7 @@ fn each_pixel_shows_the_data_where_its_ray_meets_them() {
         eprintln!(
             "{name}: the point read is {median:.4} px off the ray at the median, {p99:.4} at the 99th percentile, {worst:.3} at most"
         );
-        assert!(median < 0.01 && p99 < 0.1, "{name}: {median} px at the median, {p99} at the 99th percentile");
+        assert!(median < bound.0 && p99 < bound.1, "{name}: {median} px at the median, {p99} at the 99th percentile");
     }
 }
 
