@@ -143,19 +143,40 @@ fn segment_distance(p: vec3<f32>, a: vec3<f32>, b: vec3<f32>) -> f32 {
 // distance of a vertex.
 const SIDE_TEST_M: f32 = 8.0;
 
+// Segments a block of the nearest-segment search (layers::extent::MASK_BLOCK).
+const MASK_BLOCK: u32 = 32u;
+
 // layers::extent::Extent::{contains, distance_m, mask}.
 fn extent_mask(l: JobLayer, job: Job, local: vec3<f32>, lon: f32, lat: f32) -> f32 {
     if l.head.w == 0u {
         return 1.0;
     }
+    // The nearest segment, block by block (after the segments, a sphere a block: centre,
+    // radius; layers::extent::Extent::block_sphere). No segment of a block is farther than
+    // |p − centre| + radius, so the nearest of those bounds the search before it starts, and a
+    // block whose sphere lies farther than that bound or the nearest segment found yet cannot
+    // hold a nearer one: the result is the full search's, from a few blocks.
     var d = FAR;
     var nearest = 0u;
-    for (var k = 0u; k < l.mask.y; k++) {
-        let s = l.mask.x + 2u * k;
-        let dk = segment_distance(local, shapes[s].xyz, shapes[s + 1u].xyz);
-        if dk < d {
-            d = dk;
-            nearest = s;
+    let spheres = l.mask.x + 2u * l.mask.y;
+    let blocks = (l.mask.y + MASK_BLOCK - 1u) / MASK_BLOCK;
+    var bound = FAR;
+    for (var b = 0u; b < blocks; b++) {
+        let sphere = shapes[spheres + b];
+        bound = min(bound, length(local - sphere.xyz) + sphere.w);
+    }
+    for (var b = 0u; b < blocks; b++) {
+        let sphere = shapes[spheres + b];
+        if length(local - sphere.xyz) - sphere.w > min(d, bound) {
+            continue;
+        }
+        for (var k = b * MASK_BLOCK; k < min(b * MASK_BLOCK + MASK_BLOCK, l.mask.y); k++) {
+            let s = l.mask.x + 2u * k;
+            let dk = segment_distance(local, shapes[s].xyz, shapes[s + 1u].xyz);
+            if dk < d {
+                d = dk;
+                nearest = s;
+            }
         }
     }
     var inside = false;

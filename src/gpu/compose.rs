@@ -16,6 +16,7 @@ use super::context::GpuError;
 use super::terrain::bind_buffers;
 use super::uniforms::NO_SLOT;
 use crate::ecm::geometry::{MapSymmetry, QuadGeometry, Split};
+use crate::layers::extent::MASK_BLOCK;
 use crate::layers::spec::{BlendMode, DetailWhere, NoiseType};
 use crate::layers::{MaskPlan, PlannedLayer, QuadPlan, Stack, ValueSource, noise};
 
@@ -162,6 +163,12 @@ impl ComposeBatch {
                     let [a, b] = extent.segments[s as usize];
                     self.shapes.push(v4(a - origin, 0.0));
                     self.shapes.push(v4(b - origin, 0.0));
+                }
+                // Then a sphere around each block of MASK_BLOCK segments, so that a sample skips
+                // the blocks that cannot hold its nearest segment.
+                for block in segments.chunks(MASK_BLOCK) {
+                    let (centre, radius) = extent.block_sphere(block);
+                    self.shapes.push(v4(centre - origin, radius as f32));
                 }
                 mask[2] = self.shapes.len() as u32;
                 match extent.box_rad {

@@ -19,6 +19,10 @@ use crate::geodesy::{Ellipsoid, Geodetic, ecef_from_geodetic};
 
 /// Longest step, in degrees of longitude or latitude, of the densified edge.
 pub const DENSIFY_DEG: f64 = 0.05;
+/// Segments a block of the GPU's nearest-segment search (`extent_mask` in compose.wgsl): the
+/// 7 200 segments of a circle of latitude cost each sample 225 sphere tests and the few blocks
+/// near it, not 7 200 segment distances.
+pub const MASK_BLOCK: usize = 32;
 
 /// A compiled extent.
 #[derive(Clone, Debug, PartialEq)]
@@ -137,6 +141,19 @@ impl Extent {
             .fold(f64::INFINITY, f64::min)
     }
 
+    /// A sphere around the given segments (their endpoints' mean, and the largest distance
+    /// from it, widened by a millimetre a kilometre and half a metre so that the GPU's f32
+    /// test of a point against it never skips the nearest segment): a segment lies inside the
+    /// sphere around its endpoints, so no point of a block is nearer to p than |p − centre| −
+    /// radius, and the GPU skips blocks that are farther than the nearest segment found yet
+    /// ([`MASK_BLOCK`] segments a block).
+    pub fn block_sphere(&self, block: &[u32]) -> (DVec3, f64) {
+        let ends = || block.iter().flat_map(|&k| self.segments[k as usize]);
+        let centre = ends().sum::<DVec3>() / (2 * block.len().max(1)) as f64;
+        let radius = ends().map(|p| p.distance(centre)).fold(0.0, f64::max);
+        (centre, radius * (1.0 + 1e-6) + 0.5)
+    }
+
     /// The mask at a sample: 0 outside, smoothstep(d / feather) inside.
     pub fn mask(&self, inside: bool, distance_m: f64) -> f64 {
         if !inside {
@@ -229,6 +246,47 @@ mod tests {
             assert!(cap.contains(lon.to_radians(), lat.to_radians()));
         }
         assert!(!cap.contains(0.0, 69f64.to_radians()));
+    }
+
+    #[test]
+    fn a_blocks_sphere_holds_its_segments_and_skipping_far_blocks_finds_the_nearest() {
+        // Every point of every segment of a block lies inside its sphere, and a search that
+        // skips the blocks whose sphere is farther than the nearest block's farthest reach or
+        // the nearest segment found yet (the GPU's extent_mask) finds the full search's
+        // distance, near the cap's parallel and far from it, testing a tenth of the segments.
+        let cap = Extent::new(&ExtentSpec::Box([-180.0, 70.6, 180.0, 90.0]), 30_000.0, &Ellipsoid::MOON);
+        let all: Vec<u32> = (0..cap.segments.len() as u32).collect();
+        assert_eq!(all.len(), 7200);
+        let spheres: Vec<(DVec3, f64)> = all.chunks(MASK_BLOCK).map(|b| cap.block_sphere(b)).collect();
+        for (block, &(centre, radius)) in all.chunks(MASK_BLOCK).zip(&spheres) {
+            for &k in block {
+                let [a, b] = cap.segments[k as usize];
+                for t in [0.0, 0.25, 0.5, 0.75, 1.0] {
+                    assert!((a + (b - a) * t).distance(centre) <= radius);
+                }
+            }
+        }
+        let moon = Ellipsoid::MOON;
+        for (lat, lon) in [(70.61, 10.0), (71.0, -179.99), (80.0, 33.3), (90.0, 0.0), (60.0, 120.0)] {
+            let p = ecef_from_geodetic(&moon, Geodetic::from_degrees(lat, lon, 0.0));
+            // No segment of a block is farther than |p − centre| + radius: the nearest of
+            // those bounds the search before it starts.
+            let bound = spheres.iter().map(|&(c, r)| p.distance(c) + r).fold(f64::INFINITY, f64::min);
+            let (mut d, mut tested) = (f64::INFINITY, 0);
+            for (block, &(centre, radius)) in all.chunks(MASK_BLOCK).zip(&spheres) {
+                if p.distance(centre) - radius > d.min(bound) {
+                    continue;
+                }
+                tested += block.len();
+                d = d.min(cap.distance_m(p, block));
+            }
+            assert_eq!(d, cap.distance_m(p, &all), "({lat}, {lon})");
+            // At the pole every segment is as near as every other: all are tested.
+            assert!(lat == 90.0 || tested * 10 < all.len(), "({lat}, {lon}): {tested} segments tested");
+        }
+        // The GPU's search uses the same block size.
+        let shader = include_str!("../../shaders/compose/compose.wgsl");
+        assert!(shader.contains(&format!("const MASK_BLOCK: u32 = {MASK_BLOCK}u;")));
     }
 
     #[test]
