@@ -146,16 +146,16 @@ const SIDE_TEST_M: f32 = 8.0;
 // Segments a block of the nearest-segment search (layers::extent::MASK_BLOCK).
 const MASK_BLOCK: u32 = 32u;
 
-// layers::extent::Extent::{contains, distance_m, mask}.
+// layers::extent::Extent::{contains, nearest_m, mask}.
 fn extent_mask(l: JobLayer, job: Job, local: vec3<f32>, lon: f32, lat: f32) -> f32 {
     if l.head.w == 0u {
         return 1.0;
     }
     // The nearest segment, block by block (after the segments, a sphere a block: centre,
-    // radius; layers::extent::Extent::block_sphere). No segment of a block is farther than
-    // |p − centre| + radius, so the nearest of those bounds the search before it starts, and a
-    // block whose sphere lies farther than that bound or the nearest segment found yet cannot
-    // hold a nearer one: the result is the full search's, from a few blocks.
+    // radius), as layers::extent::Extent::nearest_m searches: no segment of a block is farther
+    // than |p − centre| + radius, so the nearest of those bounds the search before it starts,
+    // and a block whose sphere lies farther than that bound or the nearest segment found yet
+    // cannot hold a nearer one: the result is the full search's, from a few blocks.
     var d = FAR;
     var nearest = 0u;
     let spheres = l.mask.x + 2u * l.mask.y;

@@ -16,7 +16,6 @@ use super::context::GpuError;
 use super::terrain::bind_buffers;
 use super::uniforms::NO_SLOT;
 use crate::ecm::geometry::{MapSymmetry, QuadGeometry, Split};
-use crate::layers::extent::MASK_BLOCK;
 use crate::layers::spec::{BlendMode, DetailWhere, NoiseType};
 use crate::layers::{MaskPlan, PlannedLayer, QuadPlan, Stack, ValueSource, noise};
 
@@ -156,18 +155,17 @@ impl ComposeBatch {
         let mut lon_min = 0.0f32;
         let mut orientation = 1.0f32;
         let partial = match (&planned.mask, &layer.extent) {
-            (MaskPlan::Partial(segments), Some(extent)) => {
+            (MaskPlan::Partial(near), Some(extent)) => {
                 mask[0] = self.shapes.len() as u32;
-                mask[1] = segments.len() as u32;
-                for &s in segments {
+                mask[1] = near.segments.len() as u32;
+                for &s in &near.segments {
                     let [a, b] = extent.segments[s as usize];
                     self.shapes.push(v4(a - origin, 0.0));
                     self.shapes.push(v4(b - origin, 0.0));
                 }
                 // Then a sphere around each block of MASK_BLOCK segments, so that a sample skips
                 // the blocks that cannot hold its nearest segment.
-                for block in segments.chunks(MASK_BLOCK) {
-                    let (centre, radius) = extent.block_sphere(block);
+                for &(centre, radius) in &near.spheres {
                     self.shapes.push(v4(centre - origin, radius as f32));
                 }
                 mask[2] = self.shapes.len() as u32;

@@ -150,7 +150,7 @@ pub fn layer_sample(
     }
     let mask = match (&planned.mask, &layer.extent) {
         (MaskPlan::Partial(segments), Some(extent)) => {
-            extent.mask(extent.contains(at.lon_rad, at.lat_rad), extent.distance_m(at.ecef, segments))
+            extent.mask(extent.contains(at.lon_rad, at.lat_rad), extent.nearest_m(at.ecef, segments))
         }
         _ => 1.0,
     };

@@ -50,7 +50,18 @@ pub enum Relation {
     Inside,
     /// The edge or its feather crosses the quad: these segments are the only ones within the
     /// feather of any sample.
-    Partial(Vec<u32>),
+    Partial(NearEdge),
+}
+
+/// The segments of an extent's edge near a quad, and a sphere (centre, radius) around each
+/// block of [`MASK_BLOCK`] of them, which [`Extent::nearest_m`] and the GPU's `extent_mask`
+/// search block by block.
+#[derive(Clone, Debug, PartialEq)]
+pub struct NearEdge {
+    /// Indices into [`Extent::segments`], ascending.
+    pub segments: Vec<u32>,
+    /// One sphere a block of `segments` ([`Extent::block_sphere`]).
+    pub spheres: Vec<(DVec3, f64)>,
 }
 
 impl Extent {
@@ -154,6 +165,29 @@ impl Extent {
         (centre, radius * (1.0 + 1e-6) + 0.5)
     }
 
+    /// The segments near a quad with their blocks' spheres.
+    pub fn near_edge(&self, segments: Vec<u32>) -> NearEdge {
+        let spheres = segments.chunks(MASK_BLOCK).map(|b| self.block_sphere(b)).collect();
+        NearEdge { segments, spheres }
+    }
+
+    /// The distance from `p` to the nearest segment near the quad, metres (∞ for none): the
+    /// GPU's `extent_mask` search. No segment of a block is farther than |p − centre| + radius,
+    /// so the nearest of those bounds the search before it starts, and a block whose sphere
+    /// lies farther than that bound or the nearest segment found yet cannot hold a nearer one:
+    /// the result is [`Extent::distance_m`]'s over all of them, from a few blocks.
+    pub fn nearest_m(&self, p: DVec3, near: &NearEdge) -> f64 {
+        let bound = near.spheres.iter().map(|&(c, r)| p.distance(c) + r).fold(f64::INFINITY, f64::min);
+        let mut d = f64::INFINITY;
+        for (block, &(centre, radius)) in near.segments.chunks(MASK_BLOCK).zip(&near.spheres) {
+            if p.distance(centre) - radius > d.min(bound) {
+                continue;
+            }
+            d = d.min(self.distance_m(p, block));
+        }
+        d
+    }
+
     /// The mask at a sample: 0 outside, smoothstep(d / feather) inside.
     pub fn mask(&self, inside: bool, distance_m: f64) -> f64 {
         if !inside {
@@ -176,7 +210,7 @@ impl Extent {
             })
             .collect();
         if !near.is_empty() {
-            Relation::Partial(near)
+            Relation::Partial(self.near_edge(near))
         } else if self.contains(centre_lon_lat_rad.0, centre_lon_lat_rad.1) {
             Relation::Inside
         } else {
@@ -250,10 +284,9 @@ mod tests {
 
     #[test]
     fn a_blocks_sphere_holds_its_segments_and_skipping_far_blocks_finds_the_nearest() {
-        // Every point of every segment of a block lies inside its sphere, and a search that
-        // skips the blocks whose sphere is farther than the nearest block's farthest reach or
-        // the nearest segment found yet (the GPU's extent_mask) finds the full search's
-        // distance, near the cap's parallel and far from it, testing a tenth of the segments.
+        // Every point of every segment of a block lies inside its sphere, and the block search
+        // (nearest_m, the GPU's extent_mask) finds the full search's distance, near the cap's
+        // parallel and far from it, searching under a tenth of the blocks.
         let cap = Extent::new(&ExtentSpec::Box([-180.0, 70.6, 180.0, 90.0]), 30_000.0, &Ellipsoid::MOON);
         let all: Vec<u32> = (0..cap.segments.len() as u32).collect();
         assert_eq!(all.len(), 7200);
@@ -267,22 +300,15 @@ mod tests {
             }
         }
         let moon = Ellipsoid::MOON;
+        let near = cap.near_edge(all.clone());
+        assert_eq!(near.spheres, spheres);
         for (lat, lon) in [(70.61, 10.0), (71.0, -179.99), (80.0, 33.3), (90.0, 0.0), (60.0, 120.0)] {
             let p = ecef_from_geodetic(&moon, Geodetic::from_degrees(lat, lon, 0.0));
-            // No segment of a block is farther than |p − centre| + radius: the nearest of
-            // those bounds the search before it starts.
+            assert_eq!(cap.nearest_m(p, &near), cap.distance_m(p, &all), "({lat}, {lon})");
+            // Few blocks are searched but at the pole, where every segment is as near.
             let bound = spheres.iter().map(|&(c, r)| p.distance(c) + r).fold(f64::INFINITY, f64::min);
-            let (mut d, mut tested) = (f64::INFINITY, 0);
-            for (block, &(centre, radius)) in all.chunks(MASK_BLOCK).zip(&spheres) {
-                if p.distance(centre) - radius > d.min(bound) {
-                    continue;
-                }
-                tested += block.len();
-                d = d.min(cap.distance_m(p, block));
-            }
-            assert_eq!(d, cap.distance_m(p, &all), "({lat}, {lon})");
-            // At the pole every segment is as near as every other: all are tested.
-            assert!(lat == 90.0 || tested * 10 < all.len(), "({lat}, {lon}): {tested} segments tested");
+            let searched = spheres.iter().filter(|&&(c, r)| p.distance(c) - r <= bound).count();
+            assert!(lat == 90.0 || searched * 10 < spheres.len(), "({lat}, {lon}): {searched} blocks searched");
         }
         // The GPU's search uses the same block size.
         let shader = include_str!("../../shaders/compose/compose.wgsl");

@@ -9,7 +9,7 @@ use glam::DVec3;
 
 use super::LayerError;
 use super::correction::Correction;
-use super::extent::{Extent, Relation};
+use super::extent::{Extent, NearEdge, Relation};
 use super::noise;
 use super::spec::{BlendMode, LayerSpec, Operand};
 use crate::ecm::QuadId;
@@ -83,7 +83,7 @@ pub enum MaskPlan {
     /// Mask 1 at every sample (no extent, or the quad deep inside it).
     Full,
     /// The extent's edge is near: evaluate the mask per sample against these segments.
-    Partial(Vec<u32>),
+    Partial(NearEdge),
 }
 
 /// One layer of a quad's plan.
