@@ -118,8 +118,6 @@ struct VertexOut {
     // Which quad; bit 0 a skirt vertex, the patch's stride above it (probe output).
     @location(5) @interpolate(flat) quad: u32,
     @location(6) @interpolate(flat) kind: u32,
-    // The height the mesh stands at (metres, exaggerated; a skirt's before it is lowered).
-    @location(7) mesh_h: f32,
 }
 
 fn map_value(which: u32, slot: u32, c: vec2<u32>) -> vec3<f32> {
@@ -321,7 +319,6 @@ fn vs_main(@builtin(vertex_index) vertex: u32, @builtin(instance_index) instance
     out.along_i = tangents[0];
     out.along_j = tangents[1];
     out.coords = vec2<f32>(f32(i), f32(j));
-    out.mesh_h = s.h;
     out.quad = p.quad;
     // Bit 0 a skirt vertex, the stride above it (the probe's id.w carries both).
     out.kind = select(0u, 1u, skirt) | (p.stride << 1u);
