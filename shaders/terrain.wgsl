@@ -542,12 +542,6 @@ fn cell_height(slot: u32, c: vec2<f32>) -> vec4<f32> {
     return vec4<f32>(h, di, dj, select(0.0, 1.0, valid));
 }
 
-// The ellipsoid's point (relative to A′, at h₀) at sample coordinates c: bilinear between the
-// four samples' points around it.
-fn ground(q: Quad, c: vec2<f32>) -> vec3<f32> {
-    return ground_frame(q, c).point;
-}
-
 // The ellipsoid at sample coordinates c: its point (relative to A′, at h₀) bilinear between the
 // four samples' points around it, the tangents along the sample axes (metres per sample) and
 // the unit normal, from the samples themselves rather than from the vertices' values, which a
@@ -560,39 +554,78 @@ struct GroundFrame {
     up: vec3<f32>,
 }
 
-fn ground_frame(q: Quad, c: vec2<f32>) -> GroundFrame {
+// The cell of sample coordinates c: the sample at or below it, inside the quad.
+fn cell_of(c: vec2<f32>) -> vec2<u32> {
     let x = clamp(c, vec2<f32>(0.0), vec2<f32>(f32(N - 1u)));
-    let cell = min(vec2<u32>(floor(x)), vec2<u32>(N - 2u));
-    let f = x - vec2<f32>(cell);
-    let p00 = surface_point(q, cell.x, cell.y);
-    let p10 = surface_point(q, cell.x + 1u, cell.y);
-    let p01 = surface_point(q, cell.x, cell.y + 1u);
-    let p11 = surface_point(q, cell.x + 1u, cell.y + 1u);
-    let along_i = mix(p10 - p00, p11 - p01, f.y);
-    let along_j = mix(p01 - p00, p11 - p10, f.x);
+    return min(vec2<u32>(floor(x)), vec2<u32>(N - 2u));
+}
+
+// A cell's four ellipsoid points (surface_point): what every frame inside it is bilinear
+// between, read once where a pixel's steps stay in the cell.
+struct GroundCell {
+    cell: vec2<u32>,
+    p00: vec3<f32>,
+    p10: vec3<f32>,
+    p01: vec3<f32>,
+    p11: vec3<f32>,
+}
+
+fn ground_cell(q: Quad, cell: vec2<u32>) -> GroundCell {
+    return GroundCell(
+        cell,
+        surface_point(q, cell.x, cell.y),
+        surface_point(q, cell.x + 1u, cell.y),
+        surface_point(q, cell.x, cell.y + 1u),
+        surface_point(q, cell.x + 1u, cell.y + 1u),
+    );
+}
+
+// The cell of c: `known` where c lies in it, else read.
+fn cell_at(q: Quad, known: GroundCell, c: vec2<f32>) -> GroundCell {
+    let cell = cell_of(c);
+    if all(cell == known.cell) {
+        return known;
+    }
+    return ground_cell(q, cell);
+}
+
+// The frame at c, inside cell g (c clamped to the quad).
+fn frame_in(q: Quad, g: GroundCell, c: vec2<f32>) -> GroundFrame {
+    let f = clamp(c, vec2<f32>(0.0), vec2<f32>(f32(N - 1u))) - vec2<f32>(g.cell);
+    let along_i = mix(g.p10 - g.p00, g.p11 - g.p01, f.y);
+    let along_j = mix(g.p01 - g.p00, g.p11 - g.p10, f.x);
     let n = normalize(cross(along_i, along_j));
     let outward = select(-n, n, dot(n, q.normals[0].xyz + q.normals[3].xyz) >= 0.0);
-    return GroundFrame(mix(mix(p00, p10, f.x), mix(p01, p11, f.x), f.y), along_i, along_j, outward);
+    return GroundFrame(mix(mix(g.p00, g.p10, f.x), mix(g.p01, g.p11, f.x), f.y), along_i, along_j, outward);
 }
 
 // Where the mesh's point a pixel's ray met stands over the ellipsoid: the sample coordinates of
-// the ellipsoid's point under it (xy) and its height above that point (z, metres, exaggerated).
-// Neither is what the vertices' values interpolate to across a large triangle: its chord sags
-// below the ellipsoid's curve between its vertices by L²/8R (2 km across a 170 km cell of the
-// Moon seen whole), and the projection's coordinates are not linear along the chord, so the
-// point under the chord lies beside the interpolated coordinates (a third of a sample across a
-// stride-32 cell of a face-sized quad). Two steps of a fixed-point iteration: the horizontal
-// offset from the ellipsoid's point at the coordinates, taken back to coordinates through the
-// tangents (`to_coords`, the inverse of the tangents' basis on the tangent plane).
-fn under_mesh(q: Quad, in: VertexOut, up: vec3<f32>, to_coords: mat2x3<f32>) -> vec3<f32> {
+// the ellipsoid's point under it (`coords`) and its height above that point (`height`, metres,
+// exaggerated), with the cell there. Neither is what the vertices' values interpolate to across
+// a large triangle: its chord sags below the ellipsoid's curve between its vertices by L²/8R
+// (2 km across a 170 km cell of the Moon seen whole), and the projection's coordinates are not
+// linear along the chord, so the point under the chord lies beside the interpolated coordinates
+// (a third of a sample across a stride-32 cell of a face-sized quad). Two steps of a fixed-point
+// iteration: the horizontal offset from the ellipsoid's point at the coordinates, taken back to
+// coordinates through the tangents (`to_coords`, the inverse of the tangents' basis on the
+// tangent plane).
+struct Under {
+    coords: vec2<f32>,
+    height: f32,
+    cell: GroundCell,
+}
+
+fn under_mesh(q: Quad, in: VertexOut, up: vec3<f32>, to_coords: mat2x3<f32>) -> Under {
     var c = in.coords;
-    var off = in.rel - (q.anchor.xyz + ground(q, c));
+    var g = ground_cell(q, cell_of(c));
+    var off = in.rel - (q.anchor.xyz + frame_in(q, g, c).point);
     for (var k = 0u; k < 2u; k++) {
         let across = off - up * dot(off, up);
         c = clamp(c + across * to_coords, vec2<f32>(0.0), vec2<f32>(f32(N - 1u)));
-        off = in.rel - (q.anchor.xyz + ground(q, c));
+        g = cell_at(q, g, c);
+        off = in.rel - (q.anchor.xyz + frame_in(q, g, c).point);
     }
-    return vec3<f32>(c, dot(off, up) + q.anchor.w);
+    return Under(c, dot(off, up) + q.anchor.w, g);
 }
 
 // The pixel's ray in the quad's terms: metres of height per metre along it (climb), sample
@@ -651,11 +684,11 @@ struct Follow {
 // surface: the ray's height is the mesh's height there plus its climb, the data's height is read
 // where the ray is. Each step moves at most a few strides (a far root is a ridge in front, which
 // the mesh, within δ, already shows). Skirts, cells without data and rays along the surface keep
-// the mesh's point. Checked against f64 rather than a twin: tests/render.rs places the point
+// the point under the mesh's (under_mesh), never the vertices' interpolated coordinates. Checked against f64 rather than a twin: tests/render.rs places the point
 // each pixel read on the ellipsoid and measures its distance from the pixel's ray, and compares
 // the height read with the CPU composition there.
-fn on_data(q: Quad, in: VertexOut, ray: Ray, under: vec3<f32>) -> Follow {
-    var out = Follow(in.coords, vec2<f32>(0.0), 0.0, false);
+fn on_data(q: Quad, in: VertexOut, ray: Ray, under: Under) -> Follow {
+    var out = Follow(under.coords, vec2<f32>(0.0), 0.0, false);
     let slot = q.slots.z;
     if (in.kind & 1u) != 0u || slot == NO_SLOT || !ray.ok {
         return out;
@@ -663,8 +696,8 @@ fn on_data(q: Quad, in: VertexOut, ray: Ray, under: vec3<f32>) -> Follow {
     let rate = ray.rate;
     let climb = ray.climb;
     let e = frame.viewport.z;
-    let start = under.xy;
-    let mesh_h = under.z;
+    let start = under.coords;
+    let mesh_h = under.height;
     let reach = 2.0 * f32(max(in.kind >> 1u, 1u)) + 1.0;
     let most = reach / max(length(rate), 1e-12);
     // The body falls away under a straight ray: over a horizontal run x its height above the
@@ -693,13 +726,12 @@ fn on_data(q: Quad, in: VertexOut, ray: Ray, under: vec3<f32>) -> Follow {
 
 // The pixel's colour, sRGB-encoded 0–1, from the data at the pixel. fw_iso, fw_dh and fw_brush:
 // the pixel's footprint in height and dh isoline intervals and in metres from the brush's centre.
-fn shade(in: VertexOut, q: Quad, px: Pixel, coords: vec2<f32>, fw_iso: f32, fw_dh: f32, fw_brush: f32) -> vec4<f32> {
+fn shade(in: VertexOut, q: Quad, px: Pixel, coords: vec2<f32>, g: GroundFrame, fw_iso: f32, fw_dh: f32, fw_brush: f32) -> vec4<f32> {
     if px.valid < 0.5 {
         return frame.nodata;
     }
     // The surface normal of the data at the pixel, with the exaggeration drawn, on the
-    // ellipsoid's own tangents there (not the vertices' interpolated ones).
-    let g = ground_frame(q, coords);
+    // ellipsoid's own tangents there (g: not the vertices' interpolated ones).
     let up = g.up;
     let e = frame.viewport.z;
     var n = normalize(cross(g.along_i + up * (e * px.gradient.x), g.along_j + up * (e * px.gradient.y)));
@@ -785,7 +817,7 @@ fn shade_pixel(in: VertexOut, follow: bool) -> Shaded {
     // own tangents there.
     let near = ray_in_quad(in, in.along_i, in.along_j, in.up);
     let under = under_mesh(q, in, normalize(in.up), near.to_coords);
-    let g = ground_frame(q, under.xy);
+    let g = frame_in(q, under.cell, under.coords);
     let ray = ray_in_quad(in, g.along_i, g.along_j, g.up);
     // The move in sample coordinates (its horizontal part through the tangents' inverse) and in
     // height (its vertical part).
@@ -815,7 +847,9 @@ fn shade_pixel(in: VertexOut, follow: bool) -> Shaded {
     let fw_iso = length(vec2<f32>(dot(px.gradient, dx), dot(px.gradient, dy))) / frame.iso.x;
     let fw_dh = length(vec2<f32>(dot(px.dh_gradient, dx), dot(px.dh_gradient, dy))) / max(frame.difference.y, 1e-6);
     let fw_brush = fwidth(length(in.rel - frame.brush.xyz));
-    return Shaded(shade(in, q, px, coords, fw_iso, fw_dh, fw_brush), px, coords);
+    // The ellipsoid's frame where the data were read, from the start's cell where it lies there.
+    let at = frame_in(q, cell_at(q, under.cell, coords), coords);
+    return Shaded(shade(in, q, px, coords, at, fw_iso, fw_dh, fw_brush), px, coords);
 }
 
 @fragment
