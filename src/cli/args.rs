@@ -473,3 +473,17 @@ pub fn parse_numbers(text: &str, what: &str) -> Result<Vec<f64>, CliError> {
         .map(|v| v.trim().parse::<f64>().map_err(|_| format!("{what}: '{v}' is not a number").into()))
         .collect()
 }
+
+/// `--gpu` or `--cpu`: where a command that rebuilds layers runs (`erode`, `replay`), declared
+/// once. Neither: the command's default (`erode`: the GPU where there is a hardware one,
+/// `replay`: the CPU).
+#[derive(clap::Args, Clone, Copy, Debug, Default)]
+pub struct EngineArgs {
+    /// Run on the GPU (lavapipe too).
+    #[arg(long, conflicts_with = "cpu")]
+    pub gpu: bool,
+    /// Run the CPU reference, bit for bit reproducible (the default of `replay`, and of `erode`
+    /// without a hardware GPU).
+    #[arg(long)]
+    pub cpu: bool,
+}

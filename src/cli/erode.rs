@@ -3,6 +3,7 @@
 //! moves its undo position, caches the layer's change of height beside the project and saves the
 //! project atomically. A run that cannot be made leaves the file as it was.
 
+use super::args::EngineArgs;
 use super::edit_target::{ChangeArgs, Holds, target_layer};
 use super::{CliError, Feedback, Within};
 use std::fmt::Write as _;
@@ -90,12 +91,9 @@ pub struct ErodeRequest {
     /// The seed of the rounding dither.
     #[arg(long, allow_negative_numbers = true)]
     pub seed: Option<u64>,
-    /// Run on the GPU (lavapipe too).
-    #[arg(long, conflicts_with = "cpu")]
-    pub gpu: bool,
-    /// Run the CPU reference (bit for bit reproducible; the default without a hardware GPU).
-    #[arg(long)]
-    pub cpu: bool,
+    /// --gpu or --cpu (the default without a hardware GPU).
+    #[command(flatten)]
+    pub engine: EngineArgs,
     /// Print JSON (steps, simulated_s, water_unexplained_rel, soil_unexplained_rel,
     /// water_out_m3, soil_out_m3, seconds, …).
     #[arg(long)]
@@ -114,7 +112,7 @@ pub struct ErodeRequest {
 impl ErodeRequest {
     /// Where it runs, from `--gpu` and `--cpu`.
     pub fn on(&self) -> ErodeOn {
-        match (self.gpu, self.cpu) {
+        match (self.engine.gpu, self.engine.cpu) {
             (true, _) => ErodeOn::Gpu,
             (_, true) => ErodeOn::Cpu,
             _ => ErodeOn::Auto,

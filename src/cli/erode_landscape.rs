@@ -40,7 +40,7 @@ pub fn params_of(request: &ErodeRequest) -> Result<Option<LandscapeParams>, CliE
         }
         return Ok(None);
     }
-    if request.gpu {
+    if request.engine.gpu {
         return Err("--gpu: the stream-power model runs on the CPU reference".into());
     }
     if request.preset.is_some() || !request.set.is_empty() {

@@ -4,6 +4,7 @@
 //! `--gpu` rebuilds on the GPU and, with `--check`, compares each layer with the CPU reference
 //! within its stated tolerance (the digests are checked on the CPU replay: they are bit for bit).
 
+use super::args::EngineArgs;
 use super::{CliError, Feedback, WaitArgs, Within};
 use std::fmt::Write as _;
 use std::path::PathBuf;
@@ -24,13 +25,10 @@ pub struct ReplayRequest {
     /// Write the digests of the project's checks into it (from the CPU reference).
     #[arg(long, conflicts_with_all = ["check", "gpu"])]
     pub record: bool,
-    /// Rebuild on the GPU (lavapipe too); with --check, each layer is compared with the CPU
-    /// reference within its stated tolerance.
-    #[arg(long, conflicts_with = "cpu")]
-    pub gpu: bool,
-    /// Rebuild with the CPU reference, bit for bit (the default).
-    #[arg(long)]
-    pub cpu: bool,
+    /// --gpu (with --check, each layer is compared with the CPU reference within its stated
+    /// tolerance) or --cpu (the default).
+    #[command(flatten)]
+    pub engine: EngineArgs,
     /// Print JSON (project, engine, layers[name, kind, operations, tiles, digest, seconds],
     /// checks[name, digest, expected, ok, first_differing_tile], seconds, passed).
     #[arg(long)]
@@ -52,7 +50,7 @@ pub struct ReplayOutcome {
 pub fn replay_command(request: &ReplayRequest, fb: &mut Feedback) -> Result<ReplayOutcome, CliError> {
     let t = Instant::now();
     let path = &request.project;
-    if request.record && request.gpu {
+    if request.record && request.engine.gpu {
         return Err("--record: digests are recorded from the CPU reference (bit for bit); drop --gpu".into());
     }
     // Recording changes the project: it is held from before it is read until it is saved.
@@ -62,14 +60,17 @@ pub fn replay_command(request: &ReplayRequest, fb: &mut Feedback) -> Result<Repl
     } else {
         (Project::load(path)?, None)
     };
-    let ctx = if request.gpu { Some(GpuContext::headless().within("--gpu")?) } else { None };
+    let ctx = if request.engine.gpu { Some(GpuContext::headless().within("--gpu")?) } else { None };
     let engine = ctx.as_ref().map_or(Engine::Cpu, Engine::Gpu);
     let fail =
         |e: replay::ReplayError| CliError::Within { context: path.display().to_string(), source: Box::new(e.into()) };
     let replayed = replay::replay_watched(&project, engine, fb.watch).map_err(fail)?;
     // The CPU reference, when the GPU replayed and something is to be checked against it.
-    let cpu =
-        if request.gpu && request.check { Some(replay::replay(&project, Engine::Cpu).map_err(fail)?) } else { None };
+    let cpu = if request.engine.gpu && request.check {
+        Some(replay::replay(&project, Engine::Cpu).map_err(fail)?)
+    } else {
+        None
+    };
     let reference = cpu.as_ref().unwrap_or(&replayed);
 
     let mut layers = Vec::new();
@@ -215,7 +216,7 @@ fn text_report(
         }
         out.push('\n');
     }
-    if request.gpu && request.check && !checks.is_empty() {
+    if request.engine.gpu && request.check && !checks.is_empty() {
         out.push_str("checks, on the CPU reference (bit for bit):\n");
     }
     for c in checks {
