@@ -83,7 +83,9 @@ struct Patch {
     stride: u32,
     // Where its vertices morph toward twice the stride: ρ = reach / distance (metres).
     reach: f32,
-    pad: array<f32, 3>,
+    // Where the mesh at twice the stride morphs toward four times it (metres).
+    reach_up: f32,
+    pad: array<f32, 2>,
 }
 
 struct RampStop {
@@ -266,12 +268,31 @@ fn place_at(q: Quad, i: u32, j: u32) -> Place {
 // twice the stride, from ρ = reach / d, the distance at which the coarser mesh's error projects
 // to τ / 1.1 over the vertex's own: 1 up to the band's start (1.1), 0 from its end on. CPU twin:
 // scene::patches::morph_factor.
-fn morph_factor(p: Patch, distance: f32) -> f32 {
-    if frame.morph.z < 0.5 || p.stride >= PATCH_CELLS {
+fn morph_factor(stride: u32, reach: f32, distance: f32) -> f32 {
+    if frame.morph.z < 0.5 || stride >= PATCH_CELLS {
         return 0.0;
     }
-    let rho = p.reach / max(distance, 1e-6);
+    let rho = reach / max(distance, 1e-6);
     return clamp((frame.morph.y - rho) / (frame.morph.y - frame.morph.w), 0.0, 1.0);
+}
+
+// What the patch at twice p's stride draws at its sample (i, j) (one of its own): the sample,
+// morphed toward four times the stride by its own factor, to the midpoint of its two neighbours
+// there where that mesh lacks it.
+fn coarser_place(q: Quad, p: Patch, i: u32, j: u32) -> Place {
+    var s = place_at(q, i, j);
+    let up = 2u * p.stride;
+    let m = morph_factor(up, p.reach_up, length(q.anchor.xyz + s.local));
+    let da = ((i - p.i0) / up) % 2u;
+    let db = ((j - p.j0) / up) % 2u;
+    if m > 0.0 && da + db > 0u {
+        let n1 = place_at(q, i - da * up, j - db * up);
+        let n2 = place_at(q, i + da * up, j + db * up);
+        s.local = mix(s.local, 0.5 * (n1.local + n2.local), m);
+        s.up = normalize(mix(s.up, 0.5 * (n1.up + n2.up), m));
+        s.h = mix(s.h, 0.5 * (n1.h + n2.h), m);
+    }
+    return s;
 }
 
 @vertex
@@ -289,20 +310,29 @@ fn vs_main(@builtin(vertex_index) vertex: u32, @builtin(instance_index) instance
     let j = p.j0 + b * p.stride;
 
     var s = place_at(q, i, j);
-    // Toward twice the stride: a vertex the coarser mesh lacks (odd a or b) slides to the coarser
-    // mesh's point there, the midpoint of its two neighbours at twice the stride along the edge,
-    // or along the cell's cut for a cell centre; one it has stays. At m = 1 the patch draws the
-    // coarser mesh exactly. Only the geometry morphs: what the pixels show is read from the data
-    // in the fragment stage.
+    // Toward what the patch at twice the stride draws (coarser_place: itself morphed toward four
+    // times the stride): a vertex the coarser mesh lacks (odd a or b) slides to the midpoint of
+    // its two neighbours at twice the stride along the edge, or along the cell's cut for a cell
+    // centre; one it has follows that patch's own morph. At m = 1 the patch draws what the coarser
+    // patch draws, so a change of stride moves nothing even where the coarser patch was
+    // morphing (a patch spans up to half its distance at grazing views). CPU twin:
+    // scene::patches::morph_weights. Only the geometry morphs: what the pixels show is read from
+    // the data in the fragment stage.
     let da = a % 2u;
     let db = b % 2u;
-    let m = morph_factor(p, length(q.anchor.xyz + s.local));
-    if MORPH && m > 0.0 && da + db > 0u {
-        let n1 = place_at(q, i - da * p.stride, j - db * p.stride);
-        let n2 = place_at(q, i + da * p.stride, j + db * p.stride);
-        s.local = mix(s.local, 0.5 * (n1.local + n2.local), m);
-        s.up = normalize(mix(s.up, 0.5 * (n1.up + n2.up), m));
-        s.h = mix(s.h, 0.5 * (n1.h + n2.h), m);
+    let m = morph_factor(p.stride, p.reach, length(q.anchor.xyz + s.local));
+    if MORPH && m > 0.0 {
+        var toward = Place(vec3<f32>(0.0), vec3<f32>(0.0), 0.0);
+        if da + db > 0u {
+            let n1 = coarser_place(q, p, i - da * p.stride, j - db * p.stride);
+            let n2 = coarser_place(q, p, i + da * p.stride, j + db * p.stride);
+            toward = Place(0.5 * (n1.local + n2.local), 0.5 * (n1.up + n2.up), 0.5 * (n1.h + n2.h));
+        } else {
+            toward = coarser_place(q, p, i, j);
+        }
+        s.local = mix(s.local, toward.local, m);
+        s.up = normalize(mix(s.up, toward.up, m));
+        s.h = mix(s.h, toward.h, m);
     }
     var local = s.local;
     if skirt {

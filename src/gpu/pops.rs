@@ -16,25 +16,26 @@ use super::context::GpuError;
 use super::renderer::Renderer;
 use crate::ecm::geometry::surface_and_normal;
 use crate::ecm::{CubeProjection, FacePoint, QuadId};
-use crate::scene::patches::{PATCH_CELLS, PATCHES_PER_EDGE, morph_factor, morph_neighbours};
+use crate::scene::patches::{PATCH_CELLS, PATCHES_PER_EDGE, morph_weights};
 
 /// Where a frame drew which density: per drawn quad, each patch's stride (0 where the patch was
-/// culled) and reach (where its vertices morph).
+/// culled) and reaches (where its vertices morph, and where the coarser stride's do).
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct DensityLayout {
-    quads: HashMap<QuadId, [(u32, f64); 64]>,
+    quads: HashMap<QuadId, [(u32, f64, f64); 64]>,
 }
 
 impl DensityLayout {
     /// The layout of the renderer's prepared frame.
     pub fn of(renderer: &Renderer) -> DensityLayout {
-        let mut quads: HashMap<QuadId, [(u32, f64); 64]> =
-            renderer.drawn().iter().map(|q| (*q, [(0, 0.0); 64])).collect();
+        let mut quads: HashMap<QuadId, [(u32, f64, f64); 64]> =
+            renderer.drawn().iter().map(|q| (*q, [(0, 0.0, 0.0); 64])).collect();
         for p in &renderer.patches().patches {
             if let Some(q) = renderer.drawn().get(p.quad as usize)
                 && let Some(entry) = quads.get_mut(q)
             {
-                entry[(p.py * PATCHES_PER_EDGE + p.px) as usize] = (p.stride, f64::from(p.reach_m));
+                entry[(p.py * PATCHES_PER_EDGE + p.px) as usize] =
+                    (p.stride, f64::from(p.reach_m), f64::from(p.reach_up_m));
             }
         }
         DensityLayout { quads }
@@ -123,23 +124,30 @@ impl Surfaces<'_> {
         p
     }
 
-    /// The vertex (a, b) of a quad's patch drawn at `stride`, morphed as the shader morphs it.
-    fn vertex(&mut self, quad: QuadId, reach: f64, patch: (u32, u32), stride: u32, a: u32, b: u32) -> Option<DVec3> {
-        let (i, j) = (patch.0 * PATCH_CELLS + a * stride, patch.1 * PATCH_CELLS + b * stride);
-        let own = self.position(quad, i, j)?;
-        let m = if self.morph { morph_factor(stride, reach, own.length()) } else { 0.0 };
-        if m <= 0.0 {
-            return Some(own);
+    /// The vertex (a, b) of a quad's patch drawn at `stride`, morphed as the shader morphs it
+    /// ([`morph_weights`]).
+    fn vertex(
+        &mut self,
+        quad: QuadId,
+        reaches: (f64, f64),
+        patch: (u32, u32),
+        stride: u32,
+        a: u32,
+        b: u32,
+    ) -> Option<DVec3> {
+        let origin = (patch.0 * PATCH_CELLS, patch.1 * PATCH_CELLS);
+        if !self.morph {
+            return self.position(quad, origin.0 + a * stride, origin.1 + b * stride);
         }
-        let target = match morph_neighbours(a, b, stride) {
-            Some([n1, n2]) => {
-                let at = |d: (i64, i64)| ((i64::from(i) + d.0) as u32, (i64::from(j) + d.1) as u32);
-                let (p1, p2) = (at(n1), at(n2));
-                (self.position(quad, p1.0, p1.1)? + self.position(quad, p2.0, p2.1)?) * 0.5
-            }
-            None => own,
-        };
-        Some(own.lerp(target, m))
+        // A sample without a position (no data read back) is among the weights, so none is drawn.
+        let weights = morph_weights(stride, reaches.0, reaches.1, origin, (a, b), |i, j| {
+            self.position(quad, i, j).map_or(f64::NAN, |p| p.length())
+        });
+        let mut sum = DVec3::ZERO;
+        for ((i, j), w) in weights {
+            sum += self.position(quad, i, j)? * w;
+        }
+        Some(sum)
     }
 
     /// The point a layout draws at sample coordinates (x, y) of `quad`: on the triangle of the
@@ -149,7 +157,7 @@ impl Surfaces<'_> {
         let patches = layout.quads[&q];
         let cells = f64::from(PATCH_CELLS);
         let (px, py) = (((x / cells) as u32).min(7), ((y / cells) as u32).min(7));
-        let (stride, reach) = patches[(py * PATCHES_PER_EDGE + px) as usize];
+        let (stride, reach, reach_up) = patches[(py * PATCHES_PER_EDGE + px) as usize];
         if stride == 0 {
             return None;
         }
@@ -157,7 +165,7 @@ impl Surfaces<'_> {
         let (u, v) = ((x - f64::from(px) * cells) / f64::from(stride), (y - f64::from(py) * cells) / f64::from(stride));
         let (a, b) = ((u.floor() as u32).min(n - 1), (v.floor() as u32).min(n - 1));
         let (fu, fv) = (u - f64::from(a), v - f64::from(b));
-        let mut corner = |da: u32, db: u32| self.vertex(q, reach, (px, py), stride, a + da, b + db);
+        let mut corner = |da: u32, db: u32| self.vertex(q, (reach, reach_up), (px, py), stride, a + da, b + db);
         let (v00, v11) = (corner(0, 0)?, corner(1, 1)?);
         // The cell's cut runs from (a, b) to (a+1, b+1), as the index buffers cut it.
         Some(if fu >= fv {

@@ -65,14 +65,23 @@ pub struct PatchInstance {
     pub(crate) j0: u32,
     pub(crate) stride: u32,
     pub(crate) reach: f32,
-    pub(crate) pad: [f32; 3],
+    pub(crate) reach_up: f32,
+    pub(crate) pad: [f32; 2],
 }
 
 impl PatchInstance {
     /// The record of a selected patch.
     pub(crate) fn of(p: &crate::scene::patches::Patch) -> PatchInstance {
         let (i0, j0) = p.origin();
-        PatchInstance { quad: p.quad, i0, j0, stride: p.stride, reach: p.reach_m, pad: [0.0; 3] }
+        PatchInstance {
+            quad: p.quad,
+            i0,
+            j0,
+            stride: p.stride,
+            reach: p.reach_m,
+            reach_up: p.reach_up_m,
+            pad: [0.0; 2],
+        }
     }
 }
 

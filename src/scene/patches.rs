@@ -124,6 +124,10 @@ pub struct Patch {
     /// Where its vertices morph toward twice the stride ([`morph_reach`], metres; 0 at the
     /// coarsest stride, which does not morph).
     pub reach_m: f32,
+    /// Where the mesh at twice the stride morphs toward four times it: the reach the patch
+    /// would have at twice the stride (0 where that is the coarsest). A vertex morphs toward
+    /// what the coarser patch draws, itself morphed ([`morph_weights`]).
+    pub reach_up_m: f32,
     /// The largest projected geometric error of what it draws this frame, pixels.
     pub error_px: f32,
 }
@@ -207,30 +211,92 @@ pub fn stride_for(errors_m: &[f64; STRIDES.len()], distance_m: f64, focal_px: f6
 
 /// The largest projected error of a patch drawn at `stride` with effective errors `errors_m`
 /// (metres) whose vertices lie between `near_m` and `far_m` from the eye: each vertex draws its
-/// stride's mesh blended toward the coarser one by its morph factor, so its error is at most
-/// (1 − m)·δₛ + m·δ₂ₛ, seen at its distance; the largest is at the nearest point or where the
-/// morph band starts or ends.
+/// stride's mesh blended by its morph factor m toward what the coarser patch draws there, itself
+/// blended by m′ toward the mesh at four times the stride (`reach_up_m`), so its error is at most
+/// (1 − m)·δₛ + m·((1 − m′)·δ₂ₛ + m′·δ₄ₛ), seen at its distance. Over a band's part of the
+/// distances one of m and m′ varies, as 1/d does, and the other is 0 or 1, so the projected error
+/// is a concave quadratic in 1/d there: the largest is at the nearest or farthest point, where a
+/// band starts or ends, or at a quadratic's summit.
 pub fn drawn_error_px(
     errors_m: &[f64; STRIDES.len()],
     stride: u32,
     reach_m: f64,
+    reach_up_m: f64,
     near_m: f64,
     far_m: f64,
     focal_px: f64,
 ) -> f64 {
     let k = stride_index(stride);
-    let coarser = errors_m.get(k + 1).copied().unwrap_or(errors_m[k]);
+    let e = |n: usize| errors_m.get(n).copied().unwrap_or(errors_m[errors_m.len() - 1]);
     let at = |d: f64| {
         let m = morph_factor(stride, reach_m, d);
-        ((1.0 - m) * errors_m[k] + m * coarser) * focal_px / d.max(1e-6)
+        let up = morph_factor(2 * stride, reach_up_m, d);
+        ((1.0 - m) * e(k) + m * ((1.0 - up) * e(k + 1) + up * e(k + 2))) * focal_px / d.max(1e-6)
     };
-    let mut worst = at(near_m);
-    for d in [reach_m / MORPH_BAND_START, reach_m / MORPH_BAND_END] {
+    // A band's summit: d·(e₀ + Δ·(ρ_end − R/d)/w) has its largest 1/d·… at d = 2RΔ / (w·e₀ + ρ_end·Δ)
+    // (w the band's width, Δ the errors' step), where that lies inside the band.
+    let width = MORPH_BAND_END - MORPH_BAND_START;
+    let summit = |reach: f64, low: f64, high: f64| {
+        let step = high - low;
+        2.0 * reach * step / (width * low + MORPH_BAND_END * step).max(1e-300)
+    };
+    let mut worst = at(near_m).max(at(far_m));
+    for d in [
+        reach_m / MORPH_BAND_START,
+        reach_m / MORPH_BAND_END,
+        reach_up_m / MORPH_BAND_START,
+        reach_up_m / MORPH_BAND_END,
+        summit(reach_m, e(k), e(k + 1)),
+        summit(reach_up_m, e(k + 1), e(k + 2)),
+    ] {
         if d > near_m && d < far_m {
             worst = worst.max(at(d));
         }
     }
     worst
+}
+
+/// What a patch at `stride` draws at its vertex (a, b), sample (i, j): the samples it blends and
+/// their weights (summing to 1). Its own sample by 1 − m and, by m (its [`morph_factor`] at its
+/// distance), what the patch at twice the stride draws there: at a sample that mesh has, that
+/// sample morphed toward four times the stride by its own factor m′ (`reach_up_m`), and at one
+/// it lacks, the midpoint of its two neighbours there ([`morph_neighbours`]) each so morphed. So a
+/// change of stride draws what was drawn before even where the coarser patch was itself
+/// morphing. `distance_m` gives a sample's distance from the eye (its unmorphed position's);
+/// (a, b) in the patch's vertices, `origin` its first sample. The terrain shader's `vs_main`
+/// twin.
+pub fn morph_weights(
+    stride: u32,
+    reach_m: f64,
+    reach_up_m: f64,
+    origin: (u32, u32),
+    (a, b): (u32, u32),
+    mut distance_m: impl FnMut(u32, u32) -> f64,
+) -> Vec<((u32, u32), f64)> {
+    let at = |base: (u32, u32), d: (i64, i64)| ((i64::from(base.0) + d.0) as u32, (i64::from(base.1) + d.1) as u32);
+    let own = (origin.0 + a * stride, origin.1 + b * stride);
+    let m = morph_factor(stride, reach_m, distance_m(own.0, own.1));
+    let mut out = vec![(own, 1.0 - m)];
+    if m <= 0.0 {
+        return out;
+    }
+    let coarse = match morph_neighbours(a, b, stride) {
+        Some([n1, n2]) => vec![(at(own, n1), 0.5 * m), (at(own, n2), 0.5 * m)],
+        None => vec![(own, m)],
+    };
+    let up = 2 * stride;
+    for (sample, w) in coarse {
+        let m2 = morph_factor(up, reach_up_m, distance_m(sample.0, sample.1));
+        out.push((sample, w * (1.0 - m2)));
+        if m2 > 0.0 {
+            let (a2, b2) = ((sample.0 - origin.0) / up, (sample.1 - origin.1) / up);
+            match morph_neighbours(a2, b2, up) {
+                Some([n1, n2]) => out.extend([(at(sample, n1), 0.5 * w * m2), (at(sample, n2), 0.5 * w * m2)]),
+                None => out.push((sample, w * m2)),
+            }
+        }
+    }
+    out
 }
 
 /// The boxes of a quad's 64 patches (row-major: patch (px, py) at `py * 8 + px`) from its coarse
@@ -314,12 +380,15 @@ pub fn select_patches(
             };
             let b = &bounds[stride_index(stride)];
             let far = b.corners().iter().map(|c| (*c - camera.position).length()).fold(0.0, f64::max);
-            let coarser = errors.get(stride_index(stride) + 1).copied().unwrap_or(0.0);
-            let reach = if stride < PATCH_CELLS { morph_reach(coarser, focal, max_pixel_error_px) } else { 0.0 };
+            let reach_at = |k: usize| match errors.get(k) {
+                Some(&e) if STRIDES[k - 1] < PATCH_CELLS => morph_reach(e, focal, max_pixel_error_px),
+                _ => 0.0,
+            };
+            let (reach, reach_up) = (reach_at(stride_index(stride) + 1), reach_at(stride_index(stride) + 2));
             // The shader measures from f32 positions: 1 % nearer counts as morphing.
             let morphs = morph && adaptive && morph_factor(stride, reach, far * 1.01) > 0.0;
-            let drawn_reach = if morphs { reach } else { f64::INFINITY };
-            let error_px = drawn_error_px(errors, stride, drawn_reach, near, far.max(near), focal);
+            let (drawn_reach, drawn_up) = if morphs { (reach, reach_up) } else { (f64::INFINITY, f64::INFINITY) };
+            let error_px = drawn_error_px(errors, stride, drawn_reach, drawn_up, near, far.max(near), focal);
             out.max_error_px = out.max_error_px.max(error_px);
             out.patches.push(Patch {
                 stride,
@@ -329,6 +398,7 @@ pub fn select_patches(
                 py,
                 px,
                 reach_m: reach as f32,
+                reach_up_m: reach_up as f32,
                 error_px: error_px as f32,
             });
         }
@@ -338,19 +408,20 @@ pub fn select_patches(
     out
 }
 
-/// What decides where a patch's edge vertices stand: its stride, and its reach where it morphs.
-fn morph_key(p: &Patch) -> (u32, u32) {
-    (p.stride, if p.morphs { p.reach_m.to_bits() } else { u32::MAX })
+/// What decides where a patch's edge vertices stand: its stride, and its reaches where it morphs.
+fn morph_key(p: &Patch) -> (u32, u32, u32) {
+    if p.morphs { (p.stride, p.reach_m.to_bits(), p.reach_up_m.to_bits()) } else { (p.stride, u32::MAX, u32::MAX) }
 }
 
 /// Keeps the skirts a patch needs: on the quad's edge (where another quad, drawn from other
 /// values, meets it), and toward a neighbour drawn at another stride (a T-junction), morphing by
-/// another reach, or not at all.
+/// other reaches, or not at all.
 fn hang_skirts(patches: &mut [Patch]) {
     let n = PATCHES_PER_EDGE as usize;
-    let mut strides: std::collections::HashMap<u32, Vec<(u32, u32)>> = std::collections::HashMap::new();
+    let mut strides: std::collections::HashMap<u32, Vec<(u32, u32, u32)>> = std::collections::HashMap::new();
     for p in patches.iter() {
-        strides.entry(p.quad).or_insert_with(|| vec![(0, 0); n * n])[p.py as usize * n + p.px as usize] = morph_key(p);
+        strides.entry(p.quad).or_insert_with(|| vec![(0, 0, 0); n * n])[p.py as usize * n + p.px as usize] =
+            morph_key(p);
     }
     for p in patches.iter_mut() {
         let grid = &strides[&p.quad];
@@ -408,7 +479,7 @@ mod tests {
         assert_eq!(stride_for(&[0.0; 6], 1.0, 1000.0, 1.0), 32, "a plane: one cell a patch");
         // What a patch drawn there shows is within τ (with the morph toward the coarser mesh).
         let reach = morph_reach(errors[5], 1000.0, 1.0);
-        let e = drawn_error_px(&errors, 16, reach, 10_000.0, 11_000.0, 1000.0);
+        let e = drawn_error_px(&errors, 16, reach, 0.0, 10_000.0, 11_000.0, 1000.0);
         assert!(e <= 1.0 && e > 0.5, "{e}");
         assert_eq!(triangles_at(1, ALL_SIDES), 2 * 32 * 32 + 8 * 32);
         assert_eq!(triangles_at(32, ALL_SIDES), 2 + 8);
@@ -425,7 +496,7 @@ mod tests {
             let reach = morph_reach(coarse, 800.0, 1.0);
             for k in 1..400 {
                 let d = reach / MORPH_BAND_END * (1.0 + f64::from(k) / 100.0);
-                let e = drawn_error_px(&errors, 4, reach, d, d, 800.0);
+                let e = drawn_error_px(&errors, 4, reach, 0.0, d, d, 800.0);
                 let at_stride = fine * 800.0 / d;
                 // Where stride 4 is taken at all (its own error within τ / 1.1).
                 if at_stride <= 1.0 / MORPH_BAND_START {
@@ -433,6 +504,43 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn a_patch_fully_morphed_draws_what_the_coarser_patch_draws_while_that_one_morphs() {
+        // Heights of a rough field, distances growing across the patch so that the stride-4
+        // patch is fully morphed (ρ ≤ 1.1) while the stride-8 patch it replaces morphs toward 16
+        // by a factor that varies from vertex to vertex.
+        let height = |i: u32, j: u32| ((i * 7919 + j * 104_729) % 1000) as f64 * 0.37;
+        let distance = |i: u32, j: u32| 1000.0 + 10.0 * f64::from(i - 64) + 7.0 * f64::from(j - 96);
+        let drawn = |w: Vec<((u32, u32), f64)>| w.iter().map(|((i, j), w)| height(*i, *j) * w).sum::<f64>();
+        let origin = (64, 96);
+        let (reach, reach_up) = (500.0, 1.35 * 1300.0);
+        let mut partly = 0;
+        for b in 0..=8u32 {
+            for a in 0..=8u32 {
+                let weights = morph_weights(4, reach, reach_up, origin, (a, b), distance);
+                assert!((weights.iter().map(|w| w.1).sum::<f64>() - 1.0).abs() < 1e-12);
+                assert!(weights.iter().all(|w| w.1 >= 0.0), "{weights:?}");
+                let fine = drawn(weights);
+                // The stride-8 patch (its own coarser reach infinite: it morphs toward 16 alone).
+                let coarse_vertex =
+                    |a: u32, b: u32| drawn(morph_weights(8, reach_up, f64::INFINITY, origin, (a, b), distance));
+                let coarse = match (a % 2, b % 2) {
+                    (0, 0) => coarse_vertex(a / 2, b / 2),
+                    (1, 0) => 0.5 * (coarse_vertex(a / 2, b / 2) + coarse_vertex(a / 2 + 1, b / 2)),
+                    (0, 1) => 0.5 * (coarse_vertex(a / 2, b / 2) + coarse_vertex(a / 2, b / 2 + 1)),
+                    _ => 0.5 * (coarse_vertex(a / 2, b / 2) + coarse_vertex(a / 2 + 1, b / 2 + 1)),
+                };
+                assert!((fine - coarse).abs() < 1e-9, "({a},{b}): {fine} vs {coarse}");
+                let (i, j) = (origin.0 + 4 * a, origin.1 + 4 * b);
+                let m2 = morph_factor(8, reach_up, distance(i, j));
+                partly += usize::from(m2 > 0.0 && m2 < 1.0);
+            }
+        }
+        assert!(partly > 10, "the coarser patch morphs partly at {partly} vertices");
+        // Unmorphed, a vertex is its own sample.
+        assert_eq!(morph_weights(4, 100.0, 200.0, origin, (3, 5), |_, _| 10.0), vec![((76, 116), 1.0)]);
     }
 
     #[test]
