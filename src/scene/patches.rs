@@ -23,11 +23,13 @@ pub const STRIDES: [u32; 6] = [1, 2, 4, 8, 16, 32];
 /// ρ = reach / d, its distance d against the patch's reach (where the coarser mesh's error,
 /// projected, is τ / [`MORPH_BAND_START`]): fully up to ρ = 1.1 (the band's start), not at all
 /// from ρ = 1.6 on.
-/// A patch takes stride s when ρ of stride s passes 1 at its nearest point; its errors are made
-/// to at least double per stride ([`effective_errors`]), so the coarser patch it replaces had
-/// ρ ≥ 2 × 0.86 = 1.72 > 1.6 at its farthest vertex where that lies at most 16 % farther
-/// (a patch spans a small part of its distance wherever its stride is fine): unmorphed, so the
-/// change draws what was drawn before.
+/// A patch takes stride s when ρ of stride s passes 1.1 at its nearest point, where every vertex
+/// of it has morphed fully toward what the patch at 2s draws, that patch's own morph toward 4s
+/// included ([`morph_weights`]): the change draws what was drawn before, however much of its
+/// distance the patch spans (up to half of it at grazing views, where the coarser patch is still
+/// morphing at its far side). Its errors at least double per stride ([`effective_errors`]), so
+/// the 4s patch's own morph toward 8s is 0 there (ρ ≥ 4 × 1.1 × near/far ≥ 1.6 while the patch's
+/// far side lies at most 2.75 × as far as its near one): one step of the chain is enough.
 pub const MORPH_BAND_END: f64 = 1.6;
 /// Where the morph band starts: up to ρ = 1.1 a vertex has morphed fully, so that a change of
 /// stride or level that ρ passed by less than 10 % since the last frame (the camera's step) still
