@@ -272,24 +272,44 @@ pub fn erode_command(request: &ErodeRequest, fb: &mut Feedback) -> Result<String
 }
 
 fn json_of(o: &Outcome, device: &str, cached: Option<&std::path::Path>, path: &std::path::Path) -> String {
+    report_json(
+        o,
+        device,
+        cached,
+        path,
+        serde_json::json!({
+            "simulated_s": o.simulated_s,
+            "water_unexplained_rel": o.water_unexplained_rel,
+            "soil_unexplained_rel": o.soil_unexplained_rel,
+            "water_out_m3": o.water_out_m3,
+            "soil_out_m3": o.soil_out_m3,
+            "dt_min_s": o.dt_range_s.0,
+            "dt_max_s": o.dt_range_s.1,
+            "dt_asked_s": o.dt_asked_s,
+            "rain_m3": o.rain_m3,
+            "start_water_m3": o.start_water_m3,
+            "suspended_m3": o.suspended_m3,
+            "volume_change_m3": o.volume_change_m3,
+            "eroded_m3": o.eroded_m3,
+            "deposited_m3": o.deposited_m3,
+        }),
+    )
+}
+
+/// The JSON report of an erosion run of either model: the fields every run has (steps, seconds,
+/// the region's cells, level and quads, the change's range, the device, the cache and the
+/// project) with the model's own `figures` (a JSON object) merged in; pretty, one line feed.
+pub fn report_json(
+    o: &Outcome,
+    device: &str,
+    cached: Option<&std::path::Path>,
+    path: &std::path::Path,
+    figures: serde_json::Value,
+) -> String {
     let r = &o.region;
-    let value = serde_json::json!({
+    let mut value = serde_json::json!({
         "steps": o.steps,
-        "simulated_s": o.simulated_s,
-        "water_unexplained_rel": o.water_unexplained_rel,
-        "soil_unexplained_rel": o.soil_unexplained_rel,
-        "water_out_m3": o.water_out_m3,
-        "soil_out_m3": o.soil_out_m3,
         "seconds": o.seconds,
-        "dt_min_s": o.dt_range_s.0,
-        "dt_max_s": o.dt_range_s.1,
-        "dt_asked_s": o.dt_asked_s,
-        "rain_m3": o.rain_m3,
-        "start_water_m3": o.start_water_m3,
-        "suspended_m3": o.suspended_m3,
-        "volume_change_m3": o.volume_change_m3,
-        "eroded_m3": o.eroded_m3,
-        "deposited_m3": o.deposited_m3,
         "cells": [r.width, r.height],
         "level": r.level,
         "quads": o.quads.len(),
@@ -299,9 +319,10 @@ fn json_of(o: &Outcome, device: &str, cached: Option<&std::path::Path>, path: &s
         "cache": cached.map(|c| c.display().to_string()),
         "project": path.display().to_string(),
     });
-    let mut text = serde_json::to_string_pretty(&value).unwrap_or_default();
-    text.push('\n');
-    text
+    if let (Some(all), serde_json::Value::Object(own)) = (value.as_object_mut(), figures) {
+        all.extend(own);
+    }
+    serde_json::to_string_pretty(&value).unwrap_or_default() + "\n"
 }
 
 /// The change the request makes to `project`: the erosion layer's undo position moved (no run),

@@ -108,26 +108,16 @@ impl Report<'_> {
 
     /// The JSON report.
     pub fn json(&self, cached: Option<&Path>, path: &Path) -> String {
-        let (o, f, r) = (self.outcome, self.figures, &self.outcome.region);
-        let value = serde_json::json!({
+        let f = self.figures;
+        let figures = serde_json::json!({
             "model": "stream-power",
-            "steps": o.steps,
             "simulated_years": f.simulated_years,
             "uplifted_m3": f.uplifted_m3,
             "eroded_m3": f.eroded_m3,
             "deposited_m3": f.deposited_m3,
             "outflow_m3": f.outflow_m3,
             "unexplained_rel": f.unexplained_rel,
-            "seconds": o.seconds,
-            "cells": [r.width, r.height],
-            "level": r.level,
-            "quads": o.quads.len(),
-            "delta_min_m": o.range_m.0,
-            "delta_max_m": o.range_m.1,
-            "device": "CPU reference",
-            "cache": cached.map(|c| c.display().to_string()),
-            "project": path.display().to_string(),
         });
-        serde_json::to_string_pretty(&value).unwrap_or_default() + "\n"
+        super::erode::report_json(self.outcome, "CPU reference", cached, path, figures)
     }
 }
