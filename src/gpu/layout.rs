@@ -73,7 +73,12 @@ mod tests {
                 "Quad",
                 layout!(QuadInstance { anchor, corners, normals, sym, slots, params, lod, ancestry }),
             ),
-            ("PatchInstance", "terrain.wgsl", "Patch", layout!(PatchInstance { quad, i0, j0, stride, reach, pad })),
+            (
+                "PatchInstance",
+                "terrain.wgsl",
+                "Patch",
+                layout!(PatchInstance { quad, i0, j0, stride, reach, reach_up, pad }),
+            ),
             ("ErrorJob", "render/patch_errors.wgsl", "Job", layout!(ErrorJob { slot })),
             (
                 "ComposeJob",
