@@ -118,6 +118,6 @@ impl Report<'_> {
             "outflow_m3": f.outflow_m3,
             "unexplained_rel": f.unexplained_rel,
         });
-        super::erode::report_json(self.outcome, "CPU reference", cached, path, figures)
+        super::erode_report::report_json(self.outcome, "CPU reference", cached, path, figures)
     }
 }

@@ -25,6 +25,7 @@ mod dispatch;
 mod edit_target;
 mod erode;
 mod erode_landscape;
+mod erode_report;
 mod error;
 mod export;
 mod feedback;
