@@ -276,6 +276,16 @@ fn morph_factor(stride: u32, reach: f32, distance: f32) -> f32 {
     return clamp((frame.morph.y - rho) / (frame.morph.y - frame.morph.w), 0.0, 1.0);
 }
 
+// Two places blended: `b` by m (its normal renormalised).
+fn blend(a: Place, b: Place, m: f32) -> Place {
+    return Place(mix(a.local, b.local, m), normalize(mix(a.up, b.up, m)), mix(a.h, b.h, m));
+}
+
+// The midpoint of two places (what the coarser mesh draws between them).
+fn midpoint(a: Place, b: Place) -> Place {
+    return Place(0.5 * (a.local + b.local), 0.5 * (a.up + b.up), 0.5 * (a.h + b.h));
+}
+
 // What the patch at twice p's stride draws at its sample (i, j) (one of its own): the sample,
 // morphed toward four times the stride by its own factor, to the midpoint of its two neighbours
 // there where that mesh lacks it.
@@ -286,11 +296,7 @@ fn coarser_place(q: Quad, p: Patch, i: u32, j: u32) -> Place {
     let da = ((i - p.i0) / up) % 2u;
     let db = ((j - p.j0) / up) % 2u;
     if m > 0.0 && da + db > 0u {
-        let n1 = place_at(q, i - da * up, j - db * up);
-        let n2 = place_at(q, i + da * up, j + db * up);
-        s.local = mix(s.local, 0.5 * (n1.local + n2.local), m);
-        s.up = normalize(mix(s.up, 0.5 * (n1.up + n2.up), m));
-        s.h = mix(s.h, 0.5 * (n1.h + n2.h), m);
+        s = blend(s, midpoint(place_at(q, i - da * up, j - db * up), place_at(q, i + da * up, j + db * up)), m);
     }
     return s;
 }
@@ -322,17 +328,15 @@ fn vs_main(@builtin(vertex_index) vertex: u32, @builtin(instance_index) instance
     let db = b % 2u;
     let m = morph_factor(p.stride, p.reach, length(q.anchor.xyz + s.local));
     if MORPH && m > 0.0 {
-        var toward = Place(vec3<f32>(0.0), vec3<f32>(0.0), 0.0);
+        var toward: Place;
         if da + db > 0u {
             let n1 = coarser_place(q, p, i - da * p.stride, j - db * p.stride);
             let n2 = coarser_place(q, p, i + da * p.stride, j + db * p.stride);
-            toward = Place(0.5 * (n1.local + n2.local), 0.5 * (n1.up + n2.up), 0.5 * (n1.h + n2.h));
+            toward = midpoint(n1, n2);
         } else {
             toward = coarser_place(q, p, i, j);
         }
-        s.local = mix(s.local, toward.local, m);
-        s.up = normalize(mix(s.up, toward.up, m));
-        s.h = mix(s.h, toward.h, m);
+        s = blend(s, toward, m);
     }
     var local = s.local;
     if skirt {
@@ -714,9 +718,10 @@ struct Follow {
 // surface: the ray's height is the mesh's height there plus its climb, the data's height is read
 // where the ray is. Each step moves at most a few strides (a far root is a ridge in front, which
 // the mesh, within δ, already shows). Skirts, cells without data and rays along the surface keep
-// the point under the mesh's (under_mesh), never the vertices' interpolated coordinates. Checked against f64 rather than a twin: tests/render.rs places the point
-// each pixel read on the ellipsoid and measures its distance from the pixel's ray, and compares
-// the height read with the CPU composition there.
+// the point under the mesh's (under_mesh), never the vertices' interpolated coordinates. Checked
+// against f64 rather than a twin: tests/render.rs places the point each pixel read on the
+// ellipsoid and measures its distance from the pixel's ray, and compares the height read with
+// the CPU composition there.
 fn on_data(q: Quad, in: VertexOut, ray: Ray, under: Under) -> Follow {
     var out = Follow(under.coords, vec2<f32>(0.0), 0.0, false);
     let slot = q.slots.z;
