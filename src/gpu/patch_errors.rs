@@ -93,7 +93,7 @@ impl PatchErrorPass {
             let mut pass = encoder.begin_compute_pass(&Default::default());
             pass.set_pipeline(&self.pipeline);
             pass.set_bind_group(0, &self.bind_group, &[]);
-            pass.dispatch_workgroups(PATCHES_PER_EDGE * PATCHES_PER_EDGE, STRIDES.len() as u32, jobs.len() as u32);
+            pass.dispatch_workgroups(PATCHES_PER_EDGE * PATCHES_PER_EDGE, 1, jobs.len() as u32);
         }
         encoder.copy_buffer_to_buffer(&self.out, 0, &read, 0, bytes);
         queue.submit([encoder.finish()]);

@@ -5,7 +5,9 @@
 use wgpu::util::DeviceExt;
 
 use super::context::GpuError;
-use super::targets::{DEPTH_FORMAT, ID_FORMAT, IMAGE_FORMAT, SURFACE_FORMAT};
+use std::sync::OnceLock;
+
+use super::targets::{DEPTH_FORMAT, DrawMode, ID_FORMAT, IMAGE_FORMAT, SURFACE_FORMAT};
 use super::uniforms::rgba;
 use crate::scene::patches::{ALL_SIDES, PATCH_CELLS, STRIDES, triangles_at};
 
@@ -75,12 +77,18 @@ pub(crate) fn bind_buffers(
     device.create_bind_group(&wgpu::BindGroupDescriptor { label: Some(label), layout, entries: &entries })
 }
 
-/// The terrain pipelines and what they share.
+/// The terrain pipelines and what they share. Each pipeline is compiled the first time a frame
+/// draws with it (a software rasteriser spends 0.1–0.2 s on each of the six): `render` draws
+/// colour only, the workstation the probe, the vertex tests the points.
 pub(crate) struct TerrainPass {
-    /// Each pipeline [without morphing, with] (see `MORPH` in terrain.wgsl).
-    pub(crate) pipeline: [wgpu::RenderPipeline; 2],
-    pub(crate) probe_pipeline: [wgpu::RenderPipeline; 2],
-    pub(crate) points_pipeline: [wgpu::RenderPipeline; 2],
+    device: wgpu::Device,
+    /// [without morphing, with] (see `MORPH` in terrain.wgsl).
+    modules: [wgpu::ShaderModule; 2],
+    pipeline_layout: wgpu::PipelineLayout,
+    /// The colour target's format (the window's, or [`IMAGE_FORMAT`]).
+    format: wgpu::TextureFormat,
+    /// Per [`DrawMode`] (colour, probe, points) and [without morphing, with].
+    pipelines: [[OnceLock<wgpu::RenderPipeline>; 2]; 3],
     pub(crate) layout: wgpu::BindGroupLayout,
     pub(crate) index_buffer: wgpu::Buffer,
     /// Per stride (in the order of [`STRIDES`]) and set of skirts: the first index of its patch
@@ -95,10 +103,58 @@ impl TerrainPass {
         let (first, count) = self.index_ranges[k * (usize::from(ALL_SIDES) + 1) + usize::from(skirts & ALL_SIDES)];
         first..first + count
     }
-}
 
-impl TerrainPass {
-    /// The pipelines drawing into targets of `format` (the window's, or [`IMAGE_FORMAT`]).
+    /// The pipeline drawing `mode`, with or without morphing, compiled on first use.
+    pub(crate) fn pipeline(&self, mode: DrawMode, morphs: bool) -> &wgpu::RenderPipeline {
+        let kind = match mode {
+            DrawMode::Colour => 0,
+            DrawMode::Probe => 1,
+            DrawMode::Points => 2,
+        };
+        self.pipelines[kind][usize::from(morphs)].get_or_init(|| self.make(mode, &self.modules[usize::from(morphs)]))
+    }
+
+    fn make(&self, mode: DrawMode, module: &wgpu::ShaderModule) -> wgpu::RenderPipeline {
+        let target = |format: wgpu::TextureFormat| {
+            Some(wgpu::ColorTargetState { format, blend: None, write_mask: wgpu::ColorWrites::ALL })
+        };
+        let colour_target = [target(self.format)];
+        let probe_targets = [target(IMAGE_FORMAT), target(SURFACE_FORMAT), target(ID_FORMAT)];
+        let (label, fragment, targets, topology): (_, _, &[Option<wgpu::ColorTargetState>], _) = match mode {
+            DrawMode::Colour => ("terrain", "fs_main", &colour_target, wgpu::PrimitiveTopology::TriangleList),
+            DrawMode::Probe => ("terrain probe", "fs_probe", &probe_targets, wgpu::PrimitiveTopology::TriangleList),
+            DrawMode::Points => ("terrain points", "fs_points", &probe_targets, wgpu::PrimitiveTopology::PointList),
+        };
+        self.device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some(label),
+            layout: Some(&self.pipeline_layout),
+            vertex: wgpu::VertexState {
+                module,
+                entry_point: Some("vs_main"),
+                compilation_options: Default::default(),
+                buffers: &[],
+            },
+            primitive: wgpu::PrimitiveState { topology, cull_mode: None, ..Default::default() },
+            depth_stencil: Some(wgpu::DepthStencilState {
+                format: DEPTH_FORMAT,
+                depth_write_enabled: Some(true),
+                depth_compare: Some(wgpu::CompareFunction::Greater),
+                stencil: Default::default(),
+                bias: Default::default(),
+            }),
+            multisample: Default::default(),
+            fragment: Some(wgpu::FragmentState {
+                module,
+                entry_point: Some(fragment),
+                compilation_options: Default::default(),
+                targets,
+            }),
+            multiview_mask: None,
+            cache: None,
+        })
+    }
+
+    /// The pass drawing into targets of `format` (the window's, or [`IMAGE_FORMAT`]).
     pub(crate) fn new(device: &wgpu::Device, format: wgpu::TextureFormat) -> Result<TerrainPass, GpuError> {
         let source = super::shaders::composed("terrain.wgsl")?;
         let flat = source.replace("const MORPH: bool = true;", "const MORPH: bool = false;");
@@ -158,52 +214,16 @@ impl TerrainPass {
             bind_group_layouts: &[Some(&layout)],
             immediate_size: 0,
         });
-        let make = |module: &wgpu::ShaderModule,
-                    label: &str,
-                    fragment: &str,
-                    targets: &[Option<wgpu::ColorTargetState>],
-                    topology: wgpu::PrimitiveTopology| {
-            device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-                label: Some(label),
-                layout: Some(&pipeline_layout),
-                vertex: wgpu::VertexState {
-                    module,
-                    entry_point: Some("vs_main"),
-                    compilation_options: Default::default(),
-                    buffers: &[],
-                },
-                primitive: wgpu::PrimitiveState { topology, cull_mode: None, ..Default::default() },
-                depth_stencil: Some(wgpu::DepthStencilState {
-                    format: DEPTH_FORMAT,
-                    depth_write_enabled: Some(true),
-                    depth_compare: Some(wgpu::CompareFunction::Greater),
-                    stencil: Default::default(),
-                    bias: Default::default(),
-                }),
-                multisample: Default::default(),
-                fragment: Some(wgpu::FragmentState {
-                    module,
-                    entry_point: Some(fragment),
-                    compilation_options: Default::default(),
-                    targets,
-                }),
-                multiview_mask: None,
-                cache: None,
-            })
-        };
-        let target = |format: wgpu::TextureFormat| {
-            Some(wgpu::ColorTargetState { format, blend: None, write_mask: wgpu::ColorWrites::ALL })
-        };
-        let probe_targets = [target(IMAGE_FORMAT), target(SURFACE_FORMAT), target(ID_FORMAT)];
-        let triangles = wgpu::PrimitiveTopology::TriangleList;
-        let pipeline = modules.each_ref().map(|m| make(m, "terrain", "fs_main", &[target(format)], triangles));
-        let probe_pipeline =
-            modules.each_ref().map(|m| make(m, "terrain probe", "fs_probe", &probe_targets, triangles));
-        let points_pipeline = modules
-            .each_ref()
-            .map(|m| make(m, "terrain points", "fs_points", &probe_targets, wgpu::PrimitiveTopology::PointList));
-
-        Ok(TerrainPass { pipeline, probe_pipeline, points_pipeline, layout, index_ranges, index_buffer })
+        Ok(TerrainPass {
+            device: device.clone(),
+            modules,
+            pipeline_layout,
+            format,
+            pipelines: Default::default(),
+            layout,
+            index_ranges,
+            index_buffer,
+        })
     }
 
     /// The terrain bind group: frame, quads, heights, the three maps, the ramp, the overlay, the

@@ -15,19 +15,14 @@ impl Renderer {
         pass.set_bind_group(0, &self.bind_group, &[]);
         let groups = self.patches.groups();
         for (stride, skirts, morphs, first, count) in groups {
-            let m = usize::from(morphs);
             match mode {
                 DrawMode::Colour | DrawMode::Probe => {
-                    pass.set_pipeline(if mode == DrawMode::Colour {
-                        &self.terrain.pipeline[m]
-                    } else {
-                        &self.terrain.probe_pipeline[m]
-                    });
+                    pass.set_pipeline(self.terrain.pipeline(mode, morphs));
                     pass.set_index_buffer(self.terrain.index_buffer.slice(..), wgpu::IndexFormat::Uint32);
                     pass.draw_indexed(self.terrain.indices_of(stride, skirts), 0, first..first + count);
                 }
                 DrawMode::Points => {
-                    pass.set_pipeline(&self.terrain.points_pipeline[m]);
+                    pass.set_pipeline(self.terrain.pipeline(mode, morphs));
                     let nv = PATCH_CELLS / stride + 1;
                     pass.draw(0..nv * nv, first..first + count);
                 }
