@@ -11,6 +11,7 @@ use std::time::Duration;
 
 use terrafuse::ecm::{CubeProjection, Edge, QuadId};
 use terrafuse::geodesy::Ellipsoid;
+use terrafuse::gpu::compose::ComposeOn;
 use terrafuse::gpu::{DrawMode, GpuContext, IMAGE_FORMAT, Renderer};
 use terrafuse::layers::{
     BlendMode, DetailWhere, ExtentSpec, LayerSpec, LayerTiles, NoiseSpec, NoiseType, Operand, compose_difference,
@@ -20,11 +21,19 @@ use terrafuse::project::{CameraSpec, Project};
 use terrafuse::scene::Scene;
 use terrafuse::scene::loader::{EdgeFields, read_tile};
 
+/// A renderer whose frames compose on the GPU whatever the adapter (on lavapipe they would
+/// compose with the CPU reference by default, and these tests are of the compute pass).
 fn renderer(project: &Project) -> Renderer {
+    renderer_on(project, ComposeOn::Gpu)
+}
+
+fn renderer_on(project: &Project, on: ComposeOn) -> Renderer {
     let (scene, _) = Scene::open(project).unwrap();
     let ctx =
         GpuContext::headless().expect("a GPU adapter (lavapipe in CI: scripts/install-deps, WGPU_BACKEND=vulkan)");
-    Renderer::new(&ctx, scene, IMAGE_FORMAT).unwrap()
+    let mut r = Renderer::new(&ctx, scene, IMAGE_FORMAT).unwrap();
+    r.set_compose_on(on);
+    r
 }
 
 fn noise(noise_type: NoiseType, amplitude_m: f64, wavelength_m: f64, octaves: u32) -> NoiseSpec {
@@ -653,4 +662,46 @@ fn a_settled_view_after_swapping_the_shown_dataset_equals_a_fresh_renderers_pixe
     let reference = fresh.render_image(DrawMode::Colour).unwrap();
     let differing = edited.rgba.chunks(4).zip(reference.rgba.chunks(4)).filter(|(a, b)| a != b).count();
     assert_eq!(differing, 0, "{differing} pixels differ from a fresh renderer's");
+}
+
+#[test]
+fn frames_composed_by_the_cpu_reference_hold_the_heights_and_draw_the_pixels_the_compute_pass_does() {
+    // A software adapter composes its frames with the CPU reference (faster there); the heights
+    // it writes into the slots, the drawn difference's A − B among them, must be those of the
+    // compute pass within its f32 contract, and the images the same.
+    let p = common::sample_project("erzurum-compare", &common::out_path("compose-frame-cpu"));
+    let project = Project::load(&p).unwrap();
+    let camera = project.view(None).unwrap();
+    let mut settled = [ComposeOn::Gpu, ComposeOn::Cpu].map(|on| {
+        let mut r = renderer_on(&project, on);
+        let s = r.settle(&camera, 320, 240, Duration::from_secs(120));
+        assert_eq!(s.pending, 0, "{on:?}: the view settles");
+        (r, s)
+    });
+    assert_eq!(settled[0].1.selection.quads, settled[1].1.selection.quads, "the same quads are drawn");
+    let mut worst = 0f64;
+    let mut compared = 0;
+    let mut differences = 0;
+    for q in settled[0].1.selection.quads.clone() {
+        let read = |r: &Renderer| [r.read_heights(q).unwrap(), r.read_difference(q).unwrap()];
+        let [gpu, cpu] = [read(&settled[0].0), read(&settled[1].0)];
+        for (what, gpu, cpu) in [("heights", &gpu[0], &cpu[0]), ("A − B", &gpu[1], &cpu[1])] {
+            assert_eq!(gpu.is_some(), cpu.is_some(), "{q}: {what} on one side only");
+            let (Some(gpu), Some(cpu)) = (gpu, cpu) else { continue };
+            differences += usize::from(what == "A − B");
+            for (g, c) in gpu.iter().zip(cpu) {
+                assert_eq!(g.is_nan(), c.is_nan(), "{q}: {what}: no data on one side only");
+                if !g.is_nan() {
+                    worst = worst.max(f64::from((g - c).abs()));
+                    compared += 1;
+                }
+            }
+        }
+    }
+    assert!(compared > 100_000 && differences > 0, "only {compared} samples, {differences} differences compared");
+    // The compute pass against the reference: within 10⁻³ m (tests above, every layer kind).
+    assert!(worst < 1e-3, "the slots differ by {worst} m");
+    let images = settled.each_mut().map(|(r, _)| r.render_image(DrawMode::Colour).unwrap());
+    let off = images[0].rgba.iter().zip(&images[1].rgba).filter(|(a, b)| a.abs_diff(**b) > 1).count();
+    assert_eq!(off, 0, "{off} channels differ by more than 1/255");
 }

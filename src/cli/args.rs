@@ -82,6 +82,10 @@ pub enum Command {
         /// Draw without geomorphing (to measure the pops it hides).
         #[arg(long)]
         no_geomorph: bool,
+        /// Where frames compose the layer stack: gpu (the compute pass) or cpu (the reference);
+        /// default: gpu on a hardware adapter, cpu on a software one (where it is faster).
+        #[arg(long, value_parser = ["gpu", "cpu"])]
+        compose: Option<String>,
         /// Image width, pixels.
         #[arg(long, default_value_t = 1280, allow_negative_numbers = true)]
         width: u32,

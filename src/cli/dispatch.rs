@@ -81,6 +81,7 @@ pub fn run(command: Command, c: &mut Console) -> Result<u8, CliError> {
             frames,
             out_dir,
             no_geomorph,
+            compose,
             ..
         } => {
             let request = super::FlightRequest {
@@ -92,6 +93,7 @@ pub fn run(command: Command, c: &mut Console) -> Result<u8, CliError> {
                 height,
                 lod_threshold: look.lod_threshold,
                 pixel_error: look.pixel_error,
+                compose_on: compose_on(compose.as_deref()),
                 geomorph: !no_geomorph,
             };
             let err = &mut *c.err;
@@ -100,7 +102,17 @@ pub fn run(command: Command, c: &mut Console) -> Result<u8, CliError> {
             })?;
             c.print(report)?;
         }
-        Command::Render { project: Some(project), out: Some(out), width, height, look, swipe, no_geomorph, .. } => {
+        Command::Render {
+            project: Some(project),
+            out: Some(out),
+            width,
+            height,
+            look,
+            swipe,
+            no_geomorph,
+            compose,
+            ..
+        } => {
             c.note_recovery(&project);
             let request = super::RenderRequest {
                 project: &project,
@@ -112,6 +124,7 @@ pub fn run(command: Command, c: &mut Console) -> Result<u8, CliError> {
                 camera: look.camera.as_deref(),
                 lod_threshold: look.lod_threshold,
                 pixel_error: look.pixel_error,
+                compose_on: compose_on(compose.as_deref()),
                 swipe: swipe.as_deref(),
                 trace: c.trace,
             };
@@ -163,7 +176,7 @@ pub fn run(command: Command, c: &mut Console) -> Result<u8, CliError> {
                 Some(v) if v.len() == 2 && v[0] != v[1] => Some((v[0].to_string(), v[1].to_string())),
                 Some(v) => return Err(format!("--difference {}: give two different layers A,B", v.join(",")).into()),
             };
-            let compose_on = if compose == "cpu" { super::ComposeOn::Cpu } else { super::ComposeOn::Gpu };
+            let compose_on = compose_on(Some(&compose)).unwrap_or(super::ComposeOn::Gpu);
             let attribute = attribute
                 .map(|name| {
                     crate::attributes::Attribute::parse(&name).ok_or_else(|| {
@@ -324,4 +337,9 @@ fn import_options(a: &ImportArgs) -> Result<crate::store::ImportOptions, CliErro
         finest_only: false,
         watch: None,
     })
+}
+
+/// `--compose gpu|cpu` (clap has checked the value), or None for the default.
+fn compose_on(compose: Option<&str>) -> Option<super::ComposeOn> {
+    compose.map(|c| if c == "cpu" { super::ComposeOn::Cpu } else { super::ComposeOn::Gpu })
 }

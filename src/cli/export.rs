@@ -17,14 +17,7 @@ use crate::scene::Scene;
 use crate::store::export::RasterSpec;
 use crate::store::grid::{intervals_per_face_edge, level_for_resolution};
 
-/// Where quads are composed.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum ComposeOn {
-    /// The renderer's compute pass.
-    Gpu,
-    /// The CPU reference (deterministic, bit for bit).
-    Cpu,
-}
+pub use crate::gpu::compose::ComposeOn;
 
 /// What to export.
 #[derive(Clone, Debug)]

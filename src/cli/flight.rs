@@ -31,6 +31,8 @@ pub struct FlightRequest<'a> {
     pub lod_threshold: Option<f64>,
     /// `--pixel-error` (else the project's).
     pub pixel_error: Option<f64>,
+    /// `--compose`: where frames compose the layer stack (None: by the adapter).
+    pub compose_on: Option<super::ComposeOn>,
     /// Whether vertices morph between strides (off: to measure what morphing hides).
     pub geomorph: bool,
 }
@@ -100,7 +102,7 @@ pub fn render_flight(request: &FlightRequest, log: &mut dyn FnMut(&str)) -> Resu
     let cameras = flight.cameras(&ellipsoid, request.frames).within("--frames")?;
     std::fs::create_dir_all(request.out_dir).map_err(CliError::file(request.out_dir, "cannot create"))?;
     let (_, mut renderer, lines) = open_renderer(request.project)?;
-    super::render::apply_detail(&mut renderer, request.lod_threshold, request.pixel_error);
+    super::render::apply_detail(&mut renderer, request.lod_threshold, request.pixel_error, request.compose_on);
     renderer.set_geomorph(request.geomorph);
     let mut frames = Vec::with_capacity(cameras.len());
     let mut previous: Option<DensityLayout> = None;

@@ -1,6 +1,6 @@
 //! `terrafuse render`: one frame of a project to a PNG, with what it drew and what it cost.
 
-use super::{CliError, Within};
+use super::{CliError, ComposeOn, Within};
 use std::fmt::Write as _;
 use std::path::Path;
 use std::time::Duration;
@@ -28,6 +28,8 @@ pub struct RenderRequest<'a> {
     pub lod_threshold: Option<f64>,
     /// `--pixel-error`: the geometric error allowed on screen, pixels (else the project's).
     pub pixel_error: Option<f64>,
+    /// `--compose`: where frames compose the layer stack (None: by the adapter).
+    pub compose_on: Option<ComposeOn>,
     /// `A,B[,POSITION]`: layer A left of a vertical line at POSITION (0–1 of the width, default
     /// 0.5), layer B right of it.
     pub swipe: Option<&'a str>,
@@ -191,7 +193,7 @@ pub fn render(request: &RenderRequest, log: &mut dyn FnMut(&str)) -> Result<Stri
     let camera = request_camera(&project, request.view.or(saved_view), request.camera)?;
     check_detail(request.lod_threshold, request.pixel_error)?;
     let (_, mut renderer, lines) = open_renderer(request.project)?;
-    apply_detail(&mut renderer, request.lod_threshold, request.pixel_error);
+    apply_detail(&mut renderer, request.lod_threshold, request.pixel_error, request.compose_on);
     renderer.set_geomorph(request.geomorph);
     if let Some(s) = &swipe {
         // Each side is rendered as its own project would be, by a renderer of its own (a
@@ -200,7 +202,7 @@ pub fn render(request: &RenderRequest, log: &mut dyn FnMut(&str)) -> Result<Stri
         let (scene, _) = Scene::open(&side)?;
         renderer = Renderer::new(&GpuContext::headless()?, scene, IMAGE_FORMAT)?;
         resolve_difference_range(&side, &mut renderer)?;
-        apply_detail(&mut renderer, request.lod_threshold, request.pixel_error);
+        apply_detail(&mut renderer, request.lod_threshold, request.pixel_error, request.compose_on);
     }
     let (debug, quads) = (request.trace != Trace::Off, request.trace == Trace::Quads);
     let stats = renderer.settle_traced(&camera, request.width, request.height, Duration::from_secs(300), &mut |s, busy| {
@@ -232,7 +234,7 @@ pub fn render(request: &RenderRequest, log: &mut dyn FnMut(&str)) -> Result<Stri
         let (scene, _) = Scene::open(&side)?;
         let mut right_renderer = Renderer::new(&GpuContext::headless()?, scene, IMAGE_FORMAT)?;
         resolve_difference_range(&side, &mut right_renderer)?;
-        apply_detail(&mut right_renderer, request.lod_threshold, request.pixel_error);
+        apply_detail(&mut right_renderer, request.lod_threshold, request.pixel_error, request.compose_on);
         let right_stats = right_renderer.settle(&camera, request.width, request.height, Duration::from_secs(300));
         let right = right_renderer.render_image(DrawMode::Colour)?;
         image = composite(&image, &right, s.position);
@@ -255,6 +257,7 @@ pub fn render(request: &RenderRequest, log: &mut dyn FnMut(&str)) -> Result<Stri
         camera.lat, camera.lon, camera.alt, camera.heading, camera.pitch, camera.fov
     );
     out.push_str(&frame_report(&stats, image.gpu_ms, &renderer.scene().detail));
+    let _ = writeln!(out, "composition: {}", composition_line(renderer.compose_on()));
     let _ = writeln!(out, "wrote {} ({}x{})", request.out.display(), image.width, image.height);
     Ok(out)
 }
@@ -264,8 +267,24 @@ pub fn check_detail(lod_threshold: Option<f64>, pixel_error: Option<f64>) -> Res
     crate::project::check_detail_overrides(lod_threshold, pixel_error).map_err(|e| e.to_string().into())
 }
 
-/// Applies `--lod-threshold` and `--pixel-error` where given.
-pub fn apply_detail(renderer: &mut Renderer, lod_threshold: Option<f64>, pixel_error: Option<f64>) {
+/// Where frames composed, in words.
+pub fn composition_line(on: ComposeOn) -> &'static str {
+    match on {
+        ComposeOn::Gpu => "gpu (the compute pass)",
+        ComposeOn::Cpu => "cpu (the reference; the default on a software adapter)",
+    }
+}
+
+/// Applies `--lod-threshold`, `--pixel-error` and `--compose` where given.
+pub fn apply_detail(
+    renderer: &mut Renderer,
+    lod_threshold: Option<f64>,
+    pixel_error: Option<f64>,
+    compose_on: Option<ComposeOn>,
+) {
+    if let Some(on) = compose_on {
+        renderer.set_compose_on(on);
+    }
     if let Some(t) = lod_threshold {
         renderer.set_threshold(t);
     }

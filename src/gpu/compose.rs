@@ -19,6 +19,24 @@ use crate::ecm::geometry::{MapSymmetry, QuadGeometry, Split};
 use crate::layers::spec::{BlendMode, DetailWhere, NoiseType};
 use crate::layers::{MaskPlan, PlannedLayer, QuadPlan, Stack, ValueSource, noise};
 
+/// Where quads are composed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ComposeOn {
+    /// The renderer's compute pass.
+    Gpu,
+    /// The CPU reference (deterministic, bit for bit).
+    Cpu,
+}
+
+impl ComposeOn {
+    /// Where a renderer on `device_type` composes its frames by default: the compute pass on a
+    /// hardware adapter, the CPU reference on a software one (where the reference is 27× faster
+    /// for one dataset layer than the pass run by the CPU rasteriser: BENCHMARKS.md).
+    pub fn for_adapter(device_type: wgpu::DeviceType) -> ComposeOn {
+        if device_type == wgpu::DeviceType::Cpu { ComposeOn::Cpu } else { ComposeOn::Gpu }
+    }
+}
+
 /// Stands for "no bound" and "no data spacing" in the shader (its `FAR`).
 const FAR: f32 = 3.0e38;
 /// Samples along a quad edge, and the workgroup edge.

@@ -9,11 +9,12 @@
 use std::collections::HashMap;
 use std::time::{Duration, Instant};
 
+mod compose_here;
 mod draw;
 mod frame;
 mod stack;
 
-use super::compose::{ComposeBatch, ComposePass};
+use super::compose::{ComposeBatch, ComposeOn, ComposePass};
 use super::context::{GpuContext, GpuError};
 use super::patch_errors::{ErrorJob, ErrorKey, MAX_JOBS, PatchErrorPass, QuadErrors};
 use super::terrain::{TerrainPass, ramp_buffer};
@@ -99,7 +100,8 @@ fn overlay_buffer(device: &wgpu::Device, slots: u64) -> wgpu::Buffer {
     device.create_buffer(&wgpu::BufferDescriptor {
         label: Some("overlay"),
         size: if slots == 0 { 16 } else { slots * u64::from(SAMPLES * SAMPLES) * 4 },
-        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+        // Written by the compute pass or, composed on the CPU, by the queue; read back by tools.
+        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
         mapped_at_creation: false,
     })
 }
@@ -136,6 +138,10 @@ pub struct Renderer {
     error_pass: PatchErrorPass,
     errors: HashMap<QuadId, (ErrorKey, QuadErrors)>,
     compose: ComposePass,
+    /// Where frames compose their quads (`compose_now` always on the GPU).
+    compose_on: ComposeOn,
+    /// The frame's quads to compose on the CPU (with `compose_on` the CPU).
+    cpu_jobs: Vec<compose_here::CpuJob>,
     counters: ComposeCounters,
     scene: Scene,
     loader: Loader,
@@ -248,6 +254,8 @@ impl Renderer {
             error_pass,
             errors: HashMap::new(),
             compose,
+            compose_on: ComposeOn::for_adapter(ctx.info.device_type),
+            cpu_jobs: Vec::new(),
             counters: ComposeCounters::default(),
             scene,
             loader,
@@ -278,6 +286,18 @@ impl Renderer {
     /// stride changes (the default), so that a change of stride draws what was drawn before.
     pub fn set_geomorph(&mut self, geomorph: bool) {
         self.geomorph = geomorph;
+    }
+
+    /// Where frames compose their quads: by default the compute pass on a hardware adapter and
+    /// the CPU reference on a software one ([`ComposeOn::for_adapter`]). Quads composed before
+    /// stay as they are until their plans change.
+    pub fn set_compose_on(&mut self, on: ComposeOn) {
+        self.compose_on = on;
+    }
+
+    /// Where frames compose their quads.
+    pub fn compose_on(&self) -> ComposeOn {
+        self.compose_on
     }
 
     /// Whether the frames morph (geomorphing on and adaptive patches).
@@ -590,11 +610,12 @@ impl Renderer {
         let mut free_maps = self.maps_pool.capacity.saturating_sub(maps_counted.len() as u32);
         let mut requests = Vec::new();
         let mut batch = ComposeBatch::default();
+        let on = self.compose_on;
         // Drawn quads whose layers changed are recomposed first (they stay drawn meanwhile, with
         // their old heights, and count as pending until their new ones are composed).
         let mut stale = 0;
         for q in &selection.quads {
-            if !self.ensure_heights(*q, &mut batch, &mut stats, &mut requests) {
+            if !self.ensure_heights(*q, on, &mut batch, &mut stats, &mut requests) {
                 stale += 1;
             }
         }
@@ -609,7 +630,7 @@ impl Renderer {
         ancestors.sort_unstable();
         ancestors.dedup();
         for a in ancestors {
-            self.ensure_heights(a, &mut batch, &mut stats, &mut requests);
+            self.ensure_heights(a, on, &mut batch, &mut stats, &mut requests);
         }
         for q in &selection.wanted {
             let has = self.cache.plan(&self.scene, *q).has_data(&self.scene.stack);
@@ -636,13 +657,13 @@ impl Renderer {
             }
             if has {
                 self.heights_pool.touch(*q, self.frame);
-                self.ensure_heights(*q, &mut batch, &mut stats, &mut requests);
+                self.ensure_heights(*q, on, &mut batch, &mut stats, &mut requests);
             }
         }
         self.submit_composition(&batch, &mut stats);
         stats.requested = requests.len();
         self.loader.request(&requests);
-        if stats.uploads > 0 || !batch.is_empty() {
+        if stats.uploads > 0 || !stats.composed.is_empty() {
             // Hand the writes to the GPU now, so that their staging memory is released even when
             // frames are prepared without being drawn.
             self.queue.submit([]);
@@ -802,6 +823,7 @@ impl Renderer {
                 continue;
             }
             if stats.uploads == 0
+                && stats.composed.is_empty()
                 && let Some(item) = self.loader.wait(Duration::from_millis(200))
             {
                 self.absorb(item, &mut errors);

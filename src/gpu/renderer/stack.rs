@@ -150,10 +150,12 @@ impl Renderer {
     /// Makes sure a quad's composed heights are current: nothing to do when its slot holds its
     /// plan's stamp; else, once its maps and every source tile it reads are on the GPU, a job
     /// for the batch (source tiles in the CPU cache are uploaded within the frame's budget, the
-    /// rest asked of the loader). Returns whether the quad has current heights (or needs none).
+    /// rest asked of the loader); with `on` the CPU, a job for the CPU reference instead
+    /// ([`Renderer::queue_here`]). Returns whether the quad has current heights (or needs none).
     pub(super) fn ensure_heights(
         &mut self,
         quad: QuadId,
+        on: ComposeOn,
         batch: &mut ComposeBatch,
         stats: &mut FrameStats,
         requests: &mut Vec<DataKey>,
@@ -164,6 +166,9 @@ impl Renderer {
         }
         if self.composed.get(&quad) == Some(&plan.stamp) && self.heights_pool.touch(quad, self.frame).is_some() {
             return true;
+        }
+        if on == ComposeOn::Cpu {
+            return self.queue_here(quad, plan, requests);
         }
         let mut ready = self.missing_maps(quad).is_none();
         let mut slots = Vec::with_capacity(plan.layers.len());
@@ -264,7 +269,7 @@ impl Renderer {
             }
             let mut requests = Vec::new();
             stats.uploads = 0; // the budget per frame does not apply here
-            if !self.ensure_heights(quad, &mut batch, &mut stats, &mut requests) {
+            if !self.ensure_heights(quad, ComposeOn::Gpu, &mut batch, &mut stats, &mut requests) {
                 return Err(GpuError::Stack(format!("{quad} could not be composed (GPU cache full?)")));
             }
         }
@@ -274,8 +279,9 @@ impl Renderer {
 
     /// Records the batch in the frame's statistics and the counters, and submits its dispatch.
     pub(super) fn submit_composition(&mut self, batch: &ComposeBatch, stats: &mut FrameStats) {
-        stats.composed = batch.quads().to_vec();
-        stats.layers_read = batch.layers_read;
+        self.compose_queued(stats);
+        stats.composed.extend_from_slice(batch.quads());
+        stats.layers_read += batch.layers_read;
         self.counters.quads += batch.len() as u64;
         self.counters.layers_read += batch.layers_read as u64;
         if batch.is_empty() {

@@ -212,6 +212,11 @@ impl App {
         self.camera
     }
 
+    /// What the last prepared frame drew (the status bar's figures).
+    pub fn frame_stats(&self) -> &FrameStats {
+        &self.stats
+    }
+
     /// Whether the view is drawn and nothing is loading: every wanted quad is there, or the
     /// GPU cache is full of this frame's quads (nothing more can arrive).
     pub fn settled(&self) -> bool {
