@@ -12,7 +12,7 @@ use rayon::prelude::*;
 
 use super::*;
 use crate::layers::{LayerTiles, QuadPlan, compose_difference, compose_quad};
-use crate::scene::loader::{EdgeFields, QuadHeights};
+use crate::scene::loader::QuadHeights;
 
 /// A planned layer's raw and edge tiles.
 type Tiles = (Option<Arc<QuadHeights>>, Option<Arc<QuadHeights>>);
@@ -88,12 +88,7 @@ impl Renderer {
     /// A tile from the CPU cache, or None after asking the loader for it (an edit layer's tile
     /// is made here, from its raster in memory).
     fn cpu_tile(&mut self, key: DataKey, requests: &mut Vec<DataKey>) -> Option<Arc<QuadHeights>> {
-        if let DataKey::Edit(..) = key
-            && !self.cpu.contains(key)
-        {
-            let tile = self.scene.read_layer_tile(key, &mut [], &EdgeFields::default()).ok()?;
-            self.cpu.insert(Loaded::Tile(key, Ok(Arc::new(tile))));
-        }
+        self.make_edit_tile(key)?;
         let tile = self.cpu.tile(key);
         if tile.is_none() && !self.cpu.contains(key) && !requests.contains(&key) {
             requests.push(key);

@@ -202,13 +202,7 @@ impl Renderer {
         if let Some(slot) = self.sources_pool.touch(key, self.frame) {
             return Some(slot);
         }
-        if let DataKey::Edit(..) = key
-            && !self.cpu.contains(key)
-        {
-            // An edit layer's deltas are in memory: made here, within the frame.
-            let tile = self.scene.read_layer_tile(key, &mut [], &EdgeFields::default()).ok()?;
-            self.cpu.insert(Loaded::Tile(key, Ok(std::sync::Arc::new(tile))));
-        }
+        self.make_edit_tile(key)?;
         if self.cpu.contains(key) && stats.uploads < UPLOADS_PER_FRAME && self.upload(key) {
             stats.uploads += 1;
             return self.sources_pool.get(key);
@@ -217,6 +211,18 @@ impl Renderer {
             requests.push(key);
         }
         None
+    }
+
+    /// An edit layer's tile into the CPU cache when `key` is one and it is not there: its deltas
+    /// are in memory, so it is made here, within the frame (None: it cannot be made).
+    pub(super) fn make_edit_tile(&mut self, key: DataKey) -> Option<()> {
+        if let DataKey::Edit(..) = key
+            && !self.cpu.contains(key)
+        {
+            let tile = self.scene.read_layer_tile(key, &mut [], &EdgeFields::default()).ok()?;
+            self.cpu.insert(Loaded::Tile(key, Ok(std::sync::Arc::new(tile))));
+        }
+        Some(())
     }
 
     /// The quad's corner geometry (the bounding geometry's corners are the exact ones).
