@@ -2,7 +2,7 @@
 //! or composes heights, on the CPU reference (`render` on lavapipe). Rows are
 //! [`LayerKind::ALL`]; columns are [`Consumer::ALL`]; `fixture` matches kinds exhaustively, so a
 //! new kind does not compile until it has its row, and each test walks every kind, so a new
-//! consumer is a new column for all of them. ARCHITECTURE.md draws the same table.
+//! consumer is a new column for all of them. docs/layer-model.md draws the same table.
 //!
 //! The fixture: a Moon project with a constant base at 1 000 m, procedural hills, and the layer
 //! under test (`k`) on top, over the front/right face edge at 45°E (the brushed stroke:
@@ -201,16 +201,19 @@ fn same_bits(a: &[f32], b: &[f32]) -> bool {
 
 #[test]
 fn the_matrix_has_a_cell_for_every_kind_and_consumer() {
-    // What ARCHITECTURE.md's table lists; a kind or consumer added without it fails here.
-    let table = std::fs::read_to_string(common::repo_path("ARCHITECTURE.md")).unwrap();
-    let start = table.find("<!-- layer matrix -->").expect("ARCHITECTURE.md has the layer matrix");
+    // What docs/layer-model.md's table lists; a kind or consumer added without it fails here.
+    let table = std::fs::read_to_string(common::repo_path("docs/layer-model.md")).unwrap();
+    let start = table.find("<!-- layer matrix -->").expect("docs/layer-model.md has the layer matrix");
     let matrix = &table[start..];
     for kind in LayerKind::ALL {
-        assert!(matrix.contains(&format!("| {} |", kind.name())), "ARCHITECTURE.md's matrix lacks the row {kind:?}");
+        assert!(
+            matrix.contains(&format!("| {} |", kind.name())),
+            "docs/layer-model.md's matrix lacks the row {kind:?}"
+        );
     }
     for consumer in Consumer::ALL {
         let column = format!("{consumer:?}").to_lowercase();
-        assert!(matrix.contains(&column), "ARCHITECTURE.md's matrix lacks the column {column}");
+        assert!(matrix.contains(&column), "docs/layer-model.md's matrix lacks the column {column}");
     }
 }
 

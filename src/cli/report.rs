@@ -70,7 +70,7 @@ pub fn tissot_report(n: usize, level: u8) -> (String, Vec<(DistortionSummary, Di
     let _ = writeln!(
         out,
         "\nQSC: the paper's 24.9° is ω at the face corners; the supremum, ≈25.17°, is approached along the face\n\
-         diagonals towards the face centre, where QSC is not differentiable (see ARCHITECTURE.md).\n\
+         diagonals towards the face centre, where QSC is not differentiable (see docs/decisions.md).\n\
          90x90 + polar caps: each polar quarter has a straight angle at its arc midpoint, so the pointwise\n\
          indicatrix degenerates there (ω → 180°, area → 0); the cell figures show what that costs."
     );

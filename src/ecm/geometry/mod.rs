@@ -7,7 +7,7 @@
 //! Samples: an n×n grid that spans the quad corner to corner ([`QuadId::sample_xy`]), so that
 //! neighbouring quads share their edge samples exactly, across face edges too.
 //!
-//! Three departures from the paper, each measured (see ARCHITECTURE.md):
+//! Three departures from the paper, each measured (see docs/decisions.md):
 //! - **Split along the face diagonal.** QSC is only piecewise smooth: kinked along the face
 //!   diagonals. A bilinear patch across the kink misses it by O(L) (the displacement only halves
 //!   per level); the quads the diagonal crosses are interpolated as two triangles split along it
