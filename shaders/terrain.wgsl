@@ -86,7 +86,13 @@ struct Patch {
     // Where the mesh at twice the stride morphs toward four times it (metres).
     reach_up: f32,
     pad: array<f32, 2>,
+    // Per side (south, east, north, west) the index in `patches` of the neighbour in the quad
+    // that owns the shared edge (drawn coarser, or at the stride morphing otherwise and earlier in
+    // the quad), NO_PATCH where the patch owns it: the vertices on that side stand on its edge.
+    edge_owner: vec4<u32>,
 }
+
+const NO_PATCH: u32 = 0xffffffffu;
 
 struct RampStop {
     // x: height in metres.
@@ -301,6 +307,67 @@ fn coarser_place(q: Quad, p: Patch, i: u32, j: u32) -> Place {
     return s;
 }
 
+// Sample (i, j) of patch p's grid as p draws it: toward what the patch at twice the stride
+// draws (coarser_place: itself morphed toward four times the stride), a vertex the coarser mesh
+// lacks (odd a or b) slides to the midpoint of its two neighbours at twice the stride along the
+// edge, or along the cell's cut for a cell centre; one it has follows that patch's own morph. At
+// m = 1 the patch draws what the coarser patch draws, so a change of stride moves nothing even
+// where the coarser patch was morphing (a patch spans up to half its distance at grazing views).
+// CPU twin: scene::patches::morph_weights. Only the geometry morphs: what the pixels show is read
+// from the data in the fragment stage.
+fn drawn_place(q: Quad, p: Patch, i: u32, j: u32) -> Place {
+    var s = place_at(q, i, j);
+    let da = ((i - p.i0) / p.stride) % 2u;
+    let db = ((j - p.j0) / p.stride) % 2u;
+    let m = morph_factor(p.stride, p.reach, length(q.anchor.xyz + s.local));
+    if MORPH && m > 0.0 {
+        var toward: Place;
+        if da + db > 0u {
+            let n1 = coarser_place(q, p, i - da * p.stride, j - db * p.stride);
+            let n2 = coarser_place(q, p, i + da * p.stride, j + db * p.stride);
+            toward = midpoint(n1, n2);
+        } else {
+            toward = coarser_place(q, p, i, j);
+        }
+        s = blend(s, toward, m);
+    }
+    return s;
+}
+
+// Sample (i, j), the patch's vertex (a, b) of nv a side, as the patch draws it: on a side whose
+// edge a neighbour owns (a corner excepted: every stride has it and none moves it), moved across
+// to the point of that neighbour's edge (linear between its two vertices around as it draws
+// them) at its own height along its sample's normal, so that no gap opens sideways at a T-junction or
+// between two reaches (a chord's point lies beside the ellipsoid's horizontally too on a large
+// quad, which no vertical skirt covers from above); heights stay the patch's own, which the
+// skirts close, so an owner's change of stride moves nothing vertically. CPU twins:
+// scene::patches::vertex_weights and stand_on_edge.
+fn vertex_place(q: Quad, p: Patch, i: u32, j: u32, a: u32, b: u32, nv: u32) -> Place {
+    let own = drawn_place(q, p, i, j);
+    let on = vec4<bool>(b == 0u, a == nv - 1u, b == nv - 1u, a == 0u);
+    let count = u32(on.x) + u32(on.y) + u32(on.z) + u32(on.w);
+    if count != 1u {
+        return own;
+    }
+    let side = select(select(select(3u, 2u, on.z), 1u, on.y), 0u, on.x);
+    let c = p.edge_owner[side];
+    if c == NO_PATCH {
+        return own;
+    }
+    let n = patches[c];
+    let along_i = side % 2u == 0u;
+    let u = select(j, i, along_i);
+    let lo = u - u % n.stride;
+    let t = f32(u - lo) / f32(n.stride);
+    var edge = drawn_place(q, n, select(i, lo, along_i), select(lo, j, along_i)).local;
+    if t > 0.0 {
+        let hi = lo + n.stride;
+        edge = mix(edge, drawn_place(q, n, select(i, hi, along_i), select(hi, j, along_i)).local, t);
+    }
+    let up = ellipsoid_normal(q, i, j);
+    return Place(edge + up * dot(own.local - edge, up), own.up, own.h);
+}
+
 @vertex
 fn vs_main(@builtin(vertex_index) vertex: u32, @builtin(instance_index) instance: u32) -> VertexOut {
     // Vertex b·(n+1) + a is the patch's sample (a, b) at its stride; (n+1)² more, the same sample
@@ -314,30 +381,7 @@ fn vs_main(@builtin(vertex_index) vertex: u32, @builtin(instance_index) instance
     let b = v / nv;
     let i = p.i0 + a * p.stride;
     let j = p.j0 + b * p.stride;
-
-    var s = place_at(q, i, j);
-    // Toward what the patch at twice the stride draws (coarser_place: itself morphed toward four
-    // times the stride): a vertex the coarser mesh lacks (odd a or b) slides to the midpoint of
-    // its two neighbours at twice the stride along the edge, or along the cell's cut for a cell
-    // centre; one it has follows that patch's own morph. At m = 1 the patch draws what the coarser
-    // patch draws, so a change of stride moves nothing even where the coarser patch was
-    // morphing (a patch spans up to half its distance at grazing views). CPU twin:
-    // scene::patches::morph_weights. Only the geometry morphs: what the pixels show is read from
-    // the data in the fragment stage.
-    let da = a % 2u;
-    let db = b % 2u;
-    let m = morph_factor(p.stride, p.reach, length(q.anchor.xyz + s.local));
-    if MORPH && m > 0.0 {
-        var toward: Place;
-        if da + db > 0u {
-            let n1 = coarser_place(q, p, i - da * p.stride, j - db * p.stride);
-            let n2 = coarser_place(q, p, i + da * p.stride, j + db * p.stride);
-            toward = midpoint(n1, n2);
-        } else {
-            toward = coarser_place(q, p, i, j);
-        }
-        s = blend(s, toward, m);
-    }
+    let s = vertex_place(q, p, i, j, a, b, nv);
     var local = s.local;
     if skirt {
         // Deeper at coarser strides, where a neighbour's finer edge may leave its line by the

@@ -13,7 +13,7 @@ use terrafuse::ecm::{CubeProjection, Face, QuadId};
 use terrafuse::gpu::{DrawMode, GpuContext, IMAGE_FORMAT, PROBE_SUBSAMPLES, RenderedImage, Renderer};
 use terrafuse::project::{CameraSpec, Project};
 use terrafuse::scene::Scene;
-use terrafuse::scene::patches::morph_weights;
+use terrafuse::scene::patches::{EdgeOwner, stand_on_edge, vertex_weights};
 
 fn out_dir() -> PathBuf {
     let dir = common::out_path("render");
@@ -128,19 +128,50 @@ fn check_vertex_positions(morph: bool) {
         let (mut cpu, mut truth) = (cpu_at(i, j, lv), truth_at(i, j, lv));
         let (a, b) = ((i - origin.0) / stride, (j - origin.1) / stride);
         let mut slack = 0.0;
-        if morph {
+        {
             // What the patch at twice the stride draws there, itself morphing toward four times
-            // it (scene::patches::morph_weights, the shader's twin), the factors from the f32
-            // distances as the GPU has them.
-            let weights =
-                morph_weights(stride, reach, reach_up, origin, (a, b), |i, j| f64::from(cpu_at(i, j, lv).length()));
-            if weights.len() > 1 {
+            // it, the factors from the f32 distances as the GPU has them (none without
+            // geomorphing: infinite reaches); on a side whose edge a neighbour owns, the point of
+            // that neighbour's edge, morphing or not (scene::patches::vertex_weights, the
+            // shader's twin).
+            let reaches_of = |p: &terrafuse::scene::patches::Patch| {
+                if p.morphs { (f64::from(p.reach_m), f64::from(p.reach_up_m)) } else { (f64::INFINITY, f64::INFINITY) }
+            };
+            let own = patches.iter().find(|p| p.quad as usize == index && p.stride == stride && p.origin() == origin);
+            let sides = own.map_or([None; 4], |p| {
+                p.edge_owner.map(|c| {
+                    patches.get(c as usize).map(|n| EdgeOwner {
+                        stride: n.stride,
+                        reach_m: reaches_of(n).0,
+                        reach_up_m: reaches_of(n).1,
+                        origin: n.origin(),
+                    })
+                })
+            });
+            let weights = vertex_weights(stride, reach, reach_up, origin, (a, b), sides, |i, j| {
+                f64::from(cpu_at(i, j, lv).length())
+            });
+            let all: Vec<&((u32, u32), f64)> = weights.own.iter().chain(weights.edge.iter().flatten()).collect();
+            if all.len() > 1 {
                 // The blends round a few times more in f32.
-                let moved =
-                    weights.iter().map(|((i, j), _)| (truth_at(*i, *j, lv) - truth).length()).fold(0.0, f64::max);
+                let moved = all.iter().map(|((i, j), _)| (truth_at(*i, *j, lv) - truth).length()).fold(0.0, f64::max);
                 slack = 1e-5 * moved + 4.0 * truth.length() * 2f64.powi(-24);
-                cpu = weights.iter().map(|((i, j), w)| cpu_at(*i, *j, lv) * *w as f32).sum();
-                truth = weights.iter().map(|((i, j), w)| truth_at(*i, *j, lv) * *w).sum();
+                let up = (truth_at(i, j, lv)
+                    - g.exact_position(&e, CubeProjection::Qsc, cam.position, i, j, f64::from(h(i, j, lv)) - 1.0))
+                .normalize();
+                let blend_cpu = |w: &[((u32, u32), f64)]| -> glam::Vec3 {
+                    w.iter().map(|((i, j), w)| cpu_at(*i, *j, lv) * *w as f32).sum()
+                };
+                let blend_truth = |w: &[((u32, u32), f64)]| -> glam::DVec3 {
+                    w.iter().map(|((i, j), w)| truth_at(*i, *j, lv) * *w).sum()
+                };
+                cpu = stand_on_edge(
+                    blend_cpu(&weights.own).as_dvec3(),
+                    weights.edge.as_deref().map(|w| blend_cpu(w).as_dvec3()),
+                    up,
+                )
+                .as_vec3();
+                truth = stand_on_edge(blend_truth(&weights.own), weights.edge.as_deref().map(blend_truth), up);
                 morphed += 1;
             }
         }
@@ -530,6 +561,19 @@ fn no_cracks_between_levels_and_across_the_cube_corner() {
         }
         assert_eq!(n, 0, "{name}: {n} background pixels inside the terrain (levels {levels:?}, faces {faces:?})");
     }
+    // The Moon seen whole (its default view): face-sized quads whose patches of strides 8–32 meet
+    // at T-junctions and at edges two reaches morph apart, where a chord lies beside the
+    // ellipsoid horizontally too and no vertical skirt covers the gap from above (three
+    // background pixels through the disk before the finer patch stood on the owner's edge).
+    let globe = Project::load(&moon).unwrap().view(Some("globe")).unwrap();
+    let image = draw(&mut r, &globe, 320, 240, DrawMode::Colour);
+    let strides: std::collections::BTreeSet<u32> = r.patches().patches.iter().map(|p| p.stride).collect();
+    assert!(strides.len() >= 2, "globe: strides {strides:?}");
+    let n = holes(&image, magenta);
+    if n > 0 {
+        terrafuse::cli::write_png(&out_dir().join("globe.cracks.png"), &image).unwrap();
+    }
+    assert_eq!(n, 0, "globe: {n} background pixels inside the disk (strides {strides:?})");
     // Earth: level 9 data beside coarse quads without data, seen at a grazing angle.
     let erzurum = project("erzurum");
     let mut r = renderer(&erzurum, |p| p.visuals.background = magenta);

@@ -77,7 +77,7 @@ mod tests {
                 "PatchInstance",
                 "terrain.wgsl",
                 "Patch",
-                layout!(PatchInstance { quad, i0, j0, stride, reach, reach_up, pad }),
+                layout!(PatchInstance { quad, i0, j0, stride, reach, reach_up, pad, edge_owner }),
             ),
             ("ErrorJob", "render/patch_errors.wgsl", "Job", layout!(ErrorJob { slot })),
             (

@@ -2,10 +2,10 @@
 //! frames (a patch's stride, or a quad split or merged), measured on the CPU in f64 from the
 //! heights the GPU drew. Both frames' densities are evaluated with the new frame's camera, so the
 //! camera's own motion is not counted: at each vertex of every patch that one frame draws and the
-//! other does not, the surface each frame shows there (the vertex, morphed as the shader morphs
-//! it, or the point of the other frame's triangle under it) is projected, and the largest
-//! distance between the two in pixels is the frame's pop. With geomorphing it is 0 up to the
-//! rounding of f64 where the morph band hides every change.
+//! other does not, the surface each frame shows there (the vertex, morphed and stood on the edge a
+//! neighbour owns as the shader places it, or the point of the other frame's triangle under
+//! it) is projected, and the largest distance between the two in pixels is the frame's pop. With
+//! geomorphing it is 0 up to the rounding of f64 where the morph band hides every change.
 
 use std::collections::{HashMap, HashSet};
 use std::sync::Arc;
@@ -16,26 +16,38 @@ use super::context::GpuError;
 use super::renderer::Renderer;
 use crate::ecm::geometry::surface_and_normal;
 use crate::ecm::{CubeProjection, FacePoint, QuadId};
-use crate::scene::patches::{PATCH_CELLS, PATCHES_PER_EDGE, morph_weights};
+use crate::scene::patches::{EdgeOwner, PATCH_CELLS, PATCHES_PER_EDGE, stand_on_edge, vertex_weights};
 
 /// Where a frame drew which density: per drawn quad, each patch's stride (0 where the patch was
-/// culled) and reaches (where its vertices morph, and where the coarser stride's do).
+/// culled), reaches (where its vertices morph, and where the coarser stride's do) and the
+/// neighbours (patch indices in the quad) that own its sides' edges.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct DensityLayout {
-    quads: HashMap<QuadId, [(u32, f64, f64); 64]>,
+    quads: HashMap<QuadId, [Drawn; 64]>,
+}
+
+/// How one patch was drawn.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+struct Drawn {
+    stride: u32,
+    reach: f64,
+    reach_up: f64,
+    owners: [Option<u32>; 4],
 }
 
 impl DensityLayout {
     /// The layout of the renderer's prepared frame.
     pub fn of(renderer: &Renderer) -> DensityLayout {
-        let mut quads: HashMap<QuadId, [(u32, f64, f64); 64]> =
-            renderer.drawn().iter().map(|q| (*q, [(0, 0.0, 0.0); 64])).collect();
-        for p in &renderer.patches().patches {
+        let mut quads: HashMap<QuadId, [Drawn; 64]> =
+            renderer.drawn().iter().map(|q| (*q, [Drawn::default(); 64])).collect();
+        let patches = &renderer.patches().patches;
+        for p in patches {
             if let Some(q) = renderer.drawn().get(p.quad as usize)
                 && let Some(entry) = quads.get_mut(q)
             {
+                let owners = p.edge_owner.map(|k| patches.get(k as usize).map(|o| o.py * PATCHES_PER_EDGE + o.px));
                 entry[(p.py * PATCHES_PER_EDGE + p.px) as usize] =
-                    (p.stride, f64::from(p.reach_m), f64::from(p.reach_up_m));
+                    Drawn { stride: p.stride, reach: f64::from(p.reach_m), reach_up: f64::from(p.reach_up_m), owners };
             }
         }
         DensityLayout { quads }
@@ -46,7 +58,7 @@ impl DensityLayout {
         self.quads
             .iter()
             .flat_map(|(q, patches)| {
-                patches.iter().enumerate().filter(|(_, p)| p.0 > 0).map(move |(k, p)| (*q, k, p.0))
+                patches.iter().enumerate().filter(|(_, p)| p.stride > 0).map(move |(k, p)| (*q, k, p.stride))
             })
             .collect()
     }
@@ -124,30 +136,55 @@ impl Surfaces<'_> {
         p
     }
 
-    /// The vertex (a, b) of a quad's patch drawn at `stride`, morphed as the shader morphs it
-    /// ([`morph_weights`]).
-    fn vertex(
-        &mut self,
-        quad: QuadId,
-        reaches: (f64, f64),
-        patch: (u32, u32),
-        stride: u32,
-        a: u32,
-        b: u32,
-    ) -> Option<DVec3> {
+    /// The vertex (a, b) of a quad's patch (`patches`: the quad's layout), morphed and standing
+    /// on the edge its neighbour owns as the shader places it ([`vertex_weights`]).
+    fn vertex(&mut self, quad: QuadId, patches: &[Drawn; 64], patch: (u32, u32), a: u32, b: u32) -> Option<DVec3> {
+        let own = patches[(patch.1 * PATCHES_PER_EDGE + patch.0) as usize];
         let origin = (patch.0 * PATCH_CELLS, patch.1 * PATCH_CELLS);
-        if !self.morph {
-            return self.position(quad, origin.0 + a * stride, origin.1 + b * stride);
-        }
+        // Without geomorphing no vertex morphs (infinite reaches), but T-junctions still stand on
+        // the coarser edge.
+        let reaches = |d: &Drawn| if self.morph { (d.reach, d.reach_up) } else { (f64::INFINITY, f64::INFINITY) };
+        let sides = own.owners.map(|o| {
+            o.map(|k| {
+                let owner = patches[k as usize];
+                EdgeOwner {
+                    stride: owner.stride,
+                    reach_m: reaches(&owner).0,
+                    reach_up_m: reaches(&owner).1,
+                    origin: ((k % PATCHES_PER_EDGE) * PATCH_CELLS, (k / PATCHES_PER_EDGE) * PATCH_CELLS),
+                }
+            })
+        });
         // A sample without a position (no data read back) is among the weights, so none is drawn.
-        let weights = morph_weights(stride, reaches.0, reaches.1, origin, (a, b), |i, j| {
+        let (reach, reach_up) = reaches(&own);
+        let weights = vertex_weights(own.stride, reach, reach_up, origin, (a, b), sides, |i, j| {
             self.position(quad, i, j).map_or(f64::NAN, |p| p.length())
         });
-        let mut sum = DVec3::ZERO;
-        for ((i, j), w) in weights {
-            sum += self.position(quad, i, j)? * w;
-        }
-        Some(sum)
+        let mut blend = |weights: &[((u32, u32), f64)]| -> Option<DVec3> {
+            let mut sum = DVec3::ZERO;
+            for &((i, j), w) in weights {
+                sum += self.position(quad, i, j)? * w;
+            }
+            Some(sum)
+        };
+        let placed = blend(&weights.own)?;
+        let edge = match &weights.edge {
+            Some(e) => Some(blend(e)?),
+            None => None,
+        };
+        let (i, j) = (origin.0 + a * own.stride, origin.1 + b * own.stride);
+        Some(stand_on_edge(placed, edge, self.normal(quad, i, j)))
+    }
+
+    /// The ellipsoid's unit normal at sample (i, j) of a quad.
+    fn normal(&self, quad: QuadId, i: u32, j: u32) -> DVec3 {
+        let (x, y) = quad.sample_xy(257, i, j);
+        let (_, n) = surface_and_normal(
+            &self.renderer.scene().ellipsoid,
+            CubeProjection::Qsc,
+            FacePoint { face: quad.face, x, y },
+        );
+        n
     }
 
     /// The point a layout draws at sample coordinates (x, y) of `quad`: on the triangle of the
@@ -157,7 +194,7 @@ impl Surfaces<'_> {
         let patches = layout.quads[&q];
         let cells = f64::from(PATCH_CELLS);
         let (px, py) = (((x / cells) as u32).min(7), ((y / cells) as u32).min(7));
-        let (stride, reach, reach_up) = patches[(py * PATCHES_PER_EDGE + px) as usize];
+        let stride = patches[(py * PATCHES_PER_EDGE + px) as usize].stride;
         if stride == 0 {
             return None;
         }
@@ -165,7 +202,7 @@ impl Surfaces<'_> {
         let (u, v) = ((x - f64::from(px) * cells) / f64::from(stride), (y - f64::from(py) * cells) / f64::from(stride));
         let (a, b) = ((u.floor() as u32).min(n - 1), (v.floor() as u32).min(n - 1));
         let (fu, fv) = (u - f64::from(a), v - f64::from(b));
-        let mut corner = |da: u32, db: u32| self.vertex(q, (reach, reach_up), (px, py), stride, a + da, b + db);
+        let mut corner = |da: u32, db: u32| self.vertex(q, &patches, (px, py), a + da, b + db);
         let (v00, v11) = (corner(0, 0)?, corner(1, 1)?);
         // The cell's cut runs from (a, b) to (a+1, b+1), as the index buffers cut it.
         Some(if fu >= fv {

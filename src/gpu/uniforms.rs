@@ -56,7 +56,8 @@ impl QuadInstance {
 }
 /// One patch's record for the shader (`Patch` in terrain.wgsl; keep in sync): the quad's index
 /// in the quad records, the sample (i, j) of its first corner, its stride in samples, and its
-/// reach (metres: where its vertices morph toward twice the stride), padded to 32 bytes.
+/// reach (metres: where its vertices morph toward twice the stride), and per side the index of the
+/// neighbour that owns the edge (`Patch::edge_owner`), 48 bytes.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
 pub struct PatchInstance {
@@ -67,6 +68,7 @@ pub struct PatchInstance {
     pub(crate) reach: f32,
     pub(crate) reach_up: f32,
     pub(crate) pad: [f32; 2],
+    pub(crate) edge_owner: [u32; 4],
 }
 
 impl PatchInstance {
@@ -81,6 +83,7 @@ impl PatchInstance {
             reach: p.reach_m,
             reach_up: p.reach_up_m,
             pad: [0.0; 2],
+            edge_owner: p.edge_owner,
         }
     }
 }
@@ -95,4 +98,4 @@ pub(crate) fn rgba(c: [u8; 4]) -> [f32; 4] {
 
 const _: () = assert!(std::mem::size_of::<FrameUniform>() == 64 + 11 * 16);
 const _: () = assert!(std::mem::size_of::<QuadInstance>() == 16 * (1 + 4 + 4 + 3 + 1 + 1 + 1 + 2));
-const _: () = assert!(std::mem::size_of::<PatchInstance>() == 32);
+const _: () = assert!(std::mem::size_of::<PatchInstance>() == 48);

@@ -132,7 +132,19 @@ pub struct Patch {
     pub reach_up_m: f32,
     /// The largest projected geometric error of what it draws this frame, pixels.
     pub error_px: f32,
+    /// Per side (south, east, north, west, as [`SIDES`]), the index in
+    /// [`PatchSelection::patches`] of the neighbour in the quad that owns the shared edge, whose
+    /// edge the patch's vertices on that side then stand on ([`vertex_weights`]): one drawn at a
+    /// coarser stride, or at the same stride morphing otherwise and earlier in the quad (row by
+    /// row); [`NO_PATCH`] where the patch owns the edge itself, or the neighbour is not drawn.
+    pub edge_owner: [u32; 4],
 }
+
+/// No patch (a side whose edge the patch owns).
+pub const NO_PATCH: u32 = u32::MAX;
+
+/// The sides in the order of [`Patch::edge_owner`], with the step to the neighbour across each.
+pub const SIDES: [(u8, (i32, i32)); 4] = [(SOUTH, (0, -1)), (EAST, (1, 0)), (NORTH, (0, 1)), (WEST, (-1, 0))];
 
 impl Patch {
     /// Cells along the patch's edge at its stride.
@@ -301,6 +313,79 @@ pub fn morph_weights(
     out
 }
 
+/// The neighbour that owns the edge on one side of a patch ([`owns_edge`]), as [`vertex_weights`]
+/// needs it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct EdgeOwner {
+    /// Its stride, samples.
+    pub stride: u32,
+    /// Its reaches ([`Patch::reach_m`], [`Patch::reach_up_m`]; infinite where it does not morph).
+    pub reach_m: f64,
+    /// Where its coarser mesh morphs.
+    pub reach_up_m: f64,
+    /// Its first sample.
+    pub origin: (u32, u32),
+}
+
+/// What a patch draws at one vertex: the samples its own morph blends ([`morph_weights`]), and on
+/// a side whose edge a neighbour owns the samples of the owner's edge point there.
+#[derive(Clone, Debug, PartialEq)]
+pub struct VertexWeights {
+    /// The vertex as the patch morphs it.
+    pub own: Vec<((u32, u32), f64)>,
+    /// The point of the owner's edge, linear between its two vertices around, each as the owner
+    /// draws it; None off an owned side (and at a corner, which every stride has and none moves).
+    pub edge: Option<Vec<((u32, u32), f64)>>,
+}
+
+/// Where a vertex stands: its own morphed place `own`, moved across to the owner's edge point
+/// `edge` where it has one, at its own height along its normal `up` (the vertical is left to
+/// the patch's own morph, so that an owner's change of stride moves a vertex only sideways, by
+/// at most the gap it closes). The terrain shader's `vertex_place` twin.
+pub fn stand_on_edge(own: glam::DVec3, edge: Option<glam::DVec3>, up: glam::DVec3) -> glam::DVec3 {
+    edge.map_or(own, |e| e + up * (own - e).dot(up))
+}
+
+/// What a patch at `stride` draws at its vertex (a, b), with the owners of its sides' edges
+/// (`sides`, in the order of [`SIDES`]): its own morph ([`morph_weights`]) and, on a side a
+/// neighbour owns, the point of that neighbour's edge ([`VertexWeights`]; [`stand_on_edge`]
+/// combines them). The terrain shader's `vs_main` twin.
+#[allow(clippy::too_many_arguments)]
+pub fn vertex_weights(
+    stride: u32,
+    reach_m: f64,
+    reach_up_m: f64,
+    origin: (u32, u32),
+    (a, b): (u32, u32),
+    sides: [Option<EdgeOwner>; 4],
+    mut distance_m: impl FnMut(u32, u32) -> f64,
+) -> VertexWeights {
+    let own = morph_weights(stride, reach_m, reach_up_m, origin, (a, b), &mut distance_m);
+    let n = PATCH_CELLS / stride;
+    let on = [b == 0, a == n, b == n, a == 0];
+    let (i, j) = (origin.0 + a * stride, origin.1 + b * stride);
+    let side = on.iter().position(|&s| s).filter(|_| on.iter().filter(|&&s| s).count() == 1);
+    let Some(c) = side.and_then(|side| sides[side]) else {
+        return VertexWeights { own, edge: None };
+    };
+    // Along the side: i on the south and north sides, j on the east and west ones.
+    let along_i = side.is_some_and(|side| side % 2 == 0);
+    let u = if along_i { i } else { j };
+    let lo = u - u % c.stride;
+    let t = f64::from(u - lo) / f64::from(c.stride);
+    let vertex = |u: u32| {
+        let (vi, vj) = if along_i { (u, j) } else { (i, u) };
+        ((vi - c.origin.0) / c.stride, (vj - c.origin.1) / c.stride)
+    };
+    let mut edge = morph_weights(c.stride, c.reach_m, c.reach_up_m, c.origin, vertex(lo), &mut distance_m);
+    if t > 0.0 {
+        edge.iter_mut().for_each(|(_, w)| *w *= 1.0 - t);
+        let hi = morph_weights(c.stride, c.reach_m, c.reach_up_m, c.origin, vertex(lo + c.stride), &mut distance_m);
+        edge.extend(hi.into_iter().map(|(s, w)| (s, w * t)));
+    }
+    VertexWeights { own, edge: Some(edge) }
+}
+
 /// The boxes of a quad's 64 patches (row-major: patch (px, py) at `py * 8 + px`) from its coarse
 /// bounding geometry (whose cells must tile the patches: 17² samples give 2 × 2 a patch), each for
 /// the heights in its own range of `ranges_m`, widened by `pad_m` (the sagitta of the surface
@@ -402,12 +487,73 @@ pub fn select_patches(
                 reach_m: reach as f32,
                 reach_up_m: reach_up as f32,
                 error_px: error_px as f32,
+                edge_owner: [NO_PATCH; 4],
             });
         }
     }
     hang_skirts(&mut out.patches);
-    out.patches.sort_unstable_by_key(|p| (p.stride, p.skirts, p.morphs, p.quad, p.py, p.px));
+    stand_on_owned_edges(&mut out.patches);
     out
+}
+
+/// Whether a neighbour owns the edge it shares with a patch: drawn coarser, or at the same stride
+/// morphing otherwise and earlier in the quad (`index`: py · 8 + px), so that of two patches that
+/// would place the edge's vertices apart exactly one defers to the other.
+pub fn owns_edge(neighbour: (u32, f64, f64), neighbour_index: u32, own: (u32, f64, f64), index: u32) -> bool {
+    neighbour.0 > own.0 || (neighbour.0 == own.0 && neighbour != own && neighbour_index < index)
+}
+
+/// Sorts the patches for drawing and points each side at the neighbour in the quad that owns the
+/// edge ([`owns_edge`]). The patch's vertices on that side then stand on the owner's edge
+/// sideways ([`stand_on_edge`]): without it, a vertex a coarser edge lacks stands on the
+/// ellipsoid at its own sample while the coarser edge is a chord between its vertices, which on
+/// a large quad lies beside it horizontally too (the projection is not linear along it), and two
+/// patches morphing by other reaches place their shared vertices apart: gaps no vertical skirt
+/// covers from above (pixels of background through the Moon's globe). Heights stay the patch's
+/// own, whose differences the skirts close, so nothing pops vertically when an owner changes its
+/// stride. A patch computes its owner's vertices as the owner does, so it morphs where the owner
+/// does.
+fn stand_on_owned_edges(patches: &mut Vec<Patch>) {
+    let n = PATCHES_PER_EDGE as i32;
+    let at: std::collections::HashMap<(u32, i32, i32), usize> =
+        patches.iter().enumerate().map(|(k, p)| ((p.quad, p.px as i32, p.py as i32), k)).collect();
+    let neighbour = |p: &Patch, (dx, dy): (i32, i32)| {
+        let (x, y) = (p.px as i32 + dx, p.py as i32 + dy);
+        ((0..n).contains(&x) && (0..n).contains(&y)).then(|| at.get(&(p.quad, x, y)).copied()).flatten()
+    };
+    let key = |p: &Patch| {
+        let (r, u) =
+            if p.morphs { (f64::from(p.reach_m), f64::from(p.reach_up_m)) } else { (f64::INFINITY, f64::INFINITY) };
+        (p.stride, r, u)
+    };
+    let index = |p: &Patch| p.py * PATCHES_PER_EDGE + p.px;
+    let sides: Vec<[Option<usize>; 4]> = patches
+        .iter()
+        .map(|p| {
+            SIDES.map(|(_, step)| {
+                neighbour(p, step).filter(|&k| owns_edge(key(&patches[k]), index(&patches[k]), key(p), index(p)))
+            })
+        })
+        .collect();
+    for k in 0..patches.len() {
+        if sides[k].iter().flatten().any(|&c| patches[c].morphs) {
+            patches[k].morphs = true;
+        }
+    }
+    let mut order: Vec<usize> = (0..patches.len()).collect();
+    order.sort_unstable_by_key(|&k| {
+        let p = &patches[k];
+        (p.stride, p.skirts, p.morphs, p.quad, p.py, p.px)
+    });
+    let mut rank = vec![0u32; patches.len()];
+    for (r, &k) in order.iter().enumerate() {
+        rank[k] = r as u32;
+    }
+    let sorted: Vec<Patch> = order
+        .iter()
+        .map(|&k| Patch { edge_owner: sides[k].map(|c| c.map_or(NO_PATCH, |c| rank[c])), ..patches[k] })
+        .collect();
+    *patches = sorted;
 }
 
 /// What decides where a patch's edge vertices stand: its stride, and its reaches where it morphs.
@@ -506,6 +652,48 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn exactly_one_of_two_neighbours_owns_their_edge_and_the_other_stands_on_it_sideways() {
+        let (fine, coarse) = ((1, 10.0, 20.0), (4, 10.0, 20.0));
+        assert!(owns_edge(coarse, 0, fine, 1) && !owns_edge(fine, 1, coarse, 0));
+        // The same stride: none where they morph alike, the earlier where they do not.
+        assert!(!owns_edge(fine, 0, fine, 1) && !owns_edge(fine, 1, fine, 0));
+        let other = (1, 30.0, 20.0);
+        assert!(owns_edge(other, 0, fine, 1) && !owns_edge(fine, 1, other, 0));
+        // A stride-1 patch at (32, 0) whose west neighbour (origin (0, 0)) is drawn every 4
+        // samples: its vertex (0, 3) stands on that edge between samples (32, 0) and (32, 4).
+        let owner = EdgeOwner { stride: 4, reach_m: f64::INFINITY, reach_up_m: f64::INFINITY, origin: (0, 0) };
+        let w = vertex_weights(
+            1,
+            f64::INFINITY,
+            f64::INFINITY,
+            (32, 0),
+            (0, 3),
+            [None, None, None, Some(owner)],
+            |_, _| 1.0,
+        );
+        assert_eq!(w.own, vec![((32, 3), 1.0)]);
+        assert_eq!(w.edge, Some(vec![((32, 0), 0.25), ((32, 4), 0.75)]));
+        // Off that side, and at a corner, it stands where its own morph puts it.
+        for (a, b) in [(1, 3), (0, 0), (0, 32)] {
+            let w = vertex_weights(
+                1,
+                f64::INFINITY,
+                f64::INFINITY,
+                (32, 0),
+                (a, b),
+                [None, None, None, Some(owner)],
+                |_, _| 1.0,
+            );
+            assert_eq!(w.edge, None, "({a}, {b})");
+        }
+        // Moved across to the edge, at its own height along the normal.
+        let (edge, up) = (glam::DVec3::new(1.0, 2.0, 3.0), glam::DVec3::Z);
+        let own = edge + glam::DVec3::new(0.5, -0.25, 0.0) + up * 2.0;
+        assert_eq!(stand_on_edge(own, Some(edge), up), edge + up * 2.0);
+        assert_eq!(stand_on_edge(own, None, up), own);
     }
 
     #[test]
