@@ -14,6 +14,24 @@ impl Invalid {
     pub fn at(self, field: impl std::fmt::Display) -> Invalid {
         Invalid(format!("{field}: {}", self.0))
     }
+
+    /// The same problem one step down a dotted path: `path.problem` (a problem that starts with
+    /// its own field, as `layer: …`, reads `path.layer: …`).
+    pub fn under(self, path: impl std::fmt::Display) -> Invalid {
+        Invalid(format!("{path}.{}", self.0))
+    }
+}
+
+/// A result whose error, in words, breaks the rule of a named field.
+pub trait AtField<T> {
+    /// The error as [`Invalid`] under `field`: `field: problem`.
+    fn at_field(self, field: impl std::fmt::Display) -> Result<T, Invalid>;
+}
+
+impl<T, E: std::fmt::Display> AtField<T> for Result<T, E> {
+    fn at_field(self, field: impl std::fmt::Display) -> Result<T, Invalid> {
+        self.map_err(|e| Invalid(format!("{field}: {e}")))
+    }
 }
 
 impl From<String> for Invalid {

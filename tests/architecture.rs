@@ -337,7 +337,10 @@ fn no_two_files_of_a_module_import_each_other() {
 #[test]
 fn library_errors_are_typed_not_strings() {
     // A failure a caller may act on is a value of a thiserror type, never a `Result<_, String>`:
-    // a string can only be shown, not matched, and its causes are lost (issue 52).
+    // a string can only be shown, not matched, and its causes are lost (issue 52). Nor is an
+    // error flattened into words on its way up (`map_err(|e| format!(…))`): it goes under a field
+    // (`errors::AtField`, `Invalid::at`) or a context that keeps it as the cause (`within`,
+    // `context`), or becomes a typed error of its own.
     let src = common::repo_path("src");
     let mut problems = Vec::new();
     for file in rust_files(&src) {
@@ -349,6 +352,15 @@ fn library_errors_are_typed_not_strings() {
             let squeezed: String = line.chars().filter(|c| !c.is_whitespace()).collect();
             if squeezed.contains("Result<") && squeezed.contains(",String>") {
                 problems.push(format!("{}:{}: {}", file.display(), k + 1, line.trim()));
+            }
+        }
+        // The closure's body may start on the next line.
+        let squeezed: String = code.chars().filter(|c| !c.is_whitespace()).collect();
+        for (at, _) in squeezed.match_indices("map_err(|") {
+            let rest = &squeezed[at + "map_err(|".len()..];
+            let body = rest.find('|').map(|bar| rest[bar + 1..].trim_start_matches('{'));
+            if body.is_some_and(|b| b.starts_with("format!(")) {
+                problems.push(format!("{}: {}", file.display(), squeezed[at..].chars().take(60).collect::<String>()));
             }
         }
     }

@@ -474,7 +474,7 @@ pub enum Analysis {
 /// Comma-separated numbers of an option.
 pub fn parse_numbers(text: &str, what: &str) -> Result<Vec<f64>, CliError> {
     text.split(',')
-        .map(|v| v.trim().parse::<f64>().map_err(|_| format!("{what}: '{v}' is not a number").into()))
+        .map(|v| v.trim().parse::<f64>().map_err(|_| crate::Invalid(format!("{what}: '{v}' is not a number")).into()))
         .collect()
 }
 

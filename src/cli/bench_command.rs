@@ -93,7 +93,11 @@ pub fn run(bench: Bench, c: &mut Console) -> Result<u8, CliError> {
                 level,
                 shards: shards
                     .split(',')
-                    .map(|n| n.trim().parse::<usize>().map_err(|_| format!("--shards: '{n}' is not a number").into()))
+                    .map(|n| {
+                        n.trim()
+                            .parse::<usize>()
+                            .map_err(|_| CliError::Usage(format!("--shards: '{n}' is not a number")))
+                    })
                     .collect::<Result<_, CliError>>()?,
                 threads,
                 work: dir.clone(),

@@ -8,6 +8,7 @@
 
 use super::CliError;
 use super::bench_harness::timed;
+use super::error::Context;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
@@ -38,8 +39,8 @@ pub struct CompareBenchSettings {
 fn warp_pair_tm(pair: [(&Path, &Path); 2], lat: f64, lon: f64, spacing_m: f64) -> Result<(), CliError> {
     let [(ref_from, ref_to), (moved_from, moved_to)] = pair;
     warp_tm(ref_from, ref_to, lat, lon, spacing_m, &[])?;
-    let ds = gdal::Dataset::open(ref_to).map_err(|e| format!("{}: {e}", ref_to.display()))?;
-    let gt = ds.geo_transform().map_err(|e| format!("{}: {e}", ref_to.display()))?;
+    let ds = gdal::Dataset::open(ref_to).context(ref_to.display())?;
+    let gt = ds.geo_transform().context(ref_to.display())?;
     let (w, h) = ds.raster_size();
     let te = [gt[0], gt[3] + h as f64 * gt[5], gt[0] + w as f64 * gt[1], gt[3]].map(|v| v.to_string());
     warp_tm(moved_from, moved_to, lat, lon, spacing_m, &te)
@@ -60,7 +61,7 @@ fn warp_tm(from: &Path, to: &Path, lat: f64, lon: f64, spacing_m: f64, te: &[Str
         .arg(from)
         .arg(to)
         .status()
-        .map_err(|e| format!("gdalwarp: {} (install gdal-bin: scripts/install-deps)", crate::errors::chain(&e)))?;
+        .context("gdalwarp (install gdal-bin: scripts/install-deps)")?;
     if status.success() { Ok(()) } else { Err(format!("gdalwarp {} failed", from.display()).into()) }
 }
 

@@ -4,6 +4,7 @@
 //! quads, its area summed over every sample), each run a process of its own so that its peak
 //! resident memory is its own.
 
+use super::error::Context;
 use std::fmt::Write as _;
 use std::path::Path;
 use std::process::Command;
@@ -21,7 +22,7 @@ const RUNS: [(&str, &[&str]); 4] = [
 
 /// The table: samples, seconds, peak memory and the median and NMAD of each run.
 pub(super) fn large_table(project: &Path) -> Result<String, CliError> {
-    let exe = std::env::current_exe().map_err(|e| format!("this program's path: {e}"))?;
+    let exe = std::env::current_exe().context("this program's path")?;
     let mut out = String::new();
     let _ = writeln!(
         out,

@@ -5,6 +5,7 @@
 //! terrain with 100 m cells (the best of three runs of each up to 256²); then what multiple flow
 //! directions and deposition cost.
 
+use super::error::Context;
 use std::path::PathBuf;
 
 use super::CliError;
@@ -86,9 +87,7 @@ pub fn bench_landscape(s: &LandscapeBenchSettings) -> Result<String, CliError> {
                 .args(numbers.iter().map(|v| v.to_string()))
                 .arg(s.steps.to_string())
                 .output()
-                .map_err(|e| {
-                    format!("{}: {} (scripts/install-deps makes it)", s.python.display(), crate::errors::chain(&e))
-                })?;
+                .context(format_args!("{} (scripts/install-deps makes it)", s.python.display()))?;
             if !out.status.success() {
                 return Err(format!("fastscapelib: {}", String::from_utf8_lossy(&out.stderr)).into());
             }

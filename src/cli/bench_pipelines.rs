@@ -6,6 +6,7 @@
 //! `seconds` are its script's own (reading the rasters and the workflow, not Python's start-up
 //! and imports); `process s` is each whole process, start-up included, as a user waits for it.
 
+use super::error::Context;
 use std::fmt::Write as _;
 use std::io::Read as _;
 use std::path::Path;
@@ -119,7 +120,7 @@ fn workflow_rows(
     bench: &PipelineBench,
     (label, args, workflow): (&str, &[&str], &str),
 ) -> Result<(), CliError> {
-    let exe = std::env::current_exe().map_err(|e| format!("this program's path: {e}"))?;
+    let exe = std::env::current_exe().context("this program's path")?;
     let mut command = Command::new(&exe);
     command.arg(args[0]).arg(bench.project).args(&args[1..]);
     let (json, seconds, peak) = run_measured(command)?;

@@ -72,7 +72,7 @@ fn parse_path(text: &str) -> Result<Vec<[f64; 2]>, CliError> {
                 .split(',')
                 .map(|x| x.trim().parse::<f64>())
                 .collect::<Result<_, _>>()
-                .map_err(|_| format!("--path: point {k} '{p}' is not LAT,LON in degrees"))?;
+                .map_err(|_| CliError::Usage(format!("--path: point {k} '{p}' is not LAT,LON in degrees")))?;
             match v.as_slice() {
                 [lat, lon] => Ok([*lat, *lon]),
                 _ => Err(format!("--path: point {k} '{p}' is not LAT,LON in degrees").into()),

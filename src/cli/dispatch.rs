@@ -315,9 +315,12 @@ fn shard_index(text: &str, var: &dyn Fn(&str) -> Option<String>) -> Result<usize
             .iter()
             .find_map(|v| var(v).map(|x| (*v, x)))
             .ok_or_else(|| format!("--shard env: none of {} is set", VARS.join(", ")))?;
-        return value.trim().parse().map_err(|_| format!("--shard env: {name}={value} is not a shard number").into());
+        return value
+            .trim()
+            .parse()
+            .map_err(|_| CliError::Usage(format!("--shard env: {name}={value} is not a shard number")));
     }
-    text.parse().map_err(|_| format!("--shard {text}: give a shard number 0 … N−1, or env").into())
+    text.parse().map_err(|_| CliError::Usage(format!("--shard {text}: give a shard number 0 … N−1, or env")))
 }
 
 /// The import the flags ask for.

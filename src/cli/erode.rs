@@ -6,6 +6,7 @@
 use super::args::EngineArgs;
 use super::edit_target::{ChangeArgs, Holds, target_layer};
 use super::{CliError, Feedback, Within};
+use crate::errors::AtField;
 use std::fmt::Write as _;
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -149,10 +150,9 @@ pub fn params_of(preset: &str, body: &str, set: &[String]) -> Result<Params, Cli
         }
         object.insert(field.to_string(), v);
     }
-    let params: Params = serde_json::from_value(value).map_err(|e| {
-        format!("--set {}: {e}", set.iter().map(|s| s.split('=').next().unwrap_or("")).collect::<Vec<_>>().join(", "))
-    })?;
-    params.check().map_err(|e| format!("--set {}: {} is outside {}", e.field, e.value, e.range))?;
+    let fields = set.iter().map(|s| s.split('=').next().unwrap_or("")).collect::<Vec<_>>().join(", ");
+    let params: Params = serde_json::from_value(value).at_field(format_args!("--set {fields}"))?;
+    params.check().map_err(|e| CliError::Usage(format!("--set {}: {} is outside {}", e.field, e.value, e.range)))?;
     Ok(params)
 }
 
@@ -206,7 +206,7 @@ pub fn erode_command(request: &ErodeRequest, fb: &mut Feedback) -> Result<String
         stepper.as_ref(),
         fb.watch,
     )
-    .map_err(|e| format!("{}: {}", flag_of(&e.field), e.problem))?;
+    .map_err(|e| CliError::Usage(format!("{}: {}", flag_of(&e.field), e.problem)))?;
     project.layers[index].record_run(op)?;
     scene.stack.set(index, project.layers[index].clone())?;
     scene.set_edit(index, raster);
@@ -355,9 +355,8 @@ fn change_of(project: &mut Project, request: &ErodeRequest) -> Result<(usize, St
         device: Device::Cpu,
     };
     // Every check a run makes, before the layers are opened: a refused run costs nothing.
-    op.check().map_err(|(field, problem)| format!("{}: {problem}", flag_of(&field)))?;
-    let placed =
-        crate::erosion::region::Region::from_box(&ellipsoid, region, level).map_err(|e| format!("--region: {e}"))?;
+    op.check().map_err(|(field, problem)| CliError::Usage(format!("{}: {problem}", flag_of(&field))))?;
+    let placed = crate::erosion::region::Region::from_box(&ellipsoid, region, level).within("--region")?;
     let tiles = (placed.width / 256 * (placed.height / 256)) as f64;
     let what = format!("the run on {} × {} cells at level {level}", placed.width, placed.height);
     super::edit_target::check_budget_of((request.change.max_tiles, project.detail.max_edit_tiles), tiles, &what)?;

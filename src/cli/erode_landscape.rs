@@ -58,7 +58,7 @@ pub fn params_of(request: &ErodeRequest) -> Result<Option<LandscapeParams>, CliE
         years: request.years.unwrap_or(d.years),
         dt_years: request.dt_years.unwrap_or(d.dt_years),
     };
-    params.check().map_err(|e| format!("{}: {}", flag_of(e.field), e.problem))?;
+    params.check().map_err(|e| CliError::Usage(format!("{}: {}", flag_of(e.field), e.problem)))?;
     Ok(Some(params))
 }
 

@@ -86,7 +86,7 @@ fn numbers<const N: usize>(fields: &[&str]) -> Result<[f64; N], CliError> {
     }
     let mut out = [0.0; N];
     for (slot, field) in out.iter_mut().zip(fields) {
-        *slot = field.parse::<f64>().map_err(|_| format!("'{field}' is not a number"))?;
+        *slot = field.parse::<f64>().map_err(|_| CliError::Usage(format!("'{field}' is not a number")))?;
         if !slot.is_finite() {
             return Err(format!("'{field}' is not a finite number").into());
         }

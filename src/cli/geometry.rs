@@ -2,6 +2,7 @@
 //! accuracy benchmark (`terrafuse bench accuracy`) with its CSV, plot and timings.
 
 use super::CliError;
+use super::Within;
 use std::fmt::Write as _;
 use std::hint::black_box;
 use std::path::Path;
@@ -405,7 +406,7 @@ pub fn write_accuracy_outputs(
     crate::files::write_atomic(csv, accuracy_csv(rows).as_bytes()).map_err(CliError::file(csv, "cannot write"))?;
     if let Some(plot) = plot {
         let png = accuracy_plot(rows, &bench.bodies, &bench.settings)
-            .map_err(|e| format!("cannot draw {}: {e}", plot.display()))?;
+            .within(format_args!("cannot draw {}", plot.display()))?;
         crate::files::write_atomic(plot, &png).map_err(CliError::file(plot, "cannot write"))?;
     }
     Ok(())

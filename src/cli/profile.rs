@@ -1,6 +1,7 @@
 //! `terrafuse profile PROJECT --from LAT,LON --to LAT,LON`: every visible layer's elevation and
 //! the composed stack's along the geodesic, as a summary table and optionally CSV.
 
+use super::error::Context;
 use super::{CliError, Within};
 use std::fmt::Write as _;
 use std::path::PathBuf;
@@ -38,7 +39,7 @@ fn parse_point(option: &str, text: &str) -> Result<[f64; 2], CliError> {
         .split(',')
         .map(|s| s.trim().parse::<f64>())
         .collect::<Result<_, _>>()
-        .map_err(|e| format!("{option} {text}: {} (give LAT,LON in degrees)", crate::errors::chain(&e)))?;
+        .context(format_args!("{option} {text} (give LAT,LON in degrees)"))?;
     match v[..] {
         [lat, lon] => Ok([lat, lon]),
         _ => Err(format!("{option} {text}: give LAT,LON in degrees").into()),

@@ -74,7 +74,7 @@ pub fn project_check(path: &Path) -> Result<String, CliError> {
                 let ellipsoid = project.ellipsoid()?;
                 for (j, run) in erosion.runs.iter().enumerate() {
                     crate::erosion::region::Region::from_box(&ellipsoid, run.region, run.level)
-                        .map_err(|e| format!("{}: {e}", field(&format!("runs[{j}].region"))))?;
+                        .within(field(&format!("runs[{j}].region")))?;
                 }
                 let _ = write!(line, ": {} of {} runs applied", erosion.in_effect().len(), erosion.runs.len());
             }

@@ -1,5 +1,6 @@
 //! `terrafuse render`: one frame of a project to a PNG, with what it drew and what it cost.
 
+use super::error::Context;
 use super::{CliError, ComposeOn, Within};
 use std::fmt::Write as _;
 use std::path::Path;
@@ -65,9 +66,7 @@ fn parse_swipe(text: &str, project: &Project) -> Result<Swipe, CliError> {
     let parts: Vec<&str> = text.split(',').map(str::trim).collect();
     let (a, b, position) = match parts[..] {
         [a, b] => (a, b, 0.5),
-        [a, b, p] => {
-            (a, b, p.parse::<f64>().map_err(|e| format!("--swipe {text}: position {p}: {}", crate::errors::chain(&e)))?)
-        }
+        [a, b, p] => (a, b, p.parse::<f64>().context(format_args!("--swipe {text}: position {p}"))?),
         _ => {
             let saved: Vec<&str> = project.comparison.swipes.keys().map(String::as_str).collect();
             return Err(format!(

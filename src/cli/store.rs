@@ -25,7 +25,7 @@ pub fn parse_bytes(text: &str) -> Result<u64, CliError> {
         "g" | "gb" | "gib" => 1 << 30,
         _ => return Err(format!("unknown size unit in '{text}': use B, KiB, MiB or GiB").into()),
     };
-    let v: f64 = num.trim().parse().map_err(|_| format!("'{text}' is not a size such as 2GiB"))?;
+    let v: f64 = num.trim().parse().map_err(|_| CliError::Usage(format!("'{text}' is not a size such as 2GiB")))?;
     if !(v.is_finite() && v > 0.0) {
         return Err(format!("'{text}' is not a positive size").into());
     }

@@ -3,6 +3,7 @@
 //! each segment's geodesic (Vincenty, `geodesy::geodesic`). The dabs depend on the path and the
 //! spacing only, never on how the path was sampled in time.
 
+use crate::errors::AtField;
 use glam::DVec3;
 
 use super::stroke::{MAX_DABS, Stroke};
@@ -21,7 +22,7 @@ pub fn dab_centres(ellipsoid: &Ellipsoid, stroke: &Stroke) -> Result<Vec<DVec3>,
     for (k, pair) in points.windows(2).enumerate() {
         let ((lat1, lon1), (lat2, lon2)) = (pair[0], pair[1]);
         let (length, azimuth, _) = geodesic::inverse(ellipsoid, lat1, lon1, lat2, lon2)
-            .map_err(|e| format!("path segment {k}–{}: {e}", k + 1))?;
+            .at_field(format_args!("path segment {k}–{}", k + 1))?;
         while next <= walked + length {
             let (lat, lon) = geodesic::direct(ellipsoid, lat1, lon1, azimuth, next - walked);
             dabs.push(at(lat, lon));

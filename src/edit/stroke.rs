@@ -24,6 +24,7 @@
 //! - `ramp`: T runs linearly from H under the path's first point to H under its last, by the
 //!   sample's position along the chord between them (clamped beyond both).
 
+use crate::errors::AtField;
 use serde::{Deserialize, Serialize};
 
 /// What a stroke does.
@@ -171,7 +172,7 @@ impl Stroke {
                 lat2.to_radians(),
                 lon2.to_radians(),
             )
-            .map_err(|e| format!("path segment {k}–{}: {e}", k + 1))?;
+            .at_field(format_args!("path segment {k}–{}", k + 1))?;
             length_m += l;
         }
         let across = 2.0 * self.radius_m / side_m + 2.0;

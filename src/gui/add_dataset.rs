@@ -5,6 +5,7 @@
 //! next attempt resumes.
 
 use crate::gui::GuiError;
+use crate::gui::Within;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::thread::JoinHandle;
@@ -62,7 +63,7 @@ impl AddDataset {
                 }
                 Ok((spec.clone(), open_dataset(&project, &spec)?))
             })
-            .map_err(|e| format!("cannot start the import: {}", crate::errors::chain(&e)))?;
+            .within("cannot start the import")?;
         self.job = Some(Job { name, watch, handle });
         Ok(())
     }
@@ -91,7 +92,7 @@ impl AddDataset {
         if typed.is_empty() {
             return Err("path: give a raster (GeoTIFF, …) or a store (.gpkg)".into());
         }
-        let path = std::fs::canonicalize(typed).map_err(|e| format!("{typed}: {}", crate::errors::chain(&e)))?;
+        let path = std::fs::canonicalize(typed).within(typed)?;
         let stem = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
         let name = if self.name.trim().is_empty() { stem } else { self.name.trim().to_string() };
         if project.layers.iter().any(|l| l.name == name) {
@@ -104,7 +105,7 @@ impl AddDataset {
         };
         let is_store = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("gpkg"));
         if !is_store {
-            crate::store::gpkg::check_dataset_name(&name).map_err(|e| format!("name: {}", crate::errors::chain(&e)))?;
+            crate::store::gpkg::check_dataset_name(&name).within("name")?;
         }
         let spec = if is_store {
             // The dataset's name in the store is the layer's, the default.

@@ -5,6 +5,7 @@
 //! of some shards is valid and a later one adds the rest.
 
 use crate::gui::GuiError;
+use crate::gui::Within;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::thread::JoinHandle;
@@ -90,20 +91,19 @@ impl ClusterImport {
         if source.is_empty() {
             return Err("source: give the raster to import".into());
         }
-        let source =
-            std::fs::canonicalize(source).map_err(|e| format!("source: {source}: {}", crate::errors::chain(&e)))?;
+        let source = std::fs::canonicalize(source).within(format_args!("source: {source}"))?;
         let shards: usize = self
             .shards
             .trim()
             .parse()
-            .map_err(|_| format!("shards: '{}' is not a whole number", self.shards.trim()))?;
+            .map_err(|_| GuiError::Message(format!("shards: '{}' is not a whole number", self.shards.trim())))?;
         if self.manifest.trim().is_empty() {
             let stem = source.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
             self.manifest = project.resolve(Path::new(&format!("plans/{stem}.json"))).display().to_string();
         }
         let manifest = PathBuf::from(self.manifest.trim());
         if let Some(dir) = manifest.parent().filter(|d| !d.as_os_str().is_empty()) {
-            std::fs::create_dir_all(dir).map_err(|e| format!("plan: {}: cannot create: {e}", dir.display()))?;
+            std::fs::create_dir_all(dir).map_err(GuiError::file(dir, "cannot create the plan's folder"))?;
         }
         let opts = ImportOptions {
             sources: vec![source],
@@ -132,7 +132,7 @@ impl ClusterImport {
                     r.manifest.import.level
                 ))
             })
-            .map_err(|e| format!("cannot start the plan: {}", crate::errors::chain(&e)))?;
+            .within("cannot start the plan")?;
         self.job = Some(Job { kind: Kind::Plan, watch: Arc::new(ImportWatch::default()), handle });
         Ok(())
     }
@@ -226,7 +226,7 @@ impl ClusterImport {
                     )
                 })
             })
-            .map_err(|e| format!("cannot start the merge: {}", crate::errors::chain(&e)))?;
+            .within("cannot start the merge")?;
         self.job = Some(Job { kind: Kind::Merge, watch, handle });
         Ok(())
     }

@@ -43,6 +43,14 @@ pub enum GuiError {
     /// A failure below, kept whole with its causes.
     #[error("{}", chain(&**.0))]
     Failure(crate::errors::Failure),
+    /// What the workstation was doing when an error below stopped it, with that error.
+    #[error("{context}: {source}")]
+    Within {
+        /// What was being done.
+        context: String,
+        /// The error.
+        source: Box<GuiError>,
+    },
     /// A file the workstation reads or writes.
     #[error("{}: {what}: {source}", path.display())]
     File {
@@ -79,6 +87,18 @@ from!(
     Failure(crate::errors::Failure),
 );
 
+impl From<std::io::Error> for GuiError {
+    fn from(e: std::io::Error) -> GuiError {
+        GuiError::Failure(Box::new(e))
+    }
+}
+
+impl From<serde_json::Error> for GuiError {
+    fn from(e: serde_json::Error) -> GuiError {
+        GuiError::Failure(Box::new(e))
+    }
+}
+
 impl From<String> for GuiError {
     fn from(message: String) -> GuiError {
         GuiError::Message(message)
@@ -96,5 +116,18 @@ impl GuiError {
     pub fn file(path: impl Into<std::path::PathBuf>, what: &'static str) -> impl FnOnce(std::io::Error) -> GuiError {
         let path = path.into();
         move |source| GuiError::File { path, what, source }
+    }
+}
+
+/// A result whose error stops something the workstation was doing: that, with the error as its
+/// cause (`context: error`).
+pub trait Within<T> {
+    /// The error under `context`.
+    fn within(self, context: impl std::fmt::Display) -> Result<T, GuiError>;
+}
+
+impl<T, E: Into<GuiError>> Within<T> for Result<T, E> {
+    fn within(self, context: impl std::fmt::Display) -> Result<T, GuiError> {
+        self.map_err(|e| GuiError::Within { context: context.to_string(), source: Box::new(e.into()) })
     }
 }

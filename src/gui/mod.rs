@@ -15,7 +15,7 @@ pub mod recent;
 pub mod uncertainty_ui;
 pub mod viewport;
 
-pub use error::GuiError;
+pub use error::{GuiError, Within};
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
@@ -100,8 +100,7 @@ pub fn open(opts: &ViewOptions) -> Result<Opened, GuiError> {
     if let Some(path) = &opts.screenshot {
         check_writable(path)?;
     }
-    let (mut scene, report) =
-        Scene::open(&project).map_err(|e| format!("{}: {}", opts.project.display(), crate::errors::chain(&e)))?;
+    let (mut scene, report) = Scene::open(&project).within(opts.project.display())?;
     if let Some(t) = opts.lod_threshold {
         scene.detail.lod_threshold_px = t;
     }
@@ -204,7 +203,7 @@ pub fn run(opts: &ViewOptions, opened: Opened) -> Result<String, GuiError> {
     if let Some(e) = failed.lock().ok().and_then(|mut f| f.take()) {
         return Err(e);
     }
-    result.map_err(|e| format!("the window could not be opened: {}", crate::errors::chain(&e)))?;
+    result.map_err(|e| GuiError::Failure(Box::new(e))).within("the window could not be opened")?;
     let outcome = outcome.lock().ok().and_then(|mut o| o.take());
     match outcome {
         Some(result) => result,

@@ -2,6 +2,7 @@
 //! configuration folder (the caller says where; `terrafuse` uses `$XDG_CONFIG_HOME/terrafuse`).
 
 use crate::gui::GuiError;
+use crate::gui::Within;
 use std::path::{Path, PathBuf};
 
 /// Projects kept in the list.
@@ -46,8 +47,7 @@ impl Recent {
         if let Some(dir) = file.parent() {
             std::fs::create_dir_all(dir).map_err(GuiError::file(dir, "cannot create"))?;
         }
-        let text = serde_json::to_string_pretty(&self.projects)
-            .map_err(|e| format!("recent projects: {}", crate::errors::chain(&e)))?;
+        let text = serde_json::to_string_pretty(&self.projects).within("recent projects")?;
         crate::files::write_atomic(file, text.as_bytes()).map_err(GuiError::file(file, "cannot write"))
     }
 }

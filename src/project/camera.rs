@@ -38,7 +38,7 @@ impl CameraSpec {
     pub fn parse(text: &str) -> Result<CameraSpec, Invalid> {
         let values: Vec<f64> = text
             .split(',')
-            .map(|v| v.trim().parse::<f64>().map_err(|_| format!("'{}' is not a number", v.trim())))
+            .map(|v| v.trim().parse::<f64>().map_err(|_| Invalid(format!("'{}' is not a number", v.trim()))))
             .collect::<Result<_, _>>()?;
         if !(5..=6).contains(&values.len()) {
             return Err(format!("a camera is lat,lon,alt,heading,pitch[,fov]; got {} values", values.len()).into());

@@ -3,6 +3,7 @@
 //! on a file of its version kept in `tests/fixtures/` (`moon-lola-v1.json`, `erzurum-erosion-v2.json`).
 //! A file of a newer version than this build's is refused, never read in part.
 
+use crate::errors::AtField;
 use std::path::PathBuf;
 
 use serde::{Deserialize, Serialize};
@@ -142,10 +143,10 @@ pub fn to_current(text: &str, version: u32) -> Result<serde_json::Value, Invalid
         let path = e.path().to_string();
         if path == "." { e.into_inner().to_string() } else { format!("{path}: {}", e.into_inner()) }
     })?;
-    let mut value: serde_json::Value = serde_json::from_str(text).map_err(|e| format!("not valid JSON: {e}"))?;
+    let mut value: serde_json::Value = serde_json::from_str(text).at_field("not valid JSON")?;
     let object = value.as_object_mut().ok_or("a project is a JSON object")?;
     for (k, step) in STEPS.iter().enumerate().skip(version as usize - 1) {
-        step(object).map_err(|e| format!("migrating version {} to {}: {e}", k + 1, k + 2))?;
+        step(object).at_field(format_args!("migrating version {} to {}", k + 1, k + 2))?;
         object.insert("version".into(), (k as u32 + 2).into());
     }
     Ok(value)
@@ -157,7 +158,7 @@ fn v1_to_v2(object: &mut serde_json::Map<String, serde_json::Value>) -> Result<(
         return Err("layers: a version-1 project has \"datasets\", not \"layers\" (layers are version 2)".into());
     }
     let datasets: Vec<DatasetSpec> = match object.remove("datasets") {
-        Some(d) => serde_json::from_value(d).map_err(|e| format!("datasets: {e}"))?,
+        Some(d) => serde_json::from_value(d).at_field("datasets")?,
         None => Vec::new(),
     };
     let layers: Vec<LayerSpec> = datasets.into_iter().rev().map(DatasetSpec::into_layer).collect();

@@ -33,6 +33,7 @@ pub mod recovery;
 pub mod reference;
 mod settings;
 
+use crate::errors::AtField;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
@@ -255,7 +256,7 @@ impl Project {
         let project: Project = if version == VERSION {
             let mut de = serde_json::Deserializer::from_str(text);
             let project = serde_path_to_error::deserialize(&mut de).map_err(field_error)?;
-            de.end().map_err(|e| format!("after the project: {e}"))?;
+            de.end().at_field("after the project")?;
             project
         } else {
             let value = migrate::to_current(text, version)?;
@@ -276,7 +277,7 @@ impl Project {
             .into());
         }
         for (name, view) in &self.views {
-            view.check().map_err(|e| format!("view '{name}': {e}"))?;
+            view.check().at_field(format_args!("view '{name}'"))?;
         }
         if let Some(v) = &self.default_view
             && !self.views.contains_key(v)
@@ -289,7 +290,7 @@ impl Project {
             if !names.insert(&layer.name) {
                 return Err(format!("layers[{k}]: layer '{}' is listed twice", layer.name).into());
             }
-            layer.check(radius_m).map_err(|e| format!("layers[{k}]: {e}"))?;
+            layer.check(radius_m).at_field(format_args!("layers[{k}]"))?;
         }
         // Difference operands name layers with heights (the stack's own check, with the index).
         crate::layers::Stack::new(self.ellipsoid()?, &self.layers).map_err(|e| {
@@ -327,7 +328,7 @@ impl Project {
         }
         let kinds = |name: &str| self.layers.iter().find(|l| l.name == name).map(|l| l.holds_deltas());
         for (name, check) in &self.checks {
-            let target = check.target(&kinds).map_err(|e| format!("checks.{name}.{e}"))?;
+            let target = check.target(&kinds).map_err(|e| e.under(format_args!("checks.{name}")))?;
             if let checks::CheckTarget::View { view, .. } = target
                 && !self.views.contains_key(view)
             {

@@ -7,6 +7,7 @@
 //! partial store holds the finest level only; [`super::merge`] puts them together and builds
 //! the pyramid once.
 
+use crate::errors::AtField;
 use std::collections::HashSet;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -194,7 +195,7 @@ impl Manifest {
 
     /// The body.
     pub fn ellipsoid(&self) -> Result<Ellipsoid, Invalid> {
-        let body: Ellipsoid = self.body.parse().map_err(|e| format!("body: {e}"))?;
+        let body: Ellipsoid = self.body.parse().at_field("body")?;
         if body.a_m() != self.body_axes_m[0] || body.b_m() != self.body_axes_m[1] {
             return Err(format!("body_axes_m: {:?} are not the axes of {}", self.body_axes_m, self.body).into());
         }
@@ -234,9 +235,9 @@ impl Manifest {
             body: self.ellipsoid()?,
             name: Some(self.import.dataset.clone()),
             level: LevelChoice::Level(self.import.level),
-            resampling: self.import.resampling.parse::<Resampling>().map_err(|e| format!("import.resampling: {e}"))?,
-            transform: self.import.transform.parse().map_err(|e| format!("import.transform: {e}"))?,
-            vertical: self.import.vertical_datum.parse().map_err(|e| format!("import.vertical_datum: {e}"))?,
+            resampling: self.import.resampling.parse::<Resampling>().at_field("import.resampling")?,
+            transform: self.import.transform.parse().at_field("import.transform")?,
+            vertical: self.import.vertical_datum.parse().at_field("import.vertical_datum")?,
             memory_budget,
             threads,
             progress: false,

@@ -18,6 +18,7 @@ use crate::erosion::operation::{BrushPath, Device, Model, Operation};
 use crate::erosion::params::{Params, gravity_of_body};
 use crate::erosion::region::Region;
 use crate::erosion::sim::Run;
+use crate::gui::Within;
 use crate::layers::LayerSpec;
 
 /// A run's progress shows at most once in this many times what showing it last cost (at least
@@ -537,14 +538,13 @@ impl App {
         // A stream-power brush raises rock along the path; its rivers need room around it.
         let room = if self.erosion.model == Model::StreamPower { 3.0 } else { 1.0 };
         let region = match &brush {
-            Some(b) => crate::erosion::placement::box_along(&e, &b.points, room * b.radius_m)
-                .map_err(|e| format!("erosion: {}", crate::errors::chain(&e))),
-            None => self.view_box(self.erosion.half_m).map_err(|m| format!("erosion: {m}")),
+            Some(b) => crate::erosion::placement::box_along(&e, &b.points, room * b.radius_m).within("erosion"),
+            None => self.view_box(self.erosion.half_m).within("erosion"),
         };
         let region = match region {
             Ok(b) => b,
-            Err(message) => {
-                self.message = message;
+            Err(e) => {
+                self.message = e.to_string();
                 return;
             }
         };

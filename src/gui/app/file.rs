@@ -4,6 +4,7 @@
 //! opens with a recovery file newer than it, the offer to restore it.
 
 use crate::gui::GuiError;
+use crate::gui::Within;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
@@ -119,8 +120,7 @@ impl App {
                 }
             };
             project.base_dir = crate::files::folder_of(&path).into();
-            let (scene, report) =
-                Scene::open(&project).map_err(|e| format!("{}: {}", path.display(), crate::errors::chain(&e)))?;
+            let (scene, report) = Scene::open(&project).within(path.display())?;
             let camera = opening_camera(&project);
             Ok(Opening { project, path, scene, camera, restored, imported: report.imported, on_disk })
         }));

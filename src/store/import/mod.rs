@@ -10,6 +10,7 @@
 //!    (weights ¼ ½ ¼ per axis on the corner grid, the exact area of the child cells it covers),
 //!    ignoring no data, no data where less than half the cell has data.
 
+use crate::errors::AtField;
 use std::collections::HashSet;
 use std::path::{Path, PathBuf};
 
@@ -62,7 +63,7 @@ impl FromStr for VerticalDatum {
             other => match other.strip_prefix("geoid:") {
                 Some(path) if !path.is_empty() => {
                     let p = Path::new(path);
-                    let grid = std::fs::canonicalize(p).map_err(|e| format!("geoid grid {path}: {e}"))?;
+                    let grid = std::fs::canonicalize(p).at_field(format_args!("geoid grid {path}"))?;
                     Ok(VerticalDatum::Geoid {
                         model: format!("geoid grid {path}"),
                         grid: grid.to_string_lossy().into_owned(),
