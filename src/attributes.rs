@@ -84,6 +84,48 @@ impl Attribute {
         Attribute::ALL.into_iter().find(|a| a.name() == name)
     }
 
+    /// The range a colour ramp over it spans by default: 0–45° of slope, 0–360° of aspect,
+    /// hillshade's 1–255, and for the window attributes a span that shows the relief of a DEM of
+    /// tens of metres (they scale with the sample spacing drawn; a project's `range_m` sets
+    /// another).
+    pub fn default_range(self) -> (f64, f64) {
+        match self {
+            Attribute::Slope => (0.0, 45.0),
+            Attribute::Aspect => (0.0, 360.0),
+            Attribute::Hillshade => (1.0, 255.0),
+            Attribute::Curvature => (-2.0, 2.0),
+            Attribute::PlanformCurvature | Attribute::ProfileCurvature => (-1.0, 1.0),
+            Attribute::Tpi => (-5.0, 5.0),
+            Attribute::Tri => (0.0, 30.0),
+            Attribute::Roughness => (0.0, 50.0),
+        }
+    }
+
+    /// Its unit as a symbol, for a legend or a slider.
+    pub fn symbol(self) -> &'static str {
+        match self {
+            Attribute::Tpi | Attribute::Tri | Attribute::Roughness => "m",
+            Attribute::Slope | Attribute::Aspect => "°",
+            Attribute::Hillshade => "",
+            Attribute::Curvature | Attribute::PlanformCurvature | Attribute::ProfileCurvature => "1/(100 m)",
+        }
+    }
+
+    /// A legend's title: what it is, with its unit.
+    pub fn title(self) -> &'static str {
+        match self {
+            Attribute::Slope => "slope (°)",
+            Attribute::Aspect => "aspect (° from north)",
+            Attribute::Hillshade => "hillshade (1–255)",
+            Attribute::Curvature => "curvature (1/(100 m))",
+            Attribute::PlanformCurvature => "planform curvature (1/(100 m))",
+            Attribute::ProfileCurvature => "profile curvature (1/(100 m))",
+            Attribute::Tpi => "TPI (m)",
+            Attribute::Tri => "TRI (m)",
+            Attribute::Roughness => "roughness (m)",
+        }
+    }
+
     /// Its unit, for a raster's metadata.
     pub fn unit(self) -> &'static str {
         match self {

@@ -196,7 +196,10 @@ fn the_workstation_draws_probes_navigates_and_saves() {
     h.run_steps(2);
     h.get_by_label("tpi").click();
     h.run_steps(2);
-    assert_eq!(h.state().renderer_visuals().colour_map.by, terrafuse::project::ColourBy::Tpi);
+    assert_eq!(
+        h.state().renderer_visuals().colour_map.by,
+        terrafuse::project::ColourBy::Attribute(terrafuse::attributes::Attribute::Tpi)
+    );
     assert_eq!(h.state().renderer_ramp_range(), (-5.0, 5.0));
     // *data*: the TPI's 2nd–98th percentile on the quads drawn, symmetric about 0.
     h.get_by_label("data").click();
@@ -207,12 +210,18 @@ fn the_workstation_draws_probes_navigates_and_saves() {
     h.run_steps(2);
     h.get_by_label("slope").click();
     h.run_steps(2);
-    assert_eq!(h.state().renderer_visuals().colour_map.by, terrafuse::project::ColourBy::Slope);
+    assert_eq!(
+        h.state().renderer_visuals().colour_map.by,
+        terrafuse::project::ColourBy::Attribute(terrafuse::attributes::Attribute::Slope)
+    );
     assert_eq!(h.state().renderer_ramp_range(), (0.0, 45.0));
     settle(&mut h);
     h.get_by_label("save project *").click_accesskit();
     h.step();
-    assert_eq!(Project::load(&project).unwrap().visuals.colour_map.by, terrafuse::project::ColourBy::Slope);
+    assert_eq!(
+        Project::load(&project).unwrap().visuals.colour_map.by,
+        terrafuse::project::ColourBy::Attribute(terrafuse::attributes::Attribute::Slope)
+    );
 
     // The layers panel: hiding the (only) layer takes it out of the renderer's stack at once
     // and, saved, is in the project file; shown again, the terrain comes back. (The view is not

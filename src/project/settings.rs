@@ -31,47 +31,23 @@ pub struct ColourMapSpec {
 }
 
 /// What the colour ramp is a function of: the height, or a terrain attribute of the surface as
-/// drawn, with the definitions of `export --attribute` ([`Attribute`]).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, schemars::JsonSchema)]
-#[serde(rename_all = "snake_case")]
+/// drawn, with the definitions of `export --attribute` ([`Attribute`], which knows each one's
+/// range, unit and title). Written as the attribute's name, or `height`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum ColourBy {
     /// The height, metres.
     #[default]
     Height,
-    /// The slope, degrees (of the true heights, whatever the exaggeration), per pixel.
-    Slope,
-    /// The aspect, degrees clockwise from north (the way the slope faces), per pixel.
-    Aspect,
-    /// The hillshade, 1–255, lit from 315° at 45°, per pixel.
-    Hillshade,
-    /// The curvature, 100/m, per pixel from the 3 × 3 windows of the data there.
-    Curvature,
-    /// The planform curvature, 100/m, per pixel.
-    PlanformCurvature,
-    /// The profile curvature, 100/m, per pixel.
-    ProfileCurvature,
-    /// The topographic position index, metres, per pixel.
-    Tpi,
-    /// The terrain ruggedness index, metres, per pixel.
-    Tri,
-    /// The roughness, metres, per pixel.
-    Roughness,
+    /// A terrain attribute of the true heights (whatever the exaggeration), per pixel: slope,
+    /// aspect and hillshade from the data's normal, the others from the 3 × 3 windows there.
+    Attribute(Attribute),
 }
 
 impl ColourBy {
-    /// Every choice.
-    pub const ALL: [ColourBy; 10] = [
-        ColourBy::Height,
-        ColourBy::Slope,
-        ColourBy::Aspect,
-        ColourBy::Hillshade,
-        ColourBy::Curvature,
-        ColourBy::PlanformCurvature,
-        ColourBy::ProfileCurvature,
-        ColourBy::Tpi,
-        ColourBy::Tri,
-        ColourBy::Roughness,
-    ];
+    /// Every choice: the height, then the attributes in their order.
+    pub fn all() -> impl Iterator<Item = ColourBy> {
+        std::iter::once(ColourBy::Height).chain(Attribute::ALL.map(ColourBy::Attribute))
+    }
 
     fn is_height(&self) -> bool {
         *self == ColourBy::Height
@@ -79,18 +55,10 @@ impl ColourBy {
 
     /// The attribute it colours; None for the height.
     pub fn attribute(self) -> Option<Attribute> {
-        Some(match self {
-            ColourBy::Height => return None,
-            ColourBy::Slope => Attribute::Slope,
-            ColourBy::Aspect => Attribute::Aspect,
-            ColourBy::Hillshade => Attribute::Hillshade,
-            ColourBy::Curvature => Attribute::Curvature,
-            ColourBy::PlanformCurvature => Attribute::PlanformCurvature,
-            ColourBy::ProfileCurvature => Attribute::ProfileCurvature,
-            ColourBy::Tpi => Attribute::Tpi,
-            ColourBy::Tri => Attribute::Tri,
-            ColourBy::Roughness => Attribute::Roughness,
-        })
+        match self {
+            ColourBy::Height => None,
+            ColourBy::Attribute(a) => Some(a),
+        }
     }
 
     /// Its name: the attribute's (as `export --attribute` spells it), or `height`.
@@ -98,47 +66,57 @@ impl ColourBy {
         self.attribute().map_or("height", Attribute::name)
     }
 
-    /// The range the ramp spans by default: the data's heights, 0–45° of slope, 0–360° of aspect,
-    /// hillshade's 1–255, and for the window attributes a span that shows the relief of a DEM of
-    /// tens of metres (they scale with the sample spacing drawn; set `range_m` for another).
-    pub fn default_range(self, data_range_m: (f64, f64)) -> (f64, f64) {
-        match self {
-            ColourBy::Height => data_range_m,
-            ColourBy::Slope => (0.0, 45.0),
-            ColourBy::Aspect => (0.0, 360.0),
-            ColourBy::Hillshade => (1.0, 255.0),
-            ColourBy::Curvature => (-2.0, 2.0),
-            ColourBy::PlanformCurvature | ColourBy::ProfileCurvature => (-1.0, 1.0),
-            ColourBy::Tpi => (-5.0, 5.0),
-            ColourBy::Tri => (0.0, 30.0),
-            ColourBy::Roughness => (0.0, 50.0),
-        }
+    /// The choice of a name; None for another.
+    pub fn parse(name: &str) -> Option<ColourBy> {
+        if name == "height" { Some(ColourBy::Height) } else { Attribute::parse(name).map(ColourBy::Attribute) }
     }
 
-    /// The unit of its values.
+    /// The range the ramp spans by default: the data's heights, or the attribute's
+    /// ([`Attribute::default_range`]).
+    pub fn default_range(self, data_range_m: (f64, f64)) -> (f64, f64) {
+        self.attribute().map_or(data_range_m, Attribute::default_range)
+    }
+
+    /// The unit of its values, short.
     pub fn unit(self) -> &'static str {
-        match self {
-            ColourBy::Height | ColourBy::Tpi | ColourBy::Tri | ColourBy::Roughness => "m",
-            ColourBy::Slope | ColourBy::Aspect => "°",
-            ColourBy::Hillshade => "",
-            ColourBy::Curvature | ColourBy::PlanformCurvature | ColourBy::ProfileCurvature => "1/(100 m)",
-        }
+        self.attribute().map_or("m", Attribute::symbol)
     }
 
     /// The legend's title: what the ramp shows, with its unit.
     pub fn title(self) -> &'static str {
-        match self {
-            ColourBy::Height => "elevation (m)",
-            ColourBy::Slope => "slope (°)",
-            ColourBy::Aspect => "aspect (° from north)",
-            ColourBy::Hillshade => "hillshade (1–255)",
-            ColourBy::Curvature => "curvature (1/(100 m))",
-            ColourBy::PlanformCurvature => "planform curvature (1/(100 m))",
-            ColourBy::ProfileCurvature => "profile curvature (1/(100 m))",
-            ColourBy::Tpi => "TPI (m)",
-            ColourBy::Tri => "TRI (m)",
-            ColourBy::Roughness => "roughness (m)",
-        }
+        self.attribute().map_or("elevation (m)", Attribute::title)
+    }
+}
+
+impl Serialize for ColourBy {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        serializer.serialize_str(self.name())
+    }
+}
+
+impl<'de> Deserialize<'de> for ColourBy {
+    fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<ColourBy, D::Error> {
+        let name = String::deserialize(deserializer)?;
+        ColourBy::parse(&name).ok_or_else(|| {
+            let names: Vec<&str> = ColourBy::all().map(ColourBy::name).collect();
+            serde::de::Error::custom(format!("unknown variant `{name}`, expected one of `{}`", names.join("`, `")))
+        })
+    }
+}
+
+impl schemars::JsonSchema for ColourBy {
+    fn schema_name() -> std::borrow::Cow<'static, str> {
+        "ColourBy".into()
+    }
+
+    fn json_schema(_: &mut schemars::SchemaGenerator) -> schemars::Schema {
+        let choices: Vec<serde_json::Value> = ColourBy::all()
+            .map(|by| serde_json::json!({ "description": by.title(), "type": "string", "const": by.name() }))
+            .collect();
+        schemars::json_schema!({
+            "description": "What the colour ramp is a function of: `height`, or a terrain attribute of the true heights (whatever the exaggeration), per pixel, as `export --attribute` defines it.",
+            "oneOf": choices,
+        })
     }
 }
 
@@ -376,12 +354,16 @@ mod tests {
 
     #[test]
     fn every_colour_but_the_height_is_the_attribute_of_its_name() {
-        for by in ColourBy::ALL {
+        for by in ColourBy::all() {
             assert_eq!(by.attribute().map(Attribute::name), (by != ColourBy::Height).then(|| by.name()));
-            // The project file spells it as the command line does.
-            assert_eq!(serde_json::to_string(&by).unwrap(), format!("\"{}\"", by.name()));
+            // The project file spells it as the command line does, and reads it back.
+            let text = serde_json::to_string(&by).unwrap();
+            assert_eq!(text, format!("\"{}\"", by.name()));
+            assert_eq!(serde_json::from_str::<ColourBy>(&text).unwrap(), by);
         }
         assert_eq!(ColourBy::Height.name(), "height");
-        assert_eq!(Attribute::ALL.len() + 1, ColourBy::ALL.len());
+        assert_eq!(Attribute::ALL.len() + 1, ColourBy::all().count());
+        let wrong = serde_json::from_str::<ColourBy>("\"slpoe\"").unwrap_err().to_string();
+        assert!(wrong.contains("unknown variant `slpoe`") && wrong.contains("`slope`"), "{wrong}");
     }
 }

@@ -193,7 +193,7 @@ impl App {
                 }
             });
             egui::ComboBox::from_label("colour by").selected_text(v.colour_map.by.name()).show_ui(ui, |ui| {
-                for by in crate::project::ColourBy::ALL {
+                for by in crate::project::ColourBy::all() {
                     if ui.selectable_label(v.colour_map.by == by, by.name()).clicked() && v.colour_map.by != by {
                         v.colour_map.by = by;
                         v.colour_map.range_m = None;
