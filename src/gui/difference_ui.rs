@@ -164,5 +164,5 @@ impl AutoRange {
 
 /// The project's drawn difference layer (the topmost shown one with opacity).
 fn drawn_difference(project: &Project) -> Option<&LayerSpec> {
-    project.layers.iter().rev().find(|l| !l.gives_heights() && l.visible && l.opacity > 0.0)
+    crate::layers::kind::drawn_difference(&project.layers).map(|k| &project.layers[k])
 }

@@ -53,6 +53,12 @@ impl LayerSpec {
         self.value_source() != ValueSource::Nothing
     }
 
+    /// Whether the layer would be drawn as the difference layer were it the topmost such
+    /// ([`drawn_difference`]): a difference, shown, with opacity.
+    pub fn draws_difference(&self) -> bool {
+        !self.gives_heights() && self.visible && self.opacity > 0.0
+    }
+
     /// Whether the layer's heights are deltas kept in a raster made from its recorded operations
     /// (strokes, runs), rebuilt by replay and stamped per quad by that raster.
     pub fn holds_deltas(&self) -> bool {
@@ -102,6 +108,17 @@ impl LayerKind {
         LayerKind::Erosion,
         LayerKind::Difference,
     ];
+}
+
+/// The difference layer drawn among `specs` (bottom to top): the topmost that
+/// [`LayerSpec::draws_difference`]; the stack, the workstation's panels and the legend all ask
+/// this.
+pub fn drawn_difference<'a, I>(specs: I) -> Option<usize>
+where
+    I: IntoIterator<Item = &'a LayerSpec>,
+    I::IntoIter: DoubleEndedIterator + ExactSizeIterator,
+{
+    specs.into_iter().rposition(LayerSpec::draws_difference)
 }
 
 /// The coarsest level at which every octave of `noise` is wholly resolved (its finest

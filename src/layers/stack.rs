@@ -220,7 +220,7 @@ impl Stack {
 
     /// The difference layer drawn: the topmost shown one with opacity.
     pub fn drawn_difference(&self) -> Option<usize> {
-        self.layers.iter().rposition(|l| !l.spec.gives_heights() && l.spec.visible && l.spec.opacity > 0.0)
+        super::kind::drawn_difference(self.layers.iter().map(|l| &l.spec))
     }
 
     /// Checks a spec and places its extent and correction on the body.
