@@ -13,7 +13,7 @@ use terrafuse::ecm::{CubeProjection, Face, QuadId};
 use terrafuse::gpu::{DrawMode, GpuContext, IMAGE_FORMAT, PROBE_SUBSAMPLES, RenderedImage, Renderer};
 use terrafuse::project::{CameraSpec, Project};
 use terrafuse::scene::Scene;
-use terrafuse::scene::patches::{EdgeOwner, stand_on_edge, vertex_weights};
+use terrafuse::scene::patches::{PatchMorph, stand_on_edge, vertex_weights};
 
 fn out_dir() -> PathBuf {
     let dir = common::out_path("render");
@@ -140,7 +140,7 @@ fn check_vertex_positions(morph: bool) {
             let own = patches.iter().find(|p| p.quad as usize == index && p.stride == stride && p.origin() == origin);
             let sides = own.map_or([None; 4], |p| {
                 p.edge_owner.map(|c| {
-                    patches.get(c as usize).map(|n| EdgeOwner {
+                    patches.get(c as usize).map(|n| PatchMorph {
                         stride: n.stride,
                         reach_m: reaches_of(n).0,
                         reach_up_m: reaches_of(n).1,
@@ -148,9 +148,8 @@ fn check_vertex_positions(morph: bool) {
                     })
                 })
             });
-            let weights = vertex_weights(stride, reach, reach_up, origin, (a, b), sides, |i, j| {
-                f64::from(cpu_at(i, j, lv).length())
-            });
+            let this = PatchMorph { stride, reach_m: reach, reach_up_m: reach_up, origin };
+            let weights = vertex_weights(this, (a, b), sides, |i, j| f64::from(cpu_at(i, j, lv).length()));
             let all: Vec<&((u32, u32), f64)> = weights.own.iter().chain(weights.edge.iter().flatten()).collect();
             if all.len() > 1 {
                 // The blends round a few times more in f32.

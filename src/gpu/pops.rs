@@ -16,7 +16,7 @@ use super::context::GpuError;
 use super::renderer::Renderer;
 use crate::ecm::geometry::surface_and_normal;
 use crate::ecm::{CubeProjection, FacePoint, QuadId};
-use crate::scene::patches::{EdgeOwner, PATCH_CELLS, PATCHES_PER_EDGE, stand_on_edge, vertex_weights};
+use crate::scene::patches::{PATCH_CELLS, PATCHES_PER_EDGE, PatchMorph, stand_on_edge, vertex_weights};
 
 /// Where a frame drew which density: per drawn quad, each patch's stride (0 where the patch was
 /// culled), reaches (where its vertices morph, and where the coarser stride's do) and the
@@ -139,27 +139,20 @@ impl Surfaces<'_> {
     /// The vertex (a, b) of a quad's patch (`patches`: the quad's layout), morphed and standing
     /// on the edge its neighbour owns as the shader places it ([`vertex_weights`]).
     fn vertex(&mut self, quad: QuadId, patches: &[Drawn; 64], patch: (u32, u32), a: u32, b: u32) -> Option<DVec3> {
-        let own = patches[(patch.1 * PATCHES_PER_EDGE + patch.0) as usize];
-        let origin = (patch.0 * PATCH_CELLS, patch.1 * PATCH_CELLS);
+        let index = patch.1 * PATCHES_PER_EDGE + patch.0;
         // Without geomorphing no vertex morphs (infinite reaches), but T-junctions still stand on
         // the coarser edge.
-        let reaches = |d: &Drawn| if self.morph { (d.reach, d.reach_up) } else { (f64::INFINITY, f64::INFINITY) };
-        let sides = own.owners.map(|o| {
-            o.map(|k| {
-                let owner = patches[k as usize];
-                EdgeOwner {
-                    stride: owner.stride,
-                    reach_m: reaches(&owner).0,
-                    reach_up_m: reaches(&owner).1,
-                    origin: ((k % PATCHES_PER_EDGE) * PATCH_CELLS, (k / PATCHES_PER_EDGE) * PATCH_CELLS),
-                }
-            })
-        });
+        let morph_of = |k: u32| {
+            let d = patches[k as usize];
+            let (reach_m, reach_up_m) = if self.morph { (d.reach, d.reach_up) } else { (f64::INFINITY, f64::INFINITY) };
+            let origin = ((k % PATCHES_PER_EDGE) * PATCH_CELLS, (k / PATCHES_PER_EDGE) * PATCH_CELLS);
+            PatchMorph { stride: d.stride, reach_m, reach_up_m, origin }
+        };
+        let own = morph_of(index);
+        let sides = patches[index as usize].owners.map(|o| o.map(morph_of));
         // A sample without a position (no data read back) is among the weights, so none is drawn.
-        let (reach, reach_up) = reaches(&own);
-        let weights = vertex_weights(own.stride, reach, reach_up, origin, (a, b), sides, |i, j| {
-            self.position(quad, i, j).map_or(f64::NAN, |p| p.length())
-        });
+        let weights =
+            vertex_weights(own, (a, b), sides, |i, j| self.position(quad, i, j).map_or(f64::NAN, |p| p.length()));
         let mut blend = |weights: &[((u32, u32), f64)]| -> Option<DVec3> {
             let mut sum = DVec3::ZERO;
             for &((i, j), w) in weights {
@@ -172,7 +165,7 @@ impl Surfaces<'_> {
             Some(e) => Some(blend(e)?),
             None => None,
         };
-        let (i, j) = (origin.0 + a * own.stride, origin.1 + b * own.stride);
+        let (i, j) = (own.origin.0 + a * own.stride, own.origin.1 + b * own.stride);
         Some(stand_on_edge(placed, edge, self.normal(quad, i, j)))
     }
 

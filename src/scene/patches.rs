@@ -313,10 +313,10 @@ pub fn morph_weights(
     out
 }
 
-/// The neighbour that owns the edge on one side of a patch ([`owns_edge`]), as [`vertex_weights`]
-/// needs it.
+/// A patch as [`vertex_weights`] needs it to place vertices: the patch itself, or the neighbour
+/// that owns the edge on one of its sides ([`owns_edge`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct EdgeOwner {
+pub struct PatchMorph {
     /// Its stride, samples.
     pub stride: u32,
     /// Its reaches ([`Patch::reach_m`], [`Patch::reach_up_m`]; infinite where it does not morph).
@@ -346,20 +346,17 @@ pub fn stand_on_edge(own: glam::DVec3, edge: Option<glam::DVec3>, up: glam::DVec
     edge.map_or(own, |e| e + up * (own - e).dot(up))
 }
 
-/// What a patch at `stride` draws at its vertex (a, b), with the owners of its sides' edges
-/// (`sides`, in the order of [`SIDES`]): its own morph ([`morph_weights`]) and, on a side a
-/// neighbour owns, the point of that neighbour's edge ([`VertexWeights`]; [`stand_on_edge`]
-/// combines them). The terrain shader's `vs_main` twin.
-#[allow(clippy::too_many_arguments)]
+/// What patch `p` draws at its vertex (a, b), with the owners of its sides' edges (`sides`, in
+/// the order of [`SIDES`]): its own morph ([`morph_weights`]) and, on a side a neighbour owns,
+/// the point of that neighbour's edge ([`VertexWeights`]; [`stand_on_edge`] combines them). The
+/// terrain shader's `vs_main` twin.
 pub fn vertex_weights(
-    stride: u32,
-    reach_m: f64,
-    reach_up_m: f64,
-    origin: (u32, u32),
+    p: PatchMorph,
     (a, b): (u32, u32),
-    sides: [Option<EdgeOwner>; 4],
+    sides: [Option<PatchMorph>; 4],
     mut distance_m: impl FnMut(u32, u32) -> f64,
 ) -> VertexWeights {
+    let PatchMorph { stride, reach_m, reach_up_m, origin } = p;
     let own = morph_weights(stride, reach_m, reach_up_m, origin, (a, b), &mut distance_m);
     let n = PATCH_CELLS / stride;
     let on = [b == 0, a == n, b == n, a == 0];
@@ -664,29 +661,14 @@ mod tests {
         assert!(owns_edge(other, 0, fine, 1) && !owns_edge(fine, 1, other, 0));
         // A stride-1 patch at (32, 0) whose west neighbour (origin (0, 0)) is drawn every 4
         // samples: its vertex (0, 3) stands on that edge between samples (32, 0) and (32, 4).
-        let owner = EdgeOwner { stride: 4, reach_m: f64::INFINITY, reach_up_m: f64::INFINITY, origin: (0, 0) };
-        let w = vertex_weights(
-            1,
-            f64::INFINITY,
-            f64::INFINITY,
-            (32, 0),
-            (0, 3),
-            [None, None, None, Some(owner)],
-            |_, _| 1.0,
-        );
+        let owner = PatchMorph { stride: 4, reach_m: f64::INFINITY, reach_up_m: f64::INFINITY, origin: (0, 0) };
+        let patch = PatchMorph { stride: 1, origin: (32, 0), ..owner };
+        let w = vertex_weights(patch, (0, 3), [None, None, None, Some(owner)], |_, _| 1.0);
         assert_eq!(w.own, vec![((32, 3), 1.0)]);
         assert_eq!(w.edge, Some(vec![((32, 0), 0.25), ((32, 4), 0.75)]));
         // Off that side, and at a corner, it stands where its own morph puts it.
         for (a, b) in [(1, 3), (0, 0), (0, 32)] {
-            let w = vertex_weights(
-                1,
-                f64::INFINITY,
-                f64::INFINITY,
-                (32, 0),
-                (a, b),
-                [None, None, None, Some(owner)],
-                |_, _| 1.0,
-            );
+            let w = vertex_weights(patch, (a, b), [None, None, None, Some(owner)], |_, _| 1.0);
             assert_eq!(w.edge, None, "({a}, {b})");
         }
         // Moved across to the edge, at its own height along the normal.
