@@ -22,6 +22,8 @@ const PATCH_CELLS: u32 = 32u;
 const MORPH: bool = true;
 // A height slot of no data, and the value a sample without data is stored as.
 const NODATA_BELOW: f32 = -1.0e37;
+// A sample that is not there: past a quad whose neighbour there is not current (read as no data).
+const MISSING: f32 = -3.0e38;
 // Newton steps that carry a pixel from the mesh's point to the data's along its ray (on_data).
 const PARALLAX_STEPS: u32 = 3u;
 
@@ -71,6 +73,10 @@ struct Quad {
     // The height slots of the ancestors 1 … 5 levels up (NO_SLOT: none current), unused, and the
     // quad's x and y (their low bits place it in each ancestor).
     ancestry: array<vec4<u32>, 2>,
+    // The height slots of the eight quads around it at its level (south-west, south, south-east,
+    // west, east, north-west, north, north-east; NO_SLOT where one is not current or over the
+    // face's edge): a pixel near the quad's edge reads the samples past it there (block).
+    around: array<vec4<u32>, 2>,
 }
 
 struct Patch {
@@ -417,64 +423,123 @@ struct Pixel {
     dh_valid: f32,
     // ∂dh/∂i and ∂dh/∂j of its bilinear cell, metres per sample (0 where a corner has no data).
     dh_gradient: vec2<f32>,
-    // The sample (a, b) at or below the pixel, and the fraction beyond it.
-    cell: vec2<u32>,
-    fraction: vec2<f32>,
 }
 
-// Sample (i, j) of a height slot, the indices held inside the quad.
-fn slot_height(slot: u32, i: i32, j: i32) -> f32 {
-    let a = u32(clamp(i, 0, i32(N) - 1));
-    let b = u32(clamp(j, 0, i32(N) - 1));
-    return heights[slot * N * N + b * N + a];
+// Where a pixel may read: within a quad's width around its quad (a ray followed past the quad's
+// edge reads the neighbour's samples).
+fn held_coords(c: vec2<f32>) -> vec2<f32> {
+    return clamp(c, vec2<f32>(-f32(N - 1u)), vec2<f32>(2.0 * f32(N - 1u)));
 }
 
-// The central difference of a height slot at sample (a, b) along (di, dj), metres per sample:
-// one-sided at the quad's edge or beside a sample without data, 0 with neither neighbour.
-fn slot_slope(slot: u32, a: i32, b: i32, di: i32, dj: i32, h: f32) -> f32 {
-    let last = i32(N) - 1;
-    let lo_in = select(b > 0, a > 0, di != 0);
-    let hi_in = select(b < last, a < last, di != 0);
-    var lo = slot_height(slot, a - di, b - dj);
-    var hi = slot_height(slot, a + di, b + dj);
-    let lo_ok = lo_in && lo > NODATA_BELOW;
-    let hi_ok = hi_in && hi > NODATA_BELOW;
-    lo = select(h, lo, lo_ok);
-    hi = select(h, hi, hi_ok);
+// The data cell of coordinates x: the sample at or below it, and inside the quad its last cell
+// at the far edges (so that a pixel there reads only the quad's own samples).
+fn data_cell(x: vec2<f32>) -> vec2<i32> {
+    let c = vec2<i32>(floor(x));
+    let inside = (x >= vec2<f32>(0.0)) & (x <= vec2<f32>(f32(N - 1u)));
+    return select(c, min(c, vec2<i32>(i32(N) - 2)), inside);
+}
+
+// Which quad along each axis sample indices lie in: −1 before the quad, 0 in it (its edges
+// included), 1 past it.
+fn side_of(i: vec2<i32>) -> vec2<i32> {
+    return select(vec2<i32>(0), vec2<i32>(-1), i < vec2<i32>(0)) + select(vec2<i32>(0), vec2<i32>(1), i > vec2<i32>(i32(N) - 1));
+}
+
+// The height slot of the quad at side s of q at its level (0, 0: q's own): Quad.around.
+fn slot_beside(q: Quad, s: vec2<i32>) -> u32 {
+    let k = (s.y + 1) * 3 + s.x + 1;
+    var slot = q.slots.z;
+    slot = select(slot, q.around[0].x, k == 0);
+    slot = select(slot, q.around[0].y, k == 1);
+    slot = select(slot, q.around[0].z, k == 2);
+    slot = select(slot, q.around[0].w, k == 3);
+    slot = select(slot, q.around[1].x, k == 5);
+    slot = select(slot, q.around[1].y, k == 6);
+    slot = select(slot, q.around[1].z, k == 7);
+    slot = select(slot, q.around[1].w, k == 8);
+    return slot;
+}
+
+// Where sample `corner` of the quad's level lies in the quad at side s: the index of that
+// sample in its slot, or NO_SLOT where that quad is not current.
+fn index_beside(q: Quad, s: vec2<i32>, corner: vec2<i32>) -> u32 {
+    let slot = slot_beside(q, s);
+    let local = corner - s * i32(N - 1u);
+    return select(NO_SLOT, slot * N * N + u32(local.y) * N + u32(local.x), slot != NO_SLOT);
+}
+
+// The samples of the quad's level in the 4 × 4 block from sample `corner` (row by row from the
+// south, columns from the west), inside the quad or around it: each from the quad that holds it
+// (its own, or the one beside it through Quad.around), MISSING where that one is not current.
+// `which` 0 the heights, 1 the drawn difference; `size` 2 reads the 2 × 2 block (0, 1, 4, 5).
+// Without branches on the pixel (a CPU rasteriser runs every branch any lane of a block takes):
+// a block spans at most two quads along each axis, the corner's and the far corner's, and each
+// sample picks its quad's index by its column and row.
+fn block(which: u32, q: Quad, corner: vec2<i32>, size: i32) -> array<f32, 16> {
+    let s0 = side_of(corner);
+    let s1 = side_of(corner + size - 1);
+    let base = array<u32, 4>(
+        index_beside(q, s0, corner),
+        index_beside(q, vec2<i32>(s1.x, s0.y), corner),
+        index_beside(q, vec2<i32>(s0.x, s1.y), corner),
+        index_beside(q, s1, corner),
+    );
+    // Per column and row, whether its samples lie in the far corner's quad.
+    let far = array<vec2<bool>, 4>(
+        side_of(corner) != s0,
+        side_of(corner + 1) != s0,
+        side_of(corner + 2) != s0,
+        side_of(corner + 3) != s0,
+    );
+    var z: array<f32, 16>;
+    for (var r = 0u; r < u32(size); r++) {
+        for (var c = 0u; c < u32(size); c++) {
+            // Each base counts from the block's corner in its quad's samples (wrapping where the
+            // corner lies before that quad: the sample's own index is what the sum comes to).
+            let at = base[u32(far[c].x) + 2u * u32(far[r].y)];
+            let v = select(heights[at + r * N + c], overlay[at + r * N + c], which == 1u);
+            z[4u * r + c] = select(MISSING, v, at != NO_SLOT);
+        }
+    }
+    return z;
+}
+
+// The central difference between the samples lo and hi either side of h, metres per sample:
+// one-sided beside a sample without data or not current, 0 with neither.
+fn central_difference(lo: f32, h: f32, hi: f32) -> f32 {
+    let lo_ok = lo > NODATA_BELOW;
+    let hi_ok = hi > NODATA_BELOW;
     let span = f32(u32(lo_ok) + u32(hi_ok));
-    return select(0.0, (hi - lo) / max(span, 1.0), span > 0.0);
+    return select(0.0, (select(h, hi, hi_ok) - select(h, lo, lo_ok)) / max(span, 1.0), span > 0.0);
 }
 
 fn pixel_data(q: Quad, coords: vec2<f32>) -> Pixel {
     var out: Pixel;
-    let x = clamp(coords, vec2<f32>(0.0), vec2<f32>(f32(N - 1u)));
-    let cell = min(vec2<u32>(floor(x)), vec2<u32>(N - 2u));
+    let x = held_coords(coords);
+    let cell = data_cell(x);
     let f = x - vec2<f32>(cell);
-    out.cell = cell;
-    out.fraction = f;
     out.height = q.params.z;
     out.valid = 0.0;
     out.gradient = vec2<f32>(0.0);
     out.dh = 0.0;
     out.dh_valid = 0.0;
     out.dh_gradient = vec2<f32>(0.0);
-    let slot = q.slots.z;
-    if slot == NO_SLOT {
+    if q.slots.z == NO_SLOT {
         return out;
     }
-    let a = i32(cell.x);
-    let b = i32(cell.y);
-    let h = array<f32, 4>(slot_height(slot, a, b), slot_height(slot, a + 1, b), slot_height(slot, a, b + 1), slot_height(slot, a + 1, b + 1));
+    // The 4 × 4 samples around the cell, its corners 5, 6, 9 and 10: the central differences at
+    // the corners read past the quad's edge where the quad beside it is current.
+    let z = block(0u, q, cell - 1, 4);
+    let h = array<f32, 4>(z[5], z[6], z[9], z[10]);
     let w = array<f32, 4>((1.0 - f.x) * (1.0 - f.y), f.x * (1.0 - f.y), (1.0 - f.x) * f.y, f.x * f.y);
     let all = h[0] > NODATA_BELOW && h[1] > NODATA_BELOW && h[2] > NODATA_BELOW && h[3] > NODATA_BELOW;
     if all {
         var sum = 0.0;
         var g = vec2<f32>(0.0);
         for (var c = 0u; c < 4u; c++) {
-            let ca = a + i32(c & 1u);
-            let cb = b + i32(c / 2u);
+            let m = 5u + (c & 1u) + 4u * (c / 2u);
             sum += w[c] * h[c];
-            g += w[c] * vec2<f32>(slot_slope(slot, ca, cb, 1, 0, h[c]), slot_slope(slot, ca, cb, 0, 1, h[c]));
+            g += w[c] * vec2<f32>(central_difference(z[m - 1u], h[c], z[m + 1u]), central_difference(z[m - 4u], h[c], z[m + 4u]));
         }
         out.height = sum;
         out.valid = 1.0;
@@ -488,8 +553,8 @@ fn pixel_data(q: Quad, coords: vec2<f32>) -> Pixel {
         }
     }
     if frame.difference.w > 0.5 {
-        let base = slot * N * N + cell.y * N + cell.x;
-        let d = array<f32, 4>(overlay[base], overlay[base + 1u], overlay[base + N], overlay[base + N + 1u]);
+        let o = block(1u, q, cell, 2);
+        let d = array<f32, 4>(o[0], o[1], o[4], o[5]);
         if d[0] > NODATA_BELOW && d[1] > NODATA_BELOW && d[2] > NODATA_BELOW && d[3] > NODATA_BELOW {
             out.dh = w[0] * d[0] + w[1] * d[1] + w[2] * d[2] + w[3] * d[3];
             out.dh_valid = 1.0;
@@ -601,18 +666,18 @@ fn ramp_colour(h: f32) -> vec4<f32> {
     return a.colour + (b.colour - a.colour) * w;
 }
 
-// The bilinear height of a height slot at sample coordinates c and its derivatives along i and
-// j (metres, metres per sample); w 1 where the cell's four samples have data.
-fn cell_height(slot: u32, c: vec2<f32>) -> vec4<f32> {
-    let x = clamp(c, vec2<f32>(0.0), vec2<f32>(f32(N - 1u)));
-    let cell = min(vec2<u32>(floor(x)), vec2<u32>(N - 2u));
+// The bilinear height of the quad's level at sample coordinates c (inside the quad or around it:
+// block) and its derivatives along i and j (metres, metres per sample); w 1 where the cell's
+// four samples have data.
+fn cell_height(q: Quad, c: vec2<f32>) -> vec4<f32> {
+    let x = held_coords(c);
+    let cell = data_cell(x);
     let f = x - vec2<f32>(cell);
-    let a = i32(cell.x);
-    let b = i32(cell.y);
-    let h00 = slot_height(slot, a, b);
-    let h10 = slot_height(slot, a + 1, b);
-    let h01 = slot_height(slot, a, b + 1);
-    let h11 = slot_height(slot, a + 1, b + 1);
+    let z = block(0u, q, cell, 2);
+    let h00 = z[0];
+    let h10 = z[1];
+    let h01 = z[4];
+    let h11 = z[5];
     let valid = min(min(h00, h10), min(h01, h11)) > NODATA_BELOW;
     let h = mix(mix(h00, h10, f.x), mix(h01, h11, f.x), f.y);
     let di = mix(h10 - h00, h11 - h01, f.y);
@@ -667,9 +732,11 @@ fn cell_at(q: Quad, known: GroundCell, c: vec2<f32>) -> GroundCell {
     return ground_cell(q, cell);
 }
 
-// The frame at c, inside cell g (c clamped to the quad).
+// The frame at c, from cell g: bilinear inside it, and carried on from the quad's edge cell g
+// where c lies past the quad (a pixel reading its neighbour's data: the ellipsoid's frame turns
+// by a sample's angle over a sample, which the extrapolation follows to first order).
 fn frame_in(q: Quad, g: GroundCell, c: vec2<f32>) -> GroundFrame {
-    let f = clamp(c, vec2<f32>(0.0), vec2<f32>(f32(N - 1u))) - vec2<f32>(g.cell);
+    let f = held_coords(c) - vec2<f32>(g.cell);
     let along_i = mix(g.p10 - g.p00, g.p11 - g.p01, f.y);
     let along_j = mix(g.p01 - g.p00, g.p11 - g.p10, f.x);
     let n = normalize(cross(along_i, along_j));
@@ -785,7 +852,7 @@ fn on_data(q: Quad, in: VertexOut, ray: Ray, under: Under) -> Follow {
     let bend = 0.5 * (1.0 - climb * climb) / radius_of(q);
     var t = 0.0;
     for (var k = 0u; k < PARALLAX_STEPS; k++) {
-        let d = cell_height(slot, start + rate * t);
+        let d = cell_height(q, start + rate * t);
         if d.w < 0.5 {
             return out;
         }
@@ -796,7 +863,7 @@ fn on_data(q: Quad, in: VertexOut, ray: Ray, under: Under) -> Follow {
         }
         t = clamp(t - miss / slope, -most, most);
     }
-    out.coords = clamp(start + rate * t, vec2<f32>(0.0), vec2<f32>(f32(N - 1u)));
+    out.coords = held_coords(start + rate * t);
     out.rate = rate;
     out.climb = climb;
     out.moved = true;
@@ -943,8 +1010,9 @@ struct ProbeOut {
     @location(0) colour: vec4<f32>,
     // Camera-relative position (metres) and the height the pixel read (metres).
     @location(1) surface: vec4<f32>,
-    // Quad index + 1, the sample coordinates the pixel read (i, j) in 1/256 of a sample; w: bit 0
-    // the pixel has data, bit 1 a skirt, the patch's stride from bit 2 on.
+    // Quad index + 1, the sample coordinates the pixel read (i, j) in 1/256 of a sample from a
+    // quad's width west and south of the quad (a pixel may read past the quad's edge:
+    // held_coords); w: bit 0 the pixel has data, bit 1 a skirt, the patch's stride from bit 2 on.
     @location(2) id: vec4<u32>,
 }
 
@@ -965,7 +1033,7 @@ fn probe(in: VertexOut, follow: bool) -> ProbeOut {
     var out: ProbeOut;
     out.colour = s.colour;
     out.surface = vec4<f32>(in.rel, s.px.height);
-    let at = vec2<u32>(round(clamp(s.coords, vec2<f32>(0.0), vec2<f32>(f32(N - 1u))) * PROBE_SUBSAMPLES));
+    let at = vec2<u32>(round((held_coords(s.coords) + f32(N - 1u)) * PROBE_SUBSAMPLES));
     out.id = vec4<u32>(in.quad + 1u, at.x, at.y, select(0u, 1u, s.px.valid > 0.5) + 2u * in.kind);
     return out;
 }

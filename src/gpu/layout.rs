@@ -71,7 +71,7 @@ mod tests {
                 "QuadInstance",
                 "terrain.wgsl",
                 "Quad",
-                layout!(QuadInstance { anchor, corners, normals, sym, slots, params, lod, ancestry }),
+                layout!(QuadInstance { anchor, corners, normals, sym, slots, params, lod, ancestry, around }),
             ),
             (
                 "PatchInstance",

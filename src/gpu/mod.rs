@@ -23,5 +23,7 @@ mod uniforms;
 pub use context::{GpuContext, GpuError};
 pub use editing::Editor;
 pub use renderer::{ComposeCounters, FrameStats, Renderer};
-pub use targets::{DrawMode, FrameTargets, ID_FORMAT, IMAGE_FORMAT, PROBE_SUBSAMPLES, RenderedImage, SURFACE_FORMAT};
+pub use targets::{
+    DrawMode, FrameTargets, ID_FORMAT, IMAGE_FORMAT, PROBE_ORIGIN, PROBE_SUBSAMPLES, RenderedImage, SURFACE_FORMAT,
+};
 pub use uniforms::QuadInstance;

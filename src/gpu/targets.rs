@@ -6,6 +6,9 @@ use super::context::GpuError;
 
 /// The probe's unit of sample coordinates, per sample (the terrain shader's `PROBE_SUBSAMPLES`).
 pub const PROBE_SUBSAMPLES: u32 = 256;
+/// Where the probe's sample coordinates count from: a quad's width (256 samples) west and south
+/// of the quad, in its units, since a pixel may read the data past its quad's edge.
+pub const PROBE_ORIGIN: u32 = 256 * PROBE_SUBSAMPLES;
 
 /// The colour format of images the renderer writes (the shader encodes sRGB itself, as a window
 /// surface of egui-wgpu needs).
@@ -28,7 +31,7 @@ pub struct RenderedImage {
     /// where nothing was drawn. Only with the probe.
     pub surface: Option<Vec<[f32; 4]>>,
     /// Per pixel: quad index + 1 (0: nothing), the sample coordinates i and j the pixel's data
-    /// were read at in 1/[`PROBE_SUBSAMPLES`] of a sample, flags (bit 0 data, bit 1 skirt, the
+    /// were read at in 1/[`PROBE_SUBSAMPLES`] of a sample from [`PROBE_ORIGIN`], flags (bit 0 data, bit 1 skirt, the
     /// patch's stride from bit 2 on). Only with the probe.
     pub ids: Option<Vec<[u32; 4]>>,
     /// GPU time of the terrain pass, milliseconds (where timestamps exist).

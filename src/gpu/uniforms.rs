@@ -36,6 +36,7 @@ pub struct QuadInstance {
     pub(crate) params: [f32; 4],
     pub(crate) lod: [f32; 4],
     pub(crate) ancestry: [[u32; 4]; 2],
+    pub(crate) around: [[u32; 4]; 2],
 }
 
 impl QuadInstance {
@@ -97,5 +98,5 @@ pub(crate) fn rgba(c: [u8; 4]) -> [f32; 4] {
 }
 
 const _: () = assert!(std::mem::size_of::<FrameUniform>() == 64 + 11 * 16);
-const _: () = assert!(std::mem::size_of::<QuadInstance>() == 16 * (1 + 4 + 4 + 3 + 1 + 1 + 1 + 2));
+const _: () = assert!(std::mem::size_of::<QuadInstance>() == 16 * (1 + 4 + 4 + 3 + 1 + 1 + 1 + 2 + 2));
 const _: () = assert!(std::mem::size_of::<PatchInstance>() == 48);

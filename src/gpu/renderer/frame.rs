@@ -1,6 +1,7 @@
 //! The values a prepared frame hands the shader beside its quads and patches: the frame uniform
-//! (camera, visuals, brush, geomorph band) and each quad's ancestry (the slots of the ancestors
-//! whose data its strided patches show).
+//! (camera, visuals, brush, geomorph band) and where each quad's pixels find data beyond its own
+//! slot: its ancestry (the slots of the ancestors whose samples window attributes read) and the
+//! slots of the quads around it at its level (whose samples a pixel near its edge reads).
 
 use super::*;
 
@@ -14,13 +15,39 @@ impl Renderer {
             if up > quad.level {
                 break;
             }
-            let a = quad.ancestor_at(quad.level - up);
-            let plan = self.cache.plan(&self.scene, a);
-            if plan.has_data(&self.scene.stack) && self.composed.get(&a) == Some(&plan.stamp) {
-                *slot = self.heights_pool.get(a).unwrap_or(NO_SLOT);
-            }
+            *slot = self.current_slot(quad.ancestor_at(quad.level - up));
         }
         [[slots[0], slots[1], slots[2], slots[3]], [slots[4], 0, quad.x, quad.y]]
+    }
+
+    /// The height slot of `quad` where its composition is current, NO_SLOT otherwise.
+    fn current_slot(&mut self, quad: QuadId) -> u32 {
+        let plan = self.cache.plan(&self.scene, quad);
+        if plan.has_data(&self.scene.stack) && self.composed.get(&quad) == Some(&plan.stamp) {
+            self.heights_pool.get(quad).unwrap_or(NO_SLOT)
+        } else {
+            NO_SLOT
+        }
+    }
+
+    /// The current height slots of the eight quads around `quad` at its level on its face
+    /// (south-west, south, south-east, west, east, north-west, north, north-east), NO_SLOT where
+    /// one is not resident, not current, or over the face's edge: the indirection through which
+    /// a pixel near the quad's edge reads the samples past it (the shader's `quad_sample`).
+    /// Resolved here once per quad rather than per pixel through a page table on the GPU: a CPU
+    /// rasteriser runs every branch any lane of a block takes, and a hashed lookup per sample
+    /// read cost lavapipe 1.5–2.4× the terrain pass (measured 2026-12-07, BENCHMARKS.md).
+    pub(super) fn around(&mut self, quad: QuadId) -> [[u32; 4]; 2] {
+        let mut slots = [NO_SLOT; 8];
+        let last = quad.quads_per_edge() as i64 - 1;
+        let sides = [(-1, -1), (0, -1), (1, -1), (-1, 0), (1, 0), (-1, 1), (0, 1), (1, 1)];
+        for (slot, (dx, dy)) in slots.iter_mut().zip(sides) {
+            let (x, y) = (i64::from(quad.x) + dx, i64::from(quad.y) + dy);
+            if (0..=last).contains(&x) && (0..=last).contains(&y) {
+                *slot = self.current_slot(QuadId { x: x as u32, y: y as u32, ..quad });
+            }
+        }
+        [[slots[0], slots[1], slots[2], slots[3]], [slots[4], slots[5], slots[6], slots[7]]]
     }
 
     pub(super) fn write_frame(&self, camera: &Camera, width: u32, height: u32) {

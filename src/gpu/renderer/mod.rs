@@ -707,6 +707,7 @@ impl Renderer {
                 stats.flat_quads += 1;
             }
             let ancestry = self.ancestry(quad);
+            let around = self.around(quad);
             let current = height_slot != NO_SLOT && self.composed.get(&quad) == Some(&plan.stamp);
             let key: ErrorKey = plan.stamp;
             let bound = relief + roughness * exaggeration;
@@ -740,6 +741,7 @@ impl Renderer {
                 ],
                 lod: [spacing as f32, 0.0, 0.0, 0.0],
                 ancestry,
+                around,
             });
         }
         if !self.instances.is_empty() {
