@@ -494,9 +494,9 @@ pub fn select_patches(
 }
 
 /// Whether a neighbour owns the edge it shares with a patch: drawn coarser, or at the same stride
-/// morphing otherwise and earlier in the quad (`index`: py · 8 + px), so that of two patches that
-/// would place the edge's vertices apart exactly one defers to the other.
-pub fn owns_edge(neighbour: (u32, f64, f64), neighbour_index: u32, own: (u32, f64, f64), index: u32) -> bool {
+/// morphing otherwise (their [`MorphKey`]s) and earlier in the quad (`index`: py · 8 + px), so
+/// that of two patches that would place the edge's vertices apart exactly one defers to the other.
+pub fn owns_edge(neighbour: MorphKey, neighbour_index: u32, own: MorphKey, index: u32) -> bool {
     neighbour.0 > own.0 || (neighbour.0 == own.0 && neighbour != own && neighbour_index < index)
 }
 
@@ -518,17 +518,13 @@ fn stand_on_owned_edges(patches: &mut Vec<Patch>) {
         let (x, y) = (p.px as i32 + dx, p.py as i32 + dy);
         ((0..n).contains(&x) && (0..n).contains(&y)).then(|| at.get(&(p.quad, x, y)).copied()).flatten()
     };
-    let key = |p: &Patch| {
-        let (r, u) =
-            if p.morphs { (f64::from(p.reach_m), f64::from(p.reach_up_m)) } else { (f64::INFINITY, f64::INFINITY) };
-        (p.stride, r, u)
-    };
     let index = |p: &Patch| p.py * PATCHES_PER_EDGE + p.px;
     let sides: Vec<[Option<usize>; 4]> = patches
         .iter()
         .map(|p| {
             SIDES.map(|(_, step)| {
-                neighbour(p, step).filter(|&k| owns_edge(key(&patches[k]), index(&patches[k]), key(p), index(p)))
+                neighbour(p, step)
+                    .filter(|&k| owns_edge(morph_key(&patches[k]), index(&patches[k]), morph_key(p), index(p)))
             })
         })
         .collect();
@@ -553,8 +549,14 @@ fn stand_on_owned_edges(patches: &mut Vec<Patch>) {
     *patches = sorted;
 }
 
-/// What decides where a patch's edge vertices stand: its stride, and its reaches where it morphs.
-fn morph_key(p: &Patch) -> (u32, u32, u32) {
+/// What decides where a patch's edge vertices stand: its stride, and the bits of its reaches
+/// where it morphs (`u32::MAX` twice where it does not). Two neighbours of equal keys place their
+/// shared vertices alike (no skirt, no owner between them); the stride comes first, so a larger
+/// key's patch is the coarser.
+pub type MorphKey = (u32, u32, u32);
+
+/// A patch's [`MorphKey`].
+fn morph_key(p: &Patch) -> MorphKey {
     if p.morphs { (p.stride, p.reach_m.to_bits(), p.reach_up_m.to_bits()) } else { (p.stride, u32::MAX, u32::MAX) }
 }
 
@@ -653,11 +655,12 @@ mod tests {
 
     #[test]
     fn exactly_one_of_two_neighbours_owns_their_edge_and_the_other_stands_on_it_sideways() {
-        let (fine, coarse) = ((1, 10.0, 20.0), (4, 10.0, 20.0));
+        let key = |stride: u32, r: f32, u: f32| (stride, r.to_bits(), u.to_bits());
+        let (fine, coarse) = (key(1, 10.0, 20.0), key(4, 10.0, 20.0));
         assert!(owns_edge(coarse, 0, fine, 1) && !owns_edge(fine, 1, coarse, 0));
         // The same stride: none where they morph alike, the earlier where they do not.
         assert!(!owns_edge(fine, 0, fine, 1) && !owns_edge(fine, 1, fine, 0));
-        let other = (1, 30.0, 20.0);
+        let other = key(1, 30.0, 20.0);
         assert!(owns_edge(other, 0, fine, 1) && !owns_edge(fine, 1, other, 0));
         // A stride-1 patch at (32, 0) whose west neighbour (origin (0, 0)) is drawn every 4
         // samples: its vertex (0, 3) stands on that edge between samples (32, 0) and (32, 4).
