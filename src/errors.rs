@@ -22,6 +22,30 @@ impl Invalid {
     }
 }
 
+/// A value that breaks its field's rule, the field kept apart from the problem: for checks whose
+/// callers name the field their own way (a command-line flag for `steps`, a layer's path, an
+/// operation's index). `field` is a dotted path inside the checked value (`brush.radius_m`).
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("{field}: {problem}")]
+pub struct FieldProblem {
+    /// The field's path inside the checked value.
+    pub field: String,
+    /// What is wrong with its value, in words.
+    pub problem: String,
+}
+
+impl FieldProblem {
+    /// The problem of `field`.
+    pub fn new(field: impl Into<String>, problem: impl Into<String>) -> FieldProblem {
+        FieldProblem { field: field.into(), problem: problem.into() }
+    }
+
+    /// The same problem one step down a dotted path: `path.field`.
+    pub fn under(self, path: impl std::fmt::Display) -> FieldProblem {
+        FieldProblem { field: format!("{path}.{}", self.field), ..self }
+    }
+}
+
 /// A result whose error, in words, breaks the rule of a named field.
 pub trait AtField<T> {
     /// The error as [`Invalid`] under `field`: `field: problem`.

@@ -337,7 +337,8 @@ fn no_two_files_of_a_module_import_each_other() {
 #[test]
 fn library_errors_are_typed_not_strings() {
     // A failure a caller may act on is a value of a thiserror type, never a `Result<_, String>`:
-    // a string can only be shown, not matched, and its causes are lost (issue 52). Nor is an
+    // a string can only be shown, not matched, and its causes are lost (issue 52); nor a pair of
+    // strings for a field and its problem (`errors::FieldProblem`). Nor is an
     // error flattened into words on its way up (`map_err(|e| format!(…))`): it goes under a field
     // (`errors::AtField`, `Invalid::at`) or a context that keeps it as the cause (`within`,
     // `context`), or becomes a typed error of its own.
@@ -350,7 +351,9 @@ fn library_errors_are_typed_not_strings() {
         let code = code_of(&std::fs::read_to_string(&file).unwrap());
         for (k, line) in code.lines().enumerate() {
             let squeezed: String = line.chars().filter(|c| !c.is_whitespace()).collect();
-            if squeezed.contains("Result<") && squeezed.contains(",String>") {
+            // Nor a (field, problem) pair of strings, which callers took apart by matching the
+            // field's name: `errors::FieldProblem`.
+            if squeezed.contains("Result<") && (squeezed.contains(",String>") || squeezed.contains(",String)>")) {
                 problems.push(format!("{}:{}: {}", file.display(), k + 1, line.trim()));
             }
         }

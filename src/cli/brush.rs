@@ -8,6 +8,7 @@ use std::fmt::Write as _;
 use std::path::PathBuf;
 
 use crate::edit::{Falloff, Stroke, Tool};
+use crate::errors::FieldProblem;
 use crate::project::Project;
 use crate::scene::{Edits, Scene};
 use crate::store::grid::spacing_m;
@@ -227,8 +228,8 @@ fn stroke_of(
         seed: request.seed.unwrap_or(0),
         height_m: request.height_m,
     };
-    stroke.check(body_radius_m).map_err(|(field, problem)| {
-        let flag = match field {
+    stroke.check(body_radius_m).map_err(|FieldProblem { field, problem }| {
+        let flag = match field.as_str() {
             "radius_m" => "--radius-m",
             "strength" if tool.strength_in_metres() => "--strength-m",
             "strength" => "--strength",

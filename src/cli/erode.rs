@@ -355,7 +355,7 @@ fn change_of(project: &mut Project, request: &ErodeRequest) -> Result<(usize, St
         device: Device::Cpu,
     };
     // Every check a run makes, before the layers are opened: a refused run costs nothing.
-    op.check().map_err(|(field, problem)| CliError::Usage(format!("{}: {problem}", flag_of(&field))))?;
+    op.check().map_err(|e| CliError::Usage(format!("{}: {}", flag_of(&e.field), e.problem)))?;
     let placed = crate::erosion::region::Region::from_box(&ellipsoid, region, level).within("--region")?;
     let tiles = (placed.width / 256 * (placed.height / 256)) as f64;
     let what = format!("the run on {} × {} cells at level {level}", placed.width, placed.height);

@@ -140,10 +140,10 @@ impl EditRaster {
     ) -> Result<EditRaster, StrokeError> {
         // Every stroke checked before any is rasterised (a bad level must not set the raster's).
         for (index, stroke) in strokes.iter().enumerate() {
-            stroke.check(ellipsoid.a_m()).map_err(|(f, p)| StrokeError {
+            stroke.check(ellipsoid.a_m()).map_err(|e| StrokeError {
                 index,
-                field: f.into(),
-                problem: p,
+                field: e.field,
+                problem: e.problem,
                 cause: None,
             })?;
         }
@@ -332,7 +332,7 @@ impl EditRaster {
     /// A stroke's dabs and the quads of the raster's level within reach of one of them.
     fn footprint(&self, index: usize, stroke: &Stroke) -> Result<(Vec<Dab>, BTreeSet<QuadId>), StrokeError> {
         let err = |field: &str, problem: String| StrokeError { index, field: field.into(), problem, cause: None };
-        stroke.check(self.ellipsoid.a_m()).map_err(|(f, p)| err(f, p))?;
+        stroke.check(self.ellipsoid.a_m()).map_err(|e| err(&e.field, e.problem))?;
         if stroke.level > self.level {
             return Err(err("level", format!("{} is finer than the raster's level {}", stroke.level, self.level)));
         }

@@ -24,7 +24,7 @@
 //! - `ramp`: T runs linearly from H under the path's first point to H under its last, by the
 //!   sample's position along the chord between them (clamped beyond both).
 
-use crate::errors::AtField;
+use crate::errors::{AtField, FieldProblem};
 use serde::{Deserialize, Serialize};
 
 /// What a stroke does.
@@ -188,11 +188,10 @@ pub const MAX_DABS: usize = 1_000_000;
 pub const MAX_LEVEL: u8 = 24;
 
 impl Stroke {
-    /// Checks what serde cannot; `radius_m` is the body's semi-major axis. Returns the field and
-    /// the problem.
-    pub fn check(&self, body_radius_m: f64) -> Result<(), (&'static str, String)> {
+    /// Checks what serde cannot; `radius_m` is the body's semi-major axis.
+    pub fn check(&self, body_radius_m: f64) -> Result<(), FieldProblem> {
         if !(self.radius_m.is_finite() && self.radius_m > 0.0 && self.radius_m <= body_radius_m) {
-            return Err((
+            return Err(FieldProblem::new(
                 "radius_m",
                 format!(
                     "{} must be a distance in metres within (0, {body_radius_m:.0}] (the body's radius)",
@@ -208,20 +207,29 @@ impl Stroke {
         if !strength_ok {
             let unit =
                 if self.tool.strength_in_metres() { "metres per dab within ±100000" } else { "a fraction in [0, 1]" };
-            return Err(("strength", format!("{} must be {unit} for {}", self.strength, self.tool.name())));
+            return Err(FieldProblem::new(
+                "strength",
+                format!("{} must be {unit} for {}", self.strength, self.tool.name()),
+            ));
         }
         if !(self.spacing.is_finite() && self.spacing >= 0.01 && self.spacing <= 10.0) {
-            return Err(("spacing", format!("{} must be a fraction of the radius within [0.01, 10]", self.spacing)));
+            return Err(FieldProblem::new(
+                "spacing",
+                format!("{} must be a fraction of the radius within [0.01, 10]", self.spacing),
+            ));
         }
         if self.level > MAX_LEVEL {
-            return Err(("level", format!("{} must be at most {MAX_LEVEL}", self.level)));
+            return Err(FieldProblem::new("level", format!("{} must be at most {MAX_LEVEL}", self.level)));
         }
         if self.path.is_empty() || self.path.len() > MAX_PATH_POINTS {
-            return Err(("path", format!("{} points: a path has 1 to {MAX_PATH_POINTS}", self.path.len())));
+            return Err(FieldProblem::new(
+                "path",
+                format!("{} points: a path has 1 to {MAX_PATH_POINTS}", self.path.len()),
+            ));
         }
         for (k, [lat, lon]) in self.path.iter().enumerate() {
             if !(lat.is_finite() && lon.is_finite() && lat.abs() <= 90.0 && lon.abs() <= 180.0) {
-                return Err((
+                return Err(FieldProblem::new(
                     "path",
                     format!(
                         "point {k} [{lat}, {lon}] is not [lat, lon] in degrees (latitude within ±90, longitude within ±180)"
@@ -232,16 +240,19 @@ impl Stroke {
         if let Some(h) = self.height_m
             && !h.is_finite()
         {
-            return Err(("height_m", format!("{h} must be finite")));
+            return Err(FieldProblem::new("height_m", format!("{h} must be finite")));
         }
         if self.tool == Tool::Ramp && (self.path.len() < 2 || self.path.first() == self.path.last()) {
-            return Err((
+            return Err(FieldProblem::new(
                 "path",
-                "a ramp runs from the path's first point to its last: give two different points".into(),
+                "a ramp runs from the path's first point to its last: give two different points",
             ));
         }
         if self.height_m.is_some() && self.tool != Tool::Flatten {
-            return Err(("height_m", format!("is the flatten height; a {} stroke has none", self.tool.name())));
+            return Err(FieldProblem::new(
+                "height_m",
+                format!("is the flatten height; a {} stroke has none", self.tool.name()),
+            ));
         }
         Ok(())
     }

@@ -210,7 +210,7 @@ fn prepare_grid(
     below: &Below,
 ) -> Result<(Region, Grid), OperationError> {
     let err = |field: &str, problem: String| OperationError { index, field: field.into(), problem, cause: None };
-    op.check().map_err(|(f, p)| err(&f, p))?;
+    op.check().map_err(|e| err(&e.field, e.problem))?;
     if raster.level != op.level && !raster.tiles.is_empty() {
         return Err(err(
             "level",

@@ -14,6 +14,7 @@ use serde::{Deserialize, Serialize};
 
 use super::landscape::LandscapeParams;
 use super::params::Params;
+use crate::errors::FieldProblem;
 use crate::geodesy::GeoBox;
 
 /// One erosion run.
@@ -107,16 +108,16 @@ pub struct BrushPath {
 pub const MAX_STEPS: u64 = 10_000_000;
 
 impl Operation {
-    /// Checks the fields a run does not check itself: (field, problem).
-    pub fn check(&self) -> Result<(), (String, String)> {
-        let bad = |field: &str, problem: String| Err((field.to_string(), problem));
+    /// Checks the fields a run does not check itself.
+    pub fn check(&self) -> Result<(), FieldProblem> {
+        let bad = |field: &str, problem: String| Err(FieldProblem::new(field, problem));
         match (self.model, &self.stream_power) {
             (Model::StreamPower, None) => return bad("stream_power", "a stream-power run needs its parameters".into()),
             (Model::Hydraulic, Some(_)) => {
                 return bad("model", "stream_power parameters are given but the model is hydraulic".into());
             }
             (Model::StreamPower, Some(p)) => {
-                p.check().map_err(|e| (format!("stream_power.{}", e.field), e.problem))?;
+                p.check().map_err(|e| FieldProblem::new(e.field, e.problem).under("stream_power"))?;
                 if self.steps != p.steps() {
                     return bad(
                         "steps",
@@ -134,7 +135,7 @@ impl Operation {
         }
         self.params
             .check()
-            .map_err(|e| (format!("params.{}", e.field), format!("{} is outside {}", e.value, e.range)))?;
+            .map_err(|e| FieldProblem::new(e.field, format!("{} is outside {}", e.value, e.range)).under("params"))?;
         if let Some(b) = &self.brush {
             if !(b.radius_m.is_finite() && b.radius_m > 0.0) {
                 return bad("brush.radius_m", format!("{} must be a positive distance in metres", b.radius_m));

@@ -52,6 +52,11 @@ impl LayerError {
         LayerError { layer: layer.into(), field: field.into(), problem, cause: None }
     }
 
+    /// A field's problem found by a check, as one layer's error.
+    pub fn of_field(layer: &str, p: crate::errors::FieldProblem) -> LayerError {
+        LayerError { layer: layer.into(), field: p.field, problem: p.problem, cause: None }
+    }
+
     /// A failure under one field of one layer: `problem` says what could not be done, `cause`
     /// why.
     pub fn caused(layer: &str, field: &str, problem: &str, cause: impl Into<crate::errors::Failure>) -> LayerError {

@@ -99,7 +99,7 @@ impl Editor {
         let (mut spec, _) = erosion_layer(r.scene(), index)?;
         let applied = spec.applied_runs().len();
         op.steps = run.steps;
-        op.check().map_err(|(f, p)| LayerError::field(&spec.name, &format!("runs[{applied}].{f}"), p))?;
+        op.check().map_err(|e| LayerError::of_field(&spec.name, e.under(format_args!("runs[{applied}]"))))?;
         let outcome = layer::finish(&mut base, applied, region, run, seconds);
         spec.record_run(op)?;
         r.with_scene(|s| {

@@ -24,6 +24,7 @@ use std::path::PathBuf;
 use serde::{Deserialize, Serialize};
 
 use super::LayerError;
+use crate::errors::FieldProblem;
 
 /// What a layer is.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, schemars::JsonSchema)]
@@ -812,15 +813,14 @@ impl LayerSpec {
             }
         };
         match &self.payload {
-            LayerPayload::Dataset(d) => {
-                check_dataset(d, radius_m).map_err(|(f, p)| LayerError::field(&self.name, f, p))
-            }
+            LayerPayload::Dataset(d) => check_dataset(d, radius_m).map_err(|e| LayerError::of_field(&self.name, e)),
             LayerPayload::Constant(c) if !c.height_m.is_finite() => {
                 bad("height_m", format!("{} must be finite", c.height_m))
             }
             LayerPayload::Constant(_) => Ok(()),
-            LayerPayload::Procedural(p) => check_noise(&p.noise, radius_m)
-                .map_err(|(f, problem)| LayerError::field(&self.name, &format!("noise.{f}"), problem)),
+            LayerPayload::Procedural(p) => {
+                check_noise(&p.noise, radius_m).map_err(|e| LayerError::of_field(&self.name, e.under("noise")))
+            }
             LayerPayload::Edit(e) => {
                 needs_add("edit")?;
                 if e.strokes.len() > MAX_STROKES {
@@ -837,7 +837,7 @@ impl LayerSpec {
                 for (k, stroke) in e.strokes.iter().enumerate() {
                     stroke
                         .check(radius_m)
-                        .map_err(|(f, p)| LayerError::field(&self.name, &format!("strokes[{k}].{f}"), p))?;
+                        .map_err(|e| LayerError::of_field(&self.name, e.under(format_args!("strokes[{k}]"))))?;
                 }
                 Ok(())
             }
@@ -852,7 +852,7 @@ impl LayerSpec {
                     return bad("applied", format!("{k} is past the {} runs", e.runs.len()));
                 }
                 for (k, run) in e.runs.iter().enumerate() {
-                    run.check().map_err(|(f, p)| LayerError::field(&self.name, &format!("runs[{k}].{f}"), p))?;
+                    run.check().map_err(|e| LayerError::of_field(&self.name, e.under(format_args!("runs[{k}]"))))?;
                     if run.level != e.runs[0].level {
                         return bad(
                             &format!("runs[{k}].level"),
@@ -908,22 +908,22 @@ impl LayerSpec {
     }
 }
 
-fn check_dataset(d: &DatasetLayer, radius_m: f64) -> Result<(), (&'static str, String)> {
+fn check_dataset(d: &DatasetLayer, radius_m: f64) -> Result<(), FieldProblem> {
     let widest = super::edge::quad_width_m(radius_m, 0);
     if !(d.feather_edge_m.is_finite() && d.feather_edge_m >= 0.0 && d.feather_edge_m <= widest) {
-        return Err((
+        return Err(FieldProblem::new(
             "feather_edge_m",
             format!("{} must be a distance in metres from 0 to {widest:.0} (a level-0 quad's width)", d.feather_edge_m),
         ));
     }
     if !(d.shift_m.iter().all(|v| v.is_finite() && v.abs() <= MAX_SHIFT_M)) {
-        return Err((
+        return Err(FieldProblem::new(
             "shift_m",
             format!("{:?} must be [east, north] in metres, each within ±{MAX_SHIFT_M}", d.shift_m),
         ));
     }
     for bias in &d.correction {
-        bias.check().map_err(|problem| ("correction", problem.to_string()))?;
+        bias.check().map_err(|problem| FieldProblem::new("correction", problem.to_string()))?;
     }
     Ok(())
 }
@@ -957,25 +957,28 @@ fn check_extent(extent: &ExtentSpec) -> Result<(), crate::Invalid> {
     }
 }
 
-fn check_noise(n: &NoiseSpec, radius_m: f64) -> Result<(), (&'static str, String)> {
+fn check_noise(n: &NoiseSpec, radius_m: f64) -> Result<(), FieldProblem> {
     if !(n.amplitude_m.is_finite() && n.amplitude_m >= 0.0) {
-        return Err(("amplitude_m", format!("{} must be a height ≥ 0 in metres", n.amplitude_m)));
+        return Err(FieldProblem::new("amplitude_m", format!("{} must be a height ≥ 0 in metres", n.amplitude_m)));
     }
     if !(n.wavelength_m.is_finite() && n.wavelength_m > 0.0) {
-        return Err(("wavelength_m", format!("{} must be a positive length in metres", n.wavelength_m)));
+        return Err(FieldProblem::new(
+            "wavelength_m",
+            format!("{} must be a positive length in metres", n.wavelength_m),
+        ));
     }
     if !(1..=MAX_OCTAVES).contains(&n.octaves) {
-        return Err(("octaves", format!("{} must lie in 1..={MAX_OCTAVES}", n.octaves)));
+        return Err(FieldProblem::new("octaves", format!("{} must lie in 1..={MAX_OCTAVES}", n.octaves)));
     }
     if !(n.lacunarity.is_finite() && n.lacunarity > 1.0 && n.lacunarity <= 16.0) {
-        return Err(("lacunarity", format!("{} must lie in (1, 16]", n.lacunarity)));
+        return Err(FieldProblem::new("lacunarity", format!("{} must lie in (1, 16]", n.lacunarity)));
     }
     if !(n.gain.is_finite() && n.gain > 0.0 && n.gain < 1.0) {
-        return Err(("gain", format!("{} must lie in (0, 1)", n.gain)));
+        return Err(FieldProblem::new("gain", format!("{} must lie in (0, 1)", n.gain)));
     }
     let finest = n.wavelength_m / n.lacunarity.powi(n.octaves as i32 - 1);
     if finest < radius_m * MIN_WAVELENGTH_OF_RADIUS {
-        return Err((
+        return Err(FieldProblem::new(
             "octaves",
             format!(
                 "the finest octave's wavelength {finest:.3e} m is below {:.3e} m (the body's radius / 2³⁰)",
