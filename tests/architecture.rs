@@ -23,9 +23,12 @@ const ALLOWED: &[(&str, &[&str])] = &[
     ("attributes", &["errors", "maths", "geodesy"]),
     ("ecm", &["errors", "maths", "geodesy"]),
     ("store", &["errors", "files", "progress", "maths", "geodesy", "ecm"]),
-    ("edit", &["errors", "files", "progress", "maths", "geodesy", "ecm", "store"]),
-    ("erosion", &["errors", "files", "progress", "maths", "geodesy", "ecm", "store", "edit"]),
-    ("layers", &["errors", "files", "progress", "maths", "geodesy", "ecm", "store", "edit", "erosion"]),
+    // The edits, erosion and the layer stack are maths over the cube map's grid (ecm::grid,
+    // ecm::area_mean): they never name the store, whose GDAL and SQLite they do not need; the
+    // scene reads the store for them (its loader).
+    ("edit", &["errors", "files", "progress", "maths", "geodesy", "ecm"]),
+    ("erosion", &["errors", "files", "progress", "maths", "geodesy", "ecm", "edit"]),
+    ("layers", &["errors", "files", "progress", "maths", "geodesy", "ecm", "edit", "erosion"]),
     (
         "project",
         &[

@@ -11,7 +11,7 @@ use common::{repo_path, run_tool, terrafuse};
 use terrafuse::cli::{WarpMode, warp_comparison};
 use terrafuse::ecm::{Face, QuadId};
 use terrafuse::geodesy::Ellipsoid;
-use terrafuse::store::grid::{self, fold_sample};
+use terrafuse::ecm::grid::{self, fold_sample};
 use terrafuse::store::{GridReader, ImportOptions, ImportWatch, LevelChoice, Resampling, Store, VerticalDatum, import};
 
 const BIN: &str = env!("CARGO_BIN_EXE_terrafuse");
@@ -764,7 +764,8 @@ fn lattice_positions_stay_within_their_bound_and_imports_match_the_exact_transfo
 /// gives the same grid bit for bit, on a small area and across every face edge of the Moon.
 #[test]
 fn the_pyramids_average_reads_the_same_region_as_sample_by_sample() {
-    use terrafuse::store::resample::{AREA_MEAN_SPAN, area_mean, average_quad, fill_area_mean_region};
+    use terrafuse::ecm::area_mean::{AREA_MEAN_SPAN, area_mean, fill_area_mean_region};
+    use terrafuse::store::resample::average_quad;
     let dir = common::scratch("store/average");
     let cases = [
         ("earth_srtm3_demcompare_N39E040.tif", Ellipsoid::WGS84, 9u8),
@@ -781,7 +782,7 @@ fn the_pyramids_average_reads_the_same_region_as_sample_by_sample() {
             fill_area_mean_region(q, &mut region, &mut |f, l, i, j| reader.sample(f, l, i, j).unwrap());
             let reference = area_mean(q, &region);
             let fast = average_quad(&mut reader, q).unwrap().expect("a quad with data");
-            let same = reference.values.iter().zip(&fast.values).all(|(a, b)| a.to_bits() == b.to_bits());
+            let same = reference.iter().zip(&fast.values).all(|(a, b)| a.to_bits() == b.to_bits());
             assert!(same, "{file}: quad {q:?} differs from the sample-by-sample average");
         }
     }

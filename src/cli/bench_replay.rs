@@ -88,7 +88,7 @@ pub fn synthetic_session(strokes: usize, steps: u64) -> Result<Project, CliError
     p.layers.push(edit);
     let e = p.ellipsoid()?;
     // 128 cells of level 12 on the Moon (2.6 m) are 0.0110°: a box of that size at the centre.
-    let side = 128.0 * crate::store::grid::spacing_m(&e, 12) / e.a_m();
+    let side = 128.0 * crate::ecm::grid::spacing_m(&e, 12) / e.a_m();
     let (lat, lon) = (0.5, 45.2);
     let half = 0.5 * side.to_degrees();
     let params = Params::unscaled("rain", gravity_of_body(&p.body)).ok_or("no rain preset")?;

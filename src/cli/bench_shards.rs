@@ -20,7 +20,7 @@ macro_rules! bail {
 }
 
 use crate::store::Store;
-use crate::store::grid::{GRID, spacing_m};
+use crate::ecm::grid::{GRID, spacing_m};
 use crate::store::merge::{MergeOptions, merge};
 use crate::store::shard::Manifest;
 

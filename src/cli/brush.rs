@@ -11,7 +11,7 @@ use crate::edit::{Falloff, Stroke, Tool};
 use crate::errors::FieldProblem;
 use crate::project::Project;
 use crate::scene::{Edits, Scene};
-use crate::store::grid::spacing_m;
+use crate::ecm::grid::spacing_m;
 
 /// What `terrafuse brush` was asked.
 #[derive(clap::Args, Clone, Debug, Default)]

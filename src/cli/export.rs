@@ -15,7 +15,7 @@ use crate::progress::Watch;
 use crate::project::Project;
 use crate::scene::Scene;
 use crate::store::export::RasterSpec;
-use crate::store::grid::{intervals_per_face_edge, level_for_resolution};
+use crate::ecm::grid::{intervals_per_face_edge, level_for_resolution};
 
 pub use crate::gpu::compose::ComposeOn;
 

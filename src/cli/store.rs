@@ -9,7 +9,7 @@ use std::time::Instant;
 
 use crate::ecm::Face;
 use crate::store::gpkg::{Store, face_proj};
-use crate::store::grid::{self, GRID, TILE};
+use crate::ecm::grid::{self, GRID, TILE};
 use crate::store::import::peak_rss_bytes;
 use crate::store::lattice::Transform;
 use crate::store::{GridReader, ImportOptions, ImportReport, StoreError, import};

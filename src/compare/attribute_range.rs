@@ -7,7 +7,7 @@
 use crate::attributes::{Attribute, PixelAxes, attribute_at};
 use crate::ecm::QuadId;
 use crate::scene::Scene;
-use crate::store::grid::GRID;
+use crate::ecm::grid::GRID;
 
 use super::CompareError;
 use super::quad_geometry::{axes_at, quad_points};

@@ -25,7 +25,7 @@ use crate::ecm::QuadId;
 use crate::geodesy::GeoBox;
 use crate::scene::Scene;
 use crate::scene::shifted::locate;
-use crate::store::grid::{GRID, spacing_m};
+use crate::ecm::grid::{GRID, spacing_m};
 
 /// Samples along a quad edge.
 const N: usize = GRID as usize;

@@ -10,7 +10,7 @@ use super::CompareError;
 use crate::ecm::QuadId;
 use crate::scene::Scene;
 use crate::scene::shifted::locate;
-use crate::store::grid::{bicubic, bilinear};
+use crate::ecm::grid::{bicubic, bilinear};
 
 /// How a mosaic is read between its samples.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

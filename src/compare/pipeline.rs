@@ -37,7 +37,7 @@ use crate::layers::{LayerError, LayerSpec, Operand};
 use crate::maths::median;
 use crate::project::Project;
 use crate::scene::Scene;
-use crate::store::grid::spacing_m;
+use crate::ecm::grid::spacing_m;
 
 /// Most quads a co-registration's steps are fitted on (1.7·10⁷ samples; the Erzurum tile at its
 /// default level has 35).

@@ -12,7 +12,7 @@ use crate::geodesy::{Geodetic, ecef_from_geodetic};
 use crate::layers::Operand;
 use crate::project::Project;
 use crate::scene::Scene;
-use crate::store::grid::spacing_m;
+use crate::ecm::grid::spacing_m;
 
 /// Most samples along a profile.
 pub const MAX_SAMPLES: usize = 100_000;

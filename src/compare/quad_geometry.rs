@@ -11,7 +11,7 @@ use rayon::prelude::*;
 
 use crate::ecm::points::cell_area_m2;
 use crate::ecm::{CubeProjection, FacePoint, QuadId};
-use crate::store::grid::GRID;
+use crate::ecm::grid::GRID;
 
 const N: usize = GRID as usize;
 
@@ -83,7 +83,7 @@ const CENTRE_QUADS: i64 = 16;
 /// projection's shift to the sphere; the points of [`sample_point`](crate::ecm::points::sample_point)
 /// without going through geodetic coordinates and back). QSC's inverse is exact at every fourth
 /// sample each way (65² nodes) and the samples between are read from those nodes by cubic
-/// Lagrange interpolation (`store::grid`'s weights; exact at the nodes): the points are a smooth
+/// Lagrange interpolation (`ecm::grid`'s weights; exact at the nodes): the points are a smooth
 /// function of the grid position inside each of QSC's four triangles of a face, and there the
 /// interpolation is within 10⁻⁸ m of the exact inverse (test below: 6·10⁻⁹ m at worst, a few
 /// times the rounding of f64 Earth coordinates, 10⁻⁹ m). Where that does not hold, every point is
@@ -102,7 +102,7 @@ pub(super) fn quad_points(ellipsoid: &crate::geodesy::Ellipsoid, quad: QuadId) -
     let nodes: Vec<DVec3> =
         (0..NODES * NODES).into_par_iter().map(|k| at(k % NODES * STEP, k / NODES * STEP)).collect();
     let weights: Vec<(usize, [f64; 4])> =
-        (0..N).map(|i| crate::store::grid::cubic_weights(i as f64 / STEP as f64, NODES)).collect();
+        (0..N).map(|i| crate::ecm::grid::cubic_weights(i as f64 / STEP as f64, NODES)).collect();
     (0..N * N)
         .into_par_iter()
         .map(|k| {

@@ -32,7 +32,7 @@ use crate::layers::{LayerSpec, Operand};
 use crate::project::Project;
 use crate::scene::Scene;
 use crate::scene::dataset::DatasetInfo;
-use crate::store::grid::{GRID, spacing_m};
+use crate::ecm::grid::{GRID, spacing_m};
 
 /// Samples along a quad edge.
 const N: usize = GRID as usize;

@@ -21,7 +21,7 @@ use crate::geodesy::{Ellipsoid, geodetic_from_ecef};
 use crate::layers::Operand;
 use crate::project::Project;
 use crate::scene::Scene;
-use crate::store::grid::GRID;
+use crate::ecm::grid::GRID;
 
 /// Where stable terrain is.
 #[derive(Clone, Debug, PartialEq)]

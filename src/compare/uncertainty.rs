@@ -40,7 +40,7 @@ use crate::layers::Operand;
 use crate::layers::correction::Frame;
 use crate::project::Project;
 use crate::scene::Scene;
-use crate::store::grid::spacing_m;
+use crate::ecm::grid::spacing_m;
 
 /// Bins along each explanatory variable.
 const BINS: usize = 10;

@@ -1,4 +1,5 @@
-//! The store's sample grid: per face and level a corner-inclusive grid of
+//! The sample grid of the cube map (the store's tiles, the edit and erosion rasters and the
+//! composed quads all use it): per face and level a corner-inclusive grid of
 //! `M + 1` × `M + 1` samples, M = 256·2^level, which is exactly the union of the ECM geometry's
 //! per-quad grids (`QuadId::sample_xy(257, i, j)`): quad (x, y) owns samples 256x ..= 256x + 256.
 //!
@@ -7,7 +8,7 @@
 //! each pixel, `grid-value-is-corner`); the tile's *rim* (north row and east column, 513 samples)
 //! is stored beside it, so one quad's full 257² grid is one tile plus one rim.
 
-use crate::ecm::{Face, MAX_LEVEL, QuadId, fold_onto_face};
+use super::{Face, MAX_LEVEL, QuadId, fold_onto_face};
 use crate::geodesy::Ellipsoid;
 
 /// Samples per tile edge in the GeoPackage (the pixel count).

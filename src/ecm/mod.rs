@@ -7,9 +7,11 @@
 //! [−1, 1]; for QSC they are PROJ's `+proj=qsc` metres divided by the semi-major axis.
 
 pub mod accuracy;
+pub mod area_mean;
 pub mod distortion;
 mod face;
 pub mod geometry;
+pub mod grid;
 pub mod points;
 mod projection;
 mod quad;

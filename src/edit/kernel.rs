@@ -12,7 +12,7 @@ use crate::ecm::{CubeProjection, FacePoint, QuadId};
 use crate::errors::Failure;
 use crate::geodesy::{Ellipsoid, geodetic_from_ecef};
 use crate::maths::noise;
-use crate::store::grid::{GRID, spacing_m};
+use crate::ecm::grid::{GRID, spacing_m};
 
 const N: usize = GRID as usize;
 

@@ -1,5 +1,5 @@
 //! The edit raster's coarser levels, so that an edit shows from far away: each sample the area
-//! mean of its cell on the level below, with the store's stencil (`store::resample::area_mean`,
+//! mean of its cell on the level below, with the store's stencil (`ecm::area_mean`,
 //! weights ¼ ½ ¼ per axis, across quad and face edges), down from the raster's level one level at
 //! a time. A coarse tile is computed when first asked for and kept until a stroke changes a quad
 //! it reads; each is a pure function of the raster's tiles, so it is the same whichever order
@@ -9,8 +9,8 @@ use std::collections::{BTreeSet, HashMap, HashSet};
 use std::sync::{Arc, Mutex};
 
 use crate::ecm::QuadId;
-use crate::store::grid::{GRID, TILE, fold_sample, quad_of_sample};
-use crate::store::resample::{AREA_MEAN_SPAN, area_mean, fill_area_mean_region};
+use crate::ecm::grid::{GRID, TILE, fold_sample, quad_of_sample};
+use crate::ecm::area_mean::{AREA_MEAN_SPAN, area_mean, fill_area_mean_region};
 
 /// The coarse tiles made so far and the quads above the raster's tiles.
 #[derive(Default)]
@@ -170,7 +170,7 @@ impl Pyramid {
             }
         });
         let values: Vec<f32> =
-            area_mean(quad, &region).values.into_iter().map(|v| if v.is_nan() { 0.0 } else { v }).collect();
+            area_mean(quad, &region).into_iter().map(|v| if v.is_nan() { 0.0 } else { v }).collect();
         let values = Arc::new(values);
         self.made.lock().expect("not poisoned").insert(quad, values.clone());
         Some(values)

@@ -27,7 +27,7 @@ use crate::ecm::{Face, QuadId};
 use crate::errors::SharedFailure;
 use crate::geodesy::Ellipsoid;
 use crate::progress::Watch;
-use crate::store::grid::GRID;
+use crate::ecm::grid::GRID;
 
 const N: usize = GRID as usize;
 
@@ -422,7 +422,7 @@ impl EditRaster {
         if quad.level >= self.level {
             let a = quad.ancestor_at(self.level);
             let tile = self.tiles.get(&a)?;
-            return Some(if a == quad { tile.clone() } else { crate::store::grid::upsample(tile, a, quad) });
+            return Some(if a == quad { tile.clone() } else { crate::ecm::grid::upsample(tile, a, quad) });
         }
         let mean = self.pyramid.mean(quad, self.level, &|q| self.tiles.get(&q).map(Vec::as_slice))?;
         Some(mean.to_vec())

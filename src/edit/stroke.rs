@@ -161,7 +161,7 @@ impl Stroke {
     /// per path segment, so a stroke too large to make is refused before any of it is made.
     /// Errors name the path segment whose geodesic cannot be computed.
     pub fn footprint_tiles(&self, ellipsoid: &crate::geodesy::Ellipsoid, level: u8) -> Result<f64, crate::Invalid> {
-        let side_m = crate::store::grid::spacing_m(ellipsoid, level) * f64::from(crate::store::grid::TILE);
+        let side_m = crate::ecm::grid::spacing_m(ellipsoid, level) * f64::from(crate::ecm::grid::TILE);
         let mut length_m = 0.0;
         for (k, pair) in self.path.windows(2).enumerate() {
             let ([lat1, lon1], [lat2, lon2]) = (pair[0], pair[1]);

@@ -17,7 +17,7 @@ use super::stroke::{Stroke, Tool};
 use crate::ecm::{CubeProjection, FacePoint, QuadId};
 use crate::errors::Failure;
 use crate::geodesy::{Ellipsoid, Geodetic, ecef_from_geodetic, geodetic_from_ecef};
-use crate::store::grid::{GRID, spacing_m};
+use crate::ecm::grid::{GRID, spacing_m};
 
 const N: usize = GRID as usize;
 
@@ -130,8 +130,8 @@ impl Snapshot {
     /// H at a global sample (i, j) of a face at the snapshot's level, indices off the face folded
     /// onto the adjacent one (NaN beyond a cube corner or outside the snapshot).
     pub fn sample_global(&self, face: crate::ecm::Face, i: i64, j: i64) -> f64 {
-        let Some((f, i, j)) = crate::store::grid::fold_sample(face, self.level, i, j) else { return f64::NAN };
-        let (q, li, lj) = crate::store::grid::quad_of_sample(f, self.level, i, j);
+        let Some((f, i, j)) = crate::ecm::grid::fold_sample(face, self.level, i, j) else { return f64::NAN };
+        let (q, li, lj) = crate::ecm::grid::quad_of_sample(f, self.level, i, j);
         self.tiles.get(&q).map_or(f64::NAN, |t| t[lj as usize * N + li as usize])
     }
 

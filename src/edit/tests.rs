@@ -7,7 +7,7 @@ use super::{EditRaster, Falloff, Stroke, Tool, ellipsoid_below};
 use crate::ecm::QuadId;
 use crate::ecm::points::sample_point;
 use crate::geodesy::{Ellipsoid, Geodetic, ecef_from_geodetic};
-use crate::store::grid::GRID;
+use crate::ecm::grid::GRID;
 
 const N: usize = GRID as usize;
 
@@ -337,7 +337,7 @@ fn coarse_levels_are_area_means_that_keep_a_small_edits_volume_and_follow_undo()
     let dab = stroke(Tool::Raise, 150.0, 10.0, 12, &[[10.0, 20.0]]);
     let mut r = EditRaster::build(e, std::slice::from_ref(&dab), &ellipsoid_below).unwrap();
     let volume = |level: u8, values: &[(QuadId, usize, f32)]| {
-        let cell = crate::store::grid::spacing_m(&e, level).powi(2);
+        let cell = crate::ecm::grid::spacing_m(&e, level).powi(2);
         // Each sample once: a quad's last row and column are its neighbours' first.
         values
             .iter()

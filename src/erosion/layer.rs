@@ -23,7 +23,7 @@ use crate::errors::{Failure, SharedFailure};
 use crate::geodesy::{Ellipsoid, Geodetic, ecef_from_geodetic};
 use crate::maths::{segment_distance_m, smoothstep};
 use crate::progress::Watch;
-use crate::store::grid::{GRID, TILE, fold_sample, intervals_per_face_edge};
+use crate::ecm::grid::{GRID, TILE, fold_sample, intervals_per_face_edge};
 
 const N: usize = GRID as usize;
 

@@ -2,7 +2,7 @@
 //! point (the view's centre) or along a brush path, and the level of its cells when none is given.
 
 use crate::geodesy::{BoxError, Ellipsoid, GeoBox};
-use crate::store::grid::spacing_m;
+use crate::ecm::grid::spacing_m;
 
 /// Cells along a region's north–south side that the default level aims at.
 pub const DEFAULT_CELLS_PER_SIDE: f64 = 512.0;

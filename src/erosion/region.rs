@@ -14,7 +14,7 @@ use crate::ecm::points::sample_point;
 use crate::ecm::{Face, QuadId};
 use crate::errors::{Failure, Invalid};
 use crate::geodesy::{Ellipsoid, GeoBox};
-use crate::store::grid::{GRID, TILE, fold_sample, quad_of_sample, spacing_m};
+use crate::ecm::grid::{GRID, TILE, fold_sample, quad_of_sample, spacing_m};
 
 /// The longest side between two points of a region's outline, metres (see [`Region::outline`]).
 pub const OUTLINE_STEP_M: f64 = 4000.0;
@@ -41,7 +41,7 @@ pub struct Region {
 /// lattice across each edge: it is found by folding three points just beyond the edge, then
 /// inverted.
 fn unfold(face: Face, other: Face, level: u8, i: i64, j: i64) -> Option<(i64, i64)> {
-    let m = crate::store::grid::intervals_per_face_edge(level);
+    let m = crate::ecm::grid::intervals_per_face_edge(level);
     let c = m / 2;
     // Three points just beyond each edge: a base, one step further out, one step along.
     let edges = [
@@ -102,7 +102,7 @@ impl Region {
             return Err(format!("level {level} is past the finest, {}", crate::ecm::MAX_LEVEL).into());
         }
         let projection = crate::ecm::CubeProjection::Qsc;
-        let m = crate::store::grid::intervals_per_face_edge(level);
+        let m = crate::ecm::grid::intervals_per_face_edge(level);
         let index = |lat: f64, lon: f64| {
             let p = projection.face_point_from_geodetic(ellipsoid, lat.to_radians(), lon.to_radians());
             let i = (((p.x + 1.0) / 2.0 * m as f64).floor() as i64).clamp(0, m - 1);
@@ -255,7 +255,7 @@ impl Region {
         let n = w * h;
         let (mut base, mut dx, mut dy) = (vec![f64::NAN; n], vec![0.0; n], vec![0.0; n]);
         // The level's mean spacing stands in where a neighbour is missing (beyond a corner).
-        let mean = crate::store::grid::spacing_m(ellipsoid, self.level);
+        let mean = crate::ecm::grid::spacing_m(ellipsoid, self.level);
         for y in 0..h {
             for x in 0..w {
                 let k = y * w + x;

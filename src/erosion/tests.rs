@@ -294,7 +294,7 @@ fn regions_on_the_moon_and_the_earth_from_level_8_to_22_stay_finite_and_balanced
             let n = 1u32 << level;
             let quad = QuadId::new(Face::Top, level, n / 3, n / 5).unwrap();
             let region = Region { width: 16, height: 16, ..Region::around(quad, 0) };
-            let spacing = crate::store::grid::spacing_m(&e, level);
+            let spacing = crate::ecm::grid::spacing_m(&e, level);
             let hills = |q: QuadId| -> Result<Vec<f32>, crate::errors::Failure> {
                 Ok((0..257 * 257)
                     .map(|k| {

@@ -23,7 +23,7 @@ use crate::edit::terrain::Target;
 use crate::edit::{Falloff, Tool};
 use crate::errors::Failure;
 use crate::layers::noise;
-use crate::store::grid::GRID;
+use crate::ecm::grid::GRID;
 
 const N: usize = GRID as usize;
 /// Largest distance between a tile's exact points, metres: the surface sags below the chord
@@ -69,7 +69,7 @@ const MAX_MARGIN: u32 = 256;
 /// The margin a smoothing ring of `ring_m` needs around a tile at `level`, samples (QSC's sample
 /// spacing stays above half the level's mean).
 fn ring_margin(e: &crate::geodesy::Ellipsoid, level: u8, ring_m: f64) -> u32 {
-    (ring_m / (0.5 * crate::store::grid::spacing_m(e, level))).ceil() as u32 + 2
+    (ring_m / (0.5 * crate::ecm::grid::spacing_m(e, level))).ceil() as u32 + 2
 }
 
 /// The step between a tile's exact points, in samples: the largest of 8, 4, 2 with the points at
@@ -81,7 +81,7 @@ fn lattice_step(e: &crate::geodesy::Ellipsoid, q: QuadId) -> u32 {
     if at_centre {
         return 1;
     }
-    let spacing = crate::store::grid::spacing_m(e, q.level);
+    let spacing = crate::ecm::grid::spacing_m(e, q.level);
     [8, 4, 2].into_iter().find(|s| f64::from(*s) * spacing <= LATTICE_M).unwrap_or(1)
 }
 

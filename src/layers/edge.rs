@@ -24,7 +24,7 @@ use std::collections::HashMap;
 
 use crate::ecm::{CubeProjection, FacePoint, MAX_LEVEL, QuadId};
 use crate::geodesy::{Ellipsoid, Geodetic, ecef_from_geodetic};
-use crate::store::grid::{GRID, face_xy, fold_sample, quad_of_sample};
+use crate::ecm::grid::{GRID, face_xy, fold_sample, quad_of_sample};
 
 /// Samples along a quad edge.
 const N: usize = GRID as usize;
@@ -222,7 +222,7 @@ mod tests {
     fn check_against_brute_force(e: &Ellipsoid, quad: QuadId, hole: impl Fn(DVec3) -> bool + Copy) -> f64 {
         let cap = quad_width_m(e.a_m(), quad.level);
         let field = distance_field(e, quad, cap, synthetic(e, hole)).unwrap();
-        let spacing = crate::store::grid::spacing_m(e, quad.level);
+        let spacing = crate::ecm::grid::spacing_m(e, quad.level);
         let mut worst = 0f64;
         for (k, d) in brute_force(e, quad, cap, &hole) {
             worst = worst.max((f64::from(field[k]) - d).abs());

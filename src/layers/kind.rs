@@ -10,7 +10,7 @@
 use super::noise;
 use super::spec::{LayerKind, LayerPayload, LayerSpec, NoiseSpec};
 use crate::geodesy::Ellipsoid;
-use crate::store::grid::spacing_m;
+use crate::ecm::grid::spacing_m;
 
 /// Where a layer's value at a sample comes from.
 #[derive(Clone, Copy, Debug, PartialEq)]

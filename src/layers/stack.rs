@@ -14,7 +14,7 @@ use super::noise;
 use super::spec::{BlendMode, LayerSpec, Operand};
 use crate::ecm::QuadId;
 use crate::geodesy::Ellipsoid;
-use crate::store::grid::{GRID, spacing_m};
+use crate::ecm::grid::{GRID, spacing_m};
 
 /// One layer of a stack.
 #[derive(Clone, Debug)]

@@ -2,7 +2,7 @@
 //! be read from the tiles its samples come from (the quad's own, and its ancestors' for strided
 //! patches) without keeping the tiles' grids.
 
-use crate::store::grid::GRID as SAMPLES;
+use crate::ecm::grid::GRID as SAMPLES;
 
 /// Cells along a block's edge.
 pub const BLOCK_CELLS: u32 = 8;

@@ -11,7 +11,7 @@ use crate::Invalid;
 use crate::ecm::QuadId;
 use crate::layers::{LayerTiles, compose_difference, compose_quad};
 use crate::store::Store;
-use crate::store::grid::GRID;
+use crate::ecm::grid::GRID;
 
 impl Scene {
     /// Composes quads with the CPU reference, reading their source and edge tiles here (on the

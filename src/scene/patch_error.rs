@@ -13,7 +13,7 @@
 //! are), which is the next step, on the GPU as the quads compose.
 
 use super::patches::{PATCH_CELLS, PATCHES_PER_EDGE, STRIDES};
-use crate::store::grid::GRID;
+use crate::ecm::grid::GRID;
 
 /// The height of a cell's mesh at (u, v) ∈ [0, 1]² in the cell: the corners' heights `h00` (the
 /// cell's origin), `h10` (+u), `h01` (+v), `h11`, on the triangle (00, 10, 11) where u ≥ v and

@@ -16,7 +16,7 @@ use super::dataset::DatasetInfo;
 use crate::ecm::points::sample_point;
 use crate::ecm::{CubeProjection, QuadId};
 use crate::geodesy::{Ellipsoid, geodetic_from_ecef};
-use crate::store::grid::{GRID, bicubic};
+use crate::ecm::grid::{GRID, bicubic};
 use crate::store::{Store, StoreError};
 
 const N: usize = GRID as usize;

@@ -11,7 +11,7 @@ use rayon::prelude::*;
 
 use super::StoreError;
 use super::gpkg::Store;
-use super::grid;
+use crate::ecm::grid;
 use super::read::GridReader;
 use super::source::body_geographic;
 use crate::geodesy::{self, Geodetic};

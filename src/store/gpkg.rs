@@ -12,7 +12,7 @@ use rusqlite::{Connection, OpenFlags, OptionalExtension, params};
 use serde::{Deserialize, Serialize};
 
 use super::StoreError;
-use super::grid::{TILE, intervals_per_face_edge};
+use crate::ecm::grid::{TILE, intervals_per_face_edge};
 use super::tile::{EncodedQuad, QuadGrid};
 use crate::ecm::{Face, QuadId};
 use crate::geodesy::Ellipsoid;

@@ -17,7 +17,7 @@
 
 use std::sync::atomic::{AtomicU64, Ordering};
 
-use super::grid::{self, TILE, cubic_weights};
+use crate::ecm::grid::{self, TILE, cubic_weights};
 use super::source::SourceReader;
 use crate::ecm::{CubeProjection, FacePoint, QuadId};
 use crate::geodesy::Ellipsoid;

@@ -19,7 +19,6 @@
 pub mod checkpoint;
 pub mod export;
 pub mod gpkg;
-pub mod grid;
 pub mod import;
 pub mod lattice;
 pub mod merge;

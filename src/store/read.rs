@@ -6,7 +6,7 @@ use std::sync::Arc;
 
 use super::StoreError;
 use super::gpkg::Store;
-use super::grid::{self, GRID, fold_sample, quad_of_sample};
+use crate::ecm::grid::{self, GRID, fold_sample, quad_of_sample};
 use super::tile::QuadGrid;
 use crate::ecm::{CubeProjection, Face, QuadId};
 

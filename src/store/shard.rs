@@ -17,7 +17,7 @@ use sha2::{Digest, Sha256};
 
 use super::StoreError;
 use super::gpkg::{DatasetSettings, SourceProvenance, Store};
-use super::grid::GRID;
+use crate::ecm::grid::GRID;
 use super::import::{
     ImportOptions, ImportReport, LevelChoice, LevelWriter, Prepared, Resampling, VerticalDatum, candidates,
     finest_level, open_dataset, peak_rss_bytes, prepare, same_files, worker_pool,

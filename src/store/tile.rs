@@ -6,7 +6,7 @@ use std::io::Cursor;
 use tiff::decoder::{Decoder, DecodingResult};
 use tiff::encoder::{Compression, TiffEncoder, colortype::Gray32Float};
 
-use super::grid::{GRID, RIM, TILE};
+use crate::ecm::grid::{GRID, RIM, TILE};
 
 /// A stored tile that cannot be decoded.
 #[derive(Debug, thiserror::Error)]

@@ -71,7 +71,7 @@ pub fn parse_rows(text: &str) -> Vec<Vec<f64>> {
 pub const PYTHON: &str = "/usr/bin/python3";
 
 /// The code an import's result depends on: a store made by other code is stale.
-const IMPORT_CODE: [&str; 15] = [
+const IMPORT_CODE: [&str; 16] = [
     include_str!("../../src/store/import/mod.rs"),
     include_str!("../../src/store/import/levels.rs"),
     include_str!("../../src/store/resample.rs"),
@@ -79,7 +79,8 @@ const IMPORT_CODE: [&str; 15] = [
     include_str!("../../src/ecm/face.rs"),
     include_str!("../../src/store/source.rs"),
     include_str!("../../src/store/gpkg.rs"),
-    include_str!("../../src/store/grid.rs"),
+    include_str!("../../src/ecm/grid.rs"),
+    include_str!("../../src/ecm/area_mean.rs"),
     include_str!("../../src/store/tile.rs"),
     include_str!("../../src/store/read.rs"),
     include_str!("../../src/ecm/projection.rs"),

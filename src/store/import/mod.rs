@@ -25,7 +25,7 @@ pub(super) use levels::LevelWriter;
 
 use super::StoreError;
 use super::gpkg::{DatasetRecord, DatasetSettings, SourceProvenance, Store, check_dataset_name, face_proj, utc_now};
-use super::grid::{self, GRID, spacing_m};
+use crate::ecm::grid::{self, GRID, spacing_m};
 use super::lattice::{LatticeStats, Transform};
 use super::read::GridReader;
 pub use super::resample::Resampling;
