@@ -256,7 +256,7 @@ pub fn gpu_tolerance_m(
 /// The largest |a − b| over two rasters' tiles, metres (a tile on one side only counts against
 /// zeros; NaN against a number is infinite).
 pub fn largest_difference_m(a: &EditRaster, b: &EditRaster) -> f64 {
-    let zeros = vec![0f32; (crate::store::grid::GRID * crate::store::grid::GRID) as usize];
+    let zeros = vec![0f32; (crate::ecm::grid::GRID * crate::ecm::grid::GRID) as usize];
     let quads: std::collections::BTreeSet<_> = a.tiles.keys().chain(b.tiles.keys()).collect();
     let mut worst = 0f64;
     for q in quads {
