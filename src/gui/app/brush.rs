@@ -9,9 +9,9 @@
 //! the undo history, which is instant); once released and every point is known, the whole
 //! stroke replaces it, through `Editor::apply_stroke`, as `terrafuse brush` would append it.
 use super::*;
+use crate::ecm::grid::spacing_m;
 use crate::edit::{Falloff, Stroke, Tool};
 use crate::layers::LayerSpec;
-use crate::store::grid::spacing_m;
 
 /// The brush's settings and the stroke in progress.
 pub(crate) struct BrushTool {
@@ -155,29 +155,17 @@ impl App {
     /// The *Brush* section, its action applied.
     pub(super) fn brush_ui(&mut self, ui: &mut egui::Ui) {
         match self.brush.ui(ui, &self.project) {
-            Some(BrushAction::Undo) => self.move_undo(-1),
-            Some(BrushAction::Redo) => self.move_undo(1),
+            Some(BrushAction::Undo) => self.brush_undo(-1),
+            Some(BrushAction::Redo) => self.brush_undo(1),
             None => {}
         }
     }
 
-    /// Moves the brush's edit layer's undo position by `by` strokes (Ctrl+Z, Ctrl+Shift+Z).
-    pub(super) fn move_undo(&mut self, by: i64) {
-        let Some(index) = self.project.layers.iter().position(|l| l.name == self.brush.layer) else { return };
-        let applied = self.project.layers[index].applied_strokes().len() as i64 + by;
-        let total = self.project.layers[index].strokes().len() as i64;
-        if !(0..=total).contains(&applied) {
-            return;
-        }
-        match self.editor.set_applied(&mut self.renderer, index, applied as usize) {
-            Ok(spec) => {
-                self.project.layers[index] = spec;
-                self.dirty = true;
-                self.mark_unsaved();
-                self.message = format!("{} to {applied} of {total} strokes", if by < 0 { "undone" } else { "redone" });
-            }
-            Err(e) => self.message = e.to_string(),
-        }
+    /// Moves the brush's edit layer's undo position by `by` strokes (its buttons, Ctrl+Z and
+    /// Ctrl+Shift+Z).
+    pub(super) fn brush_undo(&mut self, by: i64) {
+        let layer = self.brush.layer.clone();
+        self.move_layer_undo(&layer, by);
     }
 
     /// Whether a left drag on the viewport paints: the brush is on, and this is its tab or it

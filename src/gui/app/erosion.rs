@@ -391,8 +391,8 @@ impl App {
             Some(ErosionAction::Step) => self.erosion_steps(1, true),
             Some(ErosionAction::Keep) => self.keep_erosion(),
             Some(ErosionAction::Discard) => self.discard_erosion(),
-            Some(ErosionAction::Undo) => self.move_erosion_undo(-1),
-            Some(ErosionAction::Redo) => self.move_erosion_undo(1),
+            Some(ErosionAction::Undo) => self.move_layer_undo(&self.erosion.layer.clone(), -1),
+            Some(ErosionAction::Redo) => self.move_layer_undo(&self.erosion.layer.clone(), 1),
             Some(ErosionAction::Drainage) => self.update_drainage(),
             None => {}
         }
@@ -692,25 +692,6 @@ impl App {
         }
         self.dirty = true;
         self.update_drainage();
-    }
-
-    fn move_erosion_undo(&mut self, by: i64) {
-        let Some(index) = self.project.layers.iter().position(|l| l.name == self.erosion.layer) else { return };
-        let applied = self.project.layers[index].applied_runs().len() as i64 + by;
-        let total = self.project.layers[index].runs().len() as i64;
-        if !(0..=total).contains(&applied) {
-            return;
-        }
-        match self.editor.set_erosion_applied(&mut self.renderer, index, applied as usize) {
-            Ok(spec) => {
-                self.project.layers[index] = spec;
-                self.dirty = true;
-                self.mark_unsaved();
-                self.message = format!("{} to {applied} of {total} runs", if by < 0 { "undone" } else { "redone" });
-                self.update_drainage();
-            }
-            Err(e) => self.message = e.to_string(),
-        }
     }
 }
 

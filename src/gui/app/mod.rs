@@ -34,6 +34,7 @@ mod pointer;
 mod profile;
 mod side_panel;
 mod swipe;
+mod undo;
 
 /// A screenshot the window is asked to take once its frame has settled, then close.
 pub struct ScreenshotJob {

@@ -341,8 +341,8 @@ impl App {
         for (key, modifiers) in key_presses(ui.ctx()) {
             let command = modifiers.command || modifiers.ctrl;
             match key {
-                egui::Key::Z if command && !modifiers.shift => self.move_undo(-1),
-                egui::Key::Z if command => self.move_undo(1),
+                egui::Key::Z if command && !modifiers.shift => self.brush_undo(-1),
+                egui::Key::Z if command => self.brush_undo(1),
                 egui::Key::N if modifiers.is_none() => self.set_camera(CameraSpec { heading: 0.0, ..self.camera }),
                 egui::Key::H if modifiers.is_none() => self.set_camera(self.home),
                 _ => {}
