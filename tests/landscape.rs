@@ -5,12 +5,12 @@ mod common;
 
 use common::repo_path;
 use terrafuse::ecm::Face;
+use terrafuse::ecm::grid::intervals_per_face_edge;
 use terrafuse::erosion::Grid;
 use terrafuse::erosion::landscape::flow::Routing;
 use terrafuse::erosion::landscape::{Evolution, LandscapeParams, flow, tent};
 use terrafuse::erosion::region::Region;
 use terrafuse::geodesy::Ellipsoid;
-use terrafuse::ecm::grid::intervals_per_face_edge;
 
 /// The grid of `region` on WGS84 (lengths and areas on the ellipsoid; heights set by the caller,
 /// NaN where no sample exists).

@@ -1097,10 +1097,10 @@ fn quads_wait_for_their_data_and_the_parent_stands_in() {
 
 #[test]
 fn datasets_fill_each_other_and_show_below_their_finest_level() {
+    use terrafuse::ecm::grid::upsample;
     use terrafuse::layers::{LayerTiles, compose_quad};
     use terrafuse::scene::loader::read_source;
     use terrafuse::store::Store;
-    use terrafuse::ecm::grid::upsample;
     // Both Moon grids: the polar one (levels 0–3) on top of the global one (levels 0–1).
     let mut p = Project::load(&repo_path("projects/moon-lola.json")).unwrap();
     let stores = common::store_dir(&out_dir(), "moon-fusion", &serde_json::to_string(&p.layers).unwrap());

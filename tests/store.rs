@@ -9,9 +9,9 @@ use std::process::{Command, Stdio};
 
 use common::{repo_path, run_tool, terrafuse};
 use terrafuse::cli::{WarpMode, warp_comparison};
+use terrafuse::ecm::grid::{self, fold_sample};
 use terrafuse::ecm::{Face, QuadId};
 use terrafuse::geodesy::Ellipsoid;
-use terrafuse::ecm::grid::{self, fold_sample};
 use terrafuse::store::{GridReader, ImportOptions, ImportWatch, LevelChoice, Resampling, Store, VerticalDatum, import};
 
 const BIN: &str = env!("CARGO_BIN_EXE_terrafuse");

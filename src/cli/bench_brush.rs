@@ -8,11 +8,11 @@ use super::bench_harness::{timed, timed_ms};
 use std::fmt::Write as _;
 
 use crate::ecm::QuadId;
+use crate::ecm::grid::GRID;
 use crate::ecm::points::sample_point;
 use crate::edit::{EditRaster, Falloff, Stroke, Tool};
 use crate::geodesy::Ellipsoid;
 use crate::maths::pcg;
-use crate::ecm::grid::GRID;
 
 /// The session: `n` strokes of 1–4 points, radius 2–8 km, at `level`.
 pub fn scripted_strokes(n: usize, level: u8) -> Vec<Stroke> {

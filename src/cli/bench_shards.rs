@@ -19,8 +19,8 @@ macro_rules! bail {
     };
 }
 
-use crate::store::Store;
 use crate::ecm::grid::{GRID, spacing_m};
+use crate::store::Store;
 use crate::store::merge::{MergeOptions, merge};
 use crate::store::shard::Manifest;
 

@@ -7,11 +7,11 @@ use super::{CliError, Feedback, Within};
 use std::fmt::Write as _;
 use std::path::PathBuf;
 
+use crate::ecm::grid::spacing_m;
 use crate::edit::{Falloff, Stroke, Tool};
 use crate::errors::FieldProblem;
 use crate::project::Project;
 use crate::scene::{Edits, Scene};
-use crate::ecm::grid::spacing_m;
 
 /// What `terrafuse brush` was asked.
 #[derive(clap::Args, Clone, Debug, Default)]

@@ -9,13 +9,13 @@ use crate::attributes::Attribute;
 use std::collections::{BTreeSet, HashMap};
 use std::path::PathBuf;
 
+use crate::ecm::grid::{intervals_per_face_edge, level_for_resolution};
 use crate::ecm::{CubeProjection, QuadId};
 use crate::gpu::{GpuContext, IMAGE_FORMAT, Renderer};
 use crate::progress::Watch;
 use crate::project::Project;
 use crate::scene::Scene;
 use crate::store::export::RasterSpec;
-use crate::ecm::grid::{intervals_per_face_edge, level_for_resolution};
 
 pub use crate::gpu::compose::ComposeOn;
 

@@ -8,8 +8,8 @@ use std::process::Command;
 use std::time::Instant;
 
 use crate::ecm::Face;
-use crate::store::gpkg::{Store, face_proj};
 use crate::ecm::grid::{self, GRID, TILE};
+use crate::store::gpkg::{Store, face_proj};
 use crate::store::import::peak_rss_bytes;
 use crate::store::lattice::Transform;
 use crate::store::{GridReader, ImportOptions, ImportReport, StoreError, import};

@@ -6,8 +6,8 @@
 
 use crate::attributes::{Attribute, PixelAxes, attribute_at};
 use crate::ecm::QuadId;
-use crate::scene::Scene;
 use crate::ecm::grid::GRID;
+use crate::scene::Scene;
 
 use super::CompareError;
 use super::quad_geometry::{axes_at, quad_points};

@@ -22,10 +22,10 @@ use super::mosaic::Mosaic;
 use super::quad_geometry::{axes_at, cell_area, gradient, lon_lat, quad_points};
 use super::sample::in_region;
 use crate::ecm::QuadId;
+use crate::ecm::grid::{GRID, spacing_m};
 use crate::geodesy::GeoBox;
 use crate::scene::Scene;
 use crate::scene::shifted::locate;
-use crate::ecm::grid::{GRID, spacing_m};
 
 /// Samples along a quad edge.
 const N: usize = GRID as usize;

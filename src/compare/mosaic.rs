@@ -8,9 +8,9 @@ use rayon::prelude::*;
 
 use super::CompareError;
 use crate::ecm::QuadId;
+use crate::ecm::grid::{bicubic, bilinear};
 use crate::scene::Scene;
 use crate::scene::shifted::locate;
-use crate::ecm::grid::{bicubic, bilinear};
 
 /// How a mosaic is read between its samples.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -30,6 +30,7 @@ use super::stats::Stats;
 use super::streamed::held_stats;
 use super::whole_area::{At, Stand, WholeArea, sample_attributes, whole_area_stats};
 use crate::ecm::QuadId;
+use crate::ecm::grid::spacing_m;
 use crate::geodesy::{GeoBox, geodetic_from_ecef};
 pub use crate::layers::correction::Attribute;
 use crate::layers::correction::{Bias, Frame};
@@ -37,7 +38,6 @@ use crate::layers::{LayerError, LayerSpec, Operand};
 use crate::maths::median;
 use crate::project::Project;
 use crate::scene::Scene;
-use crate::ecm::grid::spacing_m;
 
 /// Most quads a co-registration's steps are fitted on (1.7·10⁷ samples; the Erzurum tile at its
 /// default level has 35).

@@ -7,12 +7,12 @@ use serde::Serialize;
 use super::CompareError;
 use super::mosaic::{Interpolation, Mosaic};
 use super::sample::operand_scene;
+use crate::ecm::grid::spacing_m;
 use crate::geodesy::geodesic::{direct, inverse};
 use crate::geodesy::{Geodetic, ecef_from_geodetic};
 use crate::layers::Operand;
 use crate::project::Project;
 use crate::scene::Scene;
-use crate::ecm::grid::spacing_m;
 
 /// Most samples along a profile.
 pub const MAX_SAMPLES: usize = 100_000;

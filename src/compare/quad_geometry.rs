@@ -9,9 +9,9 @@
 use glam::DVec3;
 use rayon::prelude::*;
 
+use crate::ecm::grid::GRID;
 use crate::ecm::points::cell_area_m2;
 use crate::ecm::{CubeProjection, FacePoint, QuadId};
-use crate::ecm::grid::GRID;
 
 const N: usize = GRID as usize;
 

@@ -26,13 +26,13 @@ use super::spill::{NO_CLASS, Record, Spill};
 use super::stats::{Diff, HISTOGRAM_BINS, Histogram, SLOPE_CLASSES_DEG, SlopeClass, Stats, slope_class};
 use super::streamed::{Streamed, held_stats, streamed_stats};
 use crate::ecm::QuadId;
+use crate::ecm::grid::{GRID, spacing_m};
 use crate::ecm::points::quad_ball;
 use crate::geodesy::GeoBox;
 use crate::layers::{LayerSpec, Operand};
 use crate::project::Project;
 use crate::scene::Scene;
 use crate::scene::dataset::DatasetInfo;
-use crate::ecm::grid::{GRID, spacing_m};
 
 /// Samples along a quad edge.
 const N: usize = GRID as usize;

@@ -17,11 +17,11 @@ use super::CompareError;
 use super::coreg::RefSample;
 use super::sample::operand_scene;
 use crate::ecm::QuadId;
+use crate::ecm::grid::GRID;
 use crate::geodesy::{Ellipsoid, geodetic_from_ecef};
 use crate::layers::Operand;
 use crate::project::Project;
 use crate::scene::Scene;
-use crate::ecm::grid::GRID;
 
 /// Where stable terrain is.
 #[derive(Clone, Debug, PartialEq)]

@@ -35,12 +35,12 @@ use super::stable::Stable;
 use super::stats::weighted_quantile;
 use super::variogram::{Spherical, VariogramBin, empirical, fit, neff_disk};
 use crate::ecm::QuadId;
+use crate::ecm::grid::spacing_m;
 use crate::geodesy::GeoBox;
 use crate::layers::Operand;
 use crate::layers::correction::Frame;
 use crate::project::Project;
 use crate::scene::Scene;
-use crate::ecm::grid::spacing_m;
 
 /// Bins along each explanatory variable.
 const BINS: usize = 10;

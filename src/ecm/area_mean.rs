@@ -12,11 +12,7 @@ pub const AREA_MEAN_SPAN: usize = 2 * GRID as usize + 1;
 /// Fills the region [`area_mean`] reads (`AREA_MEAN_SPAN`², row by row from the south) from
 /// `sample(face, level, i, j)`, the child level's global samples (indices off the face are the
 /// sampler's to fold).
-pub fn fill_area_mean_region(
-    quad: QuadId,
-    region: &mut [f32],
-    sample: &mut dyn FnMut(Face, u8, i64, i64) -> f32,
-) {
+pub fn fill_area_mean_region(quad: QuadId, region: &mut [f32], sample: &mut dyn FnMut(Face, u8, i64, i64) -> f32) {
     let child = quad.level + 1;
     let (ci0, cj0) = (2 * i64::from(quad.x) * i64::from(TILE), 2 * i64::from(quad.y) * i64::from(TILE));
     let span = AREA_MEAN_SPAN;

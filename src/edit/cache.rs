@@ -13,9 +13,9 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use super::raster::EditRaster;
+use crate::ecm::grid::GRID;
 use crate::ecm::{Face, QuadId};
 use crate::geodesy::Ellipsoid;
-use crate::ecm::grid::GRID;
 
 const MAGIC: &[u8; 8] = b"TFEDITS1";
 const N: usize = (GRID * GRID) as usize;

@@ -7,12 +7,12 @@ use rayon::prelude::*;
 
 use super::stroke::{Stroke, Tool};
 use super::terrain::{Snapshot, Target};
+use crate::ecm::grid::{GRID, spacing_m};
 use crate::ecm::points::sample_point;
 use crate::ecm::{CubeProjection, FacePoint, QuadId};
 use crate::errors::Failure;
 use crate::geodesy::{Ellipsoid, geodetic_from_ecef};
 use crate::maths::noise;
-use crate::ecm::grid::{GRID, spacing_m};
 
 const N: usize = GRID as usize;
 

@@ -9,8 +9,8 @@ use std::collections::{BTreeSet, HashMap, HashSet};
 use std::sync::{Arc, Mutex};
 
 use crate::ecm::QuadId;
-use crate::ecm::grid::{GRID, TILE, fold_sample, quad_of_sample};
 use crate::ecm::area_mean::{AREA_MEAN_SPAN, area_mean, fill_area_mean_region};
+use crate::ecm::grid::{GRID, TILE, fold_sample, quad_of_sample};
 
 /// The coarse tiles made so far and the quads above the raster's tiles.
 #[derive(Default)]
@@ -169,8 +169,7 @@ impl Pyramid {
                 None => 0.0,
             }
         });
-        let values: Vec<f32> =
-            area_mean(quad, &region).into_iter().map(|v| if v.is_nan() { 0.0 } else { v }).collect();
+        let values: Vec<f32> = area_mean(quad, &region).into_iter().map(|v| if v.is_nan() { 0.0 } else { v }).collect();
         let values = Arc::new(values);
         self.made.lock().expect("not poisoned").insert(quad, values.clone());
         Some(values)

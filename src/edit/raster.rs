@@ -22,12 +22,12 @@ use super::kernel::{CpuRasteriser, Dab, Rasteriser, StrokeJob, apply_to_tile};
 use super::pyramid::Pyramid;
 use super::stroke::Stroke;
 use super::terrain::{Below, KeptBelow, Snapshot, Target, smooth_ring_m};
+use crate::ecm::grid::GRID;
 use crate::ecm::points::quad_ball;
 use crate::ecm::{Face, QuadId};
 use crate::errors::SharedFailure;
 use crate::geodesy::Ellipsoid;
 use crate::progress::Watch;
-use crate::ecm::grid::GRID;
 
 const N: usize = GRID as usize;
 

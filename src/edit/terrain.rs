@@ -14,10 +14,10 @@ use glam::DVec3;
 use rayon::prelude::*;
 
 use super::stroke::{Stroke, Tool};
+use crate::ecm::grid::{GRID, spacing_m};
 use crate::ecm::{CubeProjection, FacePoint, QuadId};
 use crate::errors::Failure;
 use crate::geodesy::{Ellipsoid, Geodetic, ecef_from_geodetic, geodetic_from_ecef};
-use crate::ecm::grid::{GRID, spacing_m};
 
 const N: usize = GRID as usize;
 

@@ -5,9 +5,9 @@ use glam::DVec3;
 use super::dabs::dab_centres;
 use super::{EditRaster, Falloff, Stroke, Tool, ellipsoid_below};
 use crate::ecm::QuadId;
+use crate::ecm::grid::GRID;
 use crate::ecm::points::sample_point;
 use crate::geodesy::{Ellipsoid, Geodetic, ecef_from_geodetic};
-use crate::ecm::grid::GRID;
 
 const N: usize = GRID as usize;
 

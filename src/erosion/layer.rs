@@ -15,6 +15,7 @@ use super::landscape::Evolution;
 use super::operation::{BrushPath, Model, Operation};
 use super::region::Region;
 use super::sim::Run;
+use crate::ecm::grid::{GRID, TILE, fold_sample, intervals_per_face_edge};
 use crate::ecm::points::sample_point;
 use crate::ecm::{Face, QuadId};
 use crate::edit::EditRaster;
@@ -23,7 +24,6 @@ use crate::errors::{Failure, SharedFailure};
 use crate::geodesy::{Ellipsoid, Geodetic, ecef_from_geodetic};
 use crate::maths::{segment_distance_m, smoothstep};
 use crate::progress::Watch;
-use crate::ecm::grid::{GRID, TILE, fold_sample, intervals_per_face_edge};
 
 const N: usize = GRID as usize;
 

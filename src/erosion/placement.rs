@@ -1,8 +1,8 @@
 //! Where a run goes, the same rules for the workstation and the command line: the box around a
 //! point (the view's centre) or along a brush path, and the level of its cells when none is given.
 
-use crate::geodesy::{BoxError, Ellipsoid, GeoBox};
 use crate::ecm::grid::spacing_m;
+use crate::geodesy::{BoxError, Ellipsoid, GeoBox};
 
 /// Cells along a region's north–south side that the default level aims at.
 pub const DEFAULT_CELLS_PER_SIDE: f64 = 512.0;

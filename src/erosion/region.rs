@@ -10,11 +10,11 @@ use std::collections::HashMap;
 use glam::DVec3;
 
 use super::grid::Grid;
+use crate::ecm::grid::{GRID, TILE, fold_sample, quad_of_sample, spacing_m};
 use crate::ecm::points::sample_point;
 use crate::ecm::{Face, QuadId};
 use crate::errors::{Failure, Invalid};
 use crate::geodesy::{Ellipsoid, GeoBox};
-use crate::ecm::grid::{GRID, TILE, fold_sample, quad_of_sample, spacing_m};
 
 /// The longest side between two points of a region's outline, metres (see [`Region::outline`]).
 pub const OUTLINE_STEP_M: f64 = 4000.0;

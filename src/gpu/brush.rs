@@ -17,13 +17,13 @@ use super::compute::{compute_pipeline, read_mapped, readback_buffer, shader_modu
 use super::context::{GpuContext, GpuError};
 use super::terrain::bind_buffers;
 use crate::ecm::QuadId;
+use crate::ecm::grid::GRID;
 use crate::ecm::points::sample_point;
 use crate::edit::kernel::{CpuRasteriser, Rasteriser, StrokeJob, window};
 use crate::edit::terrain::Target;
 use crate::edit::{Falloff, Tool};
 use crate::errors::Failure;
 use crate::layers::noise;
-use crate::ecm::grid::GRID;
 
 const N: usize = GRID as usize;
 /// Largest distance between a tile's exact points, metres: the surface sags below the chord

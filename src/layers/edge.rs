@@ -22,9 +22,9 @@ use glam::DVec3;
 use rayon::prelude::*;
 use std::collections::HashMap;
 
+use crate::ecm::grid::{GRID, face_xy, fold_sample, quad_of_sample};
 use crate::ecm::{CubeProjection, FacePoint, MAX_LEVEL, QuadId};
 use crate::geodesy::{Ellipsoid, Geodetic, ecef_from_geodetic};
-use crate::ecm::grid::{GRID, face_xy, fold_sample, quad_of_sample};
 
 /// Samples along a quad edge.
 const N: usize = GRID as usize;

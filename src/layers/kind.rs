@@ -9,8 +9,8 @@
 
 use super::noise;
 use super::spec::{LayerKind, LayerPayload, LayerSpec, NoiseSpec};
-use crate::geodesy::Ellipsoid;
 use crate::ecm::grid::spacing_m;
+use crate::geodesy::Ellipsoid;
 
 /// Where a layer's value at a sample comes from.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -13,8 +13,8 @@ use super::extent::{Extent, NearEdge, Relation};
 use super::noise;
 use super::spec::{BlendMode, LayerSpec, Operand};
 use crate::ecm::QuadId;
-use crate::geodesy::Ellipsoid;
 use crate::ecm::grid::{GRID, spacing_m};
+use crate::geodesy::Ellipsoid;
 
 /// One layer of a stack.
 #[derive(Clone, Debug)]

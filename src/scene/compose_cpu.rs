@@ -9,9 +9,9 @@ use super::loader::{DataKey, EdgeFields, QuadHeights, read_tile};
 use super::{Composed, Grid, Scene, SceneError};
 use crate::Invalid;
 use crate::ecm::QuadId;
+use crate::ecm::grid::GRID;
 use crate::layers::{LayerTiles, compose_difference, compose_quad};
 use crate::store::Store;
-use crate::ecm::grid::GRID;
 
 impl Scene {
     /// Composes quads with the CPU reference, reading their source and edge tiles here (on the

@@ -13,9 +13,9 @@ use std::sync::{Arc, Condvar, Mutex};
 
 use super::dataset::DatasetInfo;
 use crate::ecm::geometry::{MapCache, StaticMaps};
+use crate::ecm::grid::{GRID, upsample};
 use crate::ecm::{CubeProjection, QuadId};
 use crate::geodesy::Ellipsoid;
-use crate::ecm::grid::{GRID, upsample};
 use crate::store::{Store, StoreError};
 
 /// Samples along a quad edge, in the store and on the GPU.

@@ -13,10 +13,10 @@ use std::collections::HashMap;
 use glam::DVec3;
 
 use super::dataset::DatasetInfo;
+use crate::ecm::grid::{GRID, bicubic};
 use crate::ecm::points::sample_point;
 use crate::ecm::{CubeProjection, QuadId};
 use crate::geodesy::{Ellipsoid, geodetic_from_ecef};
-use crate::ecm::grid::{GRID, bicubic};
 use crate::store::{Store, StoreError};
 
 const N: usize = GRID as usize;

@@ -11,9 +11,9 @@ use rayon::prelude::*;
 
 use super::StoreError;
 use super::gpkg::Store;
-use crate::ecm::grid;
 use super::read::GridReader;
 use super::source::body_geographic;
+use crate::ecm::grid;
 use crate::geodesy::{self, Geodetic};
 
 /// What to export.

@@ -12,8 +12,8 @@ use rusqlite::{Connection, OpenFlags, OptionalExtension, params};
 use serde::{Deserialize, Serialize};
 
 use super::StoreError;
-use crate::ecm::grid::{TILE, intervals_per_face_edge};
 use super::tile::{EncodedQuad, QuadGrid};
+use crate::ecm::grid::{TILE, intervals_per_face_edge};
 use crate::ecm::{Face, QuadId};
 use crate::geodesy::Ellipsoid;
 

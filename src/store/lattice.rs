@@ -17,8 +17,8 @@
 
 use std::sync::atomic::{AtomicU64, Ordering};
 
-use crate::ecm::grid::{self, TILE, cubic_weights};
 use super::source::SourceReader;
+use crate::ecm::grid::{self, TILE, cubic_weights};
 use crate::ecm::{CubeProjection, FacePoint, QuadId};
 use crate::geodesy::Ellipsoid;
 

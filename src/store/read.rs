@@ -6,8 +6,8 @@ use std::sync::Arc;
 
 use super::StoreError;
 use super::gpkg::Store;
-use crate::ecm::grid::{self, GRID, fold_sample, quad_of_sample};
 use super::tile::QuadGrid;
+use crate::ecm::grid::{self, GRID, fold_sample, quad_of_sample};
 use crate::ecm::{CubeProjection, Face, QuadId};
 
 /// Reads one dataset of a store, keeping recently used grids (at most `capacity`).

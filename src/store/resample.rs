@@ -8,13 +8,13 @@ use std::str::FromStr;
 use gdal::spatial_ref::CoordTransform;
 
 use super::StoreError;
-use crate::ecm::grid::{self, GRID, TILE, face_xy, spacing_m};
 use super::lattice::{LatticeRow, LatticeStats, PixelLattice, QuadPositions, Transform, exact_positions};
 use super::read::GridReader;
 use super::source::{SourceReader, Window};
 use super::tile::QuadGrid;
-use crate::ecm::area_mean::{AREA_MEAN_SPAN, area_mean};
 use crate::Invalid;
+use crate::ecm::area_mean::{AREA_MEAN_SPAN, area_mean};
+use crate::ecm::grid::{self, GRID, TILE, face_xy, spacing_m};
 use crate::ecm::{CubeProjection, Edge, FacePoint, QuadId};
 use crate::geodesy::Ellipsoid;
 

@@ -17,13 +17,13 @@ use sha2::{Digest, Sha256};
 
 use super::StoreError;
 use super::gpkg::{DatasetSettings, SourceProvenance, Store};
-use crate::ecm::grid::GRID;
 use super::import::{
     ImportOptions, ImportReport, LevelChoice, LevelWriter, Prepared, Resampling, VerticalDatum, candidates,
     finest_level, open_dataset, peak_rss_bytes, prepare, same_files, worker_pool,
 };
 use super::watch::ImportWatch;
 use crate::Invalid;
+use crate::ecm::grid::GRID;
 use crate::ecm::{Face, QuadId};
 use crate::geodesy::Ellipsoid;
 

@@ -21,6 +21,7 @@ use super::patch_errors::{ErrorJob, ErrorKey, MAX_JOBS, PatchErrorPass, QuadErro
 use super::terrain::{TerrainPass, ramp_buffer};
 use super::uniforms::{FrameUniform, NO_SLOT, PatchInstance, QuadInstance, rgba, v4};
 use crate::ecm::geometry::{FlatRule, MapSymmetry, QuadFrame, QuadGeometry, Split};
+use crate::ecm::grid::spacing_m;
 use crate::ecm::{CubeProjection, QuadId};
 use crate::layers::{LayerError, LayerSpec};
 use crate::project::CameraSpec;
@@ -34,7 +35,6 @@ use crate::scene::patches::{
 use crate::scene::quads::{QuadCache, Source, exaggerated_range, flat_rule_for};
 use crate::scene::select::{self, SelectParams, Selection};
 use crate::scene::slots::SlotPool;
-use crate::ecm::grid::spacing_m;
 
 /// Stored for a sample without data (the shader tests `< -1e37`).
 const NODATA_STORED: f32 = -3.0e37;

@@ -25,13 +25,13 @@ pub(super) use levels::LevelWriter;
 
 use super::StoreError;
 use super::gpkg::{DatasetRecord, DatasetSettings, SourceProvenance, Store, check_dataset_name, face_proj, utc_now};
-use crate::ecm::grid::{self, GRID, spacing_m};
 use super::lattice::{LatticeStats, Transform};
 use super::read::GridReader;
 pub use super::resample::Resampling;
 use super::resample::{Plan, Worker, average_quad, footprint, resample_quad};
 use super::source::{SourceInfo, SourceReader};
 use super::watch::ImportWatch;
+use crate::ecm::grid::{self, GRID, spacing_m};
 use crate::ecm::{Face, QuadId};
 use crate::geodesy::Ellipsoid;
 
