@@ -10,7 +10,7 @@ use std::sync::atomic::{AtomicBool, AtomicU8, AtomicU64, Ordering};
 use std::sync::{Arc, Condvar, Mutex};
 use std::thread::JoinHandle;
 
-use super::erosion::{Overlay, field, region_map};
+use super::erosion_overlay::{Overlay, field, region_map};
 use crate::edit::EditRaster;
 use crate::erosion::region::Region;
 use crate::erosion::sim::{Budget, Run};

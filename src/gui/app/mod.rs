@@ -23,6 +23,7 @@ mod disk;
 mod drainage;
 mod erosion;
 mod erosion_brush;
+mod erosion_overlay;
 mod erosion_run;
 pub mod file;
 pub use debug_hook::DebugHook;
