@@ -59,77 +59,10 @@ pub enum Command {
     },
     /// Render one frame of a project to a PNG and report what it drew and what it cost; or, with
     /// --flight, frames along a camera path with frames.csv.
-    Render {
-        /// The project file (JSON).
-        #[arg(required_unless_present = "list_colour_maps")]
-        project: Option<PathBuf>,
-        /// The PNG to write.
-        #[arg(long, required_unless_present_any = ["flight", "list_colour_maps"], conflicts_with = "flight")]
-        out: Option<PathBuf>,
-        /// List the colour maps a project's visuals.colour_map.preset may name, and stop.
-        #[arg(long = "list-colour-maps", exclusive = true)]
-        list_colour_maps: bool,
-        /// A camera path: LAT,LON,ALT,HEADING,PITCH[,FOV];LAT,… (degrees, metres above the
-        /// ellipsoid), flown along geodesics, the altitude geometrically.
-        #[arg(long, allow_hyphen_values = true, requires = "out_dir", conflicts_with_all = ["swipe", "view", "camera"])]
-        flight: Option<String>,
-        /// Frames along the flight.
-        #[arg(long, default_value_t = 60, requires = "flight", allow_negative_numbers = true)]
-        frames: usize,
-        /// Folder for the flight's frame_0000.png … and frames.csv.
-        #[arg(long, requires = "flight")]
-        out_dir: Option<PathBuf>,
-        /// Draw without geomorphing (to measure the pops it hides).
-        #[arg(long)]
-        no_geomorph: bool,
-        /// Where frames compose the layer stack: gpu (the compute pass) or cpu (the reference);
-        /// default: gpu on a hardware adapter, cpu on a software one (where it is faster).
-        #[arg(long, value_parser = ["gpu", "cpu"])]
-        compose: Option<String>,
-        /// Image width, pixels.
-        #[arg(long, default_value_t = 1280, allow_negative_numbers = true)]
-        width: u32,
-        /// Image height, pixels.
-        #[arg(long, default_value_t = 1024, allow_negative_numbers = true)]
-        height: u32,
-        /// The view: a named one, a camera, a level of detail.
-        #[command(flatten)]
-        look: LookArgs,
-        /// A,B[,POSITION]: layer A left of a vertical line at POSITION (0–1 of the width,
-        /// default 0.5), layer B right of it (each shown with the other hidden); or the name of
-        /// a swipe saved in the project (comparison.swipes), with its view.
-        #[arg(long)]
-        swipe: Option<String>,
-    },
+    Render(RenderArgs),
     /// Write a project's composed elevation (every visible layer, as drawn) as a GeoTIFF in any
     /// CRS: float32, NaN nodata, written atomically.
-    Export {
-        /// The project file (JSON).
-        project: PathBuf,
-        /// The GeoTIFF to write.
-        out: PathBuf,
-        /// The output grid.
-        #[command(flatten)]
-        raster: RasterArgs,
-        /// Level to compose (default: the output's pixel size, no finer than the finest dataset
-        /// unless procedural layers add detail).
-        #[arg(long, allow_negative_numbers = true)]
-        level: Option<u8>,
-        /// Where to compose: gpu (the renderer's pass) or cpu (the reference, bit for bit).
-        #[arg(long, default_value = "gpu", value_parser = ["gpu", "cpu"])]
-        compose: String,
-        /// A,B: write layer A − layer B (each composed alone) instead of the stack.
-        #[arg(long)]
-        difference: Option<String>,
-        /// Write a terrain attribute of the composed heights instead of the heights: slope,
-        /// aspect, hillshade, curvature, planform_curvature, profile_curvature, tpi, tri or
-        /// roughness (xDEM's definitions, in true metres on the ellipsoid).
-        #[arg(long)]
-        attribute: Option<String>,
-        /// Compose this layer alone (as compare takes it) instead of the visible stack.
-        #[arg(long, conflicts_with = "difference")]
-        layer: Option<String>,
-    },
+    Export(ExportArgs),
     /// Compare layer A with layer B (the reference) of a project: statistics of A − B over
     /// their overlap at one level, weighted by each sample's cell area on the ellipsoid, by slope
     /// class of B, with a histogram.
@@ -490,4 +423,79 @@ pub struct EngineArgs {
     /// without a hardware GPU).
     #[arg(long)]
     pub cpu: bool,
+}
+
+/// `terrafuse render`'s arguments.
+#[derive(clap::Args, Clone)]
+pub struct RenderArgs {
+    /// The project file (JSON).
+    #[arg(required_unless_present = "list_colour_maps")]
+    pub project: Option<PathBuf>,
+    /// The PNG to write.
+    #[arg(long, required_unless_present_any = ["flight", "list_colour_maps"], conflicts_with = "flight")]
+    pub out: Option<PathBuf>,
+    /// List the colour maps a project's visuals.colour_map.preset may name, and stop.
+    #[arg(long = "list-colour-maps", exclusive = true)]
+    pub list_colour_maps: bool,
+    /// A camera path: LAT,LON,ALT,HEADING,PITCH[,FOV];LAT,… (degrees, metres above the
+    /// ellipsoid), flown along geodesics, the altitude geometrically.
+    #[arg(long, allow_hyphen_values = true, requires = "out_dir", conflicts_with_all = ["swipe", "view", "camera"])]
+    pub flight: Option<String>,
+    /// Frames along the flight.
+    #[arg(long, default_value_t = 60, requires = "flight", allow_negative_numbers = true)]
+    pub frames: usize,
+    /// Folder for the flight's frame_0000.png … and frames.csv.
+    #[arg(long, requires = "flight")]
+    pub out_dir: Option<PathBuf>,
+    /// Draw without geomorphing (to measure the pops it hides).
+    #[arg(long)]
+    pub no_geomorph: bool,
+    /// Where frames compose the layer stack: gpu (the compute pass) or cpu (the reference);
+    /// default: gpu on a hardware adapter, cpu on a software one (where it is faster).
+    #[arg(long, value_parser = ["gpu", "cpu"])]
+    pub compose: Option<String>,
+    /// Image width, pixels.
+    #[arg(long, default_value_t = 1280, allow_negative_numbers = true)]
+    pub width: u32,
+    /// Image height, pixels.
+    #[arg(long, default_value_t = 1024, allow_negative_numbers = true)]
+    pub height: u32,
+    /// The view: a named one, a camera, a level of detail.
+    #[command(flatten)]
+    pub look: LookArgs,
+    /// A,B[,POSITION]: layer A left of a vertical line at POSITION (0–1 of the width,
+    /// default 0.5), layer B right of it (each shown with the other hidden); or the name of
+    /// a swipe saved in the project (comparison.swipes), with its view.
+    #[arg(long)]
+    pub swipe: Option<String>,
+}
+
+/// `terrafuse export`'s arguments.
+#[derive(clap::Args)]
+pub struct ExportArgs {
+    /// The project file (JSON).
+    pub project: PathBuf,
+    /// The GeoTIFF to write.
+    pub out: PathBuf,
+    /// The output grid.
+    #[command(flatten)]
+    pub raster: RasterArgs,
+    /// Level to compose (default: the output's pixel size, no finer than the finest dataset
+    /// unless procedural layers add detail).
+    #[arg(long, allow_negative_numbers = true)]
+    pub level: Option<u8>,
+    /// Where to compose: gpu (the renderer's pass) or cpu (the reference, bit for bit).
+    #[arg(long, default_value = "gpu", value_parser = ["gpu", "cpu"])]
+    pub compose: String,
+    /// A,B: write layer A − layer B (each composed alone) instead of the stack.
+    #[arg(long)]
+    pub difference: Option<String>,
+    /// Write a terrain attribute of the composed heights instead of the heights: slope,
+    /// aspect, hillshade, curvature, planform_curvature, profile_curvature, tpi, tri or
+    /// roughness (xDEM's definitions, in true metres on the ellipsoid).
+    #[arg(long)]
+    pub attribute: Option<String>,
+    /// Compose this layer alone (as compare takes it) instead of the visible stack.
+    #[arg(long, conflicts_with = "difference")]
+    pub layer: Option<String>,
 }

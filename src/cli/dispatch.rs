@@ -5,7 +5,9 @@
 
 use std::io::BufReader;
 
-use super::args::{Analysis, Command, GeoCommand, ImportArgs, ProjectCommand, SlurmCommand, StoreCommand};
+use super::args::{
+    Analysis, Command, ExportArgs, GeoCommand, ImportArgs, ProjectCommand, RenderArgs, SlurmCommand, StoreCommand,
+};
 use super::console::Console;
 use super::error::Context;
 use super::feedback::watched;
@@ -22,33 +24,7 @@ pub fn run(command: Command, c: &mut Console) -> Result<u8, CliError> {
             c.print(super::overview(&text))?;
             c.print(format_args!("\n{}", super::tissot_report(600, 10).0))?;
         }
-        Command::Geo { operation, body, projection, input } => {
-            let ellipsoid: Ellipsoid = body.parse()?;
-            let projection: CubeProjection = projection.parse()?;
-            let operation = match operation {
-                GeoCommand::ToFace => GeoOperation::ToFace,
-                GeoCommand::FromFace => GeoOperation::FromFace,
-                GeoCommand::ToEcef => GeoOperation::ToEcef,
-                GeoCommand::FromEcef => GeoOperation::FromEcef,
-            };
-            let report = match input {
-                Some(path) => {
-                    let file = std::fs::File::open(&path)
-                        .with_context(|| format!("cannot open input file {}", path.display()))?;
-                    super::run_batch(operation, &ellipsoid, projection, BufReader::new(file), &mut *c.out, &mut *c.err)
-                }
-                None => super::run_batch(operation, &ellipsoid, projection, &mut *c.input, &mut *c.out, &mut *c.err),
-            }
-            .context("cannot convert the records")?;
-            if report.refused > 0 {
-                c.note(format_args!(
-                    "terrafuse: {} of {} records refused",
-                    report.refused,
-                    report.refused + report.converted
-                ));
-                return Ok(1);
-            }
-        }
+        Command::Geo { operation, body, projection, input } => return run_geo(operation, &body, &projection, input, c),
         Command::Analyze { analysis: Analysis::Tissot { samples, level } } => {
             c.print(super::tissot_report(samples, level).0)?;
         }
@@ -64,76 +40,7 @@ pub fn run(command: Command, c: &mut Console) -> Result<u8, CliError> {
                 super::cutoff_report(&ellipsoid, tolerance_m, limit_fraction, max_level.min(30), samples.max(3));
             c.print(table)?;
         }
-        Command::Render { list_colour_maps: true, .. } => {
-            for (name, what, _) in crate::colour::PRESETS {
-                c.print(format_args!("{name:<14} {what}\n"))?;
-            }
-            c.print("(or visuals.colour_map.file: a gdaldem colour-relief file or a GMT .cpt, heights in metres)\n")?;
-        }
-        Command::Render { project: None, .. } => return Err("render: give the project file".into()),
-        Command::Render {
-            project: Some(project),
-            out: None,
-            width,
-            height,
-            look,
-            flight,
-            frames,
-            out_dir,
-            no_geomorph,
-            compose,
-            ..
-        } => {
-            let request = super::FlightRequest {
-                project: &project,
-                flight: flight.as_deref().unwrap_or_default(),
-                frames,
-                out_dir: out_dir.as_deref().unwrap_or(std::path::Path::new(".")),
-                width,
-                height,
-                lod_threshold: look.lod_threshold,
-                pixel_error: look.pixel_error,
-                compose_on: compose_on(compose.as_deref()),
-                geomorph: !no_geomorph,
-            };
-            let err = &mut *c.err;
-            let report = super::render_flight(&request, &mut |line| {
-                let _ = writeln!(err, "{line}");
-            })?;
-            c.print(report)?;
-        }
-        Command::Render {
-            project: Some(project),
-            out: Some(out),
-            width,
-            height,
-            look,
-            swipe,
-            no_geomorph,
-            compose,
-            ..
-        } => {
-            c.note_recovery(&project);
-            let request = super::RenderRequest {
-                project: &project,
-                out: &out,
-                geomorph: !no_geomorph,
-                width,
-                height,
-                view: look.view.as_deref(),
-                camera: look.camera.as_deref(),
-                lod_threshold: look.lod_threshold,
-                pixel_error: look.pixel_error,
-                compose_on: compose_on(compose.as_deref()),
-                swipe: swipe.as_deref(),
-                trace: c.trace,
-            };
-            let err = &mut *c.err;
-            let report = super::render(&request, &mut |line| {
-                let _ = writeln!(err, "{line}");
-            })?;
-            c.print(report)?;
-        }
+        Command::Render(args) => run_render(args, c)?,
         Command::Profile(request) => c.print(super::profile_command(&request)?)?,
         Command::Compare(request) => {
             let report = watched(c, !request.json, |fb| super::compare_command(&request, fb))?;
@@ -169,65 +76,12 @@ pub fn run(command: Command, c: &mut Console) -> Result<u8, CliError> {
             ProjectCommand::Schema { markdown: false } => c.print(crate::project::Project::schema())?,
             ProjectCommand::Schema { markdown: true } => c.print(crate::project::reference::markdown())?,
         },
-        Command::Export { project, out, raster, level, compose, difference, attribute, layer } => {
-            let (crs, bounds, resolution) = raster.parse()?;
-            let difference = match difference.as_deref().map(|d| d.split(',').map(str::trim).collect::<Vec<_>>()) {
-                None => None,
-                Some(v) if v.len() == 2 && v[0] != v[1] => Some((v[0].to_string(), v[1].to_string())),
-                Some(v) => return Err(format!("--difference {}: give two different layers A,B", v.join(",")).into()),
-            };
-            let compose_on = compose_on(Some(&compose)).unwrap_or(super::ComposeOn::Gpu);
-            let attribute = attribute
-                .map(|name| {
-                    crate::attributes::Attribute::parse(&name).ok_or_else(|| {
-                        let names: Vec<&str> = crate::attributes::Attribute::ALL.iter().map(|a| a.name()).collect();
-                        format!("--attribute {name}: not an attribute ({})", names.join(", "))
-                    })
-                })
-                .transpose()?;
-            let opts = super::ComposedExport {
-                project,
-                out,
-                crs,
-                bounds,
-                resolution,
-                level,
-                compose_on,
-                difference,
-                attribute,
-                layer,
-            };
-            let report = watched(c, true, |fb| super::export::export_composed_watched(&opts, fb.watch))?;
-            c.print(format_args!(
-                "wrote {}{} ({}×{} pixels, level {}, {} quads composed on the {}, {} pixels with data)\n",
-                opts.out.display(),
-                attribute.map(|a| format!(": {} in {}", a.name(), a.unit())).unwrap_or_default(),
-                report.size.0,
-                report.size.1,
-                report.level,
-                report.quads,
-                report.composer,
-                report.valid
-            ))?;
-        }
+        Command::Export(args) => run_export(args, c)?,
         Command::View { .. } => {
             return Err("the workstation is opened by the terrafuse program, not the library".into());
         }
         Command::Import { import } => run_import(&import, c)?,
-        Command::Store { command: StoreCommand::Merge { store, parts, threads, quiet } } => {
-            let opts = crate::store::merge::MergeOptions {
-                store: store.clone(),
-                parts,
-                threads,
-                progress: !quiet,
-                watch: None,
-            };
-            let report = crate::store::merge::merge(&opts)?;
-            c.print(super::merge_summary(&store, &report))?;
-            if !report.complete {
-                return Ok(3);
-            }
-        }
+        Command::Store { command } => return run_store(command, c),
         Command::Slurm { command: SlurmCommand::Submit(a) } => {
             c.print(super::slurm_submit(&super::SubmitRequest {
                 manifest: a.manifest,
@@ -241,8 +95,163 @@ pub fn run(command: Command, c: &mut Console) -> Result<u8, CliError> {
                 dry_run: a.dry_run,
             })?)?;
         }
-        Command::Store { command: StoreCommand::Info { store } } => c.print(super::store_info(&store)?)?,
-        Command::Store { command: StoreCommand::Sample { store, dataset, level } } => {
+        Command::Bench { bench } => return super::bench_command::run(bench, c),
+    }
+    Ok(0)
+}
+
+/// `terrafuse geo`: points converted record by record from a file or standard input; 1 when a
+/// record was refused.
+fn run_geo(
+    operation: GeoCommand,
+    body: &str,
+    projection: &str,
+    input: Option<std::path::PathBuf>,
+    c: &mut Console,
+) -> Result<u8, CliError> {
+    let ellipsoid: Ellipsoid = body.parse()?;
+    let projection: CubeProjection = projection.parse()?;
+    let operation = match operation {
+        GeoCommand::ToFace => GeoOperation::ToFace,
+        GeoCommand::FromFace => GeoOperation::FromFace,
+        GeoCommand::ToEcef => GeoOperation::ToEcef,
+        GeoCommand::FromEcef => GeoOperation::FromEcef,
+    };
+    let report = match input {
+        Some(path) => {
+            let file =
+                std::fs::File::open(&path).with_context(|| format!("cannot open input file {}", path.display()))?;
+            super::run_batch(operation, &ellipsoid, projection, BufReader::new(file), &mut *c.out, &mut *c.err)
+        }
+        None => super::run_batch(operation, &ellipsoid, projection, &mut *c.input, &mut *c.out, &mut *c.err),
+    }
+    .context("cannot convert the records")?;
+    if report.refused > 0 {
+        c.note(format_args!("terrafuse: {} of {} records refused", report.refused, report.refused + report.converted));
+        return Ok(1);
+    }
+    Ok(0)
+}
+
+/// `terrafuse render`: the colour maps listed, a flight's frames, or one frame.
+fn run_render(args: RenderArgs, c: &mut Console) -> Result<(), CliError> {
+    if args.list_colour_maps {
+        for (name, what, _) in crate::colour::PRESETS {
+            c.print(format_args!("{name:<14} {what}\n"))?;
+        }
+        c.print("(or visuals.colour_map.file: a gdaldem colour-relief file or a GMT .cpt, heights in metres)\n")?;
+        return Ok(());
+    }
+    let RenderArgs { project, out, width, height, look, swipe, flight, frames, out_dir, no_geomorph, compose, .. } =
+        args;
+    let Some(project) = project else { return Err("render: give the project file".into()) };
+    let Some(out) = out else {
+        let request = super::FlightRequest {
+            project: &project,
+            flight: flight.as_deref().unwrap_or_default(),
+            frames,
+            out_dir: out_dir.as_deref().unwrap_or(std::path::Path::new(".")),
+            width,
+            height,
+            lod_threshold: look.lod_threshold,
+            pixel_error: look.pixel_error,
+            compose_on: compose_on(compose.as_deref()),
+            geomorph: !no_geomorph,
+        };
+        let err = &mut *c.err;
+        let report = super::render_flight(&request, &mut |line| {
+            let _ = writeln!(err, "{line}");
+        })?;
+        return c.print(report);
+    };
+    c.note_recovery(&project);
+    let request = super::RenderRequest {
+        project: &project,
+        out: &out,
+        geomorph: !no_geomorph,
+        width,
+        height,
+        view: look.view.as_deref(),
+        camera: look.camera.as_deref(),
+        lod_threshold: look.lod_threshold,
+        pixel_error: look.pixel_error,
+        compose_on: compose_on(compose.as_deref()),
+        swipe: swipe.as_deref(),
+        trace: c.trace,
+    };
+    let err = &mut *c.err;
+    let report = super::render(&request, &mut |line| {
+        let _ = writeln!(err, "{line}");
+    })?;
+    c.print(report)
+}
+
+/// `terrafuse export`: the composed stack, a difference, a layer alone or a terrain attribute
+/// written as a GeoTIFF on the asked grid.
+fn run_export(args: ExportArgs, c: &mut Console) -> Result<(), CliError> {
+    let ExportArgs { project, out, raster, level, compose, difference, attribute, layer } = args;
+    let (crs, bounds, resolution) = raster.parse()?;
+    let difference = match difference.as_deref().map(|d| d.split(',').map(str::trim).collect::<Vec<_>>()) {
+        None => None,
+        Some(v) if v.len() == 2 && v[0] != v[1] => Some((v[0].to_string(), v[1].to_string())),
+        Some(v) => return Err(format!("--difference {}: give two different layers A,B", v.join(",")).into()),
+    };
+    let compose_on = compose_on(Some(&compose)).unwrap_or(super::ComposeOn::Gpu);
+    let attribute = attribute
+        .map(|name| {
+            crate::attributes::Attribute::parse(&name).ok_or_else(|| {
+                let names: Vec<&str> = crate::attributes::Attribute::ALL.iter().map(|a| a.name()).collect();
+                format!("--attribute {name}: not an attribute ({})", names.join(", "))
+            })
+        })
+        .transpose()?;
+    let opts = super::ComposedExport {
+        project,
+        out,
+        crs,
+        bounds,
+        resolution,
+        level,
+        compose_on,
+        difference,
+        attribute,
+        layer,
+    };
+    let report = watched(c, true, |fb| super::export::export_composed_watched(&opts, fb.watch))?;
+    c.print(format_args!(
+        "wrote {}{} ({}×{} pixels, level {}, {} quads composed on the {}, {} pixels with data)\n",
+        opts.out.display(),
+        attribute.map(|a| format!(": {} in {}", a.name(), a.unit())).unwrap_or_default(),
+        report.size.0,
+        report.size.1,
+        report.level,
+        report.quads,
+        report.composer,
+        report.valid
+    ))?;
+    Ok(())
+}
+
+/// `terrafuse store …`: merge parts, describe, sample or export a store; 1 when a sampled line
+/// was refused, 3 for an incomplete merge.
+fn run_store(command: StoreCommand, c: &mut Console) -> Result<u8, CliError> {
+    match command {
+        StoreCommand::Merge { store, parts, threads, quiet } => {
+            let opts = crate::store::merge::MergeOptions {
+                store: store.clone(),
+                parts,
+                threads,
+                progress: !quiet,
+                watch: None,
+            };
+            let report = crate::store::merge::merge(&opts)?;
+            c.print(super::merge_summary(&store, &report))?;
+            if !report.complete {
+                return Ok(3);
+            }
+        }
+        StoreCommand::Info { store } => c.print(super::store_info(&store)?)?,
+        StoreCommand::Sample { store, dataset, level } => {
             let s = crate::store::Store::open_read_only(&store)?;
             let mut reader = crate::store::GridReader::new(s, dataset.as_deref().unwrap_or(""))?;
             let finest = reader.finest_level();
@@ -257,7 +266,7 @@ pub fn run(command: Command, c: &mut Console) -> Result<u8, CliError> {
                 return Ok(1);
             }
         }
-        Command::Store { command: StoreCommand::Export { store, out, raster, dataset, level } } => {
+        StoreCommand::Export { store, out, raster, dataset, level } => {
             let (crs, bounds, resolution) = raster.parse()?;
             let opts = crate::store::export::ExportOptions { store, dataset, crs, bounds, resolution, level, out };
             let report = crate::store::export::export(&opts)?;
@@ -270,7 +279,6 @@ pub fn run(command: Command, c: &mut Console) -> Result<u8, CliError> {
                 report.valid
             ))?;
         }
-        Command::Bench { bench } => return super::bench_command::run(bench, c),
     }
     Ok(0)
 }
