@@ -8,6 +8,16 @@ fn in_effect<T>(operations: &[T], applied: Option<usize>) -> &[T] {
     &operations[..applied.unwrap_or(operations.len()).min(operations.len())]
 }
 
+/// Drops the operations of a log past its undo position, which then is at its end; returns how
+/// many were dropped.
+fn drop_past(operations: &mut Vec<impl Sized>, applied: &mut Option<usize>) -> usize {
+    let kept = in_effect(operations, *applied).len();
+    let dropped = operations.len() - kept;
+    operations.truncate(kept);
+    *applied = None;
+    dropped
+}
+
 impl EditLayer {
     /// The strokes in effect (those before the undo position).
     pub fn in_effect(&self) -> &[crate::edit::Stroke] {
@@ -83,11 +93,8 @@ impl LayerSpec {
     pub fn record_stroke(&mut self, stroke: crate::edit::Stroke) -> Result<usize, LayerError> {
         let (name, kind) = (self.name.clone(), self.kind());
         let edit = self.as_edit_mut().ok_or_else(|| not_a(&name, kind, "edit"))?;
-        let kept = in_effect(&edit.strokes, edit.applied).len();
-        let dropped = edit.strokes.len() - kept;
-        edit.strokes.truncate(kept);
+        let dropped = drop_past(&mut edit.strokes, &mut edit.applied);
         edit.strokes.push(stroke);
-        edit.applied = None;
         Ok(dropped)
     }
 
@@ -96,11 +103,8 @@ impl LayerSpec {
     pub fn record_run(&mut self, run: crate::erosion::operation::Operation) -> Result<usize, LayerError> {
         let (name, kind) = (self.name.clone(), self.kind());
         let erosion = self.as_erosion_mut().ok_or_else(|| not_a(&name, kind, "erosion"))?;
-        let kept = in_effect(&erosion.runs, erosion.applied).len();
-        let dropped = erosion.runs.len() - kept;
-        erosion.runs.truncate(kept);
+        let dropped = drop_past(&mut erosion.runs, &mut erosion.applied);
         erosion.runs.push(run);
-        erosion.applied = None;
         Ok(dropped)
     }
 
@@ -108,12 +112,10 @@ impl LayerSpec {
     pub fn drop_undone(&mut self) {
         match &mut self.payload {
             LayerPayload::Edit(e) => {
-                e.strokes.truncate(in_effect(&e.strokes, e.applied).len());
-                e.applied = None;
+                drop_past(&mut e.strokes, &mut e.applied);
             }
             LayerPayload::Erosion(e) => {
-                e.runs.truncate(in_effect(&e.runs, e.applied).len());
-                e.applied = None;
+                drop_past(&mut e.runs, &mut e.applied);
             }
             _ => {}
         }
