@@ -1040,9 +1040,10 @@ fn a_flight_writes_its_frames_and_geomorphing_hides_the_changes_of_density() {
     // With it, a change of stride draws what was drawn before (0 up to the rounding of the f64
     // evaluation), even where the coarser patch was itself morphing, while the camera moves by
     // less than the band's start (10 % a frame here): the 0.1 px in every frame whose
-    // quads keep their levels. A quad split or merged changes the data under the mesh (each level
-    // is composed apart), by less than both meshes' error, at most τ (1 px) each side of the
-    // data: what pops there is far less than without.
+    // quads keep their levels. Where a quad is split or merged, the child's patches morph by
+    // reaches from their own errors, not the parent's, so a stride's morph state changes, by less
+    // than both meshes' error, at most τ (1 px) each side of the data: what pops there is far
+    // less than without (docs/rendering.md).
     for (k, row) in morphed.iter().enumerate().skip(1) {
         if row["levels"] == morphed[k - 1]["levels"] {
             assert!(with[k] <= 0.1, "frame {k} changed strides only and popped: {with:?}");
