@@ -10,6 +10,7 @@
 #![warn(missing_docs)]
 
 pub mod attributes;
+pub mod bench;
 pub mod cli;
 pub mod colour;
 pub mod compare;

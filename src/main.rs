@@ -1,7 +1,8 @@
 //! `terrafuse`: parses the command line, gives the library the process's standard streams and
 //! environment, prints what it returns, and opens the workstation (`terrafuse view`, or
 //! `terrafuse` alone). Everything else is in the library: the commands' types in
-//! `terrafuse::cli::args`, running them in `terrafuse::cli::dispatch`.
+//! `terrafuse::cli::args`, running them in `terrafuse::cli::dispatch` (the benchmarks in
+//! `terrafuse::bench`).
 
 use std::io;
 use std::path::PathBuf;
@@ -163,7 +164,11 @@ fn run(args: Args) -> Result<ExitCode> {
                 var: &var,
                 progress: io::IsTerminal::is_terminal(&io::stderr()),
             };
-            return Ok(ExitCode::from(cli::run(command, &mut console)?));
+            let code = match command {
+                Command::Bench { bench } => terrafuse::bench::run(bench, &mut console)?,
+                command => cli::run(command, &mut console)?,
+            };
+            return Ok(ExitCode::from(code));
         }
     };
     workstation(&opts)?;

@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 
 use common::{repo_path, run_tool, terrafuse};
-use terrafuse::cli::{WarpMode, warp_comparison};
+use terrafuse::bench::{WarpMode, warp_comparison};
 use terrafuse::ecm::grid::{self, fold_sample};
 use terrafuse::ecm::{Face, QuadId};
 use terrafuse::geodesy::Ellipsoid;

@@ -1,4 +1,4 @@
-//! `terrafuse bench …`: clap's types for the benchmark commands ([`super::bench_command`] runs
+//! `terrafuse bench …`: clap's types for the benchmark commands ([`crate::bench::run`] runs
 //! them).
 
 use std::path::PathBuf;

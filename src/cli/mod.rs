@@ -1,23 +1,10 @@
 //! The logic behind the `terrafuse` subcommands, kept out of `main.rs` so it can be tested: the
-//! command line's types (`args`, `bench_args`), running a parsed command (`dispatch`,
-//! `bench_command`) on a `console`, and
-//! one file per command or benchmark.
+//! command line's types (`args`, `bench_args`), running a parsed command (`dispatch`) on a
+//! `console`, and one file per command. The benchmarks behind `terrafuse bench` have a room of
+//! their own above this one (`crate::bench`).
 
 pub mod args;
-mod bench_args;
-mod bench_brush;
-mod bench_brush_latency;
-mod bench_command;
-mod bench_compare;
-mod bench_compare_large;
-mod bench_compose;
-mod bench_erosion;
-mod bench_harness;
-mod bench_landscape;
-mod bench_pipelines;
-mod bench_render;
-mod bench_replay;
-mod bench_shards;
+pub mod bench_args;
 mod brush;
 mod compare;
 mod console;
@@ -41,29 +28,17 @@ mod shard;
 mod slurm;
 mod store;
 
-pub use bench_brush::{bench_brush, scripted_strokes};
-pub use bench_brush_latency::bench_brush_latency;
-pub use bench_compare::{CompareBenchSettings, bench_compare};
-pub use bench_compose::{ComposeBenchRow, ComposeBenchSettings, bench_compose};
-pub use bench_erosion::{ErosionBenchSettings, bench_erosion};
-pub use bench_landscape::{LandscapeBenchSettings, bench_landscape};
-pub use bench_render::{RenderBenchRow, RenderBenchSettings, bench_render, render_bench_csv, write_render_bench};
-pub use bench_replay::{ReplayBenchSettings, bench_replay, synthetic_session};
-pub use bench_shards::{SRTM_SAMPLES, ShardBenchSettings, bench_shards};
 pub use brush::{BrushRequest, brush_command};
 pub use compare::{CompareRequest, CoregRequest, compare_command, coregister_command, table as compare_table};
 pub use console::Console;
 pub use dispatch::run;
 pub use erode::{ErodeOn, ErodeRequest, erode_command, params_of};
-pub use error::{CliError, Within};
+pub use error::{CliError, Context, Within};
 pub use export::{ComposeOn, ComposedExport, ComposedReport, export_composed};
 pub use feedback::{Feedback, WaitArgs};
 pub use flight::{FlightFrame, FlightRequest, frames_csv, render_flight};
 pub use geo::{BatchReport, GeoOperation, run_batch};
-pub use geometry::{
-    AccuracyBench, accuracy_bench, accuracy_csv, accuracy_plot, cutoff_report, fitted_rule, timing_report,
-    write_accuracy_outputs,
-};
+pub use geometry::{cutoff_report, fitted_rule};
 pub use profile::{ProfileRequest, profile_command};
 pub use project::{project_check, project_upgrade};
 pub use render::{RenderRequest, Trace, frame_report, open_renderer, render, request_camera, write_png};
@@ -72,8 +47,7 @@ pub use report::{overview, tissot_report};
 pub use shard::{array_ranges, merge_summary, plan_summary, shard_summary};
 pub use slurm::{SubmitRequest, slurm_submit};
 pub use store::{
-    WarpComparison, WarpMode, bench_import, default_work_dir, import_summary, lattice_line, parse_bytes, sample_lines,
-    store_difference, store_info, warp_comparison,
+    default_work_dir, import_summary, lattice_line, parse_bytes, sample_lines, store_difference, store_info,
 };
 
 /// Formats a float with full precision: the shortest decimal that reads back to the same f64

@@ -3,12 +3,12 @@
 //! the same data in the same run (its rasters warped to a transverse Mercator centred on the area,
 //! as the tests do), and both tools' co-registration error against the known shift; and on the
 //! Erzurum pair the bias-correction pipelines and the uncertainty beside xDEM's, with their peak
-//! memory ([`super::bench_pipelines`]), and comparisons of 10⁷–10⁸ samples held in memory and
-//! spilled ([`super::bench_compare_large`]).
+//! memory ([`super::pipelines`]), and comparisons of 10⁷–10⁸ samples held in memory and
+//! spilled ([`super::compare_large`]).
 
-use super::CliError;
-use super::bench_harness::timed;
-use super::error::Context;
+use super::harness::timed;
+use crate::cli::CliError;
+use crate::cli::Context;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
@@ -190,7 +190,7 @@ pub fn bench_compare(settings: &CompareBenchSettings) -> Result<String, CliError
         }
     }
     // The pipelines and the uncertainty, each in a process of its own (peak memory).
-    report.push_str(&super::bench_pipelines::pipelines_table(&super::bench_pipelines::PipelineBench {
+    report.push_str(&super::pipelines::pipelines_table(&super::pipelines::PipelineBench {
         project: &settings.project,
         python: &settings.python,
         reference_dir: &settings.reference_dir,
@@ -199,7 +199,7 @@ pub fn bench_compare(settings: &CompareBenchSettings) -> Result<String, CliError
         fine: (&ref_fine, &moved_fine, r.spacing_m),
     })?);
     // Comparisons of 10⁷–10⁸ samples, held in memory and spilled.
-    report.push_str(&super::bench_compare_large::large_table(&settings.project)?);
+    report.push_str(&super::compare_large::large_table(&settings.project)?);
     // 2. The synthetic pair with a known shift.
     let (dlon, dlat) = (0.0004, -0.0003);
     let (pair, made_s) = timed(|| synthetic_pair(&settings.out, settings.size, dlon, dlat));
@@ -274,8 +274,8 @@ pub fn bench_compare(settings: &CompareBenchSettings) -> Result<String, CliError
          stats: the whole overlap, cell-area weighted; coreg: Nuth & Kääb to 0.001 px (Terrafuse: the whole run, before and after over every sample; xDEM: its fit)"
     );
     // Nuth & Kääb as a whole workflow on the synthetic pair (xDEM's row above times its fit alone).
-    report.push_str(&super::bench_pipelines::nuth_kaab_table(
-        &super::bench_pipelines::PipelineBench {
+    report.push_str(&super::pipelines::nuth_kaab_table(
+        &super::pipelines::PipelineBench {
             project: &synthetic_path,
             python: &settings.python,
             reference_dir: &settings.reference_dir,

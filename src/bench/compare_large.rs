@@ -4,13 +4,13 @@
 //! quads, its area summed over every sample), each run a process of its own so that its peak
 //! resident memory is its own.
 
-use super::error::Context;
+use crate::cli::Context;
 use std::fmt::Write as _;
 use std::path::Path;
 use std::process::Command;
 
-use super::CliError;
-use super::bench_pipelines::run_measured;
+use super::pipelines::run_measured;
+use crate::cli::CliError;
 
 /// The runs: a label, and the arguments after `compare PROJECT blurred srtm --json`.
 const RUNS: [(&str, &[&str]); 4] = [

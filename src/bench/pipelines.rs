@@ -6,14 +6,14 @@
 //! `seconds` are its script's own (reading the rasters and the workflow, not Python's start-up
 //! and imports); `process s` is each whole process, start-up included, as a user waits for it.
 
-use super::error::Context;
+use crate::cli::Context;
 use std::fmt::Write as _;
 use std::io::Read as _;
 use std::path::Path;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-use super::CliError;
+use crate::cli::CliError;
 
 /// The workflows: a label, Terrafuse's arguments after the project, xDEM's workflow name.
 const WORKFLOWS: [(&str, &[&str], &str); 4] = [

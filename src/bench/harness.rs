@@ -7,7 +7,7 @@
 use std::path::Path;
 use std::time::Instant;
 
-use super::CliError;
+use crate::cli::CliError;
 
 /// Runs `work` once: its result and its wall time, seconds.
 pub fn timed<T>(work: impl FnOnce() -> T) -> (T, f64) {

@@ -5,8 +5,8 @@
 //! with `--gpu`, compared with the CPU); then a log of 10⁵ strokes is saved and loaded, with
 //! the file's size and the process's peak memory.
 
-use super::bench_harness::{Table, timed};
-use super::{CliError, Within};
+use super::harness::{Table, timed};
+use crate::cli::{CliError, Within};
 use std::fmt::Write as _;
 use std::path::PathBuf;
 

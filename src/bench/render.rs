@@ -9,13 +9,13 @@
 //! terrain in. Each t is drawn with its quads whole (`whole`) and, for each τ, with patches culled
 //! and drawn at the stride their error allows (`adaptive`).
 
-use super::CliError;
-use super::bench_harness::timed_ms;
+use super::harness::timed_ms;
+use crate::cli::CliError;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
-use super::render::open_renderer;
+use crate::cli::open_renderer;
 use crate::gpu::{DrawMode, RenderedImage};
 
 /// Settings of the benchmark.
@@ -256,7 +256,7 @@ fn row_values(r: &RenderBenchRow) -> [String; 20] {
 
 /// The CSV of the rows.
 pub fn render_bench_csv(rows: &[RenderBenchRow]) -> String {
-    let mut table = super::bench_harness::Table::new(&[
+    let mut table = super::harness::Table::new(&[
         "project",
         "view",
         "patches",
@@ -288,7 +288,7 @@ pub fn render_bench_csv(rows: &[RenderBenchRow]) -> String {
 /// line per view and threshold (the adaptive rows).
 pub fn render_bench_plot(rows: &[RenderBenchRow]) -> Result<Vec<u8>, CliError> {
     use plotters::prelude::*;
-    super::geometry::register_font();
+    super::accuracy::register_font();
     let (w, h) = (1100u32, 900u32);
     let mut buffer = vec![0u8; (w * h * 3) as usize];
     let err = |e: &dyn std::fmt::Display| e.to_string();
@@ -354,7 +354,7 @@ pub fn render_bench_plot(rows: &[RenderBenchRow]) -> Result<Vec<u8>, CliError> {
         }
         root.present().map_err(|e| err(&e))?;
     }
-    super::geometry::plot_png(w, h, buffer)
+    super::accuracy::plot_png(w, h, buffer)
 }
 
 /// Writes `render.csv` and `render.png` into `dir` atomically; returns their paths.

@@ -4,8 +4,8 @@
 //! seen from its `sculpt` view. One stroke of each tool in turn, each undone after it is timed
 //! (so that every stroke starts from the same session); the undo's latency too.
 
-use super::CliError;
-use super::bench_harness::timed_ms;
+use super::harness::timed_ms;
+use crate::cli::CliError;
 use crate::maths::median;
 use std::fmt::Write as _;
 use std::path::Path;

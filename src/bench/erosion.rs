@@ -3,8 +3,8 @@
 //! against the step size (the same simulated time with Δt, Δt/2 and Δt/4: the largest difference
 //! of the final terrain from the Δt/4 run) beside the time each took.
 
-use super::CliError;
-use super::bench_harness::timed;
+use super::harness::timed;
+use crate::cli::CliError;
 use std::fmt::Write as _;
 
 use crate::erosion::grid::Grid;

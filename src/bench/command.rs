@@ -3,10 +3,10 @@
 
 use std::path::PathBuf;
 
-use super::CliError;
-use super::args::parse_numbers;
-use super::bench_args::Bench;
-use super::console::Console;
+use crate::cli::CliError;
+use crate::cli::Console;
+use crate::cli::args::parse_numbers;
+use crate::cli::bench_args::Bench;
 use crate::geodesy::Ellipsoid;
 
 /// Runs a benchmark; its tables go to the report, its progress to standard error.
@@ -86,7 +86,7 @@ pub fn run(bench: Bench, c: &mut Console) -> Result<u8, CliError> {
             c.print(format_args!("wrote {} and {}\n", csv.display(), png.display()))?;
         }
         Bench::Shards { source, body, level, shards, threads, nodes, cores, samples, work } => {
-            let dir = work.clone().unwrap_or_else(super::default_work_dir);
+            let dir = work.clone().unwrap_or_else(crate::cli::default_work_dir);
             let settings = super::ShardBenchSettings {
                 source,
                 body,
@@ -115,7 +115,7 @@ pub fn run(bench: Bench, c: &mut Console) -> Result<u8, CliError> {
             c.print(report?)?;
         }
         Bench::Import { import } => {
-            let work = import.work.clone().unwrap_or_else(super::default_work_dir);
+            let work = import.work.clone().unwrap_or_else(crate::cli::default_work_dir);
             let opts = crate::store::ImportOptions {
                 sources: vec![import.source.clone()],
                 store: work.join("bench-store.gpkg"),

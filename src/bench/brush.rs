@@ -3,8 +3,8 @@
 //! scripted session of every rasterised tool scattered over a 4° patch of the Moon across the
 //! front/right face edge. Deterministic: the strokes come from a fixed PCG sequence.
 
-use super::CliError;
-use super::bench_harness::{timed, timed_ms};
+use super::harness::{timed, timed_ms};
+use crate::cli::CliError;
 use std::fmt::Write as _;
 
 use crate::ecm::QuadId;

@@ -5,8 +5,8 @@
 //! and the error skipping costs against every octave); and the cost of recomposing after a
 //! one-layer change in a settled view against recomposing every drawn quad.
 
-use super::CliError;
-use super::bench_harness::timed_ms;
+use super::harness::timed_ms;
+use crate::cli::CliError;
 use crate::maths::median;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -403,7 +403,7 @@ fn recompose_cost(ctx: &GpuContext, base: &Project, layers: &[LayerSpec]) -> Res
 
 fn write_csv(dir: &Path, rows: &[ComposeBenchRow]) -> Result<(), CliError> {
     let columns = ["case", "layers:", "samples:", "gpu_ms:", "cpu_ms:", "max_diff_m:", "skip_max_m:", "skip_rms_m:"];
-    let mut table = super::bench_harness::Table::new(&columns);
+    let mut table = super::harness::Table::new(&columns);
     for r in rows {
         let (a, b) = r.skip_error_m.map_or((String::new(), String::new()), |(a, b)| (a.to_string(), b.to_string()));
         let (layers, samples) = (r.layers.to_string(), r.samples.to_string());

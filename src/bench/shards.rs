@@ -2,13 +2,13 @@
 //! one process, the merge and the pyramid timed apart, and a projection to a cluster from the
 //! measured costs.
 
-use super::bench_harness::timed;
+use super::harness::timed;
 use std::fmt::Write as _;
 use std::path::PathBuf;
 use std::process::Command;
 
-use super::CliError;
-use super::error::Context;
+use crate::cli::CliError;
+use crate::cli::Context;
 
 type Result<T> = std::result::Result<T, CliError>;
 

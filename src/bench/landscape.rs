@@ -5,11 +5,11 @@
 //! terrain with 100 m cells (the best of three runs of each up to 256²); then what multiple flow
 //! directions and deposition cost.
 
-use super::error::Context;
+use crate::cli::Context;
 use std::path::PathBuf;
 
-use super::CliError;
-use super::bench_harness::{Table, timed};
+use super::harness::{Table, timed};
+use crate::cli::CliError;
 use crate::erosion::Grid;
 use crate::erosion::landscape::flow::Routing;
 use crate::erosion::landscape::{Evolution, LandscapeParams, tent};
