@@ -6,7 +6,7 @@ use std::path::PathBuf;
 use crate::cli::CliError;
 use crate::cli::Console;
 use crate::cli::args::parse_numbers;
-use crate::cli::bench_args::Bench;
+use crate::cli::bench_args::{Bench, BenchAccuracyArgs, BenchImportArgs, BenchShardsArgs};
 use crate::geodesy::Ellipsoid;
 
 /// Runs a benchmark; its tables go to the report, its progress to standard error.
@@ -85,99 +85,110 @@ pub fn run(bench: Bench, c: &mut Console) -> Result<u8, CliError> {
             let (csv, png) = super::write_render_bench(&out, &rows)?;
             c.print(format_args!("wrote {} and {}\n", csv.display(), png.display()))?;
         }
-        Bench::Shards { source, body, level, shards, threads, nodes, cores, samples, work } => {
-            let dir = work.clone().unwrap_or_else(crate::cli::default_work_dir);
-            let settings = super::ShardBenchSettings {
-                source,
-                body,
-                level,
-                shards: shards
-                    .split(',')
-                    .map(|n| {
-                        n.trim()
-                            .parse::<usize>()
-                            .map_err(|_| CliError::Usage(format!("--shards: '{n}' is not a number")))
-                    })
-                    .collect::<Result<_, CliError>>()?,
-                threads,
-                work: dir.clone(),
-                nodes,
-                cores,
-                projected_samples: samples.unwrap_or(super::SRTM_SAMPLES),
-            };
-            let err = &mut *c.err;
-            let report = super::bench_shards(&settings, &mut |line| {
-                let _ = writeln!(err, "{line}");
-            });
-            if work.is_none() {
-                let _ = std::fs::remove_dir_all(&dir);
-            }
-            c.print(report?)?;
-        }
-        Bench::Import { import } => {
-            let work = import.work.clone().unwrap_or_else(crate::cli::default_work_dir);
-            let opts = crate::store::ImportOptions {
-                sources: vec![import.source.clone()],
-                store: work.join("bench-store.gpkg"),
-                body: import.body.parse()?,
-                name: Some("bench".into()),
-                level: import.level.parse()?,
-                resampling: crate::store::Resampling::Bilinear,
-                transform: crate::store::lattice::Transform::Lattice,
-                vertical: crate::store::VerticalDatum::Unspecified,
-                memory_budget: 2 << 30,
-                threads: Some(import.threads),
-                progress: false,
-                finest_only: true,
-                watch: None,
-            };
-            let report = super::bench_import(&opts, &work, import.threads.max(1));
-            if import.work.is_none() {
-                let _ = std::fs::remove_dir_all(&work);
-            }
-            c.print(report?)?;
-        }
-        Bench::Accuracy {
-            bodies,
-            levels,
-            distances,
-            trials,
-            vertices,
-            seed,
-            samples,
-            tolerance_m,
-            limit_fraction,
-            csv,
-            plot,
-            no_timing,
-        } => {
-            let bodies: Vec<Ellipsoid> = split_bodies(&bodies).iter().map(|b| b.parse()).collect::<Result<_, _>>()?;
-            if samples < 2 {
-                return Err("--samples: a quad needs at least 2 samples per edge".into());
-            }
-            if !(tolerance_m > 0.0 && limit_fraction >= 0.0) {
-                return Err("--tolerance-m must be positive and --limit-fraction 0 or more".into());
-            }
-            let settings = crate::ecm::accuracy::AccuracySettings {
-                levels: parse_levels(&levels)?,
-                distances_m: parse_distances(&distances)?,
-                trials: trials.max(1),
-                random_vertices: vertices,
-                seed,
-                samples,
-                ..Default::default()
-            };
-            let bench = super::AccuracyBench { bodies: bodies.clone(), settings, tolerance_m, limit_fraction };
-            let (report, rows) = super::accuracy_bench(&bench);
-            c.print(&report)?;
-            super::write_accuracy_outputs(&bench, &rows, &csv, Some(&plot))?;
-            c.print(format_args!("\nwrote {} and {}\n", csv.display(), plot.display()))?;
-            if !no_timing {
-                c.print(super::timing_report(&bodies[0], samples))?;
-            }
-        }
+        Bench::Shards(args) => run_shards(args, c)?,
+        Bench::Import { import } => run_import(&import, c)?,
+        Bench::Accuracy(args) => run_accuracy(args, c)?,
     }
     Ok(0)
+}
+
+/// `terrafuse bench shards`: a sharded import at each number of shards against one process.
+fn run_shards(args: BenchShardsArgs, c: &mut Console) -> Result<(), CliError> {
+    let BenchShardsArgs { source, body, level, shards, threads, nodes, cores, samples, work } = args;
+    let dir = work.clone().unwrap_or_else(crate::cli::default_work_dir);
+    let settings = super::ShardBenchSettings {
+        source,
+        body,
+        level,
+        shards: shards
+            .split(',')
+            .map(|n| n.trim().parse::<usize>().map_err(|_| CliError::Usage(format!("--shards: '{n}' is not a number"))))
+            .collect::<Result<_, CliError>>()?,
+        threads,
+        work: dir.clone(),
+        nodes,
+        cores,
+        projected_samples: samples.unwrap_or(super::SRTM_SAMPLES),
+    };
+    let err = &mut *c.err;
+    let report = super::bench_shards(&settings, &mut |line| {
+        let _ = writeln!(err, "{line}");
+    });
+    if work.is_none() {
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+    c.print(report?)?;
+    Ok(())
+}
+
+/// `terrafuse bench import`: the finest level imported beside gdalwarp's warp of it.
+fn run_import(import: &BenchImportArgs, c: &mut Console) -> Result<(), CliError> {
+    let work = import.work.clone().unwrap_or_else(crate::cli::default_work_dir);
+    let opts = crate::store::ImportOptions {
+        sources: vec![import.source.clone()],
+        store: work.join("bench-store.gpkg"),
+        body: import.body.parse()?,
+        name: Some("bench".into()),
+        level: import.level.parse()?,
+        resampling: crate::store::Resampling::Bilinear,
+        transform: crate::store::lattice::Transform::Lattice,
+        vertical: crate::store::VerticalDatum::Unspecified,
+        memory_budget: 2 << 30,
+        threads: Some(import.threads),
+        progress: false,
+        finest_only: true,
+        watch: None,
+    };
+    let report = super::bench_import(&opts, &work, import.threads.max(1));
+    if import.work.is_none() {
+        let _ = std::fs::remove_dir_all(&work);
+    }
+    c.print(report?)?;
+    Ok(())
+}
+
+/// `terrafuse bench accuracy`: the rendered position's error per approach, body, level and
+/// distance, its CSV and plot, and the timings.
+fn run_accuracy(args: BenchAccuracyArgs, c: &mut Console) -> Result<(), CliError> {
+    let BenchAccuracyArgs {
+        bodies,
+        levels,
+        distances,
+        trials,
+        vertices,
+        seed,
+        samples,
+        tolerance_m,
+        limit_fraction,
+        csv,
+        plot,
+        no_timing,
+    } = args;
+    let bodies: Vec<Ellipsoid> = split_bodies(&bodies).iter().map(|b| b.parse()).collect::<Result<_, _>>()?;
+    if samples < 2 {
+        return Err("--samples: a quad needs at least 2 samples per edge".into());
+    }
+    if !(tolerance_m > 0.0 && limit_fraction >= 0.0) {
+        return Err("--tolerance-m must be positive and --limit-fraction 0 or more".into());
+    }
+    let settings = crate::ecm::accuracy::AccuracySettings {
+        levels: parse_levels(&levels)?,
+        distances_m: parse_distances(&distances)?,
+        trials: trials.max(1),
+        random_vertices: vertices,
+        seed,
+        samples,
+        ..Default::default()
+    };
+    let bench = super::AccuracyBench { bodies: bodies.clone(), settings, tolerance_m, limit_fraction };
+    let (report, rows) = super::accuracy_bench(&bench);
+    c.print(&report)?;
+    super::write_accuracy_outputs(&bench, &rows, &csv, Some(&plot))?;
+    c.print(format_args!("\nwrote {} and {}\n", csv.display(), plot.display()))?;
+    if !no_timing {
+        c.print(super::timing_report(&bodies[0], samples))?;
+    }
+    Ok(())
 }
 
 /// Parses `0-30` or `3,5,7` into levels ≤ 30.

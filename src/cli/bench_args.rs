@@ -122,34 +122,7 @@ pub enum Bench {
     },
     /// A sharded import with 1, 2, 4… shard processes at once against one process: shard, merge
     /// and pyramid times, and a projection to a cluster (default: SRTM 3″ on 64 nodes).
-    Shards {
-        /// Source raster.
-        source: PathBuf,
-        /// Body: wgs84, moon, mars, a=A,b=B.
-        #[arg(long)]
-        body: String,
-        /// Level: auto or 0–30.
-        #[arg(long, default_value = "auto")]
-        level: String,
-        /// Shard counts, comma-separated.
-        #[arg(long, default_value = "1,2,4")]
-        shards: String,
-        /// Threads per process.
-        #[arg(long, default_value_t = 1, allow_negative_numbers = true)]
-        threads: usize,
-        /// Nodes of the cluster projected to.
-        #[arg(long, default_value_t = 64, allow_negative_numbers = true)]
-        nodes: usize,
-        /// Cores per node.
-        #[arg(long, default_value_t = 32, allow_negative_numbers = true)]
-        cores: usize,
-        /// Output samples of the projected import (default: SRTM 3″, 872 tiles of 6000²).
-        #[arg(long, allow_negative_numbers = true)]
-        samples: Option<f64>,
-        /// Work folder (default: a temporary folder, removed after).
-        #[arg(long)]
-        work: Option<PathBuf>,
-    },
+    Shards(BenchShardsArgs),
     /// Import against gdalwarp into the same QSC grid: throughput, peak memory, difference.
     Import {
         /// What to import and how.
@@ -183,45 +156,7 @@ pub enum Bench {
     },
     /// Error of the rendered position against the exact one, per approach, body, level and
     /// camera distance; writes a CSV and a PNG plot, and prints timings.
-    Accuracy {
-        /// Bodies, comma-separated: wgs84, moon, mars, a=A,b=B, a=A,rf=F, r=R.
-        #[arg(long, default_value = "wgs84,moon,mars")]
-        bodies: String,
-        /// Levels: a range such as 0-30, or a comma-separated list.
-        #[arg(long, default_value = "0-30")]
-        levels: String,
-        /// Camera distances above the terrain in metres, comma-separated.
-        #[arg(long, default_value = "1,10,100,1e3,1e4,1e5,1e6,1e7,1e8")]
-        distances: String,
-        /// Random quads per level and distance.
-        #[arg(long, default_value_t = 8, allow_negative_numbers = true)]
-        trials: usize,
-        /// Random vertices per quad (besides the one under the camera and its neighbours).
-        #[arg(long, default_value_t = 40, allow_negative_numbers = true)]
-        vertices: usize,
-        /// Seed of the random choices.
-        #[arg(long, default_value_t = 2012, allow_negative_numbers = true)]
-        seed: u64,
-        /// Samples per quad edge.
-        #[arg(long, default_value_t = crate::ecm::geometry::DEFAULT_SAMPLES, allow_negative_numbers = true)]
-        samples: u32,
-        /// Tolerance of the flat rule (ecm-cutoff), metres.
-        #[arg(long, default_value_t = crate::ecm::geometry::FlatRule::DEFAULT_TOLERANCE_M, allow_negative_numbers = true)]
-        tolerance_m: f64,
-        /// Cap the tolerance at this fraction of the f32 limit at each level's draw distance
-        /// (0: the absolute tolerance alone).
-        #[arg(long, default_value_t = 0.25, allow_negative_numbers = true)]
-        limit_fraction: f64,
-        /// Where to write the CSV.
-        #[arg(long, default_value = "accuracy.csv")]
-        csv: PathBuf,
-        /// Where to write the PNG plot.
-        #[arg(long, default_value = "accuracy.png")]
-        plot: PathBuf,
-        /// Skip the timings.
-        #[arg(long)]
-        no_timing: bool,
-    },
+    Accuracy(BenchAccuracyArgs),
 }
 
 /// `terrafuse bench import`.
@@ -241,4 +176,77 @@ pub struct BenchImportArgs {
     /// Folder for the stores and gdalwarp outputs (default: a temporary folder).
     #[arg(long)]
     pub work: Option<PathBuf>,
+}
+
+/// `terrafuse bench shards`.
+#[derive(clap::Args, Clone)]
+pub struct BenchShardsArgs {
+    /// Source raster.
+    pub source: PathBuf,
+    /// Body: wgs84, moon, mars, a=A,b=B.
+    #[arg(long)]
+    pub body: String,
+    /// Level: auto or 0–30.
+    #[arg(long, default_value = "auto")]
+    pub level: String,
+    /// Shard counts, comma-separated.
+    #[arg(long, default_value = "1,2,4")]
+    pub shards: String,
+    /// Threads per process.
+    #[arg(long, default_value_t = 1, allow_negative_numbers = true)]
+    pub threads: usize,
+    /// Nodes of the cluster projected to.
+    #[arg(long, default_value_t = 64, allow_negative_numbers = true)]
+    pub nodes: usize,
+    /// Cores per node.
+    #[arg(long, default_value_t = 32, allow_negative_numbers = true)]
+    pub cores: usize,
+    /// Output samples of the projected import (default: SRTM 3″, 872 tiles of 6000²).
+    #[arg(long, allow_negative_numbers = true)]
+    pub samples: Option<f64>,
+    /// Work folder (default: a temporary folder, removed after).
+    #[arg(long)]
+    pub work: Option<PathBuf>,
+}
+
+/// `terrafuse bench accuracy`.
+#[derive(clap::Args, Clone)]
+pub struct BenchAccuracyArgs {
+    /// Bodies, comma-separated: wgs84, moon, mars, a=A,b=B, a=A,rf=F, r=R.
+    #[arg(long, default_value = "wgs84,moon,mars")]
+    pub bodies: String,
+    /// Levels: a range such as 0-30, or a comma-separated list.
+    #[arg(long, default_value = "0-30")]
+    pub levels: String,
+    /// Camera distances above the terrain in metres, comma-separated.
+    #[arg(long, default_value = "1,10,100,1e3,1e4,1e5,1e6,1e7,1e8")]
+    pub distances: String,
+    /// Random quads per level and distance.
+    #[arg(long, default_value_t = 8, allow_negative_numbers = true)]
+    pub trials: usize,
+    /// Random vertices per quad (besides the one under the camera and its neighbours).
+    #[arg(long, default_value_t = 40, allow_negative_numbers = true)]
+    pub vertices: usize,
+    /// Seed of the random choices.
+    #[arg(long, default_value_t = 2012, allow_negative_numbers = true)]
+    pub seed: u64,
+    /// Samples per quad edge.
+    #[arg(long, default_value_t = crate::ecm::geometry::DEFAULT_SAMPLES, allow_negative_numbers = true)]
+    pub samples: u32,
+    /// Tolerance of the flat rule (ecm-cutoff), metres.
+    #[arg(long, default_value_t = crate::ecm::geometry::FlatRule::DEFAULT_TOLERANCE_M, allow_negative_numbers = true)]
+    pub tolerance_m: f64,
+    /// Cap the tolerance at this fraction of the f32 limit at each level's draw distance
+    /// (0: the absolute tolerance alone).
+    #[arg(long, default_value_t = 0.25, allow_negative_numbers = true)]
+    pub limit_fraction: f64,
+    /// Where to write the CSV.
+    #[arg(long, default_value = "accuracy.csv")]
+    pub csv: PathBuf,
+    /// Where to write the PNG plot.
+    #[arg(long, default_value = "accuracy.png")]
+    pub plot: PathBuf,
+    /// Skip the timings.
+    #[arg(long)]
+    pub no_timing: bool,
 }
