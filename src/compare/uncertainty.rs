@@ -190,10 +190,6 @@ pub fn uncertainty(
     let ellipsoid = scene_b.ellipsoid;
     let fitted = fit_quads(&quads, opts.fit_quads.unwrap_or(FIT_QUADS));
     let reference = reference_samples(&scene_b, &fitted, opts.region, true)?;
-    let too_few = |what: &str| CompareError::Option {
-        option: "--uncertainty".into(),
-        problem: format!("too few stable samples with data on both sides to fit {what}"),
-    };
     if reference.is_empty() {
         return Err(CompareError::Option { option: "A, B".into(), problem: "the layers do not overlap".into() });
     }
@@ -203,71 +199,13 @@ pub fn uncertainty(
     let slope: Vec<f64> = reference.iter().map(|r| r.tan_slope().atan().to_degrees()).collect();
     let curvature: Vec<f64> = reference.iter().map(|r| f64::from(r.max_curvature)).collect();
 
-    // 1. The binned NMAD and its model, on stable samples with dh and a curvature.
+    // 1. The binned NMAD and its model, on stable samples with dh and a curvature; 2. dh
+    // standardised by it, outliers out, the model rescaled.
     let fit_set: Vec<usize> =
         (0..reference.len()).filter(|&k| stable[k] && dh[k].is_finite() && curvature[k].is_finite()).collect();
-    let deciles = |v: &[f64]| -> Vec<f64> {
-        let mut sorted: Vec<(f64, f64)> = fit_set.iter().map(|&k| (v[k], reference[k].area)).collect();
-        sorted.sort_by(|a, b| a.0.total_cmp(&b.0));
-        let mut edges: Vec<f64> = (0..=BINS).map(|q| weighted_quantile(&sorted, q as f64 / BINS as f64)).collect();
-        edges.dedup();
-        edges
-    };
-    let (slope_edges, curvature_edges) = (deciles(&slope), deciles(&curvature));
-    if fit_set.len() < MIN_COUNT as usize || slope_edges.len() < 2 || curvature_edges.len() < 2 {
-        return Err(too_few("the error model"));
-    }
-    let bin = |edges: &[f64], x: f64| edges.partition_point(|&e| e <= x).clamp(1, edges.len() - 1) - 1;
-    let (ns, nc) = (slope_edges.len() - 1, curvature_edges.len() - 1);
-    let mut groups: Vec<Vec<usize>> = vec![Vec::new(); ns * nc];
-    for &k in &fit_set {
-        groups[bin(&slope_edges, slope[k]) * nc + bin(&curvature_edges, curvature[k])].push(k);
-    }
-    let mut nmad_m = vec![vec![None; nc]; ns];
-    let mut count = vec![vec![0u64; nc]; ns];
-    let mut rows = Vec::new();
-    for (g, members) in groups.iter().enumerate() {
-        let (i, j) = (g / nc, g % nc);
-        count[i][j] = members.len() as u64;
-        if (members.len() as u64) < MIN_COUNT {
-            continue;
-        }
-        let nmad = weighted_nmad(members.iter().map(|&k| (dh[k], reference[k].area)));
-        nmad_m[i][j] = Some(nmad);
-        let mean = |f: &dyn Fn(usize) -> f64| members.iter().map(|&k| f(k)).sum::<f64>() / members.len() as f64;
-        let t2 = mean(&|k| slope[k].to_radians().tan().powi(2));
-        let k2 = mean(&|k| curvature[k].powi(2));
-        rows.push((vec![1.0, t2, k2], nmad * nmad, members.len() as f64));
-    }
-    let (c, _) = nonnegative_least_squares(&rows).ok_or_else(|| too_few("the error model"))?;
-    let mut model = Heteroscedasticity {
-        slope_edges_deg: slope_edges,
-        max_curvature_edges: curvature_edges,
-        nmad_m,
-        count,
-        base_m: c[0].sqrt(),
-        slope_m: c[1].sqrt(),
-        curvature_m: c[2].sqrt(),
-        scale: 1.0,
-    };
-
-    // 2. Standardised dh, outliers out, the model rescaled.
-    let mut z: Vec<f64> = vec![f64::NAN; reference.len()];
-    for &k in &fit_set {
-        z[k] = dh[k] / model.sigma_m(slope[k], curvature[k]);
-    }
-    let spread = weighted_nmad(fit_set.iter().map(|&k| (z[k], reference[k].area)));
-    for v in z.iter_mut() {
-        if v.abs() > OUTLIER_NMADS * spread {
-            *v = f64::NAN;
-        }
-    }
-    let scale = weighted_nmad(fit_set.iter().filter(|&&k| z[k].is_finite()).map(|&k| (z[k], reference[k].area)));
-    if !(scale.is_finite() && scale > 0.0) {
-        return Err(too_few("the error model"));
-    }
-    z.iter_mut().for_each(|v| *v /= scale);
-    model.scale = scale;
+    let on = Fitted { reference: &reference, fit_set: &fit_set, dh: &dh, slope: &slope, curvature: &curvature };
+    let mut model = error_model(&on)?;
+    let z = standardised(&on, &mut model)?;
 
     // 3. The variogram of z, up to the diagonal of the samples' extent.
     let spacing = spacing_m(&ellipsoid, level);
@@ -341,6 +279,98 @@ pub fn uncertainty(
         variogram: Variogram { models: correlation.models.clone(), bins },
         samples,
     })
+}
+
+/// The samples an error model is fitted on: the stable ones with dh and a curvature (`fit_set`,
+/// indices into the others), and per reference sample its dh, slope (degrees) and maximal
+/// curvature.
+struct Fitted<'a> {
+    reference: &'a [RefSample],
+    fit_set: &'a [usize],
+    dh: &'a [f64],
+    slope: &'a [f64],
+    curvature: &'a [f64],
+}
+
+/// The binned NMAD of dh by slope and curvature deciles, and its model σ² = a² + (b·tan α)² +
+/// (c·κ)² fitted by non-negative least squares over the bins of at least MIN_COUNT samples.
+fn error_model(on: &Fitted) -> Result<Heteroscedasticity, CompareError> {
+    let Fitted { reference, fit_set, dh, slope, curvature } = *on;
+    let deciles = |v: &[f64]| -> Vec<f64> {
+        let mut sorted: Vec<(f64, f64)> = fit_set.iter().map(|&k| (v[k], reference[k].area)).collect();
+        sorted.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let mut edges: Vec<f64> = (0..=BINS).map(|q| weighted_quantile(&sorted, q as f64 / BINS as f64)).collect();
+        edges.dedup();
+        edges
+    };
+    let (slope_edges, curvature_edges) = (deciles(slope), deciles(curvature));
+    if fit_set.len() < MIN_COUNT as usize || slope_edges.len() < 2 || curvature_edges.len() < 2 {
+        return Err(too_few("the error model"));
+    }
+    let bin = |edges: &[f64], x: f64| edges.partition_point(|&e| e <= x).clamp(1, edges.len() - 1) - 1;
+    let (ns, nc) = (slope_edges.len() - 1, curvature_edges.len() - 1);
+    let mut groups: Vec<Vec<usize>> = vec![Vec::new(); ns * nc];
+    for &k in fit_set {
+        groups[bin(&slope_edges, slope[k]) * nc + bin(&curvature_edges, curvature[k])].push(k);
+    }
+    let mut nmad_m = vec![vec![None; nc]; ns];
+    let mut count = vec![vec![0u64; nc]; ns];
+    let mut rows = Vec::new();
+    for (g, members) in groups.iter().enumerate() {
+        let (i, j) = (g / nc, g % nc);
+        count[i][j] = members.len() as u64;
+        if (members.len() as u64) < MIN_COUNT {
+            continue;
+        }
+        let nmad = weighted_nmad(members.iter().map(|&k| (dh[k], reference[k].area)));
+        nmad_m[i][j] = Some(nmad);
+        let mean = |f: &dyn Fn(usize) -> f64| members.iter().map(|&k| f(k)).sum::<f64>() / members.len() as f64;
+        let t2 = mean(&|k| slope[k].to_radians().tan().powi(2));
+        let k2 = mean(&|k| curvature[k].powi(2));
+        rows.push((vec![1.0, t2, k2], nmad * nmad, members.len() as f64));
+    }
+    let (c, _) = nonnegative_least_squares(&rows).ok_or_else(|| too_few("the error model"))?;
+    Ok(Heteroscedasticity {
+        slope_edges_deg: slope_edges,
+        max_curvature_edges: curvature_edges,
+        nmad_m,
+        count,
+        base_m: c[0].sqrt(),
+        slope_m: c[1].sqrt(),
+        curvature_m: c[2].sqrt(),
+        scale: 1.0,
+    })
+}
+
+/// dh standardised by the model (NaN off the fit set and for outliers past OUTLIER_NMADS), the
+/// model's scale set to the NMAD of what is left, by which z is divided.
+fn standardised(on: &Fitted, model: &mut Heteroscedasticity) -> Result<Vec<f64>, CompareError> {
+    let Fitted { reference, fit_set, dh, slope, curvature } = *on;
+    let mut z: Vec<f64> = vec![f64::NAN; reference.len()];
+    for &k in fit_set {
+        z[k] = dh[k] / model.sigma_m(slope[k], curvature[k]);
+    }
+    let spread = weighted_nmad(fit_set.iter().map(|&k| (z[k], reference[k].area)));
+    for v in z.iter_mut() {
+        if v.abs() > OUTLIER_NMADS * spread {
+            *v = f64::NAN;
+        }
+    }
+    let scale = weighted_nmad(fit_set.iter().filter(|&&k| z[k].is_finite()).map(|&k| (z[k], reference[k].area)));
+    if !(scale.is_finite() && scale > 0.0) {
+        return Err(too_few("the error model"));
+    }
+    z.iter_mut().for_each(|v| *v /= scale);
+    model.scale = scale;
+    Ok(z)
+}
+
+/// The refusal of a fit that has too few samples.
+fn too_few(what: &str) -> CompareError {
+    CompareError::Option {
+        option: "--uncertainty".into(),
+        problem: format!("too few stable samples with data on both sides to fit {what}"),
+    }
 }
 
 /// Which reference samples are in the area (all without one).
