@@ -227,7 +227,6 @@ impl GpuRun {
         }
 
         let groups = (n as u32).div_ceil(WG).max(1);
-        let p = &run.params;
         // Heights relative to the region's mean, so that f32 keeps their differences.
         let finite: Vec<f64> = grid.base_m.iter().copied().filter(|h| h.is_finite()).collect();
         let offset = if finite.is_empty() { 0.0 } else { finite.iter().sum::<f64>() / finite.len() as f64 };
@@ -256,54 +255,8 @@ impl GpuRun {
         let state: Vec<[i32; 4]> =
             (0..n).map(|i| [s.water[i] as i32, s.sediment[i] as i32, s.soil[i] as i32, 0]).collect();
         let flux: Vec<f32> = s.flux_m3_s.iter().flat_map(|f| f.iter().map(|v| *v as f32)).collect();
-        let weights = grid.pipe_weight.map(|w| w as f32);
-        let params = GpuParams {
-            width: grid.width as u32,
-            height: grid.height as u32,
-            n: n as u32,
-            groups_x: GROUPS_X,
-            seed: run.seed,
-            open_border: u32::from(p.border == Border::Open),
-            groups,
-            chunk_shift: shift,
-            unit_m3: run.unit_m3() as f32,
-            g: p.gravity_m_s2 as f32,
-            friction: p.friction_per_s as f32,
-            tan_talus: p.talus_deg.to_radians().tan() as f32,
-            thermal: p.thermal_per_s as f32,
-            hardness: p.hardness as f32,
-            capacity: p.capacity as f32,
-            capacity_depth_m: p.capacity_depth_m as f32,
-            min_slope: p.min_slope as f32,
-            dissolve: p.dissolve_per_s as f32,
-            deposit: p.deposit_per_s as f32,
-            evaporation: p.evaporation_per_s as f32,
-            rain_m_s: p.rain_m_s as f32,
-            cfl: p.cfl as f32,
-            dt_asked: p.dt_s as f32,
-            weight_sum: weights.iter().sum(),
-            weights: [
-                [weights[0], weights[1], weights[2], weights[3]],
-                [weights[4], weights[5], weights[6], weights[7]],
-            ],
-        };
-        let b = &run.budget;
-        let control = Control {
-            dt: p.dt_s.min(run.cfl_bound_s()) as f32,
-            step: run.steps as u32,
-            batch_step: 0,
-            _pad: 0,
-            totals: [
-                to_u32_pair(b.rain_in),
-                to_u32_pair(b.evaporated),
-                to_u32_pair(b.water_out),
-                to_u32_pair(b.soil_out),
-            ],
-            bound: 0.0,
-            max_speed: 0.0,
-            max_depth: 0.0,
-            _pad2: 0.0,
-        };
+        let params = gpu_params(run, groups, shift);
+        let control = control_of(run);
         let copy = wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST;
         let none = wgpu::BufferUsages::empty();
         let make = |label: &str, bytes: &[u8], extra| storage_buffer(device, label, bytes, extra);
@@ -558,5 +511,57 @@ impl Stepper for GpuStepper<'_> {
         }
         gpu.download()?;
         Ok(gpu.host)
+    }
+}
+
+/// The run's constants for the shader: the grid, the parameters in f32, the workgroups and the
+/// chunk shift (a cell's chunk is its index shifted right by it).
+fn gpu_params(run: &Run, groups: u32, chunk_shift: u32) -> GpuParams {
+    let (grid, p) = (&run.grid, &run.params);
+    let n = grid.len();
+    let weights = grid.pipe_weight.map(|w| w as f32);
+    GpuParams {
+        width: grid.width as u32,
+        height: grid.height as u32,
+        n: n as u32,
+        groups_x: GROUPS_X,
+        seed: run.seed,
+        open_border: u32::from(p.border == Border::Open),
+        groups,
+        chunk_shift,
+        unit_m3: run.unit_m3() as f32,
+        g: p.gravity_m_s2 as f32,
+        friction: p.friction_per_s as f32,
+        tan_talus: p.talus_deg.to_radians().tan() as f32,
+        thermal: p.thermal_per_s as f32,
+        hardness: p.hardness as f32,
+        capacity: p.capacity as f32,
+        capacity_depth_m: p.capacity_depth_m as f32,
+        min_slope: p.min_slope as f32,
+        dissolve: p.dissolve_per_s as f32,
+        deposit: p.deposit_per_s as f32,
+        evaporation: p.evaporation_per_s as f32,
+        rain_m_s: p.rain_m_s as f32,
+        cfl: p.cfl as f32,
+        dt_asked: p.dt_s as f32,
+        weight_sum: weights.iter().sum(),
+        weights: [[weights[0], weights[1], weights[2], weights[3]], [weights[4], weights[5], weights[6], weights[7]]],
+    }
+}
+
+/// The run's control record: the step size, where the run stands and its budget so far.
+fn control_of(run: &Run) -> Control {
+    let p = &run.params;
+    let b = &run.budget;
+    Control {
+        dt: p.dt_s.min(run.cfl_bound_s()) as f32,
+        step: run.steps as u32,
+        batch_step: 0,
+        _pad: 0,
+        totals: [to_u32_pair(b.rain_in), to_u32_pair(b.evaporated), to_u32_pair(b.water_out), to_u32_pair(b.soil_out)],
+        bound: 0.0,
+        max_speed: 0.0,
+        max_depth: 0.0,
+        _pad2: 0.0,
     }
 }
