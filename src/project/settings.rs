@@ -5,7 +5,9 @@ use std::path::PathBuf;
 
 use serde::{Deserialize, Serialize};
 
+use super::{MAX_CACHE_MIB, MAX_EDIT_TILES, MAX_LINE_WIDTH_PX, MAX_QUADS};
 use crate::attributes::Attribute;
+use crate::errors::Invalid;
 
 /// The colour map: a preset or a user's ramp file, over a height range.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
@@ -346,6 +348,82 @@ pub struct ProfileLine {
     pub from: [f64; 2],
     /// End, `[lat, lon]` degrees.
     pub to: [f64; 2],
+}
+
+impl Visuals {
+    /// Refuses settings no frame can draw with, naming the field.
+    pub(crate) fn check(&self) -> Result<(), Invalid> {
+        let v = self;
+        if !(v.exaggeration.is_finite() && v.exaggeration > 0.0) {
+            return Err(format!("visuals.exaggeration {} must be a positive number", v.exaggeration).into());
+        }
+        let iso = &v.isolines;
+        if !(iso.interval_m.is_finite() && iso.interval_m > 0.0) {
+            return Err(format!("visuals.isolines.interval_m {} must be positive", iso.interval_m).into());
+        }
+        for (field, px) in
+            [("width_px", iso.width_px), ("major_width_px", iso.major_width_px), ("min_width_px", iso.min_width_px)]
+        {
+            // An f32 read from a JSON number beyond 3.4·10³⁸ is infinite: refused here, or the
+            // project would save as `null` and never load again.
+            if !(0.0..=MAX_LINE_WIDTH_PX).contains(&px) {
+                return Err(
+                    format!("visuals.isolines.{field} {px} must lie within 0 … {MAX_LINE_WIDTH_PX} pixels").into()
+                );
+            }
+        }
+        let preset = &v.colour_map.preset;
+        if v.colour_map.file.is_none() && !crate::colour::preset_names().iter().any(|n| n.eq_ignore_ascii_case(preset))
+        {
+            let close = crate::errors::closest(preset, crate::colour::preset_names())
+                .map_or_else(String::new, |c| format!(" (did you mean '{c}'?)"));
+            return Err(format!(
+                "visuals.colour_map.preset: '{preset}' is not a colour map{close}; the presets are {} (terrafuse render --list-colour-maps)",
+                crate::colour::preset_names().join(", ")
+            )
+            .into());
+        }
+        if let Some([lo, hi]) = v.colour_map.range_m
+            && !(lo.is_finite() && hi.is_finite() && lo < hi)
+        {
+            return Err(format!("visuals.colour_map.range_m [{lo}, {hi}] must be increasing").into());
+        }
+        if !(v.lighting.strength >= 0.0 && v.lighting.strength <= 1.0) {
+            return Err(format!("visuals.lighting.strength {} must lie in [0, 1]", v.lighting.strength).into());
+        }
+        Ok(())
+    }
+}
+
+impl DetailSpec {
+    /// Refuses detail settings out of their ranges, naming the field.
+    pub(crate) fn check(&self) -> Result<(), Invalid> {
+        let d = self;
+        if !(d.lod_threshold_px.is_finite() && d.lod_threshold_px > 0.0) {
+            return Err(format!("detail.lod_threshold_px {} must be positive", d.lod_threshold_px).into());
+        }
+        if !(d.max_pixel_error.is_finite() && d.max_pixel_error > 0.0) {
+            return Err(
+                format!("detail.max_pixel_error {} must be a positive number of pixels", d.max_pixel_error).into()
+            );
+        }
+        if !(6..=MAX_QUADS).contains(&d.max_quads) {
+            return Err(
+                format!("detail.max_quads {} must lie within 6 (the cube's faces) … {MAX_QUADS}", d.max_quads).into()
+            );
+        }
+        if !(1..=MAX_EDIT_TILES).contains(&d.max_edit_tiles) {
+            return Err(
+                format!("detail.max_edit_tiles {} must lie within 1 … {MAX_EDIT_TILES}", d.max_edit_tiles).into()
+            );
+        }
+        for (field, mib) in [("cpu_cache_mib", d.cpu_cache_mib), ("gpu_cache_mib", d.gpu_cache_mib)] {
+            if mib > MAX_CACHE_MIB {
+                return Err(format!("detail.{field} {mib} must be at most {MAX_CACHE_MIB} (1 TiB)").into());
+            }
+        }
+        Ok(())
+    }
 }
 
 #[cfg(test)]
