@@ -151,7 +151,16 @@ pub fn bench_compare(settings: &CompareBenchSettings) -> Result<String, CliError
         "{:<34} {:>10} {:>9} {:>9} {:>10} {:>10} {:>10} {:>9}",
         "pair", "samples", "stats s", "coreg s", "east m", "north m", "error m", "NMAD m"
     );
-    // 1. The bundled Erzurum pair.
+    erzurum_rows(settings, &mut report)?;
+    synthetic_rows(settings, &mut report)?;
+    let path = settings.out.join("compare.txt");
+    crate::files::write_atomic(&path, report.as_bytes()).map_err(CliError::file(path, "cannot write"))?;
+    Ok(report)
+}
+
+/// The bundled Erzurum pair: Terrafuse's statistics and co-registration beside xDEM's on the
+/// same pair warped to a transverse Mercator grid, then the pipelines and the large comparisons.
+fn erzurum_rows(settings: &CompareBenchSettings, report: &mut String) -> Result<(), CliError> {
     let project = Project::load(&settings.project)?;
     let (c, stats_s) = timed(|| compare(&project, "blurred", "srtm", &CompareOptions::default()));
     let c = c?;
@@ -170,25 +179,7 @@ pub fn bench_compare(settings: &CompareBenchSettings) -> Result<String, CliError
     let (ref_fine, moved_fine) =
         (settings.out.join("erzurum_ref_fine.tif"), settings.out.join("erzurum_moved_fine.tif"));
     warp_pair_tm([(&srtm, &ref_fine), (&blurred, &moved_fine)], 39.6, 40.42, r.spacing_m)?;
-    match xdem(settings, &ref_tm, &moved_tm) {
-        Ok(x) => {
-            let _ = writeln!(
-                report,
-                "{:<34} {:>10} {:>9.2} {:>9.2} {:>10.3} {:>10.3} {:>10} {:>9.3}",
-                "Erzurum, xDEM (tmerc 90 m)",
-                x["count"],
-                x["stats_s"].as_f64().unwrap_or(f64::NAN),
-                x["coreg_s"].as_f64().unwrap_or(f64::NAN),
-                x["shift_x"].as_f64().unwrap_or(f64::NAN),
-                x["shift_y"].as_f64().unwrap_or(f64::NAN),
-                "-",
-                x["nmad_m"].as_f64().unwrap_or(f64::NAN)
-            );
-        }
-        Err(e) => {
-            let _ = writeln!(report, "Erzurum, xDEM: not run: {}", crate::errors::chain(&e));
-        }
-    }
+    xdem_row(report, "Erzurum", "Erzurum, xDEM (tmerc 90 m)".into(), xdem(settings, &ref_tm, &moved_tm), None);
     // The pipelines and the uncertainty, each in a process of its own (peak memory).
     report.push_str(&super::pipelines::pipelines_table(&super::pipelines::PipelineBench {
         project: &settings.project,
@@ -200,7 +191,12 @@ pub fn bench_compare(settings: &CompareBenchSettings) -> Result<String, CliError
     })?);
     // Comparisons of 10⁷–10⁸ samples, held in memory and spilled.
     report.push_str(&super::compare_large::large_table(&settings.project)?);
-    // 2. The synthetic pair with a known shift.
+    Ok(())
+}
+
+/// The synthetic pair with a known shift: both tools' shift error, and Nuth & Kääb as a whole
+/// workflow.
+fn synthetic_rows(settings: &CompareBenchSettings, report: &mut String) -> Result<(), CliError> {
     let (dlon, dlat) = (0.0004, -0.0003);
     let (pair, made_s) = timed(|| synthetic_pair(&settings.out, settings.size, dlon, dlat));
     let (ref_tif, moved_tif) = pair?;
@@ -248,26 +244,8 @@ pub fn bench_compare(settings: &CompareBenchSettings) -> Result<String, CliError
     let (ref_fine, moved_fine) =
         (settings.out.join("synthetic_ref_fine.tif"), settings.out.join("synthetic_moved_fine.tif"));
     warp_pair_tm([(&ref_tif, &ref_fine), (&moved_tif, &moved_fine)], lat_c, lon_c, r.spacing_m)?;
-    match xdem(settings, &ref_tm, &moved_tm) {
-        Ok(x) => {
-            let (sx, sy) = (x["shift_x"].as_f64().unwrap_or(f64::NAN), x["shift_y"].as_f64().unwrap_or(f64::NAN));
-            let label = format!("synthetic {}², xDEM (tmerc 90 m)", settings.size);
-            let _ = writeln!(
-                report,
-                "{label:<34} {:>10} {:>9.2} {:>9.2} {:>10.3} {:>10.3} {:>10.3} {:>9.3}",
-                x["count"],
-                x["stats_s"].as_f64().unwrap_or(f64::NAN),
-                x["coreg_s"].as_f64().unwrap_or(f64::NAN),
-                sx,
-                sy,
-                (sx - e).hypot(sy - n),
-                x["nmad_m"].as_f64().unwrap_or(f64::NAN)
-            );
-        }
-        Err(err) => {
-            let _ = writeln!(report, "synthetic, xDEM: not run: {}", crate::errors::chain(&err));
-        }
-    }
+    let label = format!("synthetic {}², xDEM (tmerc 90 m)", settings.size);
+    xdem_row(report, "synthetic", label, xdem(settings, &ref_tm, &moved_tm), Some((e, n)));
     let _ = writeln!(
         report,
         "known correction of the synthetic pair at its centre: east {e:.3} m, north {n:.3} m (made in {made_s:.1} s, imported in {import_s:.1} s); \
@@ -285,7 +263,37 @@ pub fn bench_compare(settings: &CompareBenchSettings) -> Result<String, CliError
         },
         &format!("synthetic {}² pair", settings.size),
     )?);
-    let path = settings.out.join("compare.txt");
-    crate::files::write_atomic(&path, report.as_bytes()).map_err(CliError::file(path, "cannot write"))?;
-    Ok(report)
+    Ok(())
+}
+
+/// xDEM's row of a pair (its shift error against the known correction `truth` where there is
+/// one), or why it did not run.
+fn xdem_row(
+    report: &mut String,
+    pair: &str,
+    label: String,
+    x: Result<serde_json::Value, CliError>,
+    truth: Option<(f64, f64)>,
+) {
+    match x {
+        Ok(x) => {
+            let num = |k: &str| x[k].as_f64().unwrap_or(f64::NAN);
+            let (sx, sy) = (num("shift_x"), num("shift_y"));
+            let error = truth.map_or_else(|| "-".to_string(), |(e, n)| format!("{:.3}", (sx - e).hypot(sy - n)));
+            let _ = writeln!(
+                report,
+                "{label:<34} {:>10} {:>9.2} {:>9.2} {:>10.3} {:>10.3} {:>10} {:>9.3}",
+                x["count"],
+                num("stats_s"),
+                num("coreg_s"),
+                sx,
+                sy,
+                error,
+                num("nmad_m")
+            );
+        }
+        Err(e) => {
+            let _ = writeln!(report, "{pair}, xDEM: not run: {}", crate::errors::chain(&e));
+        }
+    }
 }

@@ -21,8 +21,9 @@ use crate::ecm::grid::GRID;
 use crate::ecm::points::sample_point;
 use crate::edit::kernel::{CpuRasteriser, Rasteriser, StrokeJob, window};
 use crate::edit::terrain::Target;
-use crate::edit::{Falloff, Tool};
+use crate::edit::{Falloff, Stroke, Tool};
 use crate::errors::Failure;
+use crate::geodesy::Ellipsoid;
 use crate::layers::noise;
 
 const N: usize = GRID as usize;
@@ -162,25 +163,26 @@ impl StrokeKernel {
 }
 
 impl GpuRasteriser<'_> {
+    /// The tile's lattice of ellipsoid points, kept between strokes (the kept ones dropped
+    /// together past KEPT_LATTICES).
+    fn lattice(&self, e: &Ellipsoid, q: QuadId) -> std::sync::Arc<Lattice> {
+        let kept = self.kernel.lattices.lock().expect("not poisoned").get(&q).cloned();
+        kept.unwrap_or_else(|| {
+            let made = std::sync::Arc::new(Lattice::of(e, q));
+            let mut all = self.kernel.lattices.lock().expect("not poisoned");
+            if all.len() >= KEPT_LATTICES {
+                all.clear();
+            }
+            all.insert(q, made.clone());
+            made
+        })
+    }
+
     /// One dispatch over a chunk of tiles; their δ replaced by the kernel's.
     fn dispatch(&self, job: &StrokeJob, tiles: &mut [(QuadId, Vec<f32>)]) -> Result<(), GpuError> {
         let e = job.ellipsoid;
         let stroke = job.stroke;
-        let tool = match stroke.tool {
-            Tool::Raise => codes::tool::RAISE,
-            Tool::Lower => codes::tool::LOWER,
-            Tool::Noise => codes::tool::NOISE,
-            Tool::Restore => codes::tool::RESTORE,
-            Tool::Flatten => codes::tool::FLATTEN,
-            Tool::Ramp => codes::tool::RAMP,
-            Tool::Smooth => codes::tool::SMOOTH,
-        };
-        let falloff = match stroke.falloff {
-            Falloff::Smooth => codes::falloff::SMOOTH,
-            Falloff::Linear => codes::falloff::LINEAR,
-            Falloff::Spherical => codes::falloff::SPHERICAL,
-            Falloff::Tip => codes::falloff::TIP,
-        };
+        let (tool, falloff) = codes_of(stroke);
         let wavelength = stroke.radius_m / 2.0;
         let (flat, ramp) = match job.target {
             Target::Flatten { height_m } => (height_m, None),
@@ -199,16 +201,7 @@ impl GpuRasteriser<'_> {
         let mut below: Vec<f32> = Vec::new();
         let mut delta: Vec<f32> = Vec::with_capacity(tiles.len() * N * N);
         for (q, tile) in tiles.iter() {
-            let kept = self.kernel.lattices.lock().expect("not poisoned").get(q).cloned();
-            let tile_lattice = kept.unwrap_or_else(|| {
-                let made = std::sync::Arc::new(Lattice::of(e, *q));
-                let mut all = self.kernel.lattices.lock().expect("not poisoned");
-                if all.len() >= KEPT_LATTICES {
-                    all.clear();
-                }
-                all.insert(*q, made.clone());
-                made
-            });
+            let tile_lattice = self.lattice(e, *q);
             let (origin, step) = (tile_lattice.origin, tile_lattice.step);
             let lat = [lattice.len() as u32, step, 256 / step + 1, 0];
             lattice.extend_from_slice(&tile_lattice.points);
@@ -228,23 +221,7 @@ impl GpuRasteriser<'_> {
                 lat,
                 diag: diagonals(*q),
                 origin: v4(origin, e.a_m() * e.a_m() / (e.b_m() * e.b_m())),
-                ext_grid: match ring {
-                    Some(ring_m) => {
-                        let s = job.snapshot.expect("smooth has a snapshot");
-                        let m = ring_margin(e, q.level, ring_m);
-                        let edge = GRID + 2 * m;
-                        let first = ext.len() as u32;
-                        let (i0, j0) = (i64::from(q.x) * 256 - i64::from(m), i64::from(q.y) * 256 - i64::from(m));
-                        for b in 0..i64::from(edge) {
-                            for a in 0..i64::from(edge) {
-                                let h = s.sample_global(q.face, i0 + a, j0 + b);
-                                ext.push(if h.is_finite() { h as f32 } else { -3.0e37 });
-                            }
-                        }
-                        [first, edge, m, (ring_m as f32).to_bits()]
-                    }
-                    None => [0; 4],
-                },
+                ext_grid: ring.map_or([0; 4], |ring_m| ring_grid(job, *q, ring_m, &mut ext)),
             });
             if reads_below {
                 let s = job.snapshot.expect("flatten and ramp have a snapshot");
@@ -334,4 +311,41 @@ impl Rasteriser for GpuRasteriser<'_> {
         }
         Ok(())
     }
+}
+
+/// The shader's codes of a stroke's tool and falloff.
+fn codes_of(stroke: &Stroke) -> (u32, u32) {
+    let tool = match stroke.tool {
+        Tool::Raise => codes::tool::RAISE,
+        Tool::Lower => codes::tool::LOWER,
+        Tool::Noise => codes::tool::NOISE,
+        Tool::Restore => codes::tool::RESTORE,
+        Tool::Flatten => codes::tool::FLATTEN,
+        Tool::Ramp => codes::tool::RAMP,
+        Tool::Smooth => codes::tool::SMOOTH,
+    };
+    let falloff = match stroke.falloff {
+        Falloff::Smooth => codes::falloff::SMOOTH,
+        Falloff::Linear => codes::falloff::LINEAR,
+        Falloff::Spherical => codes::falloff::SPHERICAL,
+        Falloff::Tip => codes::falloff::TIP,
+    };
+    (tool, falloff)
+}
+
+/// A smoothing tile's heights with the ring's margin around it, appended to `ext` (−3·10³⁷ where
+/// none): the tile's record of them (first value, edge, margin, the ring's radius's f32 bits).
+fn ring_grid(job: &StrokeJob, q: QuadId, ring_m: f64, ext: &mut Vec<f32>) -> [u32; 4] {
+    let s = job.snapshot.expect("smooth has a snapshot");
+    let m = ring_margin(job.ellipsoid, q.level, ring_m);
+    let edge = GRID + 2 * m;
+    let first = ext.len() as u32;
+    let (i0, j0) = (i64::from(q.x) * 256 - i64::from(m), i64::from(q.y) * 256 - i64::from(m));
+    for b in 0..i64::from(edge) {
+        for a in 0..i64::from(edge) {
+            let h = s.sample_global(q.face, i0 + a, j0 + b);
+            ext.push(if h.is_finite() { h as f32 } else { -3.0e37 });
+        }
+    }
+    [first, edge, m, (ring_m as f32).to_bits()]
 }

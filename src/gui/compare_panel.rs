@@ -126,6 +126,42 @@ impl ComparePanel {
                 "steps, comma-separated: nuth_kaab, vertical, deramp:1-3, terrain_bias:elevation|max_curvature|slope, directional:AZIMUTH",
             );
         });
+        let mut action = self.buttons(ui, project);
+        if self.busy() {
+            ui.horizontal(|ui| {
+                let p = self.watch.progress();
+                let fraction = if p.total > 0 { p.done as f32 / p.total as f32 } else { 0.0 };
+                let text =
+                    if p.total > 0 { format!("{}: {} of {}", p.phase, p.done, p.total) } else { p.phase.clone() };
+                ui.add(egui::ProgressBar::new(fraction).text(text).desired_width(220.0));
+                if ui.button("cancel").clicked() {
+                    self.watch.cancel();
+                }
+            });
+        }
+        match &self.comparison {
+            Some(Ok(c)) => comparison_ui(ui, c),
+            Some(Err(e)) => {
+                ui.colored_label(egui::Color32::LIGHT_RED, e.to_string());
+            }
+            None => {}
+        }
+        match &self.uncertainty {
+            Some(Ok(u)) => super::uncertainty_ui::uncertainty_ui(ui, u),
+            Some(Err(e)) => {
+                ui.colored_label(egui::Color32::LIGHT_RED, e.to_string());
+            }
+            None => {}
+        }
+        if let Some(applied) = self.coregistration_ui(ui, project) {
+            action = applied;
+        }
+        action
+    }
+
+    /// The buttons that start a comparison, a co-registration or an uncertainty off the interface
+    /// thread, and the one that shows the difference layer (its action).
+    fn buttons(&mut self, ui: &mut egui::Ui, project: &Project) -> CompareAction {
         let mut action = CompareAction::None;
         ui.horizontal(|ui| {
             let idle = !self.busy() && self.a != self.b;
@@ -182,32 +218,11 @@ impl ComparePanel {
                 ui.ctx().request_repaint_after(std::time::Duration::from_millis(100));
             }
         });
-        if self.busy() {
-            ui.horizontal(|ui| {
-                let p = self.watch.progress();
-                let fraction = if p.total > 0 { p.done as f32 / p.total as f32 } else { 0.0 };
-                let text =
-                    if p.total > 0 { format!("{}: {} of {}", p.phase, p.done, p.total) } else { p.phase.clone() };
-                ui.add(egui::ProgressBar::new(fraction).text(text).desired_width(220.0));
-                if ui.button("cancel").clicked() {
-                    self.watch.cancel();
-                }
-            });
-        }
-        match &self.comparison {
-            Some(Ok(c)) => comparison_ui(ui, c),
-            Some(Err(e)) => {
-                ui.colored_label(egui::Color32::LIGHT_RED, e.to_string());
-            }
-            None => {}
-        }
-        match &self.uncertainty {
-            Some(Ok(u)) => super::uncertainty_ui::uncertainty_ui(ui, u),
-            Some(Err(e)) => {
-                ui.colored_label(egui::Color32::LIGHT_RED, e.to_string());
-            }
-            None => {}
-        }
+        action
+    }
+
+    /// The co-registration's result, and its *apply* button (the action, where pressed).
+    fn coregistration_ui(&mut self, ui: &mut egui::Ui, project: &Project) -> Option<CompareAction> {
         match &self.coregistration {
             Some(Ok(c)) => {
                 ui.label(format!(
@@ -240,8 +255,9 @@ impl ComparePanel {
                     )
                     .clicked()
                 {
-                    action = CompareAction::Apply(Box::new(c.clone()));
+                    let apply = CompareAction::Apply(Box::new(c.clone()));
                     self.coregistration = None;
+                    return Some(apply);
                 }
             }
             Some(Err(e)) => {
@@ -249,7 +265,7 @@ impl ComparePanel {
             }
             None => {}
         }
-        action
+        None
     }
 }
 

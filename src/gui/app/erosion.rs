@@ -279,53 +279,58 @@ impl ErosionTool {
                 .on_hover_text("a run of the steps above along the drag");
         });
         ui.add(egui::Slider::new(&mut t.brush_radius_m, 10.0..=20_000.0).logarithmic(true).text("brush radius m"));
-        if let Some(s) = &self.session {
-            let steps = s.steps();
-            let device = if matches!(s.engine, Engine::Gpu(_)) { "GPU" } else { "CPU reference, on its own thread" };
-            ui.label(format!(
-                "{steps} of {} steps on the {device}, {} × {} cells at level {}, {:.1} s",
-                s.op.steps,
-                s.region.width,
-                s.region.height,
-                s.region.level,
-                s.seconds()
-            ));
-            ui.add(egui::ProgressBar::new(steps as f32 / s.op.steps.max(1) as f32).desired_width(220.0));
-            let f = &s.figures;
-            let (budget, dt, bound, speed, depth) = match (&s.engine, &s.live) {
-                (Engine::Gpu(_), Some(r)) => (r.budget, r.next_dt_s, r.cfl_bound_s, r.max_speed_m_s, r.max_depth_m),
-                _ => (f.budget, f.dt_s, f.cfl_bound_s, f.max_speed_m_s, f.max_depth_m),
-            };
-            let unit = f.unit_m3;
-            ui.label(format!("Δt {dt:.4} s (CFL bound {bound:.4} s), |v| ≤ {speed:.2} m/s, depth ≤ {depth:.3} m"));
-            ui.label(format!(
-                "water at the start {:.1} m³, rain {:.1} m³, evaporated {:.1} m³, out {:.1} m³ of water, {:.3} m³ of soil",
-                budget.start_water as f64 * unit,
-                budget.rain_in as f64 * unit,
-                budget.evaporated as f64 * unit,
-                budget.water_out as f64 * unit,
-                budget.soil_out as f64 * unit
-            ));
-            let (w, soil) = f.unexplained;
-            ui.label(format!("unexplained (as last read): water {w} units, soil {soil} units"));
-            ui.horizontal(|ui| {
-                let t = &mut self.overlay;
-                ui.selectable_value(t, Overlay::Water, "water");
-                ui.selectable_value(t, Overlay::Sediment, "sediment");
-                ui.selectable_value(t, Overlay::Change, "change");
-                ui.checkbox(&mut self.drape, "on the terrain");
-            });
-            if let Engine::Cpu(w) = &s.engine {
-                w.set_overlay(self.overlay);
-            }
-            if let Some(map) = &self.map {
-                // At the region's true aspect, 200 points along its longer side.
-                let [w, h] = map.size();
-                let k = 200.0 / w.max(h).max(1) as f32;
-                ui.image((map.id(), egui::vec2(w as f32 * k, h as f32 * k)));
-            }
-        }
+        self.session_ui(ui);
         self.undo_ui(ui, project).or(action)
+    }
+
+    /// The run in progress: its steps, its time step and CFL bound, its water and soil budget,
+    /// the overlay's choice and its map.
+    fn session_ui(&mut self, ui: &mut egui::Ui) {
+        let Some(s) = &self.session else { return };
+        let steps = s.steps();
+        let device = if matches!(s.engine, Engine::Gpu(_)) { "GPU" } else { "CPU reference, on its own thread" };
+        ui.label(format!(
+            "{steps} of {} steps on the {device}, {} × {} cells at level {}, {:.1} s",
+            s.op.steps,
+            s.region.width,
+            s.region.height,
+            s.region.level,
+            s.seconds()
+        ));
+        ui.add(egui::ProgressBar::new(steps as f32 / s.op.steps.max(1) as f32).desired_width(220.0));
+        let f = &s.figures;
+        let (budget, dt, bound, speed, depth) = match (&s.engine, &s.live) {
+            (Engine::Gpu(_), Some(r)) => (r.budget, r.next_dt_s, r.cfl_bound_s, r.max_speed_m_s, r.max_depth_m),
+            _ => (f.budget, f.dt_s, f.cfl_bound_s, f.max_speed_m_s, f.max_depth_m),
+        };
+        let unit = f.unit_m3;
+        ui.label(format!("Δt {dt:.4} s (CFL bound {bound:.4} s), |v| ≤ {speed:.2} m/s, depth ≤ {depth:.3} m"));
+        ui.label(format!(
+            "water at the start {:.1} m³, rain {:.1} m³, evaporated {:.1} m³, out {:.1} m³ of water, {:.3} m³ of soil",
+            budget.start_water as f64 * unit,
+            budget.rain_in as f64 * unit,
+            budget.evaporated as f64 * unit,
+            budget.water_out as f64 * unit,
+            budget.soil_out as f64 * unit
+        ));
+        let (w, soil) = f.unexplained;
+        ui.label(format!("unexplained (as last read): water {w} units, soil {soil} units"));
+        ui.horizontal(|ui| {
+            let t = &mut self.overlay;
+            ui.selectable_value(t, Overlay::Water, "water");
+            ui.selectable_value(t, Overlay::Sediment, "sediment");
+            ui.selectable_value(t, Overlay::Change, "change");
+            ui.checkbox(&mut self.drape, "on the terrain");
+        });
+        if let Engine::Cpu(w) = &s.engine {
+            w.set_overlay(self.overlay);
+        }
+        if let Some(map) = &self.map {
+            // At the region's true aspect, 200 points along its longer side.
+            let [w, h] = map.size();
+            let k = 200.0 / w.max(h).max(1) as f32;
+            ui.image((map.id(), egui::vec2(w as f32 * k, h as f32 * k)));
+        }
     }
 
     /// *undo run* and *redo run* for the erosion layer of `project`, while no run is in

@@ -120,157 +120,12 @@ impl App {
 
     /// Camera, detail, colour, isolines and lighting, each in a collapsible section.
     fn view_settings(&mut self, ui: &mut egui::Ui) {
-        egui::CollapsingHeader::new("Camera").default_open(false).show(ui, |ui| {
-            let mut c = self.camera;
-            egui::Grid::new("camera").num_columns(2).show(ui, |ui| {
-                let row = |ui: &mut egui::Ui, label: &str, v: &mut f64, speed: f64, range: (f64, f64), unit: &str| {
-                    let name = ui.label(label).id;
-                    ui.add(egui::DragValue::new(v).speed(speed).range(range.0..=range.1).suffix(unit).max_decimals(6))
-                        .labelled_by(name);
-                    ui.end_row();
-                };
-                row(ui, "latitude", &mut c.lat, 0.01, (-90.0, 90.0), "°");
-                row(ui, "longitude", &mut c.lon, 0.01, (-180.0, 180.0), "°");
-                let alt_speed = (c.alt.abs() * 0.01).max(1.0);
-                row(ui, "altitude", &mut c.alt, alt_speed, (-1.0e5, 1.0e9), " m");
-                row(ui, "heading", &mut c.heading, 0.5, (0.0, 360.0), "°");
-                row(ui, "pitch", &mut c.pitch, 0.5, (-90.0, 90.0), "°");
-                row(ui, "field of view", &mut c.fov, 0.5, (1.0, 150.0), "°");
-            });
-            self.set_camera(c);
-            let text = format!(
-                "{:.6},{:.6},{:.1},{:.2},{:.2},{:.1}",
-                self.camera.lat,
-                self.camera.lon,
-                self.camera.alt,
-                self.camera.heading,
-                self.camera.pitch,
-                self.camera.fov
-            );
-            ui.label(egui::RichText::new(format!("--camera {text}")).monospace().small())
-                .on_hover_text("this camera for terrafuse render");
-        });
+        egui::CollapsingHeader::new("Camera").default_open(false).show(ui, |ui| self.camera_settings(ui));
         self.flight_ui(ui);
-        egui::CollapsingHeader::new("Detail").default_open(false).show(ui, |ui| {
-            let t = self.threshold_px;
-            ui.add(egui::Slider::new(&mut self.threshold_px, 0.5..=8.0).logarithmic(true).text("t, pixels per sample"));
-            if t != self.threshold_px {
-                self.renderer.set_threshold(self.threshold_px);
-                self.dirty = true;
-                self.mark_unsaved();
-            }
-            let e = self.pixel_error;
-            ui.add(egui::Slider::new(&mut self.pixel_error, 0.05..=8.0).logarithmic(true).text("pixel error, px"))
-                .on_hover_text(
-                    "the mesh is drawn as coarsely as keeps its geometric error under this on screen; \
-                     colours, isolines and shading are read from the data per pixel whatever the mesh",
-                );
-            if e != self.pixel_error {
-                self.renderer.set_pixel_error(self.pixel_error);
-                self.dirty = true;
-                self.mark_unsaved();
-            }
-            let s = self.render_scale;
-            ui.add(egui::Slider::new(&mut self.render_scale, 0.25..=1.0).text("render scale"))
-                .on_hover_text("renders fewer pixels and scales the image up (for software GPUs)");
-            if s != self.render_scale {
-                self.dirty = true;
-            }
-        });
-        egui::CollapsingHeader::new("Colour").default_open(true).show(ui, |ui| {
-            let v = &mut self.visuals;
-            let current = match &v.colour_map.file {
-                Some(f) => format!("file {}", f.display()),
-                None => v.colour_map.preset.clone(),
-            };
-            egui::ComboBox::from_label("colour map").selected_text(current).show_ui(ui, |ui| {
-                for (name, _, _) in crate::colour::PRESETS {
-                    if ui.selectable_label(v.colour_map.file.is_none() && v.colour_map.preset == *name, *name).clicked()
-                    {
-                        v.colour_map.preset = (*name).to_string();
-                        v.colour_map.file = None;
-                    }
-                }
-            });
-            egui::ComboBox::from_label("colour by").selected_text(v.colour_map.by.name()).show_ui(ui, |ui| {
-                for by in crate::project::ColourBy::all() {
-                    if ui.selectable_label(v.colour_map.by == by, by.name()).clicked() && v.colour_map.by != by {
-                        v.colour_map.by = by;
-                        v.colour_map.range_m = None;
-                    }
-                }
-            });
-            let data = v.colour_map.by.default_range(self.renderer.scene().range_m);
-            let unit = format!(" {}", v.colour_map.by.unit());
-            let mut range = v.colour_map.range_m.unwrap_or([data.0, data.1]);
-            ui.horizontal(|ui| {
-                ui.label("range");
-                // A hundredth of the default span a point dragged (1 m of a 100 m relief, 0.04 of a curvature's ±2).
-                let speed = (data.1 - data.0).abs().max(1e-3) / 100.0;
-                let low = ui.add(egui::DragValue::new(&mut range[0]).speed(speed).suffix(&unit));
-                low.on_hover_text("the value of the ramp's first colour");
-                let high = ui.add(egui::DragValue::new(&mut range[1]).speed(speed).suffix(&unit));
-                high.on_hover_text("the value of the ramp's last colour");
-                let window = v.colour_map.by.attribute().filter(|a| {
-                    use crate::attributes::Attribute;
-                    !matches!(a, Attribute::Slope | Attribute::Aspect | Attribute::Hillshade)
-                });
-                let hint = match window {
-                    Some(_) => "the attribute's 2nd to 98th percentile on the quads drawn now (symmetric about 0 for the curvatures and TPI)",
-                    None => "the default range (the datasets' heights, 0–45° of slope, 0–360° of aspect, 1–255 of hillshade)",
-                };
-                if ui.small_button("data").on_hover_text(hint).clicked() {
-                    range = [data.0, data.1];
-                    if let Some(attribute) = window {
-                        let scene = self.renderer.scene();
-                        match crate::compare::attribute_range(scene, self.renderer.drawn(), attribute, 16) {
-                            Ok(Some((lo, hi))) => range = [lo, hi],
-                            Ok(None) => self.message = format!("{}: no data drawn", attribute.name()),
-                            Err(e) => self.message = format!("{}: {}", attribute.name(), crate::errors::chain(&e)),
-                        }
-                    }
-                }
-            });
-            if range[1] > range[0] && Some(range) != v.colour_map.range_m && range != [data.0, data.1] {
-                v.colour_map.range_m = Some(range);
-            } else if range == [data.0, data.1] {
-                v.colour_map.range_m = None;
-            }
-            ui.add(egui::Slider::new(&mut v.exaggeration, 0.1..=50.0).logarithmic(true).text("exaggeration"));
-        });
-        egui::CollapsingHeader::new("Isolines").default_open(true).show(ui, |ui| {
-            let v = &mut self.visuals;
-            let iso = &mut v.isolines;
-            ui.checkbox(&mut iso.enabled, "show isolines");
-            egui::Grid::new("isolines").num_columns(2).show(ui, |ui| {
-                let row = |ui: &mut egui::Ui, label: &str, value: egui::DragValue<'_>| {
-                    let name = ui.label(label).id;
-                    ui.add(value).labelled_by(name);
-                    ui.end_row();
-                };
-                row(
-                    ui,
-                    "interval",
-                    egui::DragValue::new(&mut iso.interval_m).speed(1.0).range(0.01..=1.0e6).suffix(" m"),
-                );
-                row(ui, "offset", egui::DragValue::new(&mut iso.offset_m).speed(1.0).suffix(" m"));
-                row(ui, "major every", egui::DragValue::new(&mut iso.major_every).range(0..=100));
-                row(ui, "width", egui::DragValue::new(&mut iso.width_px).speed(0.05).range(0.1..=10.0).suffix(" px"));
-                row(
-                    ui,
-                    "major width",
-                    egui::DragValue::new(&mut iso.major_width_px).speed(0.05).range(0.1..=10.0).suffix(" px"),
-                );
-            });
-        });
-        egui::CollapsingHeader::new("Lighting").default_open(false).show(ui, |ui| {
-            let v = &mut self.visuals;
-            let light = &mut v.lighting;
-            ui.checkbox(&mut light.enabled, "hillshade");
-            ui.add(egui::Slider::new(&mut light.sun_azimuth_deg, 0.0..=360.0).text("sun azimuth °"));
-            ui.add(egui::Slider::new(&mut light.sun_elevation_deg, 0.0..=90.0).text("sun elevation °"));
-            ui.add(egui::Slider::new(&mut light.strength, 0.0..=1.0).text("strength"));
-        });
+        egui::CollapsingHeader::new("Detail").default_open(false).show(ui, |ui| self.detail_settings(ui));
+        egui::CollapsingHeader::new("Colour").default_open(true).show(ui, |ui| self.colour_settings(ui));
+        egui::CollapsingHeader::new("Isolines").default_open(true).show(ui, |ui| self.isoline_settings(ui));
+        egui::CollapsingHeader::new("Lighting").default_open(false).show(ui, |ui| self.lighting_settings(ui));
         self.apply_visuals();
         ui.separator();
         ui.label(
@@ -280,6 +135,156 @@ impl App {
             )
             .small(),
         );
+    }
+
+    /// The camera's place, direction and field of view, and its `--camera` for `terrafuse render`.
+    fn camera_settings(&mut self, ui: &mut egui::Ui) {
+        let mut c = self.camera;
+        egui::Grid::new("camera").num_columns(2).show(ui, |ui| {
+            let row = |ui: &mut egui::Ui, label: &str, v: &mut f64, speed: f64, range: (f64, f64), unit: &str| {
+                let name = ui.label(label).id;
+                ui.add(egui::DragValue::new(v).speed(speed).range(range.0..=range.1).suffix(unit).max_decimals(6))
+                    .labelled_by(name);
+                ui.end_row();
+            };
+            row(ui, "latitude", &mut c.lat, 0.01, (-90.0, 90.0), "°");
+            row(ui, "longitude", &mut c.lon, 0.01, (-180.0, 180.0), "°");
+            let alt_speed = (c.alt.abs() * 0.01).max(1.0);
+            row(ui, "altitude", &mut c.alt, alt_speed, (-1.0e5, 1.0e9), " m");
+            row(ui, "heading", &mut c.heading, 0.5, (0.0, 360.0), "°");
+            row(ui, "pitch", &mut c.pitch, 0.5, (-90.0, 90.0), "°");
+            row(ui, "field of view", &mut c.fov, 0.5, (1.0, 150.0), "°");
+        });
+        self.set_camera(c);
+        let text = format!(
+            "{:.6},{:.6},{:.1},{:.2},{:.2},{:.1}",
+            self.camera.lat, self.camera.lon, self.camera.alt, self.camera.heading, self.camera.pitch, self.camera.fov
+        );
+        ui.label(egui::RichText::new(format!("--camera {text}")).monospace().small())
+            .on_hover_text("this camera for terrafuse render");
+    }
+
+    /// The level-of-detail threshold t, the pixel error and the render scale.
+    fn detail_settings(&mut self, ui: &mut egui::Ui) {
+        let t = self.threshold_px;
+        ui.add(egui::Slider::new(&mut self.threshold_px, 0.5..=8.0).logarithmic(true).text("t, pixels per sample"));
+        if t != self.threshold_px {
+            self.renderer.set_threshold(self.threshold_px);
+            self.dirty = true;
+            self.mark_unsaved();
+        }
+        let e = self.pixel_error;
+        ui.add(egui::Slider::new(&mut self.pixel_error, 0.05..=8.0).logarithmic(true).text("pixel error, px"))
+            .on_hover_text(
+                "the mesh is drawn as coarsely as keeps its geometric error under this on screen; \
+                 colours, isolines and shading are read from the data per pixel whatever the mesh",
+            );
+        if e != self.pixel_error {
+            self.renderer.set_pixel_error(self.pixel_error);
+            self.dirty = true;
+            self.mark_unsaved();
+        }
+        let s = self.render_scale;
+        ui.add(egui::Slider::new(&mut self.render_scale, 0.25..=1.0).text("render scale"))
+            .on_hover_text("renders fewer pixels and scales the image up (for software GPUs)");
+        if s != self.render_scale {
+            self.dirty = true;
+        }
+    }
+
+    /// The colour map, what it colours, its range and the vertical exaggeration.
+    fn colour_settings(&mut self, ui: &mut egui::Ui) {
+        let v = &mut self.visuals;
+        let current = match &v.colour_map.file {
+            Some(f) => format!("file {}", f.display()),
+            None => v.colour_map.preset.clone(),
+        };
+        egui::ComboBox::from_label("colour map").selected_text(current).show_ui(ui, |ui| {
+            for (name, _, _) in crate::colour::PRESETS {
+                if ui.selectable_label(v.colour_map.file.is_none() && v.colour_map.preset == *name, *name).clicked() {
+                    v.colour_map.preset = (*name).to_string();
+                    v.colour_map.file = None;
+                }
+            }
+        });
+        egui::ComboBox::from_label("colour by").selected_text(v.colour_map.by.name()).show_ui(ui, |ui| {
+            for by in crate::project::ColourBy::all() {
+                if ui.selectable_label(v.colour_map.by == by, by.name()).clicked() && v.colour_map.by != by {
+                    v.colour_map.by = by;
+                    v.colour_map.range_m = None;
+                }
+            }
+        });
+        let data = v.colour_map.by.default_range(self.renderer.scene().range_m);
+        let unit = format!(" {}", v.colour_map.by.unit());
+        let mut range = v.colour_map.range_m.unwrap_or([data.0, data.1]);
+        ui.horizontal(|ui| {
+            ui.label("range");
+            // A hundredth of the default span a point dragged (1 m of a 100 m relief, 0.04 of a curvature's ±2).
+            let speed = (data.1 - data.0).abs().max(1e-3) / 100.0;
+            let low = ui.add(egui::DragValue::new(&mut range[0]).speed(speed).suffix(&unit));
+            low.on_hover_text("the value of the ramp's first colour");
+            let high = ui.add(egui::DragValue::new(&mut range[1]).speed(speed).suffix(&unit));
+            high.on_hover_text("the value of the ramp's last colour");
+            let window = v.colour_map.by.attribute().filter(|a| {
+                use crate::attributes::Attribute;
+                !matches!(a, Attribute::Slope | Attribute::Aspect | Attribute::Hillshade)
+            });
+            let hint = match window {
+                Some(_) => "the attribute's 2nd to 98th percentile on the quads drawn now (symmetric about 0 for the curvatures and TPI)",
+                None => "the default range (the datasets' heights, 0–45° of slope, 0–360° of aspect, 1–255 of hillshade)",
+            };
+            if ui.small_button("data").on_hover_text(hint).clicked() {
+                range = [data.0, data.1];
+                if let Some(attribute) = window {
+                    let scene = self.renderer.scene();
+                    match crate::compare::attribute_range(scene, self.renderer.drawn(), attribute, 16) {
+                        Ok(Some((lo, hi))) => range = [lo, hi],
+                        Ok(None) => self.message = format!("{}: no data drawn", attribute.name()),
+                        Err(e) => self.message = format!("{}: {}", attribute.name(), crate::errors::chain(&e)),
+                    }
+                }
+            }
+        });
+        if range[1] > range[0] && Some(range) != v.colour_map.range_m && range != [data.0, data.1] {
+            v.colour_map.range_m = Some(range);
+        } else if range == [data.0, data.1] {
+            v.colour_map.range_m = None;
+        }
+        ui.add(egui::Slider::new(&mut v.exaggeration, 0.1..=50.0).logarithmic(true).text("exaggeration"));
+    }
+
+    /// The isolines: shown or not, interval, offset, major lines and widths.
+    fn isoline_settings(&mut self, ui: &mut egui::Ui) {
+        let v = &mut self.visuals;
+        let iso = &mut v.isolines;
+        ui.checkbox(&mut iso.enabled, "show isolines");
+        egui::Grid::new("isolines").num_columns(2).show(ui, |ui| {
+            let row = |ui: &mut egui::Ui, label: &str, value: egui::DragValue<'_>| {
+                let name = ui.label(label).id;
+                ui.add(value).labelled_by(name);
+                ui.end_row();
+            };
+            row(ui, "interval", egui::DragValue::new(&mut iso.interval_m).speed(1.0).range(0.01..=1.0e6).suffix(" m"));
+            row(ui, "offset", egui::DragValue::new(&mut iso.offset_m).speed(1.0).suffix(" m"));
+            row(ui, "major every", egui::DragValue::new(&mut iso.major_every).range(0..=100));
+            row(ui, "width", egui::DragValue::new(&mut iso.width_px).speed(0.05).range(0.1..=10.0).suffix(" px"));
+            row(
+                ui,
+                "major width",
+                egui::DragValue::new(&mut iso.major_width_px).speed(0.05).range(0.1..=10.0).suffix(" px"),
+            );
+        });
+    }
+
+    /// The hillshade: on or off, the sun's azimuth and elevation, its strength.
+    fn lighting_settings(&mut self, ui: &mut egui::Ui) {
+        let v = &mut self.visuals;
+        let light = &mut v.lighting;
+        ui.checkbox(&mut light.enabled, "hillshade");
+        ui.add(egui::Slider::new(&mut light.sun_azimuth_deg, 0.0..=360.0).text("sun azimuth °"));
+        ui.add(egui::Slider::new(&mut light.sun_elevation_deg, 0.0..=90.0).text("sun elevation °"));
+        ui.add(egui::Slider::new(&mut light.strength, 0.0..=1.0).text("strength"));
     }
 
     /// The comparison panel, its profile and the swipe.
