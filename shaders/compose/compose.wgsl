@@ -34,24 +34,53 @@ struct Job {
 
 // One planned layer of a job (JobLayer in src/gpu/compose.rs; keep in sync).
 struct JobLayer {
-    // Kind (0 dataset, 1 procedural, 2 constant, 3 edit), blend (0 over, 1 add, 2 min, 3 max, 4 mean),
-    // source slot (datasets), mask (0 full, 1 partial).
-    head: vec4<u32>,
-    // First segment, segment count, first ring vertex, ring count (in `shapes`; a box has no
-    // ring: its bounds west, south, east, north are the one entry at the ring's start).
-    mask: vec4<u32>,
-    // Procedural: first octave, octave count, noise type (0 fBm, 1 ridged), placement (0
-    // everywhere, 1 beyond the data). Datasets: x is the edge slot (no-data edge distances,
-    // metres, in the source pool; NO_SLOT: no edge feather).
-    noise: vec4<u32>,
-    // Opacity, weight, scale, offset (metres).
-    value: vec4<f32>,
-    // Valid range low, high (metres; ±FAR: none), feather (metres), smallest ring longitude.
-    range: vec4<f32>,
-    // Constant height or noise amplitude (metres), gain (datasets: feather_edge_m), data
-    // spacing (datasets; FAR: none), the ring's orientation (+1: counter-clockwise in longitude
-    // and latitude).
-    extra: vec4<f32>,
+    // What the layer's value is (KIND_*), how it folds into the heights below it (BLEND_*), its
+    // source slot (datasets and edits), and whether its extent masks it partly (1) or not (0).
+    kind: u32,
+    blend: u32,
+    source: u32,
+    partial: u32,
+    // The extent's mask in `shapes`: its first segment and their count, its ring's first vertex
+    // and their count (a box has no ring: its bounds west, south, east, north are the one entry
+    // at the ring's start).
+    segment_first: u32,
+    segments: u32,
+    ring_first: u32,
+    rings: u32,
+    // Procedural: the first octave in `octaves`, their count, the noise type (0 fBm, 1 ridged)
+    // and where it adds detail (0 everywhere, 1 beyond the data).
+    octave_first: u32,
+    octaves: u32,
+    noise_type: u32,
+    placement: u32,
+    // Datasets: the edge slot (no-data edge distances, metres, in the source pool; NO_SLOT: no
+    // edge feather), and the bias corrections' first entry in `shapes` and their count.
+    edge_slot: u32,
+    bias_first: u32,
+    biases: u32,
+    pad0: u32,
+    // Opacity, the mean's weight, the scale and offset applied to the value (metres).
+    opacity: f32,
+    weight: f32,
+    scale: f32,
+    offset_m: f32,
+    // The valid range (metres; ±FAR: none), the extent's feather (metres) and its ring's
+    // smallest longitude.
+    valid_lo_m: f32,
+    valid_hi_m: f32,
+    feather_m: f32,
+    ring_lon_min: f32,
+    // A constant layer's height, a procedural layer's amplitude and gain (metres; per octave),
+    // a dataset's feather at its no-data edge and data spacing (metres; FAR: none), and the
+    // ring's orientation (+1: counter-clockwise in longitude and latitude).
+    height_m: f32,
+    amplitude_m: f32,
+    gain: f32,
+    feather_edge_m: f32,
+    data_spacing_m: f32,
+    orientation: f32,
+    pad1: f32,
+    pad2: f32,
 }
 
 // One octave of one procedural layer at one quad: the lattice cell of O (xyz) and the octave's
@@ -148,7 +177,7 @@ const MASK_BLOCK: u32 = 32u;
 
 // layers::extent::Extent::{contains, nearest_m, mask}.
 fn extent_mask(l: JobLayer, job: Job, local: vec3<f32>, lon: f32, lat: f32) -> f32 {
-    if l.head.w == 0u {
+    if l.partial == 0u {
         return 1.0;
     }
     // The nearest segment, block by block (after the segments, a sphere a block: centre,
@@ -158,8 +187,8 @@ fn extent_mask(l: JobLayer, job: Job, local: vec3<f32>, lon: f32, lat: f32) -> f
     // cannot hold a nearer one: the result is the full search's, from a few blocks.
     var d = FAR;
     var nearest = 0u;
-    let spheres = l.mask.x + 2u * l.mask.y;
-    let blocks = (l.mask.y + MASK_BLOCK - 1u) / MASK_BLOCK;
+    let spheres = l.segment_first + 2u * l.segments;
+    let blocks = (l.segments + MASK_BLOCK - 1u) / MASK_BLOCK;
     var bound = FAR;
     for (var b = 0u; b < blocks; b++) {
         let sphere = shapes[spheres + b];
@@ -170,8 +199,8 @@ fn extent_mask(l: JobLayer, job: Job, local: vec3<f32>, lon: f32, lat: f32) -> f
         if length(local - sphere.xyz) - sphere.w > min(d, bound) {
             continue;
         }
-        for (var k = b * MASK_BLOCK; k < min(b * MASK_BLOCK + MASK_BLOCK, l.mask.y); k++) {
-            let s = l.mask.x + 2u * k;
+        for (var k = b * MASK_BLOCK; k < min(b * MASK_BLOCK + MASK_BLOCK, l.segments); k++) {
+            let s = l.segment_first + 2u * k;
             let dk = segment_distance(local, shapes[s].xyz, shapes[s + 1u].xyz);
             if dk < d {
                 d = dk;
@@ -184,12 +213,12 @@ fn extent_mask(l: JobLayer, job: Job, local: vec3<f32>, lon: f32, lat: f32) -> f
         let a = shapes[nearest].xyz;
         let up = normalize(job.origin.xyz + a);
         let left = cross(up, shapes[nearest + 1u].xyz - a);
-        inside = dot(local - a, left) * l.extra.w > 0.0;
+        inside = dot(local - a, left) * l.orientation > 0.0;
     } else {
-        let lon_min = l.range.w;
+        let lon_min = l.ring_lon_min;
         let x = lon_min + (lon - lon_min) - TAU * floor((lon - lon_min) / TAU);
-        let first = l.mask.z;
-        let count = l.mask.w;
+        let first = l.ring_first;
+        let count = l.rings;
         if count == 0u {
             // A box: west, south, east (unwrapped), north.
             let b = shapes[first];
@@ -209,7 +238,7 @@ fn extent_mask(l: JobLayer, job: Job, local: vec3<f32>, lon: f32, lat: f32) -> f
     if !inside {
         return 0.0;
     }
-    let feather = l.range.z;
+    let feather = l.feather_m;
     if feather <= 0.0 {
         return 1.0;
     }
@@ -252,14 +281,14 @@ fn polynomial_at(first: u32, order: u32, e: f32, n: f32) -> f32 {
 
 // layers::correction::Correction::at: the sum of a dataset layer's biases at a sample (`local`
 // from O) where its scaled value is `value` (an elevation bias reads it as the biases before it
-// left it). Entries from l.noise.y (see push_correction in
+// left it). Entries from l.bias_first (see push_correction in
 // src/gpu/compose.rs): a head (code, count, sin, cos of the azimuth), for the biases of position
 // the frame ((east, e₀), (north, n₀)), then the terms. Sinusoids are evaluated on the fraction
 // of turns (x / λ + phase / 2π), so that sin sees an argument within one turn.
 fn correction(l: JobLayer, local: vec3<f32>, value: f32) -> f32 {
-    var k = l.noise.y;
+    var k = l.bias_first;
     var sum = 0.0;
-    for (var b = 0u; b < l.noise.z; b++) {
+    for (var b = 0u; b < l.biases; b++) {
         let head = shapes[k];
         let code = u32(head.x);
         let count = u32(head.y);
@@ -295,16 +324,16 @@ fn correction(l: JobLayer, local: vec3<f32>, value: f32) -> f32 {
 // layers::noise::{octave_weights, fractal}.
 fn procedural(l: JobLayer, job: Job, local: vec3<f32>, data_spacing: f32, data_coverage: f32) -> f32 {
     var sum = 0.0;
-    var amplitude = l.extra.x;
+    var amplitude = l.amplitude_m;
     var ridge_weight = 1.0;
-    for (var k = 0u; k < l.noise.y; k++) {
-        let o = octaves[l.noise.x + k];
+    for (var k = 0u; k < l.octaves; k++) {
+        let o = octaves[l.octave_first + k];
         let wavelength = o.frac.w;
         var w = noise_resolved_weight(wavelength, job.params.x);
-        if l.noise.w == 1u {
+        if l.placement == 1u {
             w = w * ((1.0 - data_coverage) + data_coverage * noise_beyond_data_weight(wavelength, data_spacing));
         }
-        if l.noise.z == 0u {
+        if l.noise_type == 0u {
             if w > 0.0 {
                 sum += amplitude * w * noise_octave(o.cell.xyz, o.frac.xyz, local, wavelength, o.cell.w);
             }
@@ -314,7 +343,7 @@ fn procedural(l: JobLayer, job: Job, local: vec3<f32>, data_spacing: f32, data_c
             ridge_weight = clamp(2.0 * s, 0.0, 1.0);
             sum += amplitude * w * s;
         }
-        amplitude *= l.extra.y;
+        amplitude *= l.gain;
     }
     return sum;
 }
@@ -372,37 +401,37 @@ fn compose_layers(job: Job, first: u32, count: u32, i: u32, j: u32, local: vec3<
         let l = job_layers[first + k];
         var base = 0.0;
         var valid = true;
-        switch l.head.x {
+        switch l.kind {
             // A dataset's raw heights, or an edit layer's deltas.
             case KIND_STORE_TILE, KIND_DELTAS: {
-                base = sources[l.head.z * N * N + j * N + i];
+                base = sources[l.source * N * N + j * N + i];
                 valid = base > NODATA_BELOW;
             }
             case KIND_NOISE: {
                 base = procedural(l, job, local, r.spacing, r.coverage);
             }
             default: {
-                base = l.extra.x;
+                base = l.height_m;
             }
         }
-        var v = base * l.value.z + l.value.w;
-        if l.head.x == KIND_STORE_TILE && l.noise.z > 0u && valid {
+        var v = base * l.scale + l.offset_m;
+        if l.kind == KIND_STORE_TILE && l.biases > 0u && valid {
             v -= correction(l, local, v);
         }
-        valid = valid && v >= l.range.x && v <= l.range.y;
+        valid = valid && v >= l.valid_lo_m && v <= l.valid_hi_m;
         var alpha = 0.0;
         if valid {
-            alpha = l.value.x * extent_mask(l, job, local, lon, lat);
-            if l.head.x == KIND_STORE_TILE && l.noise.x != NO_SLOT {
+            alpha = l.opacity * extent_mask(l, job, local, lon, lat);
+            if l.kind == KIND_STORE_TILE && l.edge_slot != NO_SLOT {
                 // layers::edge::edge_mask: smoothstep(d / F) of the distance to the no-data edge.
-                alpha *= smoothstep(0.0, 1.0, sources[l.noise.x * N * N + j * N + i] / l.extra.y);
+                alpha *= smoothstep(0.0, 1.0, sources[l.edge_slot * N * N + j * N + i] / l.feather_edge_m);
             }
         }
-        let dataset = l.head.x == KIND_STORE_TILE;
-        let spacing = select(FAR, l.extra.z, dataset);
-        if l.head.y == BLEND_MEAN {
+        let dataset = l.kind == KIND_STORE_TILE;
+        let spacing = select(FAR, l.data_spacing_m, dataset);
+        if l.blend == BLEND_MEAN {
             if alpha > 0.0 {
-                let w = l.value.y * alpha;
+                let w = l.weight * alpha;
                 group_sum += w * v;
                 group_weight += w;
                 if dataset {
@@ -413,7 +442,7 @@ fn compose_layers(job: Job, first: u32, count: u32, i: u32, j: u32, local: vec3<
             }
             var closes = k + 1u == count;
             if !closes {
-                closes = job_layers[first + k + 1u].head.y != BLEND_MEAN;
+                closes = job_layers[first + k + 1u].blend != BLEND_MEAN;
             }
             if closes {
                 if group_weight > 0.0 {
@@ -426,7 +455,7 @@ fn compose_layers(job: Job, first: u32, count: u32, i: u32, j: u32, local: vec3<
                 group_spacing = FAR;
             }
         } else if alpha > 0.0 {
-            r = apply(r, l.head.y, v, alpha, spacing, select(0.0, 1.0, dataset));
+            r = apply(r, l.blend, v, alpha, spacing, select(0.0, 1.0, dataset));
         }
     }
     return r;

@@ -6,7 +6,7 @@
 /// "No slot": a tile or map that is not resident.
 pub const NO_SLOT: u32 = u32::MAX;
 
-/// How a composed layer gets its value (`JobLayer.head.x`).
+/// How a composed layer gets its value (`JobLayer.kind`).
 pub mod kind {
     /// A dataset's raw heights from its store tile.
     pub const STORE_TILE: u32 = 0;
@@ -18,7 +18,7 @@ pub mod kind {
     pub const DELTAS: u32 = 3;
 }
 
-/// How a layer folds into the heights below it (`JobLayer.head.y`).
+/// How a layer folds into the heights below it (`JobLayer.blend`).
 pub mod blend {
     /// (1 − α)·h + α·x.
     pub const OVER: u32 = 0;

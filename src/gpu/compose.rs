@@ -59,12 +59,47 @@ pub struct ComposeJob {
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
 pub struct JobLayer {
-    pub(super) head: [u32; 4],
-    pub(super) mask: [u32; 4],
-    pub(super) noise: [u32; 4],
-    pub(super) value: [f32; 4],
-    pub(super) range: [f32; 4],
-    pub(super) extra: [f32; 4],
+    /// What the layer's value is (`codes::kind`), how it folds (`codes::blend`), its source
+    /// slot, and 1 where its extent masks it partly.
+    pub(super) kind: u32,
+    pub(super) blend: u32,
+    pub(super) source: u32,
+    pub(super) partial: u32,
+    /// The extent's mask in `shapes`: first segment and count, first ring vertex and count.
+    pub(super) segment_first: u32,
+    pub(super) segments: u32,
+    pub(super) ring_first: u32,
+    pub(super) rings: u32,
+    /// Procedural: first octave and count, noise type (1 ridged), placement (1 beyond the data).
+    pub(super) octave_first: u32,
+    pub(super) octaves: u32,
+    pub(super) noise_type: u32,
+    pub(super) placement: u32,
+    /// Datasets: the edge slot (NO_SLOT: no edge feather), the biases' first entry and count.
+    pub(super) edge_slot: u32,
+    pub(super) bias_first: u32,
+    pub(super) biases: u32,
+    pub(super) pad0: u32,
+    pub(super) opacity: f32,
+    pub(super) weight: f32,
+    pub(super) scale: f32,
+    pub(super) offset_m: f32,
+    /// The valid range (±FAR: none), the extent's feather, its ring's smallest longitude.
+    pub(super) valid_lo_m: f32,
+    pub(super) valid_hi_m: f32,
+    pub(super) feather_m: f32,
+    pub(super) ring_lon_min: f32,
+    /// A constant's height; a procedural layer's amplitude and gain.
+    pub(super) height_m: f32,
+    pub(super) amplitude_m: f32,
+    pub(super) gain: f32,
+    /// A dataset's feather at its no-data edge and data spacing (FAR: none).
+    pub(super) feather_edge_m: f32,
+    pub(super) data_spacing_m: f32,
+    /// The ring's orientation (+1: counter-clockwise in longitude and latitude).
+    pub(super) orientation: f32,
+    pub(super) pad1: f32,
+    pub(super) pad2: f32,
 }
 
 /// One octave at one quad (`Octave` in compose.wgsl; keep in sync).
@@ -76,7 +111,7 @@ pub struct OctaveOrigin {
 }
 
 const _: () = assert!(std::mem::size_of::<ComposeJob>() == 16 * 11);
-const _: () = assert!(std::mem::size_of::<JobLayer>() == 16 * 6);
+const _: () = assert!(std::mem::size_of::<JobLayer>() == 16 * 8);
 const _: () = assert!(std::mem::size_of::<OctaveOrigin>() == 32);
 
 /// The jobs of one dispatch and everything they index.
@@ -169,13 +204,13 @@ impl ComposeBatch {
             BlendMode::Max => codes::blend::MAX,
             BlendMode::Mean => codes::blend::MEAN,
         };
-        let mut mask = [0u32; 4];
+        let mut record = JobLayer { kind, blend, source, data_spacing_m: FAR, ..JobLayer::zeroed() };
         let mut lon_min = 0.0f32;
         let mut orientation = 1.0f32;
         let partial = match (&planned.mask, &layer.extent) {
             (MaskPlan::Partial(near), Some(extent)) => {
-                mask[0] = self.shapes.len() as u32;
-                mask[1] = near.segments.len() as u32;
+                record.segment_first = self.shapes.len() as u32;
+                record.segments = near.segments.len() as u32;
                 for &s in &near.segments {
                     let [a, b] = extent.segments[s as usize];
                     self.shapes.push(v4(a - origin, 0.0));
@@ -186,12 +221,12 @@ impl ComposeBatch {
                 for &(centre, radius) in &near.spheres {
                     self.shapes.push(v4(centre - origin, radius as f32));
                 }
-                mask[2] = self.shapes.len() as u32;
+                record.ring_first = self.shapes.len() as u32;
                 match extent.box_rad {
                     // A box: no ring, its bounds in one entry.
                     Some(b) => self.shapes.push(b.map(|v| v as f32)),
                     None => {
-                        mask[3] = extent.ring_rad.len() as u32;
+                        record.rings = extent.ring_rad.len() as u32;
                         self.shapes
                             .extend(extent.ring_rad.iter().map(|[lon, lat]| [*lon as f32, *lat as f32, 0.0, 0.0]));
                     }
@@ -202,15 +237,11 @@ impl ComposeBatch {
             }
             _ => 0,
         };
-        let mut noise_head = [0u32; 4];
-        let mut extra = [0.0f32, 0.0, FAR, 0.0];
         if let ValueSource::Noise(n) = spec.value_source() {
-            noise_head = [
-                self.octaves.len() as u32,
-                planned.octaves,
-                u32::from(n.noise_type == NoiseType::Ridged),
-                u32::from(n.placement == DetailWhere::BeyondData),
-            ];
+            record.octave_first = self.octaves.len() as u32;
+            record.octaves = planned.octaves;
+            record.noise_type = u32::from(n.noise_type == NoiseType::Ridged);
+            record.placement = u32::from(n.placement == DetailWhere::BeyondData);
             for o in 0..planned.octaves {
                 let wavelength = noise::octave_wavelength_m(n, o);
                 let (cell, frac) = noise::lattice_origin(origin, wavelength);
@@ -219,33 +250,36 @@ impl ComposeBatch {
                     frac: [frac[0] as f32, frac[1] as f32, frac[2] as f32, wavelength as f32],
                 });
             }
-            extra[0] = n.amplitude_m as f32;
-            extra[1] = n.gain as f32;
+            record.amplitude_m = n.amplitude_m as f32;
+            record.gain = n.gain as f32;
         }
         if let ValueSource::Constant(h) = spec.value_source() {
-            extra[0] = h as f32;
+            record.height_m = h as f32;
         }
         if spec.is_data() {
-            // The edge slot where the noise head would be, the feather where the gain would; the
-            // bias corrections' first entry in `shapes` and their count after it.
-            noise_head[0] = slots.1;
-            noise_head[1] = self.shapes.len() as u32;
-            noise_head[2] = layer.correction.biases.len() as u32;
+            // The edge slot; the bias corrections' first entry in `shapes` and their count.
+            record.edge_slot = slots.1;
+            record.bias_first = self.shapes.len() as u32;
+            record.biases = layer.correction.biases.len() as u32;
             push_correction(&mut self.shapes, &layer.correction, origin);
-            extra[1] = spec.feather_edge_m() as f32;
+            record.feather_edge_m = spec.feather_edge_m() as f32;
             if layer.data_spacing_m.is_finite() {
-                extra[2] = layer.data_spacing_m as f32;
+                record.data_spacing_m = layer.data_spacing_m as f32;
             }
         }
-        extra[3] = orientation;
+        record.orientation = orientation;
         let [lo, hi] = spec.valid_range_m.map_or([-FAR, FAR], |[a, b]| [a as f32, b as f32]);
         self.layers.push(JobLayer {
-            head: [kind, blend, source, partial],
-            mask,
-            noise: noise_head,
-            value: [planned.opacity as f32, spec.weight as f32, spec.scale as f32, spec.offset_m as f32],
-            range: [lo, hi, spec.feather_m as f32, lon_min],
-            extra,
+            partial,
+            opacity: planned.opacity as f32,
+            weight: spec.weight as f32,
+            scale: spec.scale as f32,
+            offset_m: spec.offset_m as f32,
+            valid_lo_m: lo,
+            valid_hi_m: hi,
+            feather_m: spec.feather_m as f32,
+            ring_lon_min: lon_min,
+            ..record
         });
     }
 }
