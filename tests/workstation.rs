@@ -377,10 +377,11 @@ fn datasets_are_imported_in_the_background_cancelled_and_layers_reorder_by_dragg
         terrafuse::store::Store::open_read_only(&partial).expect("a cancelled import leaves a valid store");
     }
 
-    // Dragging the top layer (listed first) onto the bottom one moves it to the bottom.
-    let handles: Vec<egui::Rect> = h.get_all_by_label("drag").map(|n| n.rect()).collect();
+    // Dragging the top layer (listed first) by its handle onto the bottom one's row moves it to
+    // the bottom.
+    let handles: Vec<egui::Rect> = h.get_all_by_label("::").map(|n| n.rect()).collect();
     assert_eq!(handles.len(), 2);
-    drag(&mut h, handles[0].center(), handles[1].center() + egui::vec2(40.0, 20.0));
+    drag(&mut h, handles[0].center(), handles[1].center() + egui::vec2(40.0, 2.0));
     h.run_steps(2);
     let names: Vec<String> = h.state().stack().layers.iter().map(|l| l.spec.name.clone()).collect();
     assert_eq!(names, ["north", "lola_global"]);

@@ -1,5 +1,6 @@
-//! The layers panel: the stack top to bottom as a person reads it, each layer's visibility,
-//! blend mode, opacity and parameters edited live (the renderer recomposes only the quads the
+//! The layers panel: the stack top to bottom as a person reads it, one compact row a layer
+//! (drag handle, visibility, name, kind, opacity, up, down, remove) and the selected layer's blend
+//! mode and parameters below the list, as QGIS and image editors lay it out, all edited live (the renderer recomposes only the quads the
 //! changed layer touches), order changed by dragging a layer onto another or with up/down,
 //! constant, procedural and difference layers added (datasets by [`super::add_dataset`]; a
 //! difference's settings by [`super::difference_ui`]) and any layer removed (not one a difference
@@ -81,19 +82,31 @@ pub fn layers_ui(ui: &mut egui::Ui, project: &Project, drawn: Drawn) -> Vec<Laye
     // A move from one position to another (up, down, or a layer dragged onto another).
     let mut moved: Option<(usize, usize)> = None;
     let mut remove: Option<usize> = None;
-    // Top of the stack first, as in every layer panel.
+    // Which layer's details show below the list (the panel's own state, in egui's memory; the
+    // top layer until one is picked).
+    let selected_id = selected_id();
+    let mut selected: usize =
+        ui.data(|d| d.get_temp::<usize>(selected_id)).filter(|&k| k < count).unwrap_or(count.saturating_sub(1));
+    // One compact row a layer, top of the stack first, as in every layer panel.
     for index in (0..count).rev() {
         let mut spec = project.layers[index].clone();
         let before = spec.clone();
-        let block = ui
+        let row = ui
             .push_id(index, |ui| {
                 ui.horizontal(|ui| {
-                    ui.dnd_drag_source(ui.scope_id().with("drag"), index, |ui| ui.label("drag"))
+                    ui.dnd_drag_source(ui.scope_id().with("drag"), index, |ui| ui.label("::"))
                         .response
                         .on_hover_text("drag onto another layer to move it there");
                     ui.checkbox(&mut spec.visible, "visible");
-                    ui.label(egui::RichText::new(&spec.name).strong());
+                    let name = egui::RichText::new(&spec.name).strong();
+                    if ui.selectable_label(selected == index, name).on_hover_text("show its settings below").clicked() {
+                        selected = index;
+                    }
                     ui.label(egui::RichText::new(spec.kind().name()).small());
+                    if spec.gives_heights() {
+                        ui.add(egui::Slider::new(&mut spec.opacity, 0.0..=1.0).show_value(false))
+                            .on_hover_text(format!("opacity {:.2}", spec.opacity));
+                    }
                     if ui.small_button("up").on_hover_text("move up the stack").clicked() && index + 1 < count {
                         moved = Some((index, index + 1));
                     }
@@ -104,24 +117,13 @@ pub fn layers_ui(ui: &mut egui::Ui, project: &Project, drawn: Drawn) -> Vec<Laye
                         remove = Some(index);
                     }
                 });
-                if !spec.gives_heights() {
-                    let heights = project.layers.iter().filter(|l| l.gives_heights());
-                    let names: Vec<String> = heights.clone().map(|l| l.name.clone()).collect();
-                    let visible: Vec<String> = heights.filter(|l| l.visible).map(|l| l.name.clone()).collect();
-                    super::difference_ui::settings_ui(ui, &mut spec, &names, &visible, drawn.range_m);
-                    if drawn.difference != Some(index) && spec.visible {
-                        ui.label("(a difference above this one is drawn)");
-                    }
-                } else {
-                    layer_settings_ui(ui, &mut spec);
-                }
             })
             .response;
-        if block.dnd_hover_payload::<usize>().is_some_and(|from| *from != index) {
+        if row.dnd_hover_payload::<usize>().is_some_and(|from| *from != index) {
             let stroke = egui::Stroke::new(2.0, ui.visuals().selection.stroke.color);
-            ui.painter().hline(block.rect.x_range(), block.rect.top(), stroke);
+            ui.painter().hline(row.rect.x_range(), row.rect.top(), stroke);
         }
-        if let Some(from) = block.dnd_release_payload::<usize>()
+        if let Some(from) = row.dnd_release_payload::<usize>()
             && *from != index
         {
             moved = Some((*from, index));
@@ -129,11 +131,43 @@ pub fn layers_ui(ui: &mut egui::Ui, project: &Project, drawn: Drawn) -> Vec<Laye
         if spec != before {
             actions.push(LayerAction::Update(index, spec));
         }
+    }
+    ui.data_mut(|d| d.insert_temp(selected_id, selected));
+    // The selected layer's settings below the list.
+    if let Some(layer) = project.layers.get(selected) {
         ui.separator();
+        ui.label(egui::RichText::new(format!("{} ({})", layer.name, layer.kind().name())).strong());
+        let mut spec = layer.clone();
+        if !spec.gives_heights() {
+            let heights = project.layers.iter().filter(|l| l.gives_heights());
+            let names: Vec<String> = heights.clone().map(|l| l.name.clone()).collect();
+            let visible: Vec<String> = heights.filter(|l| l.visible).map(|l| l.name.clone()).collect();
+            super::difference_ui::settings_ui(ui, &mut spec, &names, &visible, drawn.range_m);
+            if drawn.difference != Some(selected) && spec.visible {
+                ui.label("(a difference above this one is drawn)");
+            }
+        } else {
+            layer_settings_ui(ui, &mut spec);
+        }
+        // A change made in the row above this frame wins; the details' own change goes next frame.
+        if spec != *layer && !actions.iter().any(|a| matches!(a, LayerAction::Update(k, _) if *k == selected)) {
+            actions.push(LayerAction::Update(selected, spec));
+        }
     }
     actions.extend(remove.map(LayerAction::Remove));
     actions.extend(moved.map(|(from, to)| LayerAction::Move { from, to }));
     actions
+}
+
+/// Where the panel keeps which layer's settings show (egui's memory: the panel's own state).
+fn selected_id() -> egui::Id {
+    egui::Id::unique("terrafuse: the layer whose settings show")
+}
+
+/// Shows layer `index`'s settings below the list from the next frame on (a tool that changed
+/// the layer: a co-registration applied to it).
+pub fn show_settings_of(ctx: &egui::Context, index: usize) {
+    ctx.data_mut(|d| d.insert_temp(selected_id(), index));
 }
 
 /// A layer name not used yet: `base`, else `base 2`, `base 3`, …
@@ -151,7 +185,7 @@ fn layer_settings_ui(ui: &mut egui::Ui, spec: &mut LayerSpec) {
             ui.selectable_value(&mut spec.blend, mode, mode.name());
         }
     });
-    ui.add(egui::Slider::new(&mut spec.opacity, 0.0..=1.0).text("opacity"));
+    // The opacity is on the layer's row.
     if spec.blend == BlendMode::Mean {
         ui.add(egui::Slider::new(&mut spec.weight, 0.0..=10.0).text("weight"));
     }

@@ -290,7 +290,7 @@ impl App {
     /// The comparison panel, its profile and the swipe.
     fn compare_tab(&mut self, ui: &mut egui::Ui) {
         match self.compare.ui(ui, &self.project) {
-            crate::gui::compare_panel::CompareAction::Apply(c) => self.apply_coregistration(&c),
+            crate::gui::compare_panel::CompareAction::Apply(c) => self.apply_coregistration(&ui.ctx().clone(), &c),
             crate::gui::compare_panel::CompareAction::ShowDifference { a, b } => self.show_difference(&a, &b),
             crate::gui::compare_panel::CompareAction::None => {}
         }
@@ -336,7 +336,7 @@ impl App {
     }
 
     /// Applies a co-registration to its layer A: shift, raise and biases (`Coregistration::apply_to`).
-    fn apply_coregistration(&mut self, c: &crate::compare::Coregistration) {
+    fn apply_coregistration(&mut self, ctx: &egui::Context, c: &crate::compare::Coregistration) {
         let Some(index) = self.project.layers.iter().position(|l| l.name == c.a) else { return };
         let mut spec = self.project.layers[index].clone();
         if let Err(e) = c.apply_to(&mut spec) {
@@ -348,6 +348,8 @@ impl App {
                 self.project.layers[index] = spec;
                 self.dirty = true;
                 self.mark_unsaved();
+                // The layers panel shows what the layer now holds.
+                crate::gui::layers_panel::show_settings_of(ctx, index);
                 let biases = c.biases().iter().map(|b| b.step_name()).collect::<Vec<_>>();
                 let corrected =
                     if biases.is_empty() { String::new() } else { format!(", corrected by {}", biases.join(", ")) };
