@@ -1,7 +1,7 @@
 //! The layers panel: the stack top to bottom as a person reads it, one compact row a layer
-//! (drag handle, visibility, name, kind, opacity, up, down, remove) and the selected layer's blend
-//! mode and parameters below the list, as QGIS and image editors lay it out, all edited live (the renderer recomposes only the quads the
-//! changed layer touches), order changed by dragging a layer onto another or with up/down,
+//! (drag handle, visibility, name, kind, opacity, remove) and the selected layer's up, down,
+//! blend mode and parameters below the list, as QGIS and image editors lay it out, all edited live (the renderer recomposes only the quads the
+//! changed layer touches), order changed by dragging a layer onto another or with the selected one's up/down,
 //! constant, procedural and difference layers added (datasets by [`super::add_dataset`]; a
 //! difference's settings by [`super::difference_ui`]) and any layer removed (not one a difference
 //! reads). The panel reads the project and returns [`LayerAction`]s; the workstation applies
@@ -104,14 +104,10 @@ pub fn layers_ui(ui: &mut egui::Ui, project: &Project, drawn: Drawn) -> Vec<Laye
                     }
                     ui.label(egui::RichText::new(spec.kind().name()).small());
                     if spec.gives_heights() {
+                        // Narrow, so that the row keeps the panel as wide as the buttons need.
+                        ui.spacing_mut().slider_width = 40.0;
                         ui.add(egui::Slider::new(&mut spec.opacity, 0.0..=1.0).show_value(false))
                             .on_hover_text(format!("opacity {:.2}", spec.opacity));
-                    }
-                    if ui.small_button("up").on_hover_text("move up the stack").clicked() && index + 1 < count {
-                        moved = Some((index, index + 1));
-                    }
-                    if ui.small_button("down").on_hover_text("move down the stack").clicked() && index > 0 {
-                        moved = Some((index, index - 1));
                     }
                     if ui.small_button("remove").on_hover_text("take the layer off the stack").clicked() {
                         remove = Some(index);
@@ -136,7 +132,15 @@ pub fn layers_ui(ui: &mut egui::Ui, project: &Project, drawn: Drawn) -> Vec<Laye
     // The selected layer's settings below the list.
     if let Some(layer) = project.layers.get(selected) {
         ui.separator();
-        ui.label(egui::RichText::new(format!("{} ({})", layer.name, layer.kind().name())).strong());
+        ui.horizontal(|ui| {
+            ui.label(egui::RichText::new(format!("{} ({})", layer.name, layer.kind().name())).strong());
+            if ui.small_button("up").on_hover_text("move up the stack").clicked() && selected + 1 < count {
+                moved = Some((selected, selected + 1));
+            }
+            if ui.small_button("down").on_hover_text("move down the stack").clicked() && selected > 0 {
+                moved = Some((selected, selected - 1));
+            }
+        });
         let mut spec = layer.clone();
         if !spec.gives_heights() {
             let heights = project.layers.iter().filter(|l| l.gives_heights());
