@@ -150,15 +150,6 @@ fn colour(approach: Approach) -> plotters::style::RGBColor {
     }
 }
 
-pub(crate) fn register_font() {
-    static ONCE: std::sync::Once = std::sync::Once::new();
-    ONCE.call_once(|| {
-        let font: &'static [u8] = include_bytes!("../../assets/fonts/DejaVuSans.ttf");
-        // The bundled font is valid; if it were not, labels would be missing, not the plot.
-        let _ = plotters::style::register_font("sans-serif", plotters::style::FontStyle::Normal, font);
-    });
-}
-
 /// The level the renderer draws right under a camera `d` metres above the terrain: the finest
 /// level whose draw distance is still at least d (the coarsest measured level if none is).
 fn foot_level(ellipsoid: &Ellipsoid, settings: &AccuracySettings, d: f64) -> u8 {
@@ -181,7 +172,7 @@ pub fn accuracy_plot(
     settings: &AccuracySettings,
 ) -> Result<Vec<u8>, CliError> {
     use plotters::prelude::*;
-    register_font();
+    super::harness::register_font();
     let (w, h) = (560 * bodies.len().max(1) as u32, 1000u32);
     let mut buffer = vec![0u8; (w * h * 3) as usize];
     let distances: Vec<f64> = {
@@ -275,17 +266,7 @@ pub fn accuracy_plot(
         }
         root.present().map_err(|e| err(&e))?;
     }
-    plot_png(w, h, buffer)
-}
-
-/// A plot's RGB buffer as PNG bytes.
-pub(crate) fn plot_png(w: u32, h: u32, buffer: Vec<u8>) -> Result<Vec<u8>, CliError> {
-    let image = image::RgbImage::from_raw(w, h, buffer).ok_or("plot buffer has the wrong size")?;
-    let mut png = Vec::new();
-    image
-        .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
-        .map_err(|e| CliError::Failed(e.into()))?;
-    Ok(png)
+    super::harness::plot_png(w, h, buffer)
 }
 
 /// Writes the CSV and the plot atomically, creating their folders; errors name the file.

@@ -2,7 +2,7 @@
 //! written the same way: timing one piece of work (wall time from just before the work to just
 //! after it, nothing else inside; medians of repeats are `crate::maths::median`), and the
 //! [`Table`] each benchmark fills once and writes as CSV (for plots and scripts) and as a
-//! Markdown table (for the terminal and BENCHMARKS.md).
+//! Markdown table (for the terminal and BENCHMARKS.md), and the plots' font and PNG encoding.
 
 use std::path::Path;
 use std::time::Instant;
@@ -87,6 +87,26 @@ impl Table {
         }
         crate::files::write_atomic(path, self.csv().as_bytes()).map_err(CliError::file(path, "cannot write"))
     }
+}
+
+/// The bundled font under plotters' "sans-serif", registered once for every plot.
+pub(crate) fn register_font() {
+    static ONCE: std::sync::Once = std::sync::Once::new();
+    ONCE.call_once(|| {
+        let font: &'static [u8] = include_bytes!("../../assets/fonts/DejaVuSans.ttf");
+        // The bundled font is valid; if it were not, labels would be missing, not the plot.
+        let _ = plotters::style::register_font("sans-serif", plotters::style::FontStyle::Normal, font);
+    });
+}
+
+/// A plot's RGB buffer as PNG bytes.
+pub(crate) fn plot_png(w: u32, h: u32, buffer: Vec<u8>) -> Result<Vec<u8>, CliError> {
+    let image = image::RgbImage::from_raw(w, h, buffer).ok_or("plot buffer has the wrong size")?;
+    let mut png = Vec::new();
+    image
+        .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
+        .map_err(|e| CliError::Failed(e.into()))?;
+    Ok(png)
 }
 
 #[cfg(test)]

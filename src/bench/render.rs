@@ -288,7 +288,7 @@ pub fn render_bench_csv(rows: &[RenderBenchRow]) -> String {
 /// line per view and threshold (the adaptive rows).
 pub fn render_bench_plot(rows: &[RenderBenchRow]) -> Result<Vec<u8>, CliError> {
     use plotters::prelude::*;
-    super::accuracy::register_font();
+    super::harness::register_font();
     let (w, h) = (1100u32, 900u32);
     let mut buffer = vec![0u8; (w * h * 3) as usize];
     let err = |e: &dyn std::fmt::Display| e.to_string();
@@ -354,7 +354,7 @@ pub fn render_bench_plot(rows: &[RenderBenchRow]) -> Result<Vec<u8>, CliError> {
         }
         root.present().map_err(|e| err(&e))?;
     }
-    super::accuracy::plot_png(w, h, buffer)
+    super::harness::plot_png(w, h, buffer)
 }
 
 /// Writes `render.csv` and `render.png` into `dir` atomically; returns their paths.
