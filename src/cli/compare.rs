@@ -24,7 +24,7 @@ pub struct CompareRequest {
     pub a: String,
     /// Layer B, the reference.
     pub b: String,
-    /// Level to compare at (default: the coarser dataset's finest, or finer where strokes, erosion runs or noise on either side add detail below it, within 4096 quads).
+    /// Level to compare at (default: the coarser dataset's finest, or finer where strokes, erosion runs or noise on either side add detail below it, stepped back past 4096 quads; a level given is read whatever its size, in bounded memory).
     #[arg(long, allow_negative_numbers = true)]
     pub level: Option<u8>,
     /// Only inside WEST,SOUTH,EAST,NORTH (degrees; east < west crosses ±180°).
@@ -93,7 +93,15 @@ pub fn compare_command(request: &CompareRequest, fb: &mut Feedback) -> Result<St
         watch: Some(fb.watch.clone()),
         ..CompareOptions::default()
     };
+    let started = std::time::Instant::now();
     let c = compare(&project, &request.a, &request.b, &opts).within(request.project.display())?;
+    let seconds = started.elapsed().as_secs_f64();
+    let samples = c.stats.count + c.stats.nodata_count;
+    (fb.note)(&format!(
+        "terrafuse: compared {samples} samples at level {} in {seconds:.1} s ({:.0} ns a sample)",
+        c.level,
+        seconds * 1e9 / samples.max(1) as f64
+    ));
     if let Some(path) = &request.samples {
         let mut csv = String::from("lon_deg,lat_deg,dh_m,area_m2,slope_deg\n");
         for s in &c.samples {

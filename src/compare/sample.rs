@@ -36,8 +36,15 @@ use crate::scene::dataset::DatasetInfo;
 
 /// Samples along a quad edge.
 const N: usize = GRID as usize;
-/// Most quads one comparison reads (≈ 4 000 quads of 257², 2.7·10⁸ samples).
-pub const MAX_QUADS: usize = 4096;
+/// Most quads a comparison reads at its default level where that level is finer than the
+/// datasets' own (an edit, erosion or procedural detail below it, or no dataset at all): the
+/// default steps back to a coarser level past it, never below the datasets' finest. A level given
+/// explicitly, or the datasets' own finest, is read whatever its size: memory stays bounded
+/// (`memory_samples`, the scratch file) and the time grows with the samples.
+pub const DEFAULT_QUADS: usize = 4096;
+/// Most quads one process lists (their list, ≈ 40 bytes a quad, is what it holds whatever the
+/// samples; 2²⁴ quads are 1.1·10¹² samples, days of work on one machine).
+pub const LIST_QUADS: usize = 1 << 24;
 /// Quads composed at once (memory: 2 × 264 kB each).
 const CHUNK: usize = 16;
 /// Most differences a comparison holds in memory by default (≈ 1.2 GB at the peak of the
@@ -217,7 +224,7 @@ pub fn compare_operands(
         let grids_a = scene_a.compose_cpu(chunk)?;
         let grids_b = scene_b.compose_cpu(chunk)?;
         for q in chunk {
-            let rows = quad_samples(&ellipsoid, *q, &grids_a[q], &grids_b[q], opts.region);
+            let rows = quad_samples(&ellipsoid, *q, &grids_a[q], &grids_b[q], opts.region, opts.keep_samples);
             for row in rows {
                 for s in row {
                     match s {
@@ -390,8 +397,9 @@ pub(super) fn memory_budget() -> u64 {
 /// The level to work at and the quads of it that may reach `region` where every dataset among
 /// the two scenes has tiles, in order. By default: the coarser dataset's finest level (finer
 /// levels would only upsample it), or finer where an edit, erosion or procedural layer on either
-/// side adds detail below that (comparing it coarser would smear it), stepped back to the finest
-/// level whose quads fit the comparison's [`MAX_QUADS`].
+/// side adds detail below that (comparing it coarser would smear it), stepped back from there
+/// towards the datasets' finest while it has more than [`DEFAULT_QUADS`]. No level is refused for
+/// its size.
 pub(super) fn overlap_quads(
     scene_a: &Scene,
     scene_b: &Scene,
@@ -409,10 +417,10 @@ pub(super) fn overlap_quads(
             b.may_reach(lon.to_degrees(), lat.to_degrees(), (radius_m / ellipsoid.b_m()).to_degrees())
         })
     };
-    // The quads at a level; None where they are more than a comparison reads.
-    let at = |level: u8| -> Option<BTreeSet<QuadId>> {
+    // The quads at a level; None where they are more than `most`.
+    let at = |level: u8, most: usize| -> Option<BTreeSet<QuadId>> {
         if datasets.is_empty() {
-            return quads_reaching(level, &reaches);
+            return quads_reaching(level, &reaches, most);
         }
         let mut quads: Option<HashSet<QuadId>> = None;
         for d in &datasets {
@@ -423,7 +431,7 @@ pub(super) fn overlap_quads(
             });
         }
         let quads: BTreeSet<QuadId> = quads.unwrap_or_default().into_iter().filter(reaches).collect();
-        (quads.len() <= MAX_QUADS).then_some(quads)
+        (quads.len() <= most).then_some(quads)
     };
     let (level, quads) = match level {
         Some(level) if level > finest + 4 && !datasets.is_empty() => {
@@ -432,7 +440,7 @@ pub(super) fn overlap_quads(
                 problem: format!("{level} is more than 4 levels below the datasets' finest ({finest})"),
             });
         }
-        Some(level) => (level, at(level)),
+        Some(level) => (level, at(level, LIST_QUADS)),
         None => {
             let added = [scene_a, scene_b]
                 .iter()
@@ -440,19 +448,22 @@ pub(super) fn overlap_quads(
                 .max()
                 .unwrap_or(0);
             let mut level = added.max(finest);
-            let mut quads = at(level);
-            while quads.is_none() && level > finest {
-                level -= 1;
-                quads = at(level);
+            loop {
+                if level == finest {
+                    break (level, at(level, LIST_QUADS));
+                }
+                match at(level, DEFAULT_QUADS) {
+                    Some(quads) => break (level, Some(quads)),
+                    None => level -= 1,
+                }
             }
-            (level, quads)
         }
     };
     let Some(quads) = quads else {
         return Err(CompareError::Option {
             option: "--level".into(),
             problem: format!(
-                "more than {MAX_QUADS} quads at level {level}, more than a comparison reads: choose a coarser level or a region"
+                "more than {LIST_QUADS} quads at level {level} (over 10¹² samples), more than one process lists: choose a coarser level or a region"
             ),
         });
     };
@@ -460,14 +471,16 @@ pub(super) fn overlap_quads(
 }
 
 /// The quads of `level` for which `reaches` holds, found down the quadtree from the six faces (a
-/// quad's children are looked at only where it reaches); None when there are more than
-/// [`MAX_QUADS`] (a quad that reaches has a child that does, so a level past it has as many).
-fn quads_reaching(level: u8, reaches: &dyn Fn(&QuadId) -> bool) -> Option<BTreeSet<QuadId>> {
+/// quad's children are looked at only where it reaches); None as soon as there are more than
+/// `most` (a quad that reaches has a child that does, so a level past it has as many).
+fn quads_reaching(level: u8, reaches: &dyn Fn(&QuadId) -> bool, most: usize) -> Option<BTreeSet<QuadId>> {
     let mut quads: Vec<QuadId> =
         crate::ecm::Face::ALL.iter().map(|&face| QuadId { face, level: 0, x: 0, y: 0 }).filter(reaches).collect();
     for _ in 0..level {
-        quads = quads.iter().filter_map(|q| q.children()).flatten().filter(reaches).collect();
-        if quads.len() > MAX_QUADS {
+        // One past `most` tells that there are more: the list never grows past it.
+        quads =
+            quads.iter().filter_map(|q| q.children()).flatten().filter(reaches).take(most.saturating_add(1)).collect();
+        if quads.len() > most {
             return None;
         }
     }
@@ -483,13 +496,16 @@ pub(super) fn in_region(region: Option<GeoBox>, lon: f64, lat: f64) -> bool {
 /// compared.
 type Outcome = Option<Result<Sample, ()>>;
 
-/// The samples of one quad, row by row (rows in parallel; the order is kept).
+/// The samples of one quad, row by row (rows in parallel; the order is kept). Their longitude and
+/// latitude are found only where there is a region to test them against or `locate` asks for
+/// them (kept samples); else they are NaN (finding them is a fifth of a comparison's time).
 fn quad_samples(
     ellipsoid: &crate::geodesy::Ellipsoid,
     quad: QuadId,
     a: &[f32],
     b: &[f32],
     region: Option<GeoBox>,
+    locate: bool,
 ) -> Vec<Vec<Outcome>> {
     let points = quad_points(ellipsoid, quad);
 
@@ -499,7 +515,8 @@ fn quad_samples(
             (0..N - 1)
                 .map(|i| {
                     let k = j * N + i;
-                    let (lon, lat) = lon_lat(ellipsoid, points[k]);
+                    let (lon, lat) =
+                        if locate || region.is_some() { lon_lat(ellipsoid, points[k]) } else { (f64::NAN, f64::NAN) };
                     if !in_region(region, lon, lat) {
                         return None;
                     }
@@ -534,8 +551,9 @@ pub fn difference_range(project: &Project, spec: &LayerSpec) -> Result<Option<f6
     let (scene_a, scene_b) = (operand_scene(&scene, project, a)?, operand_scene(&scene, project, b)?);
     let (finest, _) = overlap_quads(&scene_a, &scene_b, None, None)?;
     let mut level = finest.saturating_sub(1);
-    // Coarser still while the overlap is more than a comparison reads.
-    while level > 0 && overlap_quads(&scene_a, &scene_b, Some(level), None).is_err() {
+    // Coarser still while the overlap has more quads than a default comparison reads: a colour
+    // range, not a statistic.
+    while level > 0 && overlap_quads(&scene_a, &scene_b, Some(level), None)?.1.len() > DEFAULT_QUADS {
         level -= 1;
     }
     let opts = CompareOptions { level: Some(level), keep_samples: true, ..CompareOptions::default() };
@@ -566,11 +584,33 @@ mod tests {
     }
 
     #[test]
+    fn a_level_given_is_read_whatever_its_quads_and_only_a_default_steps_back() {
+        let mut project = Project::new("moon");
+        project.layers = vec![LayerSpec::constant("a", 1.0), LayerSpec::constant("b", 0.0)];
+        let (scene, _) = Scene::open(&project).unwrap();
+        let [a, b] =
+            [operand(&project, "a"), operand(&project, "b")].map(|o| operand_scene(&scene, &project, &o).unwrap());
+        // Level 6 of the whole Moon: 6 · 4⁶ quads, six times the default's.
+        let (level, quads) = overlap_quads(&a, &b, Some(6), None).unwrap();
+        assert_eq!((level, quads.len()), (6, 6 * 4096));
+        assert_eq!(quads.iter().collect::<HashSet<_>>().len(), quads.len());
+        // Without a dataset the default is level 0; a region keeps the quads that reach it.
+        assert_eq!(overlap_quads(&a, &b, None, None).unwrap().0, 0);
+        let region = GeoBox::new(10.0, -5.0, 20.0, 5.0).unwrap();
+        let (_, inside) = overlap_quads(&a, &b, Some(7), Some(region)).unwrap();
+        assert!(inside.len() > 100 && inside.len() < 6 * 4usize.pow(7) / 20, "{}", inside.len());
+        // What one process lists stays bounded: the walk stops one quad past `most`.
+        assert!(quads_reaching(13, &|_| true, 1000).is_none());
+        assert_eq!(quads_reaching(2, &|_| true, 96).map(|q| q.len()), Some(96));
+        assert!(quads_reaching(2, &|_| true, 95).is_none());
+    }
+
+    #[test]
     fn cells_tile_the_quad_and_their_areas_sum_to_its_area() {
         let e = Ellipsoid::MOON;
         let quad = QuadId::new(Face::Right, 3, 2, 5).unwrap();
         let flat = vec![0f32; N * N];
-        let rows = quad_samples(&e, quad, &flat, &flat, None);
+        let rows = quad_samples(&e, quad, &flat, &flat, None, false);
         let areas: Vec<f64> = rows.iter().flatten().map(|s| s.unwrap().unwrap().area_m2).collect();
         assert_eq!(areas.len(), 256 * 256);
         // QSC is equal-area on the sphere: on the (spherical) Moon every cell has the same area,
