@@ -20,6 +20,36 @@ const RUNS: [(&str, &[&str]); 4] = [
     ("level 12, spilled, --uncertainty", &["--level", "12", "--uncertainty"]),
 ];
 
+/// `bench compare-size`: layers `a` and `b` of `project` compared at each of `levels`, each in a
+/// process of its own (spilled as `compare` spills by default): samples, seconds, nanoseconds a
+/// sample, peak resident memory, median and NMAD.
+pub(super) fn size_table(project: &Path, [a, b]: [&str; 2], levels: &[u8]) -> Result<String, CliError> {
+    let exe = std::env::current_exe().context("this program's path")?;
+    let mut out = String::new();
+    let _ = writeln!(
+        out,
+        "{:<6} {:>13} {:>9} {:>12} {:>10} {:>20} {:>16}",
+        "level", "samples", "seconds", "ns a sample", "peak MiB", "median m", "NMAD m"
+    );
+    for &level in levels {
+        let mut command = Command::new(&exe);
+        command.arg("compare").arg(project).args([a, b, "--json", "--level", &level.to_string()]);
+        let (json, seconds, peak) = run_measured(command)?;
+        let v: serde_json::Value = serde_json::from_str(&json)?;
+        let number = |field: &str| v[field].as_f64().unwrap_or(f64::NAN);
+        let samples = v["count"].as_u64().unwrap_or(0) + v["nodata_count"].as_u64().unwrap_or(0);
+        let _ = writeln!(
+            out,
+            "{level:<6} {samples:>13} {seconds:>9.1} {:>12.1} {:>10.0} {:>20.12} {:>16.10}",
+            seconds * 1e9 / samples.max(1) as f64,
+            peak as f64 / 1048576.0,
+            number("median_m"),
+            number("nmad_m"),
+        );
+    }
+    Ok(out)
+}
+
 /// The table: samples, seconds, peak memory and the median and NMAD of each run.
 pub(super) fn large_table(project: &Path) -> Result<String, CliError> {
     let exe = std::env::current_exe().context("this program's path")?;

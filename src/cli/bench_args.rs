@@ -89,6 +89,27 @@ pub enum Bench {
         #[arg(long, default_value = "out/bench-compare")]
         out: PathBuf,
     },
+    /// Comparisons of growing size, each in a process of its own: two layers of a project compared
+    /// at each level (default: the whole Moon, the `sculpt` layer against LOLA, 10⁸ to 1.6·10⁹
+    /// samples), their samples, time, nanoseconds a sample, peak memory and median and NMAD;
+    /// writes compare-size.txt.
+    CompareSize {
+        /// The project.
+        #[arg(long, default_value = concat!(env!("CARGO_MANIFEST_DIR"), "/projects/moon-brushing.json"))]
+        project: PathBuf,
+        /// Layer A.
+        #[arg(long, default_value = "sculpt")]
+        a: String,
+        /// Layer B, the reference.
+        #[arg(long, default_value = "lola_global")]
+        b: String,
+        /// Levels (comma-separated).
+        #[arg(long, value_delimiter = ',', default_value = "4,5,6")]
+        levels: Vec<u8>,
+        /// Folder for compare-size.txt.
+        #[arg(long, default_value = "out/bench-compare-size")]
+        out: PathBuf,
+    },
     /// Landscape evolution (stream power): cell-steps per second on the CPU beside fastscapelib
     /// 0.3.0 on the same grids in the same run, and how far apart the results are; writes
     /// landscape.csv.
