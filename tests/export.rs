@@ -70,6 +70,41 @@ fn a_single_dataset_exports_as_the_store_does_and_gpu_matches_cpu() {
 }
 
 #[test]
+fn an_export_made_band_by_band_equals_one_made_at_once_bit_for_bit() {
+    use terrafuse::cli::{ComposeOn, ComposedExport, export_composed_in_bands};
+    let project = common::sample_project("erzurum", &dir());
+    let export = |name: &str, attribute, band_pixels: usize| {
+        let out = dir().join(name);
+        let opts = ComposedExport {
+            project: project.clone(),
+            out: out.clone(),
+            crs: "EPSG:32637".into(),
+            bounds: [585000.0, 4340000.0, 650000.0, 4420000.0],
+            resolution: (250.0, 250.0),
+            level: None,
+            compose_on: ComposeOn::Cpu,
+            difference: None,
+            attribute,
+            layer: None,
+        };
+        let report = export_composed_in_bands(&opts, &Default::default(), band_pixels).unwrap();
+        (report, read_f32(&out))
+    };
+    for attribute in [None, Some(terrafuse::attributes::Attribute::Slope)] {
+        let (whole, at_once) = export("at-once.tif", attribute, usize::MAX);
+        // Bands of 7 rows of the 260: 38 of them, the last shorter, each with a row above and
+        // below for the slope's window.
+        let (banded, in_bands) = export("in-bands.tif", attribute, 7 * 260);
+        assert_eq!(whole.size, (260, 320));
+        assert_eq!((whole.quads, whole.valid), (banded.quads, banded.valid));
+        assert!(whole.valid > 50_000, "{whole:?}");
+        assert_eq!(at_once.len(), in_bands.len());
+        let differing = at_once.iter().zip(&in_bands).filter(|(a, b)| a.to_bits() != b.to_bits()).count();
+        assert_eq!(differing, 0, "{attribute:?}: {differing} pixels differ");
+    }
+}
+
+#[test]
 fn bad_exports_are_refused_by_name() {
     let project = common::sample_project("erzurum", &dir());
     let p = project.to_str().unwrap();

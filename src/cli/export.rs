@@ -6,7 +6,7 @@
 
 use super::{CliError, Within};
 use crate::attributes::Attribute;
-use std::collections::{BTreeSet, HashMap};
+use std::collections::{BTreeSet, HashMap, HashSet};
 use std::path::PathBuf;
 
 use crate::ecm::grid::{intervals_per_face_edge, level_for_resolution};
@@ -72,9 +72,24 @@ pub fn export_composed(opts: &ComposedExport) -> Result<ComposedReport, CliError
     export_composed_watched(opts, &Watch::default())
 }
 
-/// [`export_composed`], the quads composed counted on `watch` (and stopped when it is cancelled,
-/// before anything is written).
+/// [`export_composed`], the rows written counted on `watch` (and stopped when it is cancelled,
+/// with nothing written).
+///
+/// The raster is made band by band, a band at most [`BAND_PIXELS`] pixels (with a row above and
+/// below for an attribute's 3 × 3 window): its pixels taken through PROJ, the quads they fall in
+/// composed (those the band before composed kept, the rest dropped), sampled and written at their
+/// rows, so memory stays bounded whatever the export's size. A band's pixels are those the whole
+/// raster at once gives, bit for bit.
 pub fn export_composed_watched(opts: &ComposedExport, watch: &Watch) -> Result<ComposedReport, CliError> {
+    export_composed_in_bands(opts, watch, BAND_PIXELS)
+}
+
+/// [`export_composed_watched`] in bands of at most `band_pixels` pixels (at least a row).
+pub fn export_composed_in_bands(
+    opts: &ComposedExport,
+    watch: &Watch,
+    band_pixels: usize,
+) -> Result<ComposedReport, CliError> {
     let project = Project::load(&opts.project)?;
     let raster = RasterSpec::new(&opts.crs, opts.bounds, opts.resolution, &opts.out)?;
     if let Some(l) = opts.level
@@ -91,77 +106,23 @@ pub fn export_composed_watched(opts: &ComposedExport, watch: &Watch) -> Result<C
             crate::layers::default_level(level_for_resolution(&body, r), scene.detail_level())
         }
     };
-    let points = raster.pixel_lat_lon(&opts.crs, &body, &opts.out)?;
-
-    // Where each pixel falls: the quad, and the sample cell inside it.
-    let m = intervals_per_face_edge(level);
-    let cells: Vec<Option<Cell>> = points
-        .iter()
-        .map(|&(lat, lon)| {
-            if lat.is_nan() {
-                return None;
-            }
-            let p = CubeProjection::Qsc.face_point_from_geodetic(&body, lat, lon);
-            let (u, v) = ((p.x + 1.0) * 0.5 * m as f64, (p.y + 1.0) * 0.5 * m as f64);
-            let (i, j) = ((u.floor() as i64).clamp(0, m - 1), (v.floor() as i64).clamp(0, m - 1));
-            let quad = QuadId { face: p.face, level, x: (i / 256) as u32, y: (j / 256) as u32 };
-            Some((quad, (i % 256) as usize, (j % 256) as usize, u - i as f64, v - j as f64))
-        })
-        .collect();
-    let quads: Vec<QuadId> = cells.iter().flatten().map(|c| c.0).collect::<BTreeSet<_>>().into_iter().collect();
-
     let alone = |name: &str| {
         let operand = crate::layers::Operand::Layer(name.into());
         crate::compare::sample::operand_scene(&scene, &project, &operand).within(opts.project.display())
     };
-    let (grids, composer) = match &opts.difference {
-        None => match &opts.layer {
-            None => compose_grids(scene, &quads, opts.compose_on, watch)?,
-            Some(name) => compose_grids(alone(name)?, &quads, opts.compose_on, watch)?,
-        },
-        Some((a, b)) => {
-            let (mut grids, composer) = compose_grids(alone(a)?, &quads, opts.compose_on, watch)?;
-            let (minus, _) = compose_grids(alone(b)?, &quads, opts.compose_on, watch)?;
-            for (q, g) in grids.iter_mut() {
-                for (v, w) in g.iter_mut().zip(&minus[q]) {
-                    *v -= w; // NaN where either has none
-                }
-            }
-            (grids, composer)
+    // One composer, or two whose difference is written.
+    let mut composers = match (&opts.difference, &opts.layer) {
+        (Some((a, b)), _) => {
+            vec![Composer::new(alone(a)?, opts.compose_on)?, Composer::new(alone(b)?, opts.compose_on)?]
         }
+        (None, Some(name)) => vec![Composer::new(alone(name)?, opts.compose_on)?],
+        (None, None) => vec![Composer::new(scene, opts.compose_on)?],
     };
-
-    let data: Vec<f32> = cells
-        .iter()
-        .map(|cell| {
-            let Some((quad, i, j, tx, ty)) = *cell else { return f32::NAN };
-            let g = &grids[&quad];
-            let mut h = 0.0;
-            for (di, dj, w) in
-                [(0, 0, (1.0 - tx) * (1.0 - ty)), (1, 0, tx * (1.0 - ty)), (0, 1, (1.0 - tx) * ty), (1, 1, tx * ty)]
-            {
-                if w > 0.0 {
-                    h += w * f64::from(g[(j + dj) * 257 + i + di]);
-                }
-            }
-            h as f32
-        })
-        .collect();
-    // A terrain attribute of the heights, with each pixel's steps measured on the body.
-    let data = match opts.attribute {
-        None => data,
-        Some(a) => {
-            let (w, h) = raster.size;
-            let axes = crate::attributes::pixel_axes(&body, w, h, &points);
-            match opts.compose_on {
-                ComposeOn::Cpu => crate::attributes::attribute_raster(a, w, h, &data, &axes),
-                ComposeOn::Gpu => {
-                    crate::gpu::attributes::attribute_raster(&GpuContext::headless()?, a, w, h, &data, &axes)?
-                }
-            }
-        }
+    let composer = composers[0].name.clone();
+    let attribute_gpu = match (opts.attribute, opts.compose_on) {
+        (Some(_), ComposeOn::Gpu) => Some(GpuContext::headless()?),
+        _ => None,
     };
-    let valid = data.iter().filter(|v| !v.is_nan()).count() as u64;
     let layers: Vec<String> = match (&opts.difference, &opts.layer) {
         (Some((a, b)), _) => vec![format!("{a} - {b} (difference)")],
         (None, Some(name)) => vec![format!("{name} (alone)")],
@@ -176,46 +137,158 @@ pub fn export_composed_watched(opts: &ComposedExport, watch: &Watch) -> Result<C
     if let Some(a) = opts.attribute {
         metadata.push(("TERRAFUSE_ATTRIBUTE", format!("{} ({})", a.name(), a.unit())));
     }
-    raster.write(&opts.out, &metadata, data)?;
+
+    let (w, h) = raster.size;
+    let band_rows = (band_pixels / w.max(1)).clamp(1, h.max(1));
+    let halo = usize::from(opts.attribute.is_some());
+    let mut writer = raster.create(&opts.out, &metadata)?;
+    let (mut valid, mut quads) = (0u64, HashSet::new());
+    watch.start_phase("rows", h as u64);
+    for first in (0..h).step_by(band_rows) {
+        watch.check().map_err(cancelled)?;
+        let rows = first..(first + band_rows).min(h);
+        // The band's rows with the halo an attribute's window reads.
+        let read = first.saturating_sub(halo)..(rows.end + halo).min(h);
+        let points = raster.pixel_lat_lon_rows(&opts.crs, &body, &opts.out, read.clone())?;
+        let cells = pixel_cells(&body, level, &points);
+        let band_quads: Vec<QuadId> =
+            cells.iter().flatten().map(|c| c.0).collect::<BTreeSet<_>>().into_iter().collect();
+        quads.extend(band_quads.iter().copied());
+        for c in composers.iter_mut() {
+            c.compose(&band_quads, watch)?;
+        }
+        let mut data = match composers.as_slice() {
+            [a, b] => {
+                let difference: HashMap<QuadId, Vec<f32>> = band_quads
+                    .iter()
+                    .map(|q| (*q, a.grids[q].iter().zip(&b.grids[q]).map(|(x, y)| x - y).collect())) // NaN where either has none
+                    .collect();
+                sampled(&cells, &difference)
+            }
+            [one, ..] => sampled(&cells, &one.grids),
+            [] => return Err("an export needs something to compose".into()),
+        };
+        // A terrain attribute of the heights, with each pixel's steps measured on the body.
+        if let Some(a) = opts.attribute {
+            let axes = crate::attributes::pixel_axes(&body, w, read.len(), &points);
+            data = match &attribute_gpu {
+                None => crate::attributes::attribute_raster(a, w, read.len(), &data, &axes),
+                Some(ctx) => crate::gpu::attributes::attribute_raster(ctx, a, w, read.len(), &data, &axes)?,
+            };
+        }
+        let band: Vec<f32> = data[(rows.start - read.start) * w..(rows.end - read.start) * w].to_vec();
+        valid += band.iter().filter(|v| !v.is_nan()).count() as u64;
+        writer.write_rows(rows.start, band)?;
+        watch.advance_by(rows.len() as u64);
+    }
+    watch.check().map_err(cancelled)?;
+    writer.finish()?;
     Ok(ComposedReport { size: raster.size, level, quads: quads.len(), valid, composer })
 }
 
-/// Composes quads of a scene where asked: their 257² grids (all no data where the stack gives
-/// none) and what composed them.
-fn compose_grids(
-    scene: Scene,
-    quads: &[QuadId],
-    compose_on: ComposeOn,
-    watch: &Watch,
-) -> Result<(HashMap<QuadId, Vec<f32>>, String), CliError> {
-    watch.start_phase("quads", quads.len() as u64);
-    let cancelled = |_| CliError::from("the export was cancelled; nothing was written");
-    match compose_on {
-        ComposeOn::Cpu => {
-            // In batches, for the progress (each quad is composed alone: the same heights).
-            let mut grids = HashMap::new();
-            for batch in quads.chunks(4 * GPU_BATCH) {
-                watch.check().map_err(cancelled)?;
-                grids.extend(scene.compose_cpu(batch)?);
-                watch.advance_by(batch.len() as u64);
+/// Most pixels of one band of an export (4·10⁶: with their positions, cells and heights about
+/// 150 MB, and the grids of the quads they read).
+const BAND_PIXELS: usize = 1 << 22;
+
+/// An export cancelled: nothing written.
+fn cancelled(_: crate::progress::Cancelled) -> CliError {
+    CliError::from("the export was cancelled; nothing was written")
+}
+
+/// Where each pixel (lat, lon, radians; NaN off the body) falls at `level`: the quad and the
+/// sample cell inside it.
+fn pixel_cells(body: &crate::geodesy::Ellipsoid, level: u8, points: &[(f64, f64)]) -> Vec<Option<Cell>> {
+    let m = intervals_per_face_edge(level);
+    points
+        .iter()
+        .map(|&(lat, lon)| {
+            if lat.is_nan() {
+                return None;
             }
-            Ok((grids, "CPU reference".to_string()))
-        }
-        ComposeOn::Gpu => {
-            let ctx = GpuContext::headless()?;
-            let name = ctx.describe();
-            let mut renderer = Renderer::new(&ctx, scene, IMAGE_FORMAT)?;
-            let mut grids = HashMap::new();
-            for batch in quads.chunks(GPU_BATCH) {
-                watch.check().map_err(cancelled)?;
-                watch.advance_by(batch.len() as u64);
-                renderer.compose_now(batch)?;
-                for &q in batch {
-                    let grid = renderer.read_heights(q)?;
-                    grids.insert(q, grid.unwrap_or_else(|| vec![f32::NAN; 257 * 257]));
+            let p = CubeProjection::Qsc.face_point_from_geodetic(body, lat, lon);
+            let (u, v) = ((p.x + 1.0) * 0.5 * m as f64, (p.y + 1.0) * 0.5 * m as f64);
+            let (i, j) = ((u.floor() as i64).clamp(0, m - 1), (v.floor() as i64).clamp(0, m - 1));
+            let quad = QuadId { face: p.face, level, x: (i / 256) as u32, y: (j / 256) as u32 };
+            Some((quad, (i % 256) as usize, (j % 256) as usize, u - i as f64, v - j as f64))
+        })
+        .collect()
+}
+
+/// What composes an export's quads (the CPU reference, or the GPU's renderer), with the grids of
+/// the band before kept: a band's quads are mostly the next one's.
+struct Composer {
+    compose: Compose,
+    grids: HashMap<QuadId, Vec<f32>>,
+    name: String,
+}
+
+enum Compose {
+    Cpu(Box<Scene>),
+    Gpu(Box<Renderer>),
+}
+
+impl Composer {
+    fn new(scene: Scene, compose_on: ComposeOn) -> Result<Composer, CliError> {
+        Ok(match compose_on {
+            ComposeOn::Cpu => {
+                Composer { compose: Compose::Cpu(Box::new(scene)), grids: HashMap::new(), name: "CPU reference".into() }
+            }
+            ComposeOn::Gpu => {
+                let ctx = GpuContext::headless()?;
+                let name = format!("GPU, {}", ctx.describe());
+                Composer {
+                    compose: Compose::Gpu(Box::new(Renderer::new(&ctx, scene, IMAGE_FORMAT)?)),
+                    grids: HashMap::new(),
+                    name,
                 }
             }
-            Ok((grids, format!("GPU, {name}")))
-        }
+        })
     }
+
+    /// Composes `quads` (those kept from the band before aside) and drops the grids of the rest.
+    fn compose(&mut self, quads: &[QuadId], watch: &Watch) -> Result<(), CliError> {
+        let wanted: HashSet<QuadId> = quads.iter().copied().collect();
+        self.grids.retain(|q, _| wanted.contains(q));
+        let missing: Vec<QuadId> = quads.iter().copied().filter(|q| !self.grids.contains_key(q)).collect();
+        match &mut self.compose {
+            // In batches, for the cancel (each quad is composed alone: the same heights).
+            Compose::Cpu(scene) => {
+                for batch in missing.chunks(4 * GPU_BATCH) {
+                    watch.check().map_err(cancelled)?;
+                    self.grids.extend(scene.compose_cpu(batch)?);
+                }
+            }
+            Compose::Gpu(renderer) => {
+                for batch in missing.chunks(GPU_BATCH) {
+                    watch.check().map_err(cancelled)?;
+                    renderer.compose_now(batch)?;
+                    for &q in batch {
+                        let grid = renderer.read_heights(q)?;
+                        self.grids.insert(q, grid.unwrap_or_else(|| vec![f32::NAN; 257 * 257]));
+                    }
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The heights at `cells` from the grids of their quads: bilinear in each cell, NaN off the body.
+fn sampled(cells: &[Option<Cell>], grids: &HashMap<QuadId, Vec<f32>>) -> Vec<f32> {
+    cells
+        .iter()
+        .map(|cell| {
+            let Some((quad, i, j, tx, ty)) = *cell else { return f32::NAN };
+            let g = &grids[&quad];
+            let mut h = 0.0;
+            for (di, dj, w) in
+                [(0, 0, (1.0 - tx) * (1.0 - ty)), (1, 0, tx * (1.0 - ty)), (0, 1, (1.0 - tx) * ty), (1, 1, tx * ty)]
+            {
+                if w > 0.0 {
+                    h += w * f64::from(g[(j + dj) * 257 + i + di]);
+                }
+            }
+            h as f32
+        })
+        .collect()
 }

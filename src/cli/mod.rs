@@ -34,7 +34,7 @@ pub use console::Console;
 pub use dispatch::run;
 pub use erode::{ErodeOn, ErodeRequest, erode_command, params_of};
 pub use error::{CliError, Context, Within};
-pub use export::{ComposeOn, ComposedExport, ComposedReport, export_composed};
+pub use export::{ComposeOn, ComposedExport, ComposedReport, export_composed, export_composed_in_bands};
 pub use feedback::{Feedback, WaitArgs};
 pub use flight::{FlightFrame, FlightRequest, frames_csv, render_flight};
 pub use geo::{BatchReport, GeoOperation, run_batch};

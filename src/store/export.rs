@@ -1,6 +1,7 @@
 //! `terrafuse store export`: a dataset resampled to a GeoTIFF in any CRS GDAL/PROJ know, written
 //! atomically (a temporary file beside the output, renamed when complete).
 
+use std::ops::Range;
 use std::path::{Path, PathBuf};
 
 use gdal::DriverManager;
@@ -100,9 +101,20 @@ impl RasterSpec {
         body: &crate::geodesy::Ellipsoid,
         out: &Path,
     ) -> Result<Vec<(f64, f64)>, StoreError> {
-        let (w, h) = self.size;
+        self.pixel_lat_lon_rows(crs, body, out, 0..self.size.1)
+    }
+
+    /// [`RasterSpec::pixel_lat_lon`] of the rows `rows` only (an export made band by band).
+    pub fn pixel_lat_lon_rows(
+        &self,
+        crs: &str,
+        body: &crate::geodesy::Ellipsoid,
+        out: &Path,
+        rows: Range<usize>,
+    ) -> Result<Vec<(f64, f64)>, StoreError> {
+        let w = self.size.0;
         let [x0, rx, _, y1, _, ry] = self.geotransform;
-        let rows: Vec<Vec<(f64, f64)>> = (0..h)
+        let rows: Vec<Vec<(f64, f64)>> = rows
             .into_par_iter()
             .map_init(
                 || {
@@ -140,7 +152,17 @@ impl RasterSpec {
 
     /// Writes `data` (row by row from the north, NaN no data) as a float32 GeoTIFF with the
     /// metadata items, atomically: a temporary file beside `out`, synced, renamed.
-    pub fn write(&self, out: &Path, metadata: &[(&str, String)], mut data: Vec<f32>) -> Result<(), StoreError> {
+    pub fn write(&self, out: &Path, metadata: &[(&str, String)], data: Vec<f32>) -> Result<(), StoreError> {
+        let mut writer = self.create(out, metadata)?;
+        writer.write_rows(0, data)?;
+        writer.finish()
+    }
+
+    /// Starts writing the raster to `out` (a float32 GeoTIFF, tiled and compressed, with the
+    /// metadata items): a temporary file beside it, filled band by band
+    /// ([`RasterWriter::write_rows`]) and moved into place by [`RasterWriter::finish`]; dropped
+    /// unfinished (an error, a cancel), the temporary file is removed and `out` never touched.
+    pub fn create(&self, out: &Path, metadata: &[(&str, String)]) -> Result<RasterWriter, StoreError> {
         let out_err = |m: String| StoreError::new(out, m);
         let (w, h) = self.size;
         let dir = out.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
@@ -149,35 +171,76 @@ impl RasterSpec {
         }
         let name = out.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
         let tmp = dir.join(format!(".{name}.tmp-{}.tif", std::process::id()));
-        let result = (|| -> Result<(), StoreError> {
-            let driver = DriverManager::get_driver_by_name("GTiff")
-                .map_err(|e| StoreError::caused(out, "cannot write the GeoTIFF", e))?;
-            let options = RasterCreationOptions::from_iter(["COMPRESS=DEFLATE", "TILED=YES", "BIGTIFF=IF_SAFER"]);
-            let mut ds = driver
-                .create_with_band_type_with_options::<f32, _>(&tmp, w, h, 1, &options)
-                .map_err(|e| StoreError::caused(out, "cannot create the GeoTIFF", e))?;
-            ds.set_geo_transform(&self.geotransform)
-                .map_err(|e| StoreError::caused(out, "cannot write the GeoTIFF", e))?;
-            ds.set_spatial_ref(&self.srs).map_err(|e| StoreError::caused(out, "cannot write the GeoTIFF", e))?;
-            for (k, v) in metadata {
-                ds.set_metadata_item(k, v, "").map_err(|e| StoreError::caused(out, "cannot write the GeoTIFF", e))?;
-            }
-            let mut band = ds.rasterband(1).map_err(|e| StoreError::caused(out, "cannot write the GeoTIFF", e))?;
-            band.set_no_data_value(Some(f64::NAN))
-                .map_err(|e| StoreError::caused(out, "cannot write the GeoTIFF", e))?;
-            let mut buffer = Buffer::new((w, h), std::mem::take(&mut data));
-            band.write((0, 0), (w, h), &mut buffer).map_err(|e| StoreError::caused(out, "cannot write pixels", e))?;
-            ds.flush_cache().map_err(|e| StoreError::caused(out, "cannot write the GeoTIFF", e))?;
-            drop(ds);
-            std::fs::File::open(&tmp)
-                .and_then(|f| f.sync_all())
-                .map_err(|e| StoreError::caused(out, "cannot write the GeoTIFF", e))?;
-            std::fs::rename(&tmp, out).map_err(|e| StoreError::caused(out, "cannot move the export into place", e))
-        })();
-        if result.is_err() {
-            let _ = std::fs::remove_file(&tmp);
+        let mut writer = RasterWriter { dataset: None, tmp, out: out.to_path_buf(), size: self.size };
+        let cannot = |e| StoreError::caused(out, "cannot write the GeoTIFF", e);
+        let driver = DriverManager::get_driver_by_name("GTiff").map_err(cannot)?;
+        let options = RasterCreationOptions::from_iter(["COMPRESS=DEFLATE", "TILED=YES", "BIGTIFF=IF_SAFER"]);
+        let mut ds = driver
+            .create_with_band_type_with_options::<f32, _>(&writer.tmp, w, h, 1, &options)
+            .map_err(|e| StoreError::caused(out, "cannot create the GeoTIFF", e))?;
+        // Held from here: an error below drops the writer, which removes the file.
+        ds.set_geo_transform(&self.geotransform).map_err(cannot)?;
+        ds.set_spatial_ref(&self.srs).map_err(cannot)?;
+        for (k, v) in metadata {
+            ds.set_metadata_item(k, v, "").map_err(cannot)?;
         }
-        result
+        ds.rasterband(1).and_then(|mut band| band.set_no_data_value(Some(f64::NAN))).map_err(cannot)?;
+        writer.dataset = Some(ds);
+        Ok(writer)
+    }
+}
+
+/// An export being written ([`RasterSpec::create`]).
+pub struct RasterWriter {
+    dataset: Option<gdal::Dataset>,
+    tmp: PathBuf,
+    out: PathBuf,
+    size: (usize, usize),
+}
+
+impl RasterWriter {
+    /// Writes whole rows from `row` on (`data` row by row from the north, NaN no data).
+    pub fn write_rows(&mut self, row: usize, data: Vec<f32>) -> Result<(), StoreError> {
+        let (w, h) = self.size;
+        let rows = data.len() / w.max(1);
+        if rows * w != data.len() || row + rows > h {
+            return Err(StoreError::new(
+                &self.out,
+                format!("{} values from row {row} are not whole rows of {w}×{h}", data.len()),
+            ));
+        }
+        let Some(ds) = self.dataset.as_mut() else {
+            return Err(StoreError::new(&self.out, "the GeoTIFF is already finished"));
+        };
+        let mut band = ds.rasterband(1).map_err(|e| StoreError::caused(&self.out, "cannot write the GeoTIFF", e))?;
+        let mut buffer = Buffer::new((w, rows), data);
+        band.write((0, row as isize), (w, rows), &mut buffer)
+            .map_err(|e| StoreError::caused(&self.out, "cannot write pixels", e))
+    }
+
+    /// Flushes, syncs and moves the file into place.
+    pub fn finish(mut self) -> Result<(), StoreError> {
+        let out = self.out.clone();
+        if let Some(mut ds) = self.dataset.take() {
+            ds.flush_cache().map_err(|e| StoreError::caused(&out, "cannot write the GeoTIFF", e))?;
+        }
+        std::fs::File::open(&self.tmp)
+            .and_then(|f| f.sync_all())
+            .map_err(|e| StoreError::caused(&out, "cannot write the GeoTIFF", e))?;
+        std::fs::rename(&self.tmp, &out)
+            .map_err(|e| StoreError::caused(&out, "cannot move the export into place", e))?;
+        self.tmp = PathBuf::new();
+        Ok(())
+    }
+}
+
+impl Drop for RasterWriter {
+    /// Unfinished: the temporary file goes (`out` was never touched).
+    fn drop(&mut self) {
+        drop(self.dataset.take());
+        if !self.tmp.as_os_str().is_empty() {
+            let _ = std::fs::remove_file(&self.tmp);
+        }
     }
 }
 
