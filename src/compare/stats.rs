@@ -326,6 +326,12 @@ impl Histogram {
         Histogram { edges_m, count: vec![0; bins], weight: vec![0.0; bins], width_m: width }
     }
 
+    /// The counts of another histogram over the same bins added to these.
+    pub(super) fn join(&mut self, other: &Histogram) {
+        self.count.iter_mut().zip(&other.count).for_each(|(c, o)| *c += o);
+        self.weight.iter_mut().zip(&other.weight).for_each(|(w, o)| *w += o);
+    }
+
     /// Counts `dh` with its weight (outside the edges, in the end bins).
     pub(super) fn add(&mut self, dh_m: f64, weight: f64) {
         let bins = self.count.len();

@@ -1,9 +1,12 @@
 //! Small pure helpers that several modules share and that depend on nothing but `glam`: the
 //! PCG hash that the noise, the erosion dither and the benchmarks draw from (written once in
 //! Rust here and once in WGSL, `shaders/shared/hash.wgsl`), the median, the smoothstep and the
-//! distance to a segment.
+//! distance to a segment; a sum of f64 that does not depend on its terms' order (`exact_sum`).
 
+pub mod exact_sum;
 pub mod noise;
+
+pub use exact_sum::ExactSum;
 
 use glam::DVec3;
 

@@ -18,366 +18,16 @@
 
 use std::io;
 
-use rayon::prelude::*;
-
 use super::spill::{NO_CLASS, Record, Records};
-use super::stats::{Histogram, NMAD_FACTOR, SlopeClass, Stats, order_key, order_value};
+use super::stats::{Histogram, NMAD_FACTOR, SlopeClass, Stats};
 
-/// Bits of the ordering key one pass tells apart.
-const DIGIT_BITS: u32 = 16;
-/// Most candidates of one quantile read into memory (24 bytes each).
-const COLLECT: u64 = 1 << 18;
-/// Most parts a pass reads held records in, and the fewest records in a part.
-const PARTS: usize = 4;
-const PART: usize = 1 << 20;
+mod search;
 
-/// Some quantiles of one population of differences in one order.
-#[derive(Clone, Debug)]
-struct Job {
-    /// The slope class it is restricted to (every difference with None).
-    class: Option<u8>,
-    /// None: the values dh; Some(c): the distances |dh − c|, at equal distance those below c
-    /// first, then by value (the order `folded` gives).
-    centre: Option<f64>,
-    /// The quantiles asked for, in [0, 1].
-    quantiles: Vec<f64>,
-}
-
-impl Job {
-    /// A record's place in this job's order, None outside the population; equal places keep the
-    /// records' order.
-    fn place(&self, r: &Record) -> Option<Place> {
-        if r.dh_m.is_nan() || self.class.is_some_and(|c| c != r.class) {
-            return None;
-        }
-        let value = order_key(r.dh_m);
-        Some(match self.centre {
-            None => Place { key: value, above: false, value },
-            Some(c) => Place { key: order_key((r.dh_m - c).abs()), above: r.dh_m >= c, value },
-        })
-    }
-}
-
-/// Where an element sits in a job's order: by its key (the ordering key of the value or the
-/// distance), then below the centre first, then by value (distances equal from different
-/// values: −0 and +0, or rounding).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
-struct Place {
-    key: u64,
-    above: bool,
-    value: u64,
-}
-
-/// Candidates sharing a key's digit: how many, their weight, the largest key, and the first in
-/// order with its weight.
-#[derive(Clone, Copy, Debug)]
-struct Bucket {
-    count: u64,
-    weight: f64,
-    max: u64,
-    first: (Place, f64),
-}
-
-impl Default for Bucket {
-    fn default() -> Bucket {
-        Bucket { count: 0, weight: 0.0, max: 0, first: (Place { key: 0, above: false, value: 0 }, 0.0) }
-    }
-}
-
-impl Bucket {
-    fn add(&mut self, place: Place, weight: f64) {
-        self.count += 1;
-        self.weight += weight;
-        self.max = self.max.max(place.key);
-        if self.count == 1 || place < self.first.0 {
-            self.first = (place, weight);
-        }
-    }
-
-    /// The candidates of the records after these, put after them.
-    fn join(&mut self, next: &Bucket) {
-        if next.count == 0 {
-            return;
-        }
-        if self.count == 0 || next.first.0 < self.first.0 {
-            self.first = next.first;
-        }
-        self.count += next.count;
-        self.weight += next.weight;
-        self.max = self.max.max(next.max);
-    }
-}
-
-/// Buckets in a page.
-const PAGE: usize = 256;
-
-/// The 2¹⁶ buckets of a digit, in pages made when first reached: a population's values gather in
-/// few of them, so a pass makes (and clears) only those.
-struct Buckets {
-    pages: Vec<Option<Box<[Bucket; PAGE]>>>,
-}
-
-impl Buckets {
-    fn new() -> Buckets {
-        Buckets { pages: (0..(1 << DIGIT_BITS) / PAGE).map(|_| None).collect() }
-    }
-
-    fn at(&mut self, digit: usize) -> &mut Bucket {
-        let page = self.pages[digit / PAGE].get_or_insert_with(|| Box::new([Bucket::default(); PAGE]));
-        &mut page[digit % PAGE]
-    }
-
-    /// The buckets that hold candidates, with their digits, in digit order.
-    fn filled(&self) -> impl Iterator<Item = (usize, &Bucket)> {
-        self.pages
-            .iter()
-            .enumerate()
-            .filter_map(|(p, page)| page.as_ref().map(|page| (p, page)))
-            .flat_map(|(p, page)| page.iter().enumerate().map(move |(k, b)| (p * PAGE + k, b)))
-            .filter(|(_, b)| b.count > 0)
-    }
-
-    /// The candidates of the records after these, put after them.
-    fn join(&mut self, next: Buckets) {
-        for (mine, theirs) in self.pages.iter_mut().zip(next.pages) {
-            match (mine.as_mut(), theirs) {
-                (_, None) => {}
-                (None, Some(theirs)) => *mine = Some(theirs),
-                (Some(mine), Some(theirs)) => mine.iter_mut().zip(theirs.iter()).for_each(|(b, n)| b.join(n)),
-            }
-        }
-    }
-}
-
-/// Where one quantile's search stands: its candidates share the top `depth` bits of their key,
-/// `prefix`; `below` is the weight of every element before them in order (cumulative, the
-/// first element's included), `before` the value just before them; `goal` the cumulative weight
-/// the quantile sits at.
-#[derive(Clone, Debug)]
-struct Search {
-    job: usize,
-    quantile: usize,
-    goal: f64,
-    below: f64,
-    before: Option<f64>,
-    depth: u32,
-    prefix: u64,
-    /// Read the candidates rather than count them by their next digit.
-    collect: bool,
-}
-
-impl Search {
-    /// Every element of a job.
-    fn whole(job: usize) -> Search {
-        Search { job, quantile: 0, goal: 0.0, below: 0.0, before: None, depth: 0, prefix: 0, collect: false }
-    }
-
-    fn holds(&self, key: u64) -> bool {
-        self.depth == 0 || key >> (64 - self.depth) == self.prefix
-    }
-
-    fn digit(&self, key: u64) -> usize {
-        ((key >> (64 - self.depth - DIGIT_BITS)) & ((1 << DIGIT_BITS) - 1)) as usize
-    }
-}
-
-/// One search's candidates after a pass: counted by digit, or read.
-struct Gathered {
-    buckets: Buckets,
-    candidates: Vec<(Place, f64)>,
-}
-
-/// How the passes read: at most `collect` candidates of a quantile read at once; held records
-/// in parts of at least `part` records (at most [`PARTS`] of them, each with its own buckets), on
-/// several threads. The same on any number of threads.
-#[derive(Clone, Copy, Debug)]
-struct Reading {
-    collect: u64,
-    part: usize,
-}
-
-/// One pass over the records: every search's candidates. Records held in memory are read in
-/// parts, each part's candidates gathered alone and the parts' put together in order: the same
-/// candidates in the same order, and the same counts, as one scan gives (the buckets' weights
-/// summed part by part).
-fn gather(records: &dyn Records, jobs: &[Job], searches: &[Search], reading: Reading) -> io::Result<Vec<Gathered>> {
-    if let Some(all) = records.held() {
-        let parts = (all.len() / reading.part.max(1)).clamp(1, PARTS);
-        let chunks: Vec<&[Record]> = all.chunks(all.len().div_ceil(parts).max(1)).collect();
-        if chunks.is_empty() {
-            return Ok(searches.iter().map(|_| Gathered::empty()).collect());
-        }
-        let n = chunks.len();
-        let mut pieces = (0..searches.len() * n)
-            .into_par_iter()
-            .map(|t| gather_part(chunks[t % n], &jobs[searches[t / n].job], &searches[t / n]))
-            .collect::<Vec<_>>()
-            .into_iter();
-        let mut gathered = Vec::with_capacity(searches.len());
-        while let Some(mut g) = pieces.next() {
-            for next in pieces.by_ref().take(n - 1) {
-                g.join(next);
-            }
-            gathered.push(g);
-        }
-        return Ok(gathered);
-    }
-    let mut gathered: Vec<Gathered> = searches.iter().map(|_| Gathered::empty()).collect();
-    records.scan(&mut |block| {
-        gathered.par_iter_mut().zip(searches).for_each(|(g, s)| g.add(block, &jobs[s.job], s));
-    })?;
-    Ok(gathered)
-}
-
-/// One part's candidates of one search.
-fn gather_part(part: &[Record], job: &Job, search: &Search) -> Gathered {
-    let mut g = Gathered::empty();
-    g.add(part, job, search);
-    g
-}
-
-impl Gathered {
-    /// Nothing gathered yet for a search.
-    fn empty() -> Gathered {
-        Gathered { buckets: Buckets::new(), candidates: Vec::new() }
-    }
-
-    /// A block's candidates, in order.
-    fn add(&mut self, block: &[Record], job: &Job, search: &Search) {
-        for r in block {
-            if let Some(place) = job.place(r)
-                && search.holds(place.key)
-            {
-                if search.collect {
-                    self.candidates.push((place, r.weight));
-                } else {
-                    self.buckets.at(search.digit(place.key)).add(place, r.weight);
-                }
-            }
-        }
-    }
-
-    /// The candidates of the records after these (the next part), put after them.
-    fn join(&mut self, next: Gathered) {
-        self.candidates.extend(next.candidates);
-        self.buckets.join(next.buckets);
-    }
-}
-
-/// The quantile from its candidates read: sorted (stably) and walked from `below` as
-/// [`weighted_quantile`](super::stats::weighted_quantile) walks the whole set.
-fn walk(search: &Search, mut candidates: Vec<(Place, f64)>) -> f64 {
-    candidates.sort_by_key(|c| c.0);
-    walk_sorted(search, &candidates)
-}
-
-/// [`walk`] of candidates already sorted.
-fn walk_sorted(search: &Search, candidates: &[(Place, f64)]) -> f64 {
-    let (mut below, mut before) = (search.below, search.before);
-    for &(place, weight) in candidates {
-        let x = order_value(place.key);
-        let at = below + weight;
-        if at >= search.goal {
-            return match before {
-                Some(v) => {
-                    let t = if at > below { (search.goal - below) / (at - below) } else { 0.0 };
-                    v + t * (x - v)
-                }
-                None => x,
-            };
-        }
-        (below, before) = (at, Some(x));
-    }
-    // The goal rounded past the last candidate: the largest.
-    before.unwrap_or(f64::NAN)
-}
-
-/// The bucket of `buckets` (the candidates of `search` counted by their next digit) where the
-/// goal is reached: the quantile where that settles it, else the search narrowed to the bucket.
-fn narrow(search: Search, buckets: &Buckets, collect: u64) -> Result<f64, Search> {
-    let (mut below, mut before) = (search.below, search.before);
-    for (digit, bucket) in buckets.filled() {
-        if below + bucket.weight >= search.goal {
-            let depth = search.depth + DIGIT_BITS;
-            let prefix = (search.prefix << DIGIT_BITS) | digit as u64;
-            let narrowed = Search { below, before, depth, prefix, collect: bucket.count <= collect, ..search };
-            if depth == 64 {
-                // One key, one value: only the first candidate's weight can matter.
-                return Ok(walk(&narrowed, vec![bucket.first]));
-            }
-            return Err(narrowed);
-        }
-        below += bucket.weight;
-        before = Some(order_value(bucket.max));
-    }
-    Ok(before.unwrap_or(f64::NAN))
-}
-
-/// Each job's quantiles (NaN for an empty population), in passes over the records read as
-/// `reading` says. Records held in memory and no more than a quantile's candidates read at once
-/// are read in one pass, sorted and walked.
-fn quantiles(records: &dyn Records, jobs: &[Job], reading: Reading) -> io::Result<Vec<Vec<f64>>> {
-    let few = records.held().is_some_and(|all| all.len() as u64 <= reading.collect);
-    let whole: Vec<Search> = (0..jobs.len()).map(|j| Search { collect: few, ..Search::whole(j) }).collect();
-    let tops = gather(records, jobs, &whole, reading)?;
-    let mut answers: Vec<Vec<f64>> = jobs.iter().map(|j| vec![f64::NAN; j.quantiles.len()]).collect();
-    let mut open = Vec::new();
-    for (j, (job, mut top)) in jobs.iter().zip(tops).enumerate() {
-        top.candidates.sort_by_key(|c| c.0);
-        let (count, first, total): (u64, _, f64) = if few {
-            (top.candidates.len() as u64, top.candidates.first().copied(), top.candidates.iter().map(|c| c.1).sum())
-        } else {
-            (
-                top.buckets.filled().map(|(_, b)| b.count).sum(),
-                top.buckets.filled().next().map(|(_, b)| b.first),
-                top.buckets.filled().map(|(_, b)| b.weight).sum(),
-            )
-        };
-        let Some(first) = first else {
-            continue;
-        };
-        let (least, w0) = (order_value(first.0.key), first.1);
-        for (q, &p) in job.quantiles.iter().enumerate() {
-            // weighted_quantile's position p·(W − w₀) past the first element.
-            let target = p.clamp(0.0, 1.0) * (total - w0);
-            if count == 1 || target.is_nan() || target <= 0.0 {
-                answers[j][q] = least;
-                continue;
-            }
-            let search = Search { quantile: q, goal: w0 + target, ..whole[j].clone() };
-            if few {
-                answers[j][q] = walk_sorted(&search, &top.candidates);
-                continue;
-            }
-            match narrow(search, &top.buckets, reading.collect) {
-                Ok(v) => answers[j][q] = v,
-                Err(s) => open.push(s),
-            }
-        }
-    }
-    while !open.is_empty() {
-        let gathered = gather(records, jobs, &open, reading)?;
-        let mut still = Vec::new();
-        for (search, g) in open.into_iter().zip(gathered) {
-            let (j, q) = (search.job, search.quantile);
-            let found = if search.collect {
-                Ok(walk(&search, g.candidates))
-            } else {
-                narrow(search, &g.buckets, reading.collect)
-            };
-            match found {
-                Ok(v) => answers[j][q] = v,
-                Err(s) => still.push(s),
-            }
-        }
-        open = still;
-    }
-    Ok(answers)
-}
+use search::{COLLECT, Gathered, Job, PART, Quantiles, Reading, Search, gather};
 
 /// Sums over one population in record order, as `stats` sums them.
 #[derive(Clone, Copy, Debug)]
-struct Moments {
+pub struct Moments {
     count: u64,
     w: f64,
     wx: f64,
@@ -401,6 +51,16 @@ impl Moments {
         self.lo = self.lo.min(r.dh_m);
         self.hi = self.hi.max(r.dh_m);
     }
+
+    /// The sums of the records after these, added.
+    fn join(&mut self, next: &Moments) {
+        self.count += next.count;
+        self.w += next.w;
+        self.wx += next.wx;
+        self.wxx += next.wxx;
+        self.lo = self.lo.min(next.lo);
+        self.hi = self.hi.max(next.hi);
+    }
 }
 
 /// What a comparison reports of its differences.
@@ -411,6 +71,261 @@ pub struct Streamed {
     pub histogram: Histogram,
     /// The statistics per slope class.
     pub by_slope: Vec<SlopeClass>,
+}
+
+/// What one pass over the differences computes.
+pub struct Pass {
+    /// Each population's sums (the first pass).
+    moments: bool,
+    /// Each population's spread about these means, and the histogram (the pass after the
+    /// quantiles).
+    spread: Option<(Vec<f64>, Option<Histogram>)>,
+    /// The searches' candidates (of these jobs).
+    jobs: Vec<Job>,
+    searches: Vec<Search>,
+}
+
+/// What a pass gave over some consecutive records; [`Gave::join`] puts the next records' after.
+pub struct Gave {
+    moments: Vec<Moments>,
+    spread: Vec<f64>,
+    histogram: Option<Histogram>,
+    gathered: Vec<Gathered>,
+}
+
+impl Gave {
+    /// What the pass gave over the records after these, put after it.
+    pub fn join(&mut self, next: Gave) {
+        self.moments.iter_mut().zip(&next.moments).for_each(|(m, n)| m.join(n));
+        self.spread.iter_mut().zip(&next.spread).for_each(|(s, n)| *s += n);
+        if let (Some(h), Some(n)) = (self.histogram.as_mut(), next.histogram.as_ref()) {
+            h.join(n);
+        }
+        self.gathered.iter_mut().zip(next.gathered).for_each(|(g, n)| g.join(n));
+    }
+}
+
+/// The populations: 0 every difference, 1 + k slope class k.
+#[derive(Clone, Copy, Debug)]
+struct Populations {
+    classes: usize,
+}
+
+impl Populations {
+    fn new(bounds_deg: &[f64]) -> Populations {
+        Populations { classes: bounds_deg.len().saturating_sub(1).min(usize::from(NO_CLASS)) }
+    }
+
+    fn len(self) -> usize {
+        1 + self.classes
+    }
+
+    /// Each population's slope class (None: every difference).
+    fn classes(self) -> impl Iterator<Item = Option<u8>> {
+        std::iter::once(None).chain((0..self.classes).map(|k| Some(k as u8)))
+    }
+
+    /// The class population a record belongs to, if any.
+    fn member(self, r: &Record) -> Option<usize> {
+        (r.class != NO_CLASS && usize::from(r.class) < self.classes).then(|| 1 + usize::from(r.class))
+    }
+}
+
+/// Where the statistics stand between passes.
+enum Stage {
+    Moments,
+    Values(Quantiles),
+    Spread(Vec<Vec<f64>>),
+    Deviations(Vec<Vec<f64>>, Quantiles),
+    Done(Vec<Vec<f64>>, Vec<Vec<f64>>),
+}
+
+/// The statistics of differences found pass by pass: ask for the next [`Pass`], run it over the
+/// records (all of them, or each part and [`Gave::join`] them in order), [`Statistics::take`] what
+/// it gave; once no pass is left, [`Statistics::finish`].
+pub struct Statistics {
+    populations: Populations,
+    bounds_deg: Vec<f64>,
+    bins: usize,
+    collect: u64,
+    moments: Vec<Moments>,
+    spread: Vec<f64>,
+    histogram: Option<Histogram>,
+    stage: Stage,
+}
+
+impl Statistics {
+    /// The statistics of differences in the slope classes `bounds_deg`, with a histogram of
+    /// `bins` bins (0: none).
+    pub fn new(bounds_deg: &[f64], bins: usize) -> Statistics {
+        Statistics::reading(bounds_deg, bins, COLLECT)
+    }
+
+    fn reading(bounds_deg: &[f64], bins: usize, collect: u64) -> Statistics {
+        let populations = Populations::new(bounds_deg);
+        Statistics {
+            populations,
+            bounds_deg: bounds_deg.to_vec(),
+            bins,
+            collect,
+            moments: vec![Moments::default(); populations.len()],
+            spread: vec![0.0; populations.len()],
+            histogram: None,
+            stage: Stage::Moments,
+        }
+    }
+
+    /// The next pass, None once the statistics are found.
+    pub fn pass(&self) -> Option<Pass> {
+        let searching = |q: &Quantiles| Pass {
+            moments: false,
+            spread: None,
+            jobs: q.jobs.clone(),
+            searches: q.searches().to_vec(),
+        };
+        match &self.stage {
+            Stage::Moments => Some(Pass { moments: true, spread: None, jobs: Vec::new(), searches: Vec::new() }),
+            Stage::Values(q) | Stage::Deviations(_, q) => Some(searching(q)),
+            Stage::Spread(values) => {
+                let means = self.moments.iter().map(|m| m.wx / m.w).collect();
+                let histogram = (self.moments[0].count > 0 && self.bins > 0)
+                    .then(|| Histogram::over(values[0][3], values[0][4], self.bins));
+                Some(Pass { moments: false, spread: Some((means, histogram)), jobs: Vec::new(), searches: Vec::new() })
+            }
+            Stage::Done(..) => None,
+        }
+    }
+
+    /// Takes what the current pass gave over every record.
+    pub fn take(&mut self, gave: Gave) {
+        let stage = std::mem::replace(&mut self.stage, Stage::Moments);
+        self.stage = match stage {
+            Stage::Moments => {
+                self.moments = gave.moments;
+                Stage::Values(Quantiles::new(self.value_jobs(), self.moments[0].count, self.collect)).settled()
+            }
+            Stage::Values(mut q) => {
+                q.take(gave.gathered);
+                Stage::Values(q).settled()
+            }
+            Stage::Spread(values) => {
+                (self.spread, self.histogram) = (gave.spread, gave.histogram);
+                // The median absolute deviations: distances from each population's median.
+                let jobs = self
+                    .populations
+                    .classes()
+                    .enumerate()
+                    .map(|(p, class)| Job { class, centre: Some(values[2 * p][0]), quantiles: vec![0.5] })
+                    .collect();
+                Stage::Deviations(values, Quantiles::new(jobs, self.moments[0].count, self.collect)).settled()
+            }
+            Stage::Deviations(values, mut q) => {
+                q.take(gave.gathered);
+                Stage::Deviations(values, q).settled()
+            }
+            done @ Stage::Done(..) => done,
+        };
+    }
+
+    /// Each population's median, 5th and 95th percentiles (and the histogram's 0.5th and 99.5th
+    /// for them all), then the 90th percentile of |dh|.
+    fn value_jobs(&self) -> Vec<Job> {
+        let mut jobs = Vec::new();
+        for (p, class) in self.populations.classes().enumerate() {
+            let mut quantiles = vec![0.5, 0.05, 0.95];
+            if p == 0 && self.bins > 0 {
+                quantiles.extend([0.005, 0.995]);
+            }
+            jobs.push(Job { class, centre: None, quantiles });
+            jobs.push(Job { class, centre: Some(0.0), quantiles: vec![0.9] });
+        }
+        jobs
+    }
+
+    /// The statistics found (`nodata_count` recorded as given); None while a pass is left.
+    pub fn finish(self, nodata_count: u64) -> Option<Streamed> {
+        let Stage::Done(values, deviations) = self.stage else {
+            return None;
+        };
+        let of = |p: usize| (&values[2 * p], values[2 * p + 1][0]);
+        let stats_of = |p: usize, nodata_count: u64| {
+            let m = &self.moments[p];
+            if m.count == 0 {
+                return Stats::empty(nodata_count);
+            }
+            let (q, p90_abs) = of(p);
+            Stats {
+                count: m.count,
+                nodata_count,
+                weight_sum: m.w,
+                mean_m: m.wx / m.w,
+                median_m: q[0],
+                std_m: (self.spread[p] / m.w).sqrt(),
+                rmse_m: (m.wxx / m.w).sqrt(),
+                nmad_m: NMAD_FACTOR * deviations[p][0],
+                min_m: m.lo,
+                max_m: m.hi,
+                le90_m: q[2] - q[1],
+                p90_abs_m: p90_abs,
+            }
+        };
+        let by_slope = self
+            .bounds_deg
+            .windows(2)
+            .take(self.populations.classes)
+            .enumerate()
+            .map(|(k, b)| SlopeClass { min_deg: b[0], max_deg: b[1], stats: stats_of(1 + k, 0) })
+            .collect();
+        Some(Streamed { stats: stats_of(0, nodata_count), histogram: self.histogram.unwrap_or_default(), by_slope })
+    }
+}
+
+impl Stage {
+    /// The stage after this one where its searches are all settled (no pass needed).
+    fn settled(self) -> Stage {
+        match self {
+            Stage::Values(q) if q.searches().is_empty() => Stage::Spread(q.answers().to_vec()),
+            Stage::Deviations(values, q) if q.searches().is_empty() => Stage::Done(values, q.answers().to_vec()),
+            other => other,
+        }
+    }
+}
+
+/// Runs one pass over `records` (read as `reading` says).
+fn run_pass(records: &dyn Records, pass: &Pass, populations: Populations, reading: Reading) -> io::Result<Gave> {
+    let mut gave = Gave {
+        moments: vec![Moments::default(); populations.len()],
+        spread: vec![0.0; populations.len()],
+        histogram: pass.spread.as_ref().and_then(|(_, h)| h.clone()),
+        gathered: Vec::new(),
+    };
+    if pass.moments || pass.spread.is_some() {
+        let means = pass.spread.as_ref().map(|(m, _)| m.as_slice()).unwrap_or_default();
+        records.scan(&mut |block| {
+            for r in block.iter().filter(|r| !r.dh_m.is_nan()) {
+                let member = populations.member(r);
+                if pass.moments {
+                    gave.moments[0].add(r);
+                    if let Some(p) = member {
+                        gave.moments[p].add(r);
+                    }
+                }
+                if !means.is_empty() {
+                    gave.spread[0] += r.weight * (r.dh_m - means[0]).powi(2);
+                    if let Some(p) = member {
+                        gave.spread[p] += r.weight * (r.dh_m - means[p]).powi(2);
+                    }
+                    if let Some(h) = gave.histogram.as_mut() {
+                        h.add(r.dh_m, r.weight);
+                    }
+                }
+            }
+        })?;
+    }
+    if !pass.searches.is_empty() {
+        gave.gathered = gather(records, &pass.jobs, &pass.searches, reading)?;
+    }
+    Ok(gave)
 }
 
 /// The statistics, histogram and slope classes of `records` (their classes those of
@@ -440,82 +355,12 @@ fn streamed_stats_with(
     bins: usize,
     reading: Reading,
 ) -> io::Result<Streamed> {
-    // Population 0: every difference; 1 + k: slope class k.
-    let classes = bounds_deg.len().saturating_sub(1).min(usize::from(NO_CLASS));
-    let populations: Vec<Option<u8>> = std::iter::once(None).chain((0..classes).map(|k| Some(k as u8))).collect();
-    let member = |r: &Record| (r.class != NO_CLASS && usize::from(r.class) < classes).then(|| 1 + usize::from(r.class));
-    let mut moments = vec![Moments::default(); populations.len()];
-    records.scan(&mut |block| {
-        for r in block.iter().filter(|r| !r.dh_m.is_nan()) {
-            moments[0].add(r);
-            if let Some(p) = member(r) {
-                moments[p].add(r);
-            }
-        }
-    })?;
-    // The median, 5th and 95th percentiles (and the histogram's 0.5th and 99.5th for them all),
-    // and the 90th percentile of |dh|.
-    let mut jobs = Vec::new();
-    for (p, &class) in populations.iter().enumerate() {
-        let mut quantiles = vec![0.5, 0.05, 0.95];
-        if p == 0 && bins > 0 {
-            quantiles.extend([0.005, 0.995]);
-        }
-        jobs.push(Job { class, centre: None, quantiles });
-        jobs.push(Job { class, centre: Some(0.0), quantiles: vec![0.9] });
+    let mut statistics = Statistics::reading(bounds_deg, bins, reading.collect);
+    while let Some(pass) = statistics.pass() {
+        let gave = run_pass(records, &pass, statistics.populations, reading)?;
+        statistics.take(gave);
     }
-    let values = quantiles(records, &jobs, reading)?;
-    let of = |p: usize| (&values[2 * p], values[2 * p + 1][0]);
-    // The variances about the means, and the histogram over the 0.5th to 99.5th percentile.
-    let means: Vec<f64> = moments.iter().map(|m| m.wx / m.w).collect();
-    let mut spread = vec![0f64; populations.len()];
-    let mut histogram = (moments[0].count > 0 && bins > 0).then(|| Histogram::over(of(0).0[3], of(0).0[4], bins));
-    records.scan(&mut |block| {
-        for r in block.iter().filter(|r| !r.dh_m.is_nan()) {
-            spread[0] += r.weight * (r.dh_m - means[0]).powi(2);
-            if let Some(p) = member(r) {
-                spread[p] += r.weight * (r.dh_m - means[p]).powi(2);
-            }
-            if let Some(h) = histogram.as_mut() {
-                h.add(r.dh_m, r.weight);
-            }
-        }
-    })?;
-    // The median absolute deviations.
-    let deviations: Vec<Job> = populations
-        .iter()
-        .enumerate()
-        .map(|(p, &class)| Job { class, centre: Some(of(p).0[0]), quantiles: vec![0.5] })
-        .collect();
-    let deviations = quantiles(records, &deviations, reading)?;
-    let stats_of = |p: usize, nodata_count: u64| {
-        let m = &moments[p];
-        if m.count == 0 {
-            return Stats::empty(nodata_count);
-        }
-        let (q, p90_abs) = of(p);
-        Stats {
-            count: m.count,
-            nodata_count,
-            weight_sum: m.w,
-            mean_m: means[p],
-            median_m: q[0],
-            std_m: (spread[p] / m.w).sqrt(),
-            rmse_m: (m.wxx / m.w).sqrt(),
-            nmad_m: NMAD_FACTOR * deviations[p][0],
-            min_m: m.lo,
-            max_m: m.hi,
-            le90_m: q[2] - q[1],
-            p90_abs_m: p90_abs,
-        }
-    };
-    let by_slope = bounds_deg
-        .windows(2)
-        .take(classes)
-        .enumerate()
-        .map(|(k, b)| SlopeClass { min_deg: b[0], max_deg: b[1], stats: stats_of(1 + k, 0) })
-        .collect();
-    Ok(Streamed { stats: stats_of(0, nodata_count), histogram: histogram.unwrap_or_default(), by_slope })
+    statistics.finish(nodata_count).ok_or_else(|| io::Error::other("the statistics stopped before their last pass"))
 }
 
 #[cfg(test)]
@@ -615,6 +460,57 @@ mod tests {
         }
         // No histogram asked for: none made.
         assert!(held_stats(&with_gaps, 0, &[], 0).histogram.count.is_empty());
+    }
+
+    #[test]
+    fn passes_run_over_parts_and_joined_in_order_find_one_scans_quantiles_bit_for_bit() {
+        // 300 000 differences are more than a quantile reads at once: the radix search's path;
+        // 5 000 with `collect` 5 narrow to single keys; 7 and 1 leave parts empty.
+        for (n, collect) in [(300_000, COLLECT), (5000, 5), (5000, COLLECT), (7, COLLECT), (1, COLLECT)] {
+            // Weights as cell areas are: full mantissas, so that their f64 sums depend on order.
+            let mut all = records(&differences(n));
+            for (k, r) in all.iter_mut().enumerate() {
+                r.weight = 9.7e3 * (1.0 + f64::from(crate::maths::pcg(k as u32 ^ 0x5bd1)) / 7.3e9);
+            }
+            let reading = Reading { collect, part: PART };
+            let one = streamed_stats_with(&Scanned(all.clone()), 3, &SLOPE_CLASSES_DEG, 50, reading).unwrap();
+            for shards in [1, 3, 7] {
+                let size = all.len().div_ceil(shards).max(1);
+                let parts: Vec<Scanned> =
+                    (0..shards).map(|k| Scanned(all.iter().skip(k * size).take(size).copied().collect())).collect();
+                let mut statistics = Statistics::reading(&SLOPE_CLASSES_DEG, 50, collect);
+                let mut passes = 0;
+                while let Some(pass) = statistics.pass() {
+                    let mut gave: Option<Gave> = None;
+                    for part in &parts {
+                        let g = run_pass(part, &pass, statistics.populations, reading).unwrap();
+                        match gave.as_mut() {
+                            None => gave = Some(g),
+                            Some(joined) => joined.join(g),
+                        }
+                    }
+                    statistics.take(gave.unwrap());
+                    passes += 1;
+                }
+                let sharded = statistics.finish(3).unwrap();
+                let what = format!("n {n}, collect {collect}, {shards} parts, {passes} passes");
+                let pairs = std::iter::once((&sharded.stats, &one.stats))
+                    .chain(sharded.by_slope.iter().map(|c| &c.stats).zip(one.by_slope.iter().map(|c| &c.stats)));
+                for (a, b) in pairs {
+                    assert_eq!((a.count, a.nodata_count), (b.count, b.nodata_count), "{what}");
+                    let quantiles =
+                        |s: &Stats| [s.median_m, s.nmad_m, s.le90_m, s.p90_abs_m, s.min_m, s.max_m].map(f64::to_bits);
+                    assert_eq!(quantiles(a), quantiles(b), "{what}");
+                    for (x, y) in
+                        [(a.weight_sum, b.weight_sum), (a.mean_m, b.mean_m), (a.std_m, b.std_m), (a.rmse_m, b.rmse_m)]
+                    {
+                        assert!((x - y).abs() <= 1e-12 * y.abs() || (x.is_nan() && y.is_nan()), "{what}: {x} {y}");
+                    }
+                }
+                assert_eq!(sharded.histogram.count, one.histogram.count, "{what}");
+                assert_eq!(sharded.histogram.edges_m, one.histogram.edges_m, "{what}");
+            }
+        }
     }
 
     /// Records that can only be scanned, as a spill's are.
