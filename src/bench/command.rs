@@ -27,11 +27,16 @@ pub fn run(bench: Bench, c: &mut Console) -> Result<u8, CliError> {
             c.print(super::bench_brush_latency(&project, rounds, width, height)?)?;
         }
         Bench::Brush { strokes, level, gpu } => c.print(super::bench_brush(strokes, level, gpu)?)?,
-        Bench::CompareSize { project, a, b, levels, out } => {
+        Bench::CompareSize { project, a, b, levels, procedural, out } => {
             if let Some(l) = levels.iter().find(|&&l| l > crate::ecm::MAX_LEVEL) {
                 return Err(format!("--levels: {l} is past the finest level, {}", crate::ecm::MAX_LEVEL).into());
             }
-            let table = super::compare_large::size_table(&project, [&a, &b], &levels)?;
+            let table = if procedural {
+                let pair = super::compare_large::noise_pair(&out)?;
+                super::compare_large::size_table(&pair, ["terrain+error", "terrain"], &levels)?
+            } else {
+                super::compare_large::size_table(&project, [&a, &b], &levels)?
+            };
             std::fs::create_dir_all(&out).map_err(CliError::file(&out, "cannot create the folder"))?;
             let path = out.join("compare-size.txt");
             crate::files::write_atomic(&path, table.as_bytes()).map_err(CliError::file(&path, "cannot write"))?;

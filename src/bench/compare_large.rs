@@ -20,6 +20,29 @@ const RUNS: [(&str, &[&str]); 4] = [
     ("level 12, spilled, --uncertainty", &["--level", "12", "--uncertainty"]),
 ];
 
+/// The procedural pair of `bench compare-size --procedural`, written to `dir`: on the Moon,
+/// `terrain` (fBm: 4 octaves, 2 km, 300 km) and `error` added on it (fBm: 2 octaves, 5 m, 20 km),
+/// so that `terrain+error` against `terrain` compares a synthetic DEM with a known error field
+/// everywhere on the body, at any level (no dataset bounds it).
+pub(super) fn noise_pair(dir: &Path) -> Result<std::path::PathBuf, CliError> {
+    let layer = |name: &str, blend: &str, seed: u32, amplitude_m: f64, wavelength_m: f64, octaves: u32| {
+        serde_json::json!({
+            "name": name, "visible": true, "blend": blend, "opacity": 1.0, "weight": 1.0, "scale": 1.0,
+            "offset_m": 0.0, "kind": "procedural",
+            "noise": { "type": "fbm", "seed": seed, "amplitude_m": amplitude_m, "wavelength_m": wavelength_m,
+                       "octaves": octaves, "lacunarity": 2.0, "gain": 0.5, "where": "everywhere" }
+        })
+    };
+    let mut project = crate::project::Project::new("moon");
+    for l in [layer("terrain", "over", 11, 2000.0, 300_000.0, 4), layer("error", "add", 12, 5.0, 20_000.0, 2)] {
+        project.layers.push(serde_json::from_value(l)?);
+    }
+    std::fs::create_dir_all(dir).map_err(CliError::file(dir, "cannot create the folder"))?;
+    let path = dir.join("noise-pair.json");
+    project.save(&path)?;
+    Ok(path)
+}
+
 /// `bench compare-size`: layers `a` and `b` of `project` compared at each of `levels`, each in a
 /// process of its own (spilled as `compare` spills by default): samples, seconds, nanoseconds a
 /// sample, peak resident memory, median and NMAD.

@@ -90,9 +90,9 @@ pub enum Bench {
         out: PathBuf,
     },
     /// Comparisons of growing size, each in a process of its own: two layers of a project compared
-    /// at each level (default: the whole Moon, the `sculpt` layer against LOLA, 10⁸ to 1.6·10⁹
-    /// samples), their samples, time, nanoseconds a sample, peak memory and median and NMAD;
-    /// writes compare-size.txt.
+    /// at each level (default: the whole Moon, the `sculpt` layer against LOLA, 2.5·10⁷ to
+    /// 4·10⁸ samples; with --procedural a noise pair at any level), their samples, time,
+    /// nanoseconds a sample, peak memory and median and NMAD; writes compare-size.txt.
     CompareSize {
         /// The project.
         #[arg(long, default_value = concat!(env!("CARGO_MANIFEST_DIR"), "/projects/moon-brushing.json"))]
@@ -103,9 +103,13 @@ pub enum Bench {
         /// Layer B, the reference.
         #[arg(long, default_value = "lola_global")]
         b: String,
-        /// Levels (comma-separated).
-        #[arg(long, value_delimiter = ',', default_value = "4,5,6")]
+        /// Levels (comma-separated; the Moon's LOLA grid allows 0–5).
+        #[arg(long, value_delimiter = ',', default_value = "3,4,5")]
         levels: Vec<u8>,
+        /// Compare a procedural pair instead (written to --out: `terrain+error` against
+        /// `terrain`, fBm on the Moon, everywhere; level 6 is 1.6·10⁹ samples).
+        #[arg(long)]
+        procedural: bool,
         /// Folder for compare-size.txt.
         #[arg(long, default_value = "out/bench-compare-size")]
         out: PathBuf,
