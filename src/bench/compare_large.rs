@@ -21,7 +21,7 @@ const RUNS: [(&str, &[&str]); 4] = [
 ];
 
 /// The procedural pair of `bench compare-size --procedural`, written to `dir`: on the Moon,
-/// `terrain` (fBm: 4 octaves, 2 km, 300 km) and `error` added on it (fBm: 2 octaves, 5 m, 20 km),
+/// `terrain` (fBm: 2 octaves, 2 km, 300 km) and `error` added on it (fBm: 1 octave, 5 m, 20 km),
 /// so that `terrain+error` against `terrain` compares a synthetic DEM with a known error field
 /// everywhere on the body, at any level (no dataset bounds it).
 pub(super) fn noise_pair(dir: &Path) -> Result<std::path::PathBuf, CliError> {
@@ -34,7 +34,7 @@ pub(super) fn noise_pair(dir: &Path) -> Result<std::path::PathBuf, CliError> {
         })
     };
     let mut project = crate::project::Project::new("moon");
-    for l in [layer("terrain", "over", 11, 2000.0, 300_000.0, 4), layer("error", "add", 12, 5.0, 20_000.0, 2)] {
+    for l in [layer("terrain", "over", 11, 2000.0, 300_000.0, 2), layer("error", "add", 12, 5.0, 20_000.0, 1)] {
         project.layers.push(serde_json::from_value(l)?);
     }
     std::fs::create_dir_all(dir).map_err(CliError::file(dir, "cannot create the folder"))?;

@@ -47,7 +47,9 @@ pub fn run(command: Command, c: &mut Console) -> Result<u8, CliError> {
             c.print(report)?;
         }
         Command::Coregister(request) => {
+            let started = std::time::Instant::now();
             let report = watched(c, !request.json, |fb| super::coregister_command(&request, fb))?;
+            c.note(format!("terrafuse: co-registered in {:.1} s", started.elapsed().as_secs_f64()));
             c.print(report)?;
         }
         Command::Brush(request) => {
@@ -220,9 +222,10 @@ fn run_export(args: ExportArgs, c: &mut Console) -> Result<(), CliError> {
         attribute,
         layer,
     };
+    let started = std::time::Instant::now();
     let report = watched(c, true, |fb| super::export::export_composed_watched(&opts, fb.watch))?;
     c.print(format_args!(
-        "wrote {}{} ({}×{} pixels, level {}, {} quads composed on the {}, {} pixels with data)\n",
+        "wrote {}{} ({}×{} pixels, level {}, {} quads composed on the {}, {} pixels with data) in {:.1} s\n",
         opts.out.display(),
         attribute.map(|a| format!(": {} in {}", a.name(), a.unit())).unwrap_or_default(),
         report.size.0,
@@ -230,7 +233,8 @@ fn run_export(args: ExportArgs, c: &mut Console) -> Result<(), CliError> {
         report.level,
         report.quads,
         report.composer,
-        report.valid
+        report.valid,
+        started.elapsed().as_secs_f64()
     ))?;
     Ok(())
 }
