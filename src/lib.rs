@@ -4,7 +4,7 @@
 //! QSC, quads, static geometry) → [`store`] (tile stores) and [`layers`] (the layer stack's CPU
 //! reference, with [`edit`] and [`erosion`]) → [`scene`] (what is drawn, loaded and selected, on
 //! the CPU) → [`gpu`] (the renderer and its kernels) →
-//! [`compare`], [`project`], [`replay`] → the workstation ([`gui`]) and the command line
+//! [`compare`], [`project`], [`replay`], [`export`] → the workstation ([`gui`]) and the command line
 //! ([`cli`]); [`attributes`] (terrain attributes of a height raster) sits beside [`geodesy`]. `ARCHITECTURE.md` draws the module graph and the path data take through it.
 
 #![warn(missing_docs)]
@@ -18,6 +18,7 @@ pub mod ecm;
 pub mod edit;
 pub mod erosion;
 pub mod errors;
+pub mod export;
 pub mod files;
 pub mod geodesy;
 pub mod gpu;

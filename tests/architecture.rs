@@ -111,6 +111,29 @@ const ALLOWED: &[(&str, &[&str])] = &[
             "gpu",
         ],
     ),
+    // A project's composed stack written as a GeoTIFF, band by band: what the command line and,
+    // one day, the workstation export.
+    (
+        "export",
+        &[
+            "attributes",
+            "errors",
+            "files",
+            "progress",
+            "maths",
+            "colour",
+            "geodesy",
+            "ecm",
+            "store",
+            "edit",
+            "erosion",
+            "layers",
+            "project",
+            "scene",
+            "gpu",
+            "compare",
+        ],
+    ),
     (
         "gui",
         &[
@@ -155,6 +178,7 @@ const ALLOWED: &[(&str, &[&str])] = &[
             "compare",
             "replay",
             "slurm",
+            "export",
         ],
     ),
     // The benchmarks sit above the command line whose plumbing (errors, console, renderer

@@ -71,7 +71,7 @@ fn a_single_dataset_exports_as_the_store_does_and_gpu_matches_cpu() {
 
 #[test]
 fn an_export_made_band_by_band_equals_one_made_at_once_bit_for_bit() {
-    use terrafuse::cli::{ComposeOn, ComposedExport, export_composed_in_bands};
+    use terrafuse::export::{ComposeOn, ComposedExport, export_composed_in_bands};
     let project = common::sample_project("erzurum", &dir());
     let export = |name: &str, attribute, band_pixels: usize| {
         let out = dir().join(name);

@@ -12,10 +12,10 @@ mod common;
 
 use std::path::{Path, PathBuf};
 
-use terrafuse::cli::{ComposeOn, ComposedExport, export_composed};
 use terrafuse::edit::{Falloff, Stroke, Tool};
 use terrafuse::erosion::operation::Operation;
 use terrafuse::erosion::params::{Params, gravity_of_body};
+use terrafuse::export::{ComposeOn, ComposedExport, export_composed};
 use terrafuse::geodesy::GeoBox;
 use terrafuse::layers::{BlendMode, LayerKind, LayerSpec, NoiseSpec, NoiseType, Operand};
 use terrafuse::project::Project;

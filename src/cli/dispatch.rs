@@ -210,7 +210,7 @@ fn run_export(args: ExportArgs, c: &mut Console) -> Result<(), CliError> {
             })
         })
         .transpose()?;
-    let opts = super::ComposedExport {
+    let opts = crate::export::ComposedExport {
         project,
         out,
         crs,
@@ -223,7 +223,7 @@ fn run_export(args: ExportArgs, c: &mut Console) -> Result<(), CliError> {
         layer,
     };
     let started = std::time::Instant::now();
-    let report = watched(c, true, |fb| super::export::export_composed_watched(&opts, fb.watch))?;
+    let report = watched(c, true, |fb| crate::export::export_composed_watched(&opts, fb.watch))?;
     c.print(format_args!(
         "wrote {}{} ({}×{} pixels, level {}, {} quads composed on the {}, {} pixels with data) in {:.1} s\n",
         opts.out.display(),

@@ -31,6 +31,9 @@ pub enum CliError {
     /// The GPU.
     #[error(transparent)]
     Gpu(#[from] crate::gpu::GpuError),
+    /// An export (boxed: it carries the project's path beside its cause).
+    #[error(transparent)]
+    Export(Box<crate::export::ExportError>),
     /// A layer.
     #[error(transparent)]
     Layer(#[from] crate::layers::LayerError),
@@ -152,5 +155,11 @@ impl<T, E: std::error::Error + Send + Sync + 'static> Context<T> for Result<T, E
             context: what().to_string(),
             source: Box::new(CliError::Failed(Box::new(e))),
         })
+    }
+}
+
+impl From<crate::export::ExportError> for CliError {
+    fn from(e: crate::export::ExportError) -> CliError {
+        CliError::Export(Box::new(e))
     }
 }

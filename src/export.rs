@@ -1,10 +1,11 @@
-//! `terrafuse export`: a project's composed elevation (the whole layer stack, as drawn) written as
-//! a float32 GeoTIFF in any CRS, atomically, with NaN as nodata. Each pixel centre is taken
-//! through PROJ to the body, onto the cube map at the chosen level, and interpolated bilinearly
-//! from the composed grid of the quad that holds it (as `store export` does for one dataset).
-//! The quads are composed on the GPU (the renderer's pass) or with the CPU reference.
+//! A project's composed elevation (the whole layer stack as drawn, a layer alone, a difference, a
+//! terrain attribute) written as a float32 GeoTIFF in any CRS, atomically, with NaN as nodata
+//! (`terrafuse export`). Each pixel centre is taken through PROJ to the body, onto the cube map at
+//! the chosen level, and interpolated bilinearly from the composed grid of the quad that holds it
+//! (as `store export` does for one dataset). The quads are composed on the GPU (the renderer's
+//! pass) or with the CPU reference, band by band of the raster, so memory stays bounded whatever
+//! its size.
 
-use super::{CliError, Within};
 use crate::attributes::Attribute;
 use std::collections::{BTreeSet, HashMap, HashSet};
 use std::path::PathBuf;
@@ -18,6 +19,51 @@ use crate::scene::Scene;
 use crate::store::export::RasterSpec;
 
 pub use crate::gpu::compose::ComposeOn;
+
+/// Why an export was not written (nothing was: the output is moved into place only when whole).
+#[derive(Debug, thiserror::Error)]
+pub enum ExportError {
+    /// The project could not be read.
+    #[error(transparent)]
+    Project(#[from] crate::project::ProjectError),
+    /// The output raster (its CRS, bounds, folder) or its writing.
+    #[error(transparent)]
+    Store(#[from] crate::store::StoreError),
+    /// The project's layers could not be opened or composed.
+    #[error("{project}: {source}")]
+    Scene {
+        /// The project file.
+        project: PathBuf,
+        /// What went wrong.
+        source: Box<crate::scene::SceneError>,
+    },
+    /// A layer named by `--layer` or `--difference`.
+    #[error("{project}: {source}")]
+    Layer {
+        /// The project file.
+        project: PathBuf,
+        /// What went wrong.
+        source: Box<crate::compare::CompareError>,
+    },
+    /// A quad could not be composed.
+    #[error(transparent)]
+    Composing(Box<crate::scene::SceneError>),
+    /// The GPU's composition or attributes.
+    #[error(transparent)]
+    Gpu(#[from] crate::gpu::GpuError),
+    /// A level past the finest.
+    #[error("--level {0}: levels run 0–{max}", max = crate::ecm::MAX_LEVEL)]
+    Level(u8),
+    /// Cancelled.
+    #[error("the export was cancelled; nothing was written")]
+    Cancelled,
+}
+
+impl From<crate::scene::SceneError> for ExportError {
+    fn from(e: crate::scene::SceneError) -> ExportError {
+        ExportError::Composing(Box::new(e))
+    }
+}
 
 /// What to export.
 #[derive(Clone, Debug)]
@@ -68,7 +114,7 @@ type Cell = (QuadId, usize, usize, f64, f64);
 const GPU_BATCH: usize = 16;
 
 /// Exports the composed elevation of a project. Errors name the file and the problem.
-pub fn export_composed(opts: &ComposedExport) -> Result<ComposedReport, CliError> {
+pub fn export_composed(opts: &ComposedExport) -> Result<ComposedReport, ExportError> {
     export_composed_watched(opts, &Watch::default())
 }
 
@@ -80,7 +126,7 @@ pub fn export_composed(opts: &ComposedExport) -> Result<ComposedReport, CliError
 /// composed (those the band before composed kept, the rest dropped), sampled and written at their
 /// rows, so memory stays bounded whatever the export's size. A band's pixels are those the whole
 /// raster at once gives, bit for bit.
-pub fn export_composed_watched(opts: &ComposedExport, watch: &Watch) -> Result<ComposedReport, CliError> {
+pub fn export_composed_watched(opts: &ComposedExport, watch: &Watch) -> Result<ComposedReport, ExportError> {
     export_composed_in_bands(opts, watch, BAND_PIXELS)
 }
 
@@ -89,15 +135,16 @@ pub fn export_composed_in_bands(
     opts: &ComposedExport,
     watch: &Watch,
     band_pixels: usize,
-) -> Result<ComposedReport, CliError> {
+) -> Result<ComposedReport, ExportError> {
     let project = Project::load(&opts.project)?;
     let raster = RasterSpec::new(&opts.crs, opts.bounds, opts.resolution, &opts.out)?;
     if let Some(l) = opts.level
         && l > crate::ecm::MAX_LEVEL
     {
-        return Err(format!("--level {l}: levels run 0–{}", crate::ecm::MAX_LEVEL).into());
+        return Err(ExportError::Level(l));
     }
-    let (scene, _) = Scene::open(&project).within(opts.project.display())?;
+    let scene_error = |source| ExportError::Scene { project: opts.project.clone(), source: Box::new(source) };
+    let (scene, _) = Scene::open(&project).map_err(scene_error)?;
     let body = scene.ellipsoid;
     let level = match opts.level {
         Some(l) => l,
@@ -108,17 +155,18 @@ pub fn export_composed_in_bands(
     };
     let alone = |name: &str| {
         let operand = crate::layers::Operand::Layer(name.into());
-        crate::compare::sample::operand_scene(&scene, &project, &operand).within(opts.project.display())
+        crate::compare::sample::operand_scene(&scene, &project, &operand)
+            .map_err(|source| ExportError::Layer { project: opts.project.clone(), source: Box::new(source) })
     };
-    // One composer, or two whose difference is written.
-    let mut composers = match (&opts.difference, &opts.layer) {
+    // One composer, and a second whose heights are taken away for a difference.
+    let (mut main, mut minus) = match (&opts.difference, &opts.layer) {
         (Some((a, b)), _) => {
-            vec![Composer::new(alone(a)?, opts.compose_on)?, Composer::new(alone(b)?, opts.compose_on)?]
+            (Composer::new(alone(a)?, opts.compose_on)?, Some(Composer::new(alone(b)?, opts.compose_on)?))
         }
-        (None, Some(name)) => vec![Composer::new(alone(name)?, opts.compose_on)?],
-        (None, None) => vec![Composer::new(scene, opts.compose_on)?],
+        (None, Some(name)) => (Composer::new(alone(name)?, opts.compose_on)?, None),
+        (None, None) => (Composer::new(scene, opts.compose_on)?, None),
     };
-    let composer = composers[0].name.clone();
+    let composer = main.name.clone();
     let attribute_gpu = match (opts.attribute, opts.compose_on) {
         (Some(_), ComposeOn::Gpu) => Some(GpuContext::headless()?),
         _ => None,
@@ -154,19 +202,18 @@ pub fn export_composed_in_bands(
         let band_quads: Vec<QuadId> =
             cells.iter().flatten().map(|c| c.0).collect::<BTreeSet<_>>().into_iter().collect();
         quads.extend(band_quads.iter().copied());
-        for c in composers.iter_mut() {
-            c.compose(&band_quads, watch)?;
-        }
-        let mut data = match composers.as_slice() {
-            [a, b] => {
+        main.compose(&band_quads, watch)?;
+        let mut data = match minus.as_mut() {
+            None => sampled(&cells, &main.grids),
+            Some(minus) => {
+                minus.compose(&band_quads, watch)?;
+                let (a, b) = (&main.grids, &minus.grids);
                 let difference: HashMap<QuadId, Vec<f32>> = band_quads
                     .iter()
-                    .map(|q| (*q, a.grids[q].iter().zip(&b.grids[q]).map(|(x, y)| x - y).collect())) // NaN where either has none
+                    .map(|q| (*q, a[q].iter().zip(&b[q]).map(|(x, y)| x - y).collect())) // NaN where either has none
                     .collect();
                 sampled(&cells, &difference)
             }
-            [one, ..] => sampled(&cells, &one.grids),
-            [] => return Err("an export needs something to compose".into()),
         };
         // A terrain attribute of the heights, with each pixel's steps measured on the body.
         if let Some(a) = opts.attribute {
@@ -191,8 +238,8 @@ pub fn export_composed_in_bands(
 const BAND_PIXELS: usize = 1 << 22;
 
 /// An export cancelled: nothing written.
-fn cancelled(_: crate::progress::Cancelled) -> CliError {
-    CliError::from("the export was cancelled; nothing was written")
+fn cancelled(_: crate::progress::Cancelled) -> ExportError {
+    ExportError::Cancelled
 }
 
 /// Where each pixel (lat, lon, radians; NaN off the body) falls at `level`: the quad and the
@@ -228,7 +275,7 @@ enum Compose {
 }
 
 impl Composer {
-    fn new(scene: Scene, compose_on: ComposeOn) -> Result<Composer, CliError> {
+    fn new(scene: Scene, compose_on: ComposeOn) -> Result<Composer, ExportError> {
         Ok(match compose_on {
             ComposeOn::Cpu => {
                 Composer { compose: Compose::Cpu(Box::new(scene)), grids: HashMap::new(), name: "CPU reference".into() }
@@ -246,7 +293,7 @@ impl Composer {
     }
 
     /// Composes `quads` (those kept from the band before aside) and drops the grids of the rest.
-    fn compose(&mut self, quads: &[QuadId], watch: &Watch) -> Result<(), CliError> {
+    fn compose(&mut self, quads: &[QuadId], watch: &Watch) -> Result<(), ExportError> {
         let wanted: HashSet<QuadId> = quads.iter().copied().collect();
         self.grids.retain(|q, _| wanted.contains(q));
         let missing: Vec<QuadId> = quads.iter().copied().filter(|q| !self.grids.contains_key(q)).collect();
