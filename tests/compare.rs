@@ -1164,3 +1164,84 @@ fn a_known_along_track_sinusoid_is_recovered_and_xdems_directional_bias_is_measu
     );
     assert!(after < x["nmad_after"].as_f64().unwrap(), "xDEM leaves {}", x["nmad_after"]);
 }
+
+/// The statistics two comparisons' JSON must share: counts and quantiles exactly, the moments
+/// and the histogram's weights within 10⁻¹² (their sums run in another order).
+fn same_statistics(merged: &serde_json::Value, one: &serde_json::Value, what: &str) {
+    let exact = ["count", "nodata_count", "median_m", "nmad_m", "le90_m", "p90_abs_m", "min_m", "max_m"];
+    let close = ["mean_m", "std_m", "rmse_m", "weight_sum"];
+    for field in exact {
+        assert_eq!(merged[field], one[field], "{what}: {field}");
+    }
+    for field in close {
+        if one[field].is_null() {
+            assert!(merged[field].is_null(), "{what}: {field}");
+            continue;
+        }
+        let (m, o) = (merged[field].as_f64().unwrap(), one[field].as_f64().unwrap());
+        assert!((m - o).abs() <= 1e-12 * o.abs().max(1e-300), "{what}: {field} {m} {o}");
+    }
+}
+
+#[test]
+fn a_comparison_cut_into_shards_merges_to_what_one_process_prints() {
+    let p = project();
+    let ps = p.to_str().unwrap();
+    let dir = common::out_path("compare-shards");
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let args = ["blurred", "srtm", "--json", "--level", "9"];
+    let one: serde_json::Value = serde_json::from_str(&run(&[&["compare", ps][..], &args[..]].concat())).unwrap();
+    for shards in [1, 3, 7] {
+        let plan = dir.join(format!("plan-{shards}.json"));
+        let plan_s = plan.to_str().unwrap();
+        let n = shards.to_string();
+        let planned = run(&[&["compare", ps][..], &args[..], &["--plan", plan_s, "--shards", n.as_str()]].concat());
+        assert!(planned.contains(&format!("in {shards} shards")), "{planned}");
+        // Nothing computed yet: the merge names every shard of round 0 and exits 3.
+        let waiting = terrafuse(&["merge", plan_s], "");
+        assert_eq!(waiting.status.code(), Some(3), "{}", String::from_utf8_lossy(&waiting.stderr));
+        let said = String::from_utf8_lossy(&waiting.stderr).into_owned();
+        let all: Vec<String> = (0..shards).map(|i| i.to_string()).collect();
+        assert!(said.contains(&format!("round 0 waits for shards {}", all.join(","))), "{said}");
+        // One shard by hand, run twice: the second does nothing while others are missing (alone,
+        // it goes on to the next round).
+        assert!(run(&["shard", plan_s, "0"]).contains("wrote its part of round 0"));
+        let again = run(&["shard", plan_s, "0"]);
+        let expected = if shards == 1 { "wrote its part of round 1" } else { "its part of round 0 is there already" };
+        assert!(again.contains(expected), "{again}");
+        let merged: serde_json::Value = serde_json::from_str(&run(&["shards", "run", plan_s, "--jobs", "2"])).unwrap();
+        let what = format!("{shards} shards");
+        same_statistics(&merged, &one, &what);
+        for field in ["a", "b", "level", "spacing_m", "weighting", "weight_ratio"] {
+            assert_eq!(merged[field], one[field], "{what}: {field}");
+        }
+        assert_eq!(merged["histogram"]["count"], one["histogram"]["count"], "{what}");
+        assert_eq!(merged["histogram"]["edges_m"], one["histogram"]["edges_m"], "{what}");
+        let classes = |v: &serde_json::Value| v["by_slope"].as_array().unwrap().clone();
+        for (m, o) in classes(&merged).iter().zip(&classes(&one)) {
+            same_statistics(m, o, &format!("{what}, slope class {}", o["min_deg"]));
+        }
+    }
+    // A part of another plan is refused by name; so is a project changed since the plan.
+    let (three, seven) = (dir.join("plan-3.parts"), dir.join("plan-7.parts"));
+    std::fs::copy(three.join("round-000/shard-000001.json"), seven.join("round-000/shard-000001.json")).unwrap();
+    let refused = terrafuse(&["merge", dir.join("plan-7.json").to_str().unwrap()], "");
+    let said = String::from_utf8_lossy(&refused.stderr).into_owned();
+    assert!(!refused.status.success() && refused.status.code() != Some(3), "{said}");
+    assert!(said.contains("shard-000001.json") && said.contains("another plan"), "{said}");
+    let copy = dir.join("changed.json");
+    std::fs::copy(&p, &copy).unwrap();
+    let plan = dir.join("plan-changed.json");
+    run(&[&["compare", copy.to_str().unwrap()][..], &args[..], &["--plan", plan.to_str().unwrap(), "--shards", "2"]]
+        .concat());
+    let text = std::fs::read_to_string(&copy).unwrap();
+    std::fs::write(&copy, text + " ").unwrap();
+    let refused = terrafuse(&["shard", plan.to_str().unwrap(), "1"], "");
+    let said = String::from_utf8_lossy(&refused.stderr).into_owned();
+    assert!(
+        !refused.status.success() && said.contains("changed.json") && said.contains("changed since the plan"),
+        "{said}"
+    );
+    assert!(!dir.join("plan-changed.parts/round-000").exists(), "a refused shard wrote nothing");
+}

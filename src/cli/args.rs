@@ -67,6 +67,27 @@ pub enum Command {
     /// their overlap at one level, weighted by each sample's cell area on the ellipsoid, by slope
     /// class of B, with a histogram.
     Compare(CompareRequest),
+    /// Compute one shard's part of a sharded comparison's pending round (`compare … --plan`):
+    /// refuses a project or store changed since the plan; does nothing where the part is there.
+    Shard {
+        /// The plan.
+        plan: PathBuf,
+        /// The shard: 0 … N−1, or `env` for the array index of Slurm (SLURM_ARRAY_TASK_ID),
+        /// Kubernetes (JOB_COMPLETION_INDEX) or AWS Batch (AWS_BATCH_JOB_ARRAY_INDEX).
+        shard: String,
+    },
+    /// Join a sharded comparison's parts: print what `compare` prints once every round is
+    /// complete; else exit 3 naming the round and the shards to run (again).
+    Merge {
+        /// The plan.
+        plan: PathBuf,
+    },
+    /// Sharded comparisons on this machine.
+    Shards {
+        /// The subcommand.
+        #[command(subcommand)]
+        command: ShardsCommand,
+    },
     /// Co-register layer A onto layer B (Nuth & Kääb 2011 on the ellipsoid): the horizontal
     /// shift (east, north, metres) and vertical offset that align A with B, and the statistics of
     /// A − B before and after.
@@ -226,6 +247,19 @@ pub struct ImportArgs {
     /// No progress bar.
     #[arg(long)]
     pub quiet: bool,
+}
+
+/// `terrafuse shards …`.
+#[derive(Subcommand)]
+pub enum ShardsCommand {
+    /// Run a plan's pending shards as local processes, round after round, and merge.
+    Run {
+        /// The plan.
+        plan: PathBuf,
+        /// Shard processes at once.
+        #[arg(long, default_value_t = 2, allow_negative_numbers = true)]
+        jobs: usize,
+    },
 }
 
 /// `terrafuse slurm …`.

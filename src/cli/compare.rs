@@ -56,6 +56,17 @@ pub struct CompareRequest {
     /// file in the temporary folder and reads them back in passes, in bounded memory.
     #[arg(long, default_value_t = crate::compare::sample::MEMORY_SAMPLES, allow_negative_numbers = true)]
     pub memory_samples: usize,
+    /// Compute nothing: check the project and arguments, cut the quads into --shards runs along
+    /// a Hilbert curve and write this plan (then `terrafuse shard PLAN I` for each shard and
+    /// `terrafuse merge PLAN`, or `terrafuse shards run PLAN`).
+    #[arg(long, value_name = "PLAN.json", requires = "shards", conflicts_with_all = ["uncertainty", "samples"])]
+    pub plan: Option<PathBuf>,
+    /// With --plan: the number of shards.
+    #[arg(long, requires = "plan", allow_negative_numbers = true)]
+    pub shards: Option<usize>,
+    /// With --plan: the folder of the shards' parts (default: PLAN.parts beside the plan).
+    #[arg(long, requires = "plan")]
+    pub parts: Option<PathBuf>,
 }
 
 /// Parses `--region WEST,SOUTH,EAST,NORTH`.
@@ -66,6 +77,39 @@ fn parse_region(region: Option<&str>) -> Result<Option<GeoBox>, CliError> {
 /// Runs the comparison; returns what to print.
 pub fn compare_command(request: &CompareRequest, fb: &mut Feedback) -> Result<String, CliError> {
     let region = parse_region(request.region.as_deref())?;
+    if let (Some(plan), Some(shards)) = (&request.plan, request.shards) {
+        let opts = CompareOptions {
+            level: request.level,
+            region,
+            weighting: if request.unweighted { Weighting::Samples } else { Weighting::Area },
+            ..CompareOptions::default()
+        };
+        let made = crate::compare::sharded::plan(
+            &request.project,
+            [&request.a, &request.b],
+            &opts,
+            request.json,
+            shards,
+            plan,
+            request.parts.as_deref(),
+        )
+        .within(request.project.display())?;
+        let quads: usize = made.shards.iter().map(Vec::len).sum();
+        return Ok(format!(
+            "planned {} − {} at level {}: {quads} quads in {shards} shards along a Hilbert curve → {} (parts in {})\n\
+             run each shard: terrafuse shard {} I   (I = 0 … {}, or env in a job array)\n\
+             then:           terrafuse merge {}   (or all on this machine: terrafuse shards run {})\n",
+            made.a,
+            made.b,
+            made.level,
+            plan.display(),
+            made.parts.display(),
+            plan.display(),
+            shards - 1,
+            plan.display(),
+            plan.display()
+        ));
+    }
     let project = Project::load(&request.project)?;
     // The uncertainty first: it holds its samples and may refuse a level the statistics take.
     let uncertainty = if request.uncertainty {

@@ -6,7 +6,8 @@
 use std::io::BufReader;
 
 use super::args::{
-    Analysis, Command, ExportArgs, GeoCommand, ImportArgs, ProjectCommand, RenderArgs, SlurmCommand, StoreCommand,
+    Analysis, Command, ExportArgs, GeoCommand, ImportArgs, ProjectCommand, RenderArgs, ShardsCommand, SlurmCommand,
+    StoreCommand,
 };
 use super::console::Console;
 use super::error::Context;
@@ -84,6 +85,11 @@ pub fn run(command: Command, c: &mut Console) -> Result<u8, CliError> {
         }
         Command::Import { import } => run_import(&import, c)?,
         Command::Store { command } => return run_store(command, c),
+        Command::Shard { plan, shard } => return super::sharded::shard_command(&plan, &shard, c),
+        Command::Merge { plan } => return super::sharded::merge_command(&plan, c),
+        Command::Shards { command: ShardsCommand::Run { plan, jobs } } => {
+            return super::sharded::shards_run(&plan, jobs, c);
+        }
         Command::Slurm { command: SlurmCommand::Submit(a) } => {
             c.print(super::slurm_submit(&super::SubmitRequest {
                 manifest: a.manifest,
@@ -299,7 +305,7 @@ fn run_import(import: &ImportArgs, c: &mut Console) -> Result<(), CliError> {
             c.print(super::plan_summary(plan, &report))
         }
         (None, Some(manifest)) => {
-            let shard = shard_index(import.shard.as_deref().unwrap_or_default(), c.var)?;
+            let shard = super::shard::shard_index(import.shard.as_deref().unwrap_or_default(), c.var)?;
             let store = import.store.clone().unwrap_or_default();
             let opts = crate::store::shard::ShardOptions {
                 manifest: manifest.clone(),
@@ -320,22 +326,6 @@ fn run_import(import: &ImportArgs, c: &mut Console) -> Result<(), CliError> {
             c.print(super::import_summary(&opts.store, &report))
         }
     }
-}
-
-/// The shard a task runs: a number, or `env` for the scheduler's array index.
-fn shard_index(text: &str, var: &dyn Fn(&str) -> Option<String>) -> Result<usize, CliError> {
-    if text == "env" {
-        const VARS: [&str; 3] = ["SLURM_ARRAY_TASK_ID", "JOB_COMPLETION_INDEX", "AWS_BATCH_JOB_ARRAY_INDEX"];
-        let (name, value) = VARS
-            .iter()
-            .find_map(|v| var(v).map(|x| (*v, x)))
-            .ok_or_else(|| format!("--shard env: none of {} is set", VARS.join(", ")))?;
-        return value
-            .trim()
-            .parse()
-            .map_err(|_| CliError::Usage(format!("--shard env: {name}={value} is not a shard number")));
-    }
-    text.parse().map_err(|_| CliError::Usage(format!("--shard {text}: give a shard number 0 … N−1, or env")))
 }
 
 /// The import the flags ask for.

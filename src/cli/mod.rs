@@ -24,6 +24,7 @@ mod render;
 mod replay;
 mod report;
 mod shard;
+mod sharded;
 mod slurm;
 mod store;
 

@@ -3,6 +3,8 @@
 use std::fmt::Write as _;
 use std::path::Path;
 
+use super::CliError;
+
 use crate::store::ImportReport;
 use crate::store::merge::MergeReport;
 use crate::store::shard::PlanReport;
@@ -112,6 +114,22 @@ pub fn merge_summary(store: &Path, r: &MergeReport) -> String {
         );
     }
     out
+}
+
+/// The shard a task runs: a number, or `env` for the scheduler's array index.
+pub(super) fn shard_index(text: &str, var: &dyn Fn(&str) -> Option<String>) -> Result<usize, CliError> {
+    if text == "env" {
+        const VARS: [&str; 3] = ["SLURM_ARRAY_TASK_ID", "JOB_COMPLETION_INDEX", "AWS_BATCH_JOB_ARRAY_INDEX"];
+        let (name, value) = VARS
+            .iter()
+            .find_map(|v| var(v).map(|x| (*v, x)))
+            .ok_or_else(|| format!("--shard env: none of {} is set", VARS.join(", ")))?;
+        return value
+            .trim()
+            .parse()
+            .map_err(|_| CliError::Usage(format!("--shard env: {name}={value} is not a shard number")));
+    }
+    text.parse().map_err(|_| CliError::Usage(format!("--shard {text}: give a shard number 0 … N−1, or env")))
 }
 
 #[cfg(test)]

@@ -26,6 +26,7 @@ pub mod pipeline;
 pub mod profile;
 mod quad_geometry;
 pub mod sample;
+pub mod sharded;
 pub mod spill;
 pub mod stable;
 pub mod stats;

@@ -22,7 +22,7 @@ use serde::Serialize;
 
 use super::CompareError;
 use super::quad_geometry::{cell_area, lon_lat, quad_points, slope_deg};
-use super::spill::{NO_CLASS, Record, Spill};
+use super::spill::{NO_CLASS, Record, Records, Spill};
 use super::stats::{Diff, HISTOGRAM_BINS, Histogram, SLOPE_CLASSES_DEG, SlopeClass, Stats, slope_class};
 use super::streamed::{Streamed, held_stats, streamed_stats};
 use crate::ecm::QuadId;
@@ -52,7 +52,7 @@ const CHUNK: usize = 16;
 pub const MEMORY_SAMPLES: usize = 1 << 24;
 
 /// How samples are weighted.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, serde::Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Weighting {
     /// By the area of each sample's cell on the ellipsoid.
@@ -213,38 +213,10 @@ pub fn compare_operands(
     let (scene, _) = Scene::open(project)?;
     let (scene_a, scene_b) = (operand_scene(&scene, project, a)?, operand_scene(&scene, project, b)?);
     let (level, quads) = overlap_quads(&scene_a, &scene_b, opts.level, opts.region)?;
+    let quads = hilbert_ordered(level, quads);
     let ellipsoid = scene_a.ellipsoid;
-    let mut diffs = Differences::new(project, opts, quads.len() * (N - 1) * (N - 1))?;
-    let mut samples = Vec::new();
-    let mut nodata = 0u64;
-    let (mut area_lo, mut area_hi) = (f64::INFINITY, 0f64);
-    super::phase(&opts.watch, "quads", quads.len());
-    for chunk in quads.chunks(CHUNK) {
-        super::tick(&opts.watch, 0)?;
-        let grids_a = scene_a.compose_cpu(chunk)?;
-        let grids_b = scene_b.compose_cpu(chunk)?;
-        for q in chunk {
-            let rows = quad_samples(&ellipsoid, *q, &grids_a[q], &grids_b[q], opts.region, opts.keep_samples);
-            for row in rows {
-                for s in row {
-                    match s {
-                        None => {}
-                        Some(Err(())) => nodata += 1,
-                        Some(Ok(s)) => {
-                            area_lo = area_lo.min(s.area_m2);
-                            area_hi = area_hi.max(s.area_m2);
-                            let weight = if opts.weighting == Weighting::Area { s.area_m2 } else { 1.0 };
-                            diffs.push(Diff { dh_m: s.dh_m, weight, slope_deg: s.slope_deg })?;
-                            if opts.keep_samples {
-                                samples.push(s);
-                            }
-                        }
-                    }
-                }
-            }
-        }
-        super::tick(&opts.watch, chunk.len())?;
-    }
+    let Differenced { diffs, samples, nodata, area: (area_lo, area_hi) } =
+        difference_quads(project, &scene_a, &scene_b, &quads, opts)?;
     super::phase(&opts.watch, "statistics", 0);
     if let Some(region) = opts.region
         && diffs.is_empty()
@@ -277,10 +249,66 @@ pub fn compare_operands(
     Ok(comparison)
 }
 
+/// A comparison's differences over some quads, as `compare` samples them.
+pub(super) struct Differenced<'a> {
+    /// The records, held or spilled.
+    pub(super) diffs: Differences<'a>,
+    /// Every sample, where the options keep them.
+    pub(super) samples: Vec<Sample>,
+    /// Samples with data on one side only.
+    pub(super) nodata: u64,
+    /// The least and the largest cell area compared, m² (∞ and 0 without any).
+    pub(super) area: (f64, f64),
+}
+
+/// The differences of `quads` (in their order, composed [`CHUNK`] at a time, counted on the
+/// options' watch).
+pub(super) fn difference_quads<'a>(
+    project: &Project,
+    scene_a: &Scene,
+    scene_b: &Scene,
+    quads: &[QuadId],
+    opts: &'a CompareOptions,
+) -> Result<Differenced<'a>, CompareError> {
+    let ellipsoid = scene_a.ellipsoid;
+    let mut diffs = Differences::new(project, opts, quads.len() * (N - 1) * (N - 1))?;
+    let mut samples = Vec::new();
+    let mut nodata = 0u64;
+    let (mut area_lo, mut area_hi) = (f64::INFINITY, 0f64);
+    super::phase(&opts.watch, "quads", quads.len());
+    for chunk in quads.chunks(CHUNK) {
+        super::tick(&opts.watch, 0)?;
+        let grids_a = scene_a.compose_cpu(chunk)?;
+        let grids_b = scene_b.compose_cpu(chunk)?;
+        for q in chunk {
+            let rows = quad_samples(&ellipsoid, *q, &grids_a[q], &grids_b[q], opts.region, opts.keep_samples);
+            for row in rows {
+                for s in row {
+                    match s {
+                        None => {}
+                        Some(Err(())) => nodata += 1,
+                        Some(Ok(s)) => {
+                            area_lo = area_lo.min(s.area_m2);
+                            area_hi = area_hi.max(s.area_m2);
+                            let weight = if opts.weighting == Weighting::Area { s.area_m2 } else { 1.0 };
+                            diffs.push(Diff { dh_m: s.dh_m, weight, slope_deg: s.slope_deg })?;
+                            if opts.keep_samples {
+                                samples.push(s);
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        super::tick(&opts.watch, chunk.len())?;
+    }
+    Ok(Differenced { diffs, samples, nodata, area: (area_lo, area_hi) })
+}
+
 /// A comparison's differences, each with its slope class: in memory, or spilled to a scratch file
 /// where there may be more than the options hold in memory. Their statistics are made the same
 /// way from either ([`streamed_stats`]).
-enum Differences<'a> {
+pub(super) enum Differences<'a> {
     Memory(Vec<Record>, &'a [f64]),
     Spilled(Spill, &'a [f64]),
 }
@@ -321,6 +349,17 @@ impl<'a> Differences<'a> {
             Differences::Memory(records, _) => records.is_empty(),
             Differences::Spilled(spill, _) => spill.is_empty(),
         }
+    }
+
+    /// The records, to read in passes.
+    pub(super) fn into_records(self) -> Result<Box<dyn Records + 'a>, CompareError> {
+        Ok(match self {
+            Differences::Memory(records, _) => Box::new(records),
+            Differences::Spilled(mut spill, _) => {
+                spill.finish().map_err(|e| spill_error(&spill, e))?;
+                Box::new(spill)
+            }
+        })
     }
 
     /// Their statistics, histogram and slope classes.
@@ -468,6 +507,15 @@ pub(super) fn overlap_quads(
         });
     };
     Ok((level, quads.into_iter().collect()))
+}
+
+/// Quads of one level face by face, each face's along a Hilbert curve: the order a comparison
+/// reads them in, and the one a sharded comparison's plan cuts into runs (so its shards joined in
+/// order read the records one process reads, in the same order).
+pub(super) fn hilbert_ordered(level: u8, quads: impl IntoIterator<Item = QuadId>) -> Vec<QuadId> {
+    let mut quads: Vec<QuadId> = quads.into_iter().collect();
+    quads.sort_by_key(|q| (q.face, crate::store::shard::hilbert_index(level, q.x, q.y)));
+    quads
 }
 
 /// The quads of `level` for which `reaches` holds, found down the quadtree from the six faces (a

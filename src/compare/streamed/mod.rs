@@ -18,12 +18,14 @@
 
 use std::io;
 
+use serde::{Deserialize, Serialize};
+
 use super::spill::{NO_CLASS, Record, Records};
 use super::stats::{Histogram, NMAD_FACTOR, SlopeClass, Stats};
 
 mod search;
 
-use search::{COLLECT, Gathered, Job, PART, Quantiles, Reading, Search, gather};
+use search::{COLLECT, Gathered, GatheredFile, Job, PART, Quantiles, Reading, Search, gather};
 
 /// Sums over one population in record order, as `stats` sums them.
 #[derive(Clone, Copy, Debug)]
@@ -103,6 +105,75 @@ impl Gave {
         }
         self.gathered.iter_mut().zip(next.gathered).for_each(|(g, n)| g.join(n));
     }
+
+    /// As a part file holds it: every f64 as its bits, nothing rounded.
+    pub fn to_file(&self) -> GaveFile {
+        let bits = |m: &Moments| (m.count, [m.w, m.wx, m.wxx, m.lo, m.hi].map(f64::to_bits));
+        GaveFile {
+            moments: self.moments.iter().map(bits).collect(),
+            spread: self.spread.iter().map(|s| s.to_bits()).collect(),
+            histogram: self
+                .histogram
+                .as_ref()
+                .map(|h| (h.count.clone(), h.weight.iter().map(|w| w.to_bits()).collect())),
+            gathered: self.gathered.iter().map(Gathered::to_file).collect(),
+        }
+    }
+
+    /// What `pass` gave, from a part file; Err names what does not fit the pass.
+    pub fn from_file(file: &GaveFile, pass: &Pass) -> Result<Gave, BadPart> {
+        if file.moments.len() != file.spread.len() || file.gathered.len() != pass.searches.len() {
+            return Err(BadPart(format!(
+                "{} populations' sums, {} spreads and {} searches, for a pass of {} searches",
+                file.moments.len(),
+                file.spread.len(),
+                file.gathered.len(),
+                pass.searches.len()
+            )));
+        }
+        let moments = file
+            .moments
+            .iter()
+            .map(|&(count, [w, wx, wxx, lo, hi])| {
+                let f = f64::from_bits;
+                Moments { count, w: f(w), wx: f(wx), wxx: f(wxx), lo: f(lo), hi: f(hi) }
+            })
+            .collect();
+        let histogram = match (pass.spread.as_ref().and_then(|(_, h)| h.clone()), &file.histogram) {
+            (None, None) => None,
+            (Some(mut h), Some((count, weight))) if count.len() == h.count.len() && weight.len() == h.count.len() => {
+                h.count.clone_from(count);
+                h.weight = weight.iter().map(|&w| f64::from_bits(w)).collect();
+                Some(h)
+            }
+            _ => return Err(BadPart("a histogram that is not the pass's".into())),
+        };
+        Ok(Gave {
+            moments,
+            spread: file.spread.iter().map(|&s| f64::from_bits(s)).collect(),
+            histogram,
+            gathered: file.gathered.iter().map(Gathered::from_file).collect::<Result<_, _>>()?,
+        })
+    }
+}
+
+/// A part file's result that does not fit its pass: what is wrong.
+#[derive(Debug, thiserror::Error)]
+#[error("{0}")]
+pub struct BadPart(pub String);
+
+/// What a pass gave, as a part file holds it (f64 as bits).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GaveFile {
+    /// Each population's count and sums (w, wx, wxx, least, largest).
+    moments: Vec<(u64, [u64; 5])>,
+    /// Each population's spread about its mean.
+    spread: Vec<u64>,
+    /// The histogram's counts and weights.
+    histogram: Option<(Vec<u64>, Vec<u64>)>,
+    /// Each search's candidates.
+    gathered: Vec<GatheredFile>,
 }
 
 /// The populations: 0 every difference, 1 + k slope class k.
@@ -173,6 +244,12 @@ impl Statistics {
             histogram: None,
             stage: Stage::Moments,
         }
+    }
+
+    /// Runs `pass` over `records` (all of them, or a part whose result is joined with the
+    /// others' in order).
+    pub fn run(&self, records: &dyn Records, pass: &Pass) -> io::Result<Gave> {
+        run_pass(records, pass, self.populations, Reading { collect: self.collect, part: PART })
     }
 
     /// The next pass, None once the statistics are found.

@@ -4,11 +4,13 @@
 //! pass ([`Quantiles`]). A pass's candidates gathered over consecutive parts of the records join
 //! in order to what one scan gives, bit for bit: the counts are integers, the weights exact sums
 //! ([`ExactSum`]), the first candidate and the largest key order-free, the candidates read kept
-//! in record order.
+//! in record order (equal places in the order the records came: one process and its shards
+//! joined in order read them the same way).
 
 use std::io;
 
 use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
 
 use super::super::spill::{Record, Records};
 use super::super::stats::{order_key, order_value};
@@ -80,7 +82,7 @@ impl Bucket {
         self.count += 1;
         self.weight.add(weight);
         self.max = self.max.max(place.key);
-        if self.count == 1 || place < self.first.0 {
+        if self.count == 1 || before((place, weight), self.first) {
             self.first = (place, weight);
         }
     }
@@ -90,7 +92,7 @@ impl Bucket {
         if next.count == 0 {
             return;
         }
-        if self.count == 0 || next.first.0 < self.first.0 {
+        if self.count == 0 || before(next.first, self.first) {
             self.first = next.first;
         }
         self.count += next.count;
@@ -258,21 +260,77 @@ impl Gathered {
         self.candidates.extend(next.candidates);
         self.buckets.join(next.buckets);
     }
+
+    /// As a part file holds it: nothing rounded.
+    pub(super) fn to_file(&self) -> GatheredFile {
+        let element = |(p, w): (Place, f64)| (p.key, p.above, p.value, w.to_bits());
+        GatheredFile {
+            buckets: self
+                .buckets
+                .filled()
+                .map(|(digit, b)| (digit as u32, b.count, b.weight.units().to_string(), b.max, element(b.first)))
+                .collect(),
+            candidates: self.candidates.iter().map(|&c| element(c)).collect(),
+        }
+    }
+
+    /// From a part file; Err names what is wrong.
+    pub(super) fn from_file(file: &GatheredFile) -> Result<Gathered, super::BadPart> {
+        let element = |(key, above, value, w): (u64, bool, u64, u64)| (Place { key, above, value }, f64::from_bits(w));
+        let mut g = Gathered::empty();
+        for (digit, count, units, max, first) in &file.buckets {
+            if *digit >= 1 << DIGIT_BITS || *count == 0 {
+                return Err(super::BadPart(format!("bucket {digit} with {count} candidates")));
+            }
+            let units: i128 =
+                units.parse().map_err(|_| super::BadPart(format!("bucket {digit}: weight '{units}' is not a sum")))?;
+            *g.buckets.at(*digit as usize) =
+                Bucket { count: *count, weight: ExactSum::from_units(units), max: *max, first: element(*first) };
+        }
+        g.candidates = file.candidates.iter().map(|&c| element(c)).collect();
+        Ok(g)
+    }
+}
+
+/// A search's candidates as a part file holds them: each bucket that has some (its digit, count,
+/// weight in units of 2⁻⁶⁴ as text, largest key and first element), and the candidates read; an
+/// element is (key, above the centre, value key, weight's bits).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GatheredFile {
+    buckets: Vec<(u32, u64, String, u64, ElementFile)>,
+    candidates: Vec<ElementFile>,
+}
+
+/// An element as a part file holds it: (key, above the centre, value key, weight's bits).
+type ElementFile = (u64, bool, u64, u64);
+
+/// Whether element `a` comes before `b`: by place (equal places keep the records' order).
+fn before(a: (Place, f64), b: (Place, f64)) -> bool {
+    a.0 < b.0
+}
+
+/// Candidates in order: by place, stably (equal places keep the records' order).
+fn sort(candidates: &mut [(Place, f64)]) {
+    candidates.sort_by_key(|c| c.0);
 }
 
 /// The quantile from its candidates read: sorted (stably) and walked from `below` as
 /// [`weighted_quantile`](super::stats::weighted_quantile) walks the whole set.
 fn walk(search: &Search, mut candidates: Vec<(Place, f64)>) -> f64 {
-    candidates.sort_by_key(|c| c.0);
+    sort(&mut candidates);
     walk_sorted(search, &candidates)
 }
 
-/// [`walk`] of candidates already sorted.
+/// [`walk`] of candidates already sorted. The weights past `below` are summed exactly (as the
+/// buckets' are).
 fn walk_sorted(search: &Search, candidates: &[(Place, f64)]) -> f64 {
     let (mut below, mut before) = (search.below, search.before);
+    let mut past = ExactSum::default();
     for &(place, weight) in candidates {
         let x = order_value(place.key);
-        let at = below + weight;
+        past.add(weight);
+        let at = search.below + past.value();
         if at >= search.goal {
             return match before {
                 Some(v) => {
@@ -366,7 +424,7 @@ impl Quantiles {
     /// The first pass: each job's whole population, counted or read.
     fn take_tops(&mut self, whole: Vec<Search>, tops: Vec<Gathered>) {
         for (j, mut top) in tops.into_iter().enumerate() {
-            top.candidates.sort_by_key(|c| c.0);
+            sort(&mut top.candidates);
             let (count, first, total): (u64, _, f64) = if self.few {
                 let mut total = ExactSum::default();
                 top.candidates.iter().for_each(|c| total.add(c.1));

@@ -1,0 +1,492 @@
+//! A comparison cut into shards, as the import is: a plan that fixes everything deciding the
+//! result, shards that each compute their part of the pending pass over their own quads, and a
+//! merge that joins the parts in order and either finishes or names the next round.
+//!
+//! The plan (`PLAN.json`, written atomically, its `hash` the SHA-256 of itself with that field
+//! empty) holds the project's path and SHA-256, each dataset store's size and modification time,
+//! the operands, level, region, weighting and slope classes, and the quads of the level ordered
+//! along a Hilbert curve per face and cut into N runs of equal size ±1. A round is one pass of the
+//! statistics ([`Statistics`]); shard I's part of round R is `PARTS/round-R/shard-I.json`, written
+//! atomically (complete or absent), holding the pass's result over that shard's quads with every
+//! f64 as its bits. The merge and the shards replay the rounds already complete from their parts
+//! (joined in shard order) to know the pending pass, so nothing else is kept between rounds.
+//! One `compare` reads its quads in the same order (face by face along the curve), and the
+//! statistics' quantile search sums its weights exactly, so the shards' parts joined in order
+//! give the counts and quantiles of one `compare` bit for bit; the moments agree within rounding
+//! (their sums are grouped by shard).
+
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
+use sha2::{Digest, Sha256};
+
+use super::CompareError;
+use super::sample::{
+    CompareOptions, Comparison, Differenced, Weighting, difference_quads, hilbert_ordered, operand, operand_scene,
+    overlap_quads,
+};
+use super::stats::SLOPE_CLASSES_DEG;
+use super::streamed::{Gave, GaveFile, Statistics, Streamed};
+use crate::ecm::grid::spacing_m;
+use crate::ecm::{Face, QuadId};
+use crate::geodesy::GeoBox;
+use crate::project::Project;
+use crate::scene::Scene;
+
+/// The plan's format name.
+pub const PLAN_FORMAT: &str = "terrafuse-compare-plan";
+/// A part's format name.
+pub const PART_FORMAT: &str = "terrafuse-compare-part";
+/// The version this build writes and reads.
+pub const PLAN_VERSION: u32 = 1;
+/// The most shards a plan may have.
+pub const MAX_SHARDS: usize = 1 << 16;
+/// Rounds at most (the statistics take eight to twelve passes).
+const MAX_ROUNDS: u32 = 64;
+
+/// A file the plan depends on, as it was when planned.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Stamp {
+    /// The file.
+    pub path: PathBuf,
+    /// Its size, bytes.
+    pub bytes: u64,
+    /// Its modification time, nanoseconds since the epoch.
+    pub modified_ns: u128,
+}
+
+/// A sharded comparison's plan.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ComparePlan {
+    /// Always [`PLAN_FORMAT`].
+    pub format: String,
+    /// [`PLAN_VERSION`].
+    pub version: u32,
+    /// SHA-256 (hex) of the plan with this field empty: every part names it.
+    pub hash: String,
+    /// The project file, absolute.
+    pub project: PathBuf,
+    /// SHA-256 (hex) of the project file's bytes.
+    pub project_sha256: String,
+    /// The project's dataset stores.
+    pub stores: Vec<Stamp>,
+    /// Operand A, as the command line named it.
+    pub a: String,
+    /// Operand B, the reference.
+    pub b: String,
+    /// The level compared.
+    pub level: u8,
+    /// WEST, SOUTH, EAST, NORTH, degrees, if any.
+    pub region: Option<[f64; 4]>,
+    /// How samples are weighted.
+    pub weighting: Weighting,
+    /// Slope class edges, degrees.
+    pub slope_classes_deg: Vec<f64>,
+    /// Print the merged result as `compare --json` does.
+    pub json: bool,
+    /// The parts' folder, absolute.
+    pub parts: PathBuf,
+    /// Each shard's quads of `level`, as `[face, x, y]` (face in `Face::ALL` order), contiguous
+    /// along the curve.
+    pub shards: Vec<Vec<[u32; 3]>>,
+}
+
+/// One shard's part of one round.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Part {
+    format: String,
+    plan: String,
+    round: u32,
+    shard: usize,
+    /// Samples with data on one side only.
+    nodata: u64,
+    /// The least and the largest cell area compared (bits).
+    area: [u64; 2],
+    gave: GaveFile,
+}
+
+/// What a merge found.
+pub enum Merged {
+    /// The comparison, as `compare` gives it.
+    Done(Box<Comparison>),
+    /// Round `round` lacks these shards' parts.
+    Pending {
+        /// The round.
+        round: u32,
+        /// The shards to run.
+        shards: Vec<usize>,
+    },
+}
+
+/// What a shard did.
+pub enum Sharded {
+    /// Wrote its part of this round.
+    Wrote(u32),
+    /// Its part of this round was there already (the round waits for other shards').
+    Already(u32),
+    /// The comparison is complete: nothing to do.
+    Complete,
+}
+
+fn sha256_hex(bytes: &[u8]) -> String {
+    Sha256::digest(bytes).iter().map(|b| format!("{b:02x}")).collect()
+}
+
+fn file_error(path: &Path, problem: impl std::fmt::Display) -> CompareError {
+    CompareError::File { path: path.to_path_buf(), problem: problem.to_string() }
+}
+
+/// A file's stamp.
+fn stamp(path: &Path) -> Result<Stamp, CompareError> {
+    let meta = std::fs::metadata(path).map_err(|e| file_error(path, format!("cannot read: {e}")))?;
+    let modified = meta.modified().ok().and_then(|t| t.duration_since(std::time::UNIX_EPOCH).ok());
+    Ok(Stamp { path: path.to_path_buf(), bytes: meta.len(), modified_ns: modified.map_or(0, |d| d.as_nanos()) })
+}
+
+/// The stamps of a project's file and dataset stores.
+fn inputs(project_path: &Path, project: &Project) -> Result<(String, Vec<Stamp>), CompareError> {
+    let bytes = std::fs::read(project_path).map_err(|e| file_error(project_path, format!("cannot read: {e}")))?;
+    let stores = project
+        .layers
+        .iter()
+        .filter_map(|l| l.as_dataset())
+        .map(|d| stamp(&project.resolve(&d.store)))
+        .collect::<Result<_, _>>()?;
+    Ok((sha256_hex(&bytes), stores))
+}
+
+impl ComparePlan {
+    /// The SHA-256 of the plan with its hash field empty.
+    fn digest(&self) -> String {
+        let mut bare = self.clone();
+        bare.hash.clear();
+        sha256_hex(serde_json::to_string(&bare).unwrap_or_default().as_bytes())
+    }
+
+    /// Reads a plan and checks its format, version and hash.
+    pub fn load(path: &Path) -> Result<ComparePlan, CompareError> {
+        let text = std::fs::read_to_string(path).map_err(|e| file_error(path, format!("cannot read the plan: {e}")))?;
+        let plan: ComparePlan =
+            serde_json::from_str(&text).map_err(|e| file_error(path, format!("not a comparison plan: {e}")))?;
+        if plan.format != PLAN_FORMAT || plan.version != PLAN_VERSION {
+            return Err(file_error(
+                path,
+                format!(
+                    "format {} version {}: this build reads {PLAN_FORMAT} version {PLAN_VERSION}",
+                    plan.format, plan.version
+                ),
+            ));
+        }
+        if plan.digest() != plan.hash {
+            return Err(file_error(path, "its hash does not match its contents: the plan was edited or damaged"));
+        }
+        Ok(plan)
+    }
+
+    /// Refuses a project or store that changed since the plan, naming it.
+    fn check_inputs(&self) -> Result<Project, CompareError> {
+        let project = Project::load(&self.project).map_err(|e| file_error(&self.project, e))?;
+        let (sha, stores) = inputs(&self.project, &project)?;
+        if sha != self.project_sha256 {
+            return Err(file_error(&self.project, "the project changed since the plan was made: make the plan again"));
+        }
+        for (now, then) in stores.iter().zip(&self.stores) {
+            if now != then {
+                return Err(file_error(&now.path, "the store changed since the plan was made: make the plan again"));
+            }
+        }
+        if stores.len() != self.stores.len() {
+            return Err(file_error(&self.project, "its datasets changed since the plan was made: make the plan again"));
+        }
+        Ok(project)
+    }
+
+    fn options(&self) -> Result<CompareOptions, CompareError> {
+        let region = match self.region {
+            None => None,
+            Some([w, s, e, n]) => Some(
+                GeoBox::new(w, s, e, n)
+                    .map_err(|e| CompareError::Option { option: "--region".into(), problem: e.to_string() })?,
+            ),
+        };
+        Ok(CompareOptions {
+            level: Some(self.level),
+            region,
+            weighting: self.weighting,
+            slope_classes_deg: self.slope_classes_deg.clone(),
+            ..CompareOptions::default()
+        })
+    }
+
+    fn part_path(&self, round: u32, shard: usize) -> PathBuf {
+        self.parts.join(format!("round-{round:03}")).join(format!("shard-{shard:06}.json"))
+    }
+
+    /// Shard `shard`'s part of `round`, if written; Err for one that is not this plan's.
+    fn part(&self, round: u32, shard: usize) -> Result<Option<Part>, CompareError> {
+        let path = self.part_path(round, shard);
+        let text = match std::fs::read_to_string(&path) {
+            Ok(t) => t,
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
+            Err(e) => return Err(file_error(&path, format!("cannot read the part: {e}"))),
+        };
+        let part: Part = serde_json::from_str(&text).map_err(|e| file_error(&path, format!("not a part: {e}")))?;
+        if part.format != PART_FORMAT || part.plan != self.hash || part.round != round || part.shard != shard {
+            return Err(file_error(
+                &path,
+                format!(
+                    "a part of another plan or place (plan {}, round {}, shard {})",
+                    part.plan, part.round, part.shard
+                ),
+            ));
+        }
+        Ok(Some(part))
+    }
+
+    /// The statistics with every complete round taken, the round pending (None once done), the
+    /// shards missing from it, and the samples' counts from round 0.
+    fn replay(&self) -> Result<Standing, CompareError> {
+        let mut statistics = Statistics::new(&self.slope_classes_deg, super::stats::HISTOGRAM_BINS);
+        let mut replayed = Replayed { nodata: 0, area: (f64::INFINITY, 0.0), round: 0, missing: Vec::new() };
+        while let Some(pass) = statistics.pass() {
+            if replayed.round >= MAX_ROUNDS {
+                return Err(file_error(
+                    &self.parts,
+                    format!("more than {MAX_ROUNDS} rounds: the parts are not this plan's"),
+                ));
+            }
+            let mut joined: Option<Gave> = None;
+            for shard in 0..self.shards.len() {
+                let Some(part) = self.part(replayed.round, shard)? else {
+                    replayed.missing.push(shard);
+                    continue;
+                };
+                let path = self.part_path(replayed.round, shard);
+                let gave = Gave::from_file(&part.gave, &pass).map_err(|e| file_error(&path, e))?;
+                if replayed.round == 0 {
+                    replayed.nodata += part.nodata;
+                    replayed.area = (
+                        replayed.area.0.min(f64::from_bits(part.area[0])),
+                        replayed.area.1.max(f64::from_bits(part.area[1])),
+                    );
+                }
+                match joined.as_mut() {
+                    None => joined = Some(gave),
+                    Some(j) => j.join(gave),
+                }
+            }
+            if !replayed.missing.is_empty() {
+                return Ok((statistics, Some(pass), replayed).into());
+            }
+            if let Some(gave) = joined {
+                statistics.take(gave);
+            }
+            replayed.round += 1;
+        }
+        Ok((statistics, None, replayed).into())
+    }
+}
+
+/// Where the rounds stand.
+struct Replayed {
+    nodata: u64,
+    area: (f64, f64),
+    round: u32,
+    missing: Vec<usize>,
+}
+
+/// The statistics after the complete rounds, and the pending pass.
+struct Standing {
+    statistics: Statistics,
+    pass: Option<super::streamed::Pass>,
+    replayed: Replayed,
+}
+
+impl From<(Statistics, Option<super::streamed::Pass>, Replayed)> for Standing {
+    fn from((statistics, pass, replayed): (Statistics, Option<super::streamed::Pass>, Replayed)) -> Standing {
+        Standing { statistics, pass, replayed }
+    }
+}
+
+/// Plans a comparison of `a` with `b` of the project at `project_path` in `shards` shards:
+/// checks everything as `compare` would, writes the plan to `plan_path` atomically (its parts to
+/// go to `parts`, default `PLAN.parts` beside it) and computes nothing else.
+pub fn plan(
+    project_path: &Path,
+    [a, b]: [&str; 2],
+    opts: &CompareOptions,
+    json: bool,
+    shards: usize,
+    plan_path: &Path,
+    parts: Option<&Path>,
+) -> Result<ComparePlan, CompareError> {
+    if !(1..=MAX_SHARDS).contains(&shards) {
+        return Err(CompareError::Option {
+            option: "--shards".into(),
+            problem: format!("{shards}: give 1 … {MAX_SHARDS}"),
+        });
+    }
+    let absolute = |p: &Path| std::path::absolute(p).map_err(|e| file_error(p, e));
+    let project_path = absolute(project_path)?;
+    let project = Project::load(&project_path).map_err(|e| file_error(&project_path, e))?;
+    let (oa, ob) = (operand(&project, a), operand(&project, b));
+    if oa == ob {
+        return Err(CompareError::Option { option: "B".into(), problem: format!("'{oa}' compared with itself") });
+    }
+    let (scene, _) = Scene::open(&project)?;
+    let (scene_a, scene_b) = (operand_scene(&scene, &project, &oa)?, operand_scene(&scene, &project, &ob)?);
+    let (level, quads) = overlap_quads(&scene_a, &scene_b, opts.level, opts.region)?;
+    let quads = hilbert_ordered(level, quads);
+    if quads.len() < shards {
+        return Err(CompareError::Option {
+            option: "--shards".into(),
+            problem: format!(
+                "{shards} shards for {} quads at level {level}: give at most {}",
+                quads.len(),
+                quads.len()
+            ),
+        });
+    }
+    // Already along the curve, face by face: the order one `compare` reads them in.
+    let ordered: Vec<[u32; 3]> = quads.iter().map(|q| [q.face as u32, q.x, q.y]).collect();
+    let (per, extra) = (ordered.len() / shards, ordered.len() % shards);
+    let mut cut = Vec::with_capacity(shards);
+    let mut rest = ordered.as_slice();
+    for k in 0..shards {
+        let (head, tail) = rest.split_at(per + usize::from(k < extra));
+        cut.push(head.to_vec());
+        rest = tail;
+    }
+    let plan_path = absolute(plan_path)?;
+    let parts = match parts {
+        Some(p) => absolute(p)?,
+        None => plan_path.with_extension("parts"),
+    };
+    let (project_sha256, stores) = inputs(&project_path, &project)?;
+    let mut plan = ComparePlan {
+        format: PLAN_FORMAT.into(),
+        version: PLAN_VERSION,
+        hash: String::new(),
+        project: project_path,
+        project_sha256,
+        stores,
+        a: a.into(),
+        b: b.into(),
+        level,
+        region: opts.region.map(|r| [r.west_deg, r.south_deg, r.east_deg, r.north_deg]),
+        weighting: opts.weighting,
+        slope_classes_deg: if opts.slope_classes_deg.is_empty() {
+            SLOPE_CLASSES_DEG.to_vec()
+        } else {
+            opts.slope_classes_deg.clone()
+        },
+        json,
+        parts,
+        shards: cut,
+    };
+    plan.hash = plan.digest();
+    std::fs::create_dir_all(&plan.parts)
+        .map_err(|e| file_error(&plan.parts, format!("cannot create the parts' folder: {e}")))?;
+    let text = serde_json::to_string_pretty(&plan).map_err(|e| file_error(&plan_path, e))?;
+    crate::files::write_atomic(&plan_path, text.as_bytes())
+        .map_err(|e| file_error(&plan_path, format!("cannot write: {e}")))?;
+    Ok(plan)
+}
+
+/// Computes shard `shard`'s part of the plan's pending round (nothing where it is written
+/// already or the comparison is complete), after checking that the project and its stores are
+/// as planned; differences past what memory holds go to a scratch file in `scratch` (default:
+/// the project's folder), counted and cancelled on `watch`.
+pub fn shard(
+    plan_path: &Path,
+    shard: usize,
+    scratch: Option<PathBuf>,
+    watch: Option<std::sync::Arc<crate::progress::Watch>>,
+) -> Result<Sharded, CompareError> {
+    let plan = ComparePlan::load(plan_path)?;
+    if shard >= plan.shards.len() {
+        return Err(CompareError::Option {
+            option: "SHARD".into(),
+            problem: format!("{shard}: the plan has shards 0 … {}", plan.shards.len() - 1),
+        });
+    }
+    let project = plan.check_inputs()?;
+    let standing = plan.replay()?;
+    let Some(pass) = standing.pass else {
+        return Ok(Sharded::Complete);
+    };
+    let round = standing.replayed.round;
+    if !standing.replayed.missing.contains(&shard) {
+        return Ok(Sharded::Already(round));
+    }
+    let opts = CompareOptions { watch, scratch, ..plan.options()? };
+    let (scene, _) = Scene::open(&project)?;
+    let (oa, ob) = (operand(&project, &plan.a), operand(&project, &plan.b));
+    let (scene_a, scene_b) = (operand_scene(&scene, &project, &oa)?, operand_scene(&scene, &project, &ob)?);
+    let quads: Vec<QuadId> = plan.shards[shard]
+        .iter()
+        .map(|&[f, x, y]| QuadId { face: Face::ALL[f as usize % 6], level: plan.level, x, y })
+        .collect();
+    let Differenced { diffs, nodata, area, .. } = difference_quads(&project, &scene_a, &scene_b, &quads, &opts)?;
+    let records = diffs.into_records()?;
+    let gave = standing.statistics.run(&*records, &pass).map_err(|e| file_error(&plan.parts, e))?;
+    let part = Part {
+        format: PART_FORMAT.into(),
+        plan: plan.hash.clone(),
+        round,
+        shard,
+        nodata,
+        area: [area.0.to_bits(), area.1.to_bits()],
+        gave: gave.to_file(),
+    };
+    let path = plan.part_path(round, shard);
+    if let Some(dir) = path.parent() {
+        std::fs::create_dir_all(dir).map_err(|e| file_error(dir, format!("cannot create: {e}")))?;
+    }
+    let text = serde_json::to_string(&part).map_err(|e| file_error(&path, e))?;
+    crate::files::write_atomic(&path, text.as_bytes()).map_err(|e| file_error(&path, format!("cannot write: {e}")))?;
+    Ok(Sharded::Wrote(round))
+}
+
+/// Joins the plan's parts: the comparison where every round is complete, else the round and
+/// shards still to run. Every part is checked before anything is reported.
+pub fn merge(plan_path: &Path) -> Result<Merged, CompareError> {
+    let plan = ComparePlan::load(plan_path)?;
+    let project = plan.check_inputs()?;
+    let standing = plan.replay()?;
+    if standing.pass.is_some() {
+        return Ok(Merged::Pending { round: standing.replayed.round, shards: standing.replayed.missing });
+    }
+    let Replayed { nodata, area: (area_lo, area_hi), .. } = standing.replayed;
+    let Some(Streamed { stats, histogram, by_slope }) = standing.statistics.finish(nodata) else {
+        return Err(file_error(&plan.parts, "the statistics stopped before their last round"));
+    };
+    let (oa, ob) = (operand(&project, &plan.a), operand(&project, &plan.b));
+    if let Some([w, s, e, n]) = plan.region
+        && stats.count == 0
+    {
+        return Err(CompareError::Option {
+            option: "--region".into(),
+            problem: format!(
+                "{w},{s},{e},{n}: no sample inside has data in both {oa} and {ob} (the order is WEST,SOUTH,EAST,NORTH)"
+            ),
+        });
+    }
+    let ellipsoid = project.ellipsoid()?;
+    Ok(Merged::Done(Box::new(Comparison {
+        a: oa.label(),
+        b: ob.label(),
+        level: plan.level,
+        spacing_m: spacing_m(&ellipsoid, plan.level),
+        weighting: plan.weighting,
+        area_km2: if plan.weighting == Weighting::Samples { f64::NAN } else { stats.weight_sum / 1e6 },
+        weight_ratio: if stats.count == 0 { f64::NAN } else { area_hi / area_lo },
+        stats,
+        histogram,
+        by_slope,
+        samples: Vec::new(),
+    })))
+}
