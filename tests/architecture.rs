@@ -113,27 +113,7 @@ const ALLOWED: &[(&str, &[&str])] = &[
     ),
     // A project's composed stack written as a GeoTIFF, band by band: what the command line and,
     // one day, the workstation export.
-    (
-        "export",
-        &[
-            "attributes",
-            "errors",
-            "files",
-            "progress",
-            "maths",
-            "colour",
-            "geodesy",
-            "ecm",
-            "store",
-            "edit",
-            "erosion",
-            "layers",
-            "project",
-            "scene",
-            "gpu",
-            "compare",
-        ],
-    ),
+    ("export", &["gpu", "compare"]),
     (
         "gui",
         &[
