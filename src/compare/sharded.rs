@@ -279,14 +279,14 @@ impl ComparePlan {
                 }
             }
             if !replayed.missing.is_empty() {
-                return Ok((statistics, Some(pass), replayed).into());
+                return Ok(Standing { statistics, pass: Some(pass), replayed });
             }
             if let Some(gave) = joined {
                 statistics.take(gave);
             }
             replayed.round += 1;
         }
-        Ok((statistics, None, replayed).into())
+        Ok(Standing { statistics, pass: None, replayed })
     }
 }
 
@@ -303,12 +303,6 @@ struct Standing {
     statistics: Statistics,
     pass: Option<super::streamed::Pass>,
     replayed: Replayed,
-}
-
-impl From<(Statistics, Option<super::streamed::Pass>, Replayed)> for Standing {
-    fn from((statistics, pass, replayed): (Statistics, Option<super::streamed::Pass>, Replayed)) -> Standing {
-        Standing { statistics, pass, replayed }
-    }
 }
 
 /// Plans a comparison of `a` with `b` of the project at `project_path` in `shards` shards:
