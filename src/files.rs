@@ -9,6 +9,8 @@
 
 pub mod lock;
 
+use sha2::{Digest, Sha256};
+
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -124,4 +126,9 @@ mod tests {
         assert!(!dead.exists() && alive.exists() && other.exists());
         std::fs::remove_dir_all(&dir).unwrap();
     }
+}
+
+/// The SHA-256 of `bytes`, as lower-case hex (how plans, manifests and parts name a digest).
+pub fn sha256_hex(bytes: &[u8]) -> String {
+    Sha256::digest(bytes).iter().map(|b| format!("{b:02x}")).collect()
 }

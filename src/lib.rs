@@ -25,6 +25,7 @@ pub mod gpu;
 pub mod gui;
 pub mod layers;
 pub mod maths;
+pub mod plan;
 pub mod progress;
 pub mod project;
 pub mod replay;

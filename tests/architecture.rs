@@ -46,6 +46,8 @@ const ALLOWED: &[(&str, &[&str])] = &[
             "layers",
         ],
     ),
+    // What every command's shard plan shares: the inputs' stamps, the hash, the cut.
+    ("plan", &["files", "project"]),
     (
         "scene",
         &[
@@ -69,6 +71,7 @@ const ALLOWED: &[(&str, &[&str])] = &[
             "erosion",
             "layers",
             "project",
+            "plan",
             "scene",
         ],
     ),
@@ -113,7 +116,7 @@ const ALLOWED: &[(&str, &[&str])] = &[
     ),
     // A project's composed stack written as a GeoTIFF, band by band: what the command line and,
     // one day, the workstation export.
-    ("export", &["gpu", "compare"]),
+    ("export", &["gpu", "compare", "plan"]),
     (
         "gui",
         &[

@@ -55,6 +55,9 @@ pub enum CliError {
     /// A comparison.
     #[error(transparent)]
     Compare(#[from] crate::compare::CompareError),
+    /// A shard plan, or a file it names.
+    #[error(transparent)]
+    Plan(#[from] crate::plan::PlanError),
     /// A replay.
     #[error(transparent)]
     Replay(#[from] crate::replay::ReplayError),

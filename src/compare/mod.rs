@@ -73,6 +73,9 @@ pub enum CompareError {
         /// What is wrong.
         problem: String,
     },
+    /// A shard plan, or a file it names.
+    #[error(transparent)]
+    Plan(#[from] crate::plan::PlanError),
     /// Opening or reading the layers failed.
     #[error(transparent)]
     Open(#[from] crate::scene::SceneError),

@@ -18,7 +18,6 @@
 use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
-use sha2::{Digest, Sha256};
 
 use super::CompareError;
 use super::sample::{
@@ -30,6 +29,7 @@ use super::streamed::{Gave, GaveFile, Statistics, Streamed};
 use crate::ecm::grid::spacing_m;
 use crate::ecm::{Face, QuadId};
 use crate::geodesy::GeoBox;
+use crate::plan::Stamp;
 use crate::project::Project;
 use crate::scene::Scene;
 
@@ -43,18 +43,6 @@ pub const PLAN_VERSION: u32 = 1;
 pub const MAX_SHARDS: usize = 1 << 16;
 /// Rounds at most (the statistics take eight to twelve passes).
 const MAX_ROUNDS: u32 = 64;
-
-/// A file the plan depends on, as it was when planned.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct Stamp {
-    /// The file.
-    pub path: PathBuf,
-    /// Its size, bytes.
-    pub bytes: u64,
-    /// Its modification time, nanoseconds since the epoch.
-    pub modified_ns: u128,
-}
 
 /// A sharded comparison's plan.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -131,31 +119,8 @@ pub enum Sharded {
     Complete,
 }
 
-fn sha256_hex(bytes: &[u8]) -> String {
-    Sha256::digest(bytes).iter().map(|b| format!("{b:02x}")).collect()
-}
-
 fn file_error(path: &Path, problem: impl std::fmt::Display) -> CompareError {
     CompareError::File { path: path.to_path_buf(), problem: problem.to_string() }
-}
-
-/// A file's stamp.
-fn stamp(path: &Path) -> Result<Stamp, CompareError> {
-    let meta = std::fs::metadata(path).map_err(|e| file_error(path, format!("cannot read: {e}")))?;
-    let modified = meta.modified().ok().and_then(|t| t.duration_since(std::time::UNIX_EPOCH).ok());
-    Ok(Stamp { path: path.to_path_buf(), bytes: meta.len(), modified_ns: modified.map_or(0, |d| d.as_nanos()) })
-}
-
-/// The stamps of a project's file and dataset stores.
-fn inputs(project_path: &Path, project: &Project) -> Result<(String, Vec<Stamp>), CompareError> {
-    let bytes = std::fs::read(project_path).map_err(|e| file_error(project_path, format!("cannot read: {e}")))?;
-    let stores = project
-        .layers
-        .iter()
-        .filter_map(|l| l.as_dataset())
-        .map(|d| stamp(&project.resolve(&d.store)))
-        .collect::<Result<_, _>>()?;
-    Ok((sha256_hex(&bytes), stores))
 }
 
 impl ComparePlan {
@@ -163,7 +128,7 @@ impl ComparePlan {
     fn digest(&self) -> String {
         let mut bare = self.clone();
         bare.hash.clear();
-        sha256_hex(serde_json::to_string(&bare).unwrap_or_default().as_bytes())
+        crate::plan::digest(&bare)
     }
 
     /// Reads a plan and checks its format, version and hash.
@@ -188,20 +153,7 @@ impl ComparePlan {
 
     /// Refuses a project or store that changed since the plan, naming it.
     fn check_inputs(&self) -> Result<Project, CompareError> {
-        let project = Project::load(&self.project).map_err(|e| file_error(&self.project, e))?;
-        let (sha, stores) = inputs(&self.project, &project)?;
-        if sha != self.project_sha256 {
-            return Err(file_error(&self.project, "the project changed since the plan was made: make the plan again"));
-        }
-        for (now, then) in stores.iter().zip(&self.stores) {
-            if now != then {
-                return Err(file_error(&now.path, "the store changed since the plan was made: make the plan again"));
-            }
-        }
-        if stores.len() != self.stores.len() {
-            return Err(file_error(&self.project, "its datasets changed since the plan was made: make the plan again"));
-        }
-        Ok(project)
+        Ok(crate::plan::check_inputs(&self.project, &self.project_sha256, &self.stores)?)
     }
 
     fn options(&self) -> Result<CompareOptions, CompareError> {
@@ -346,20 +298,13 @@ pub fn plan(
     }
     // Already along the curve, face by face: the order one `compare` reads them in.
     let ordered: Vec<[u32; 3]> = quads.iter().map(|q| [q.face as u32, q.x, q.y]).collect();
-    let (per, extra) = (ordered.len() / shards, ordered.len() % shards);
-    let mut cut = Vec::with_capacity(shards);
-    let mut rest = ordered.as_slice();
-    for k in 0..shards {
-        let (head, tail) = rest.split_at(per + usize::from(k < extra));
-        cut.push(head.to_vec());
-        rest = tail;
-    }
+    let cut = crate::plan::runs(ordered.len(), shards).into_iter().map(|(a, b)| ordered[a..b].to_vec()).collect();
     let plan_path = absolute(plan_path)?;
     let parts = match parts {
         Some(p) => absolute(p)?,
         None => plan_path.with_extension("parts"),
     };
-    let (project_sha256, stores) = inputs(&project_path, &project)?;
+    let (project_sha256, stores) = crate::plan::inputs(&project_path, &project)?;
     let mut plan = ComparePlan {
         format: PLAN_FORMAT.into(),
         version: PLAN_VERSION,
@@ -382,11 +327,7 @@ pub fn plan(
         shards: cut,
     };
     plan.hash = plan.digest();
-    std::fs::create_dir_all(&plan.parts)
-        .map_err(|e| file_error(&plan.parts, format!("cannot create the parts' folder: {e}")))?;
-    let text = serde_json::to_string_pretty(&plan).map_err(|e| file_error(&plan_path, e))?;
-    crate::files::write_atomic(&plan_path, text.as_bytes())
-        .map_err(|e| file_error(&plan_path, format!("cannot write: {e}")))?;
+    crate::plan::write(&plan_path, &plan.parts, &plan)?;
     Ok(plan)
 }
 

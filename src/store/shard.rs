@@ -12,8 +12,8 @@ use std::collections::HashSet;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
+use crate::files::sha256_hex;
 use serde::{Deserialize, Serialize};
-use sha2::{Digest, Sha256};
 
 use super::StoreError;
 use super::gpkg::{DatasetSettings, SourceProvenance, Store};
@@ -105,10 +105,6 @@ pub struct PlanReport {
     pub manifest: Manifest,
     /// Seconds spent checking sources and listing quads.
     pub seconds: f64,
-}
-
-fn sha256_hex(bytes: &[u8]) -> String {
-    Sha256::digest(bytes).iter().map(|b| format!("{b:02x}")).collect()
 }
 
 /// How the manifest names a body.
