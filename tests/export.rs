@@ -86,6 +86,7 @@ fn an_export_made_band_by_band_equals_one_made_at_once_bit_for_bit() {
             difference: None,
             attribute,
             layer: None,
+            cog: false,
         };
         let report = export_composed_in_bands(&opts, &Default::default(), band_pixels).unwrap();
         (report, read_f32(&out))
@@ -152,4 +153,88 @@ fn bad_exports_are_refused_by_name() {
         let e = String::from_utf8_lossy(&o.stderr);
         assert!(e.contains(expected), "{args:?}: {e}");
     }
+}
+
+#[test]
+fn an_export_cut_into_shards_merges_to_the_single_export_pixel_for_pixel() {
+    let dir = common::out_path("export-shards");
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let project = common::sample_project("erzurum-compare", &dir);
+    let p = project.to_str().unwrap();
+    let grid = ["--crs", "EPSG:32637", "--bounds", "585000,4340000,650000,4420000", "--resolution", "250"];
+    let run = |args: &[&str]| {
+        let o = terrafuse(args, "");
+        assert!(o.status.success(), "{args:?}: {}", String::from_utf8_lossy(&o.stderr));
+        String::from_utf8_lossy(&o.stdout).into_owned()
+    };
+    for (what, extra) in [
+        ("heights", &[][..]),
+        ("slope", &["--attribute", "slope"][..]),
+        ("difference", &["--difference", "blurred,srtm"][..]),
+    ] {
+        let single = dir.join(format!("{what}.tif"));
+        run(&[&["export", p, single.to_str().unwrap()][..], &grid[..], extra, &["--compose", "cpu"]].concat());
+        let one = read_f32(&single);
+        for shards in [1, 3, 7] {
+            let out = dir.join(format!("{what}-{shards}.tif"));
+            let plan = dir.join(format!("{what}-{shards}.json"));
+            let (out_s, plan_s, n) = (out.to_str().unwrap(), plan.to_str().unwrap(), shards.to_string());
+            let cog: &[&str] = if shards == 3 { &["--cog"] } else { &[] };
+            let planned = run(&[
+                &["export", p, out_s][..],
+                &grid[..],
+                extra,
+                cog,
+                &["--compose", "cpu", "--plan", plan_s, "--shards", &n],
+            ]
+            .concat());
+            assert!(planned.contains(&format!("in {shards} shards")) && !out.exists(), "{planned}");
+            // Nothing made yet: the merge names every shard and exits 3, writing nothing.
+            let waiting = terrafuse(&["merge", plan_s], "");
+            let said = String::from_utf8_lossy(&waiting.stderr).into_owned();
+            let all: Vec<String> = (0..shards).map(|i| i.to_string()).collect();
+            assert_eq!(waiting.status.code(), Some(3), "{said}");
+            assert!(said.contains(&format!("waits for shards {}", all.join(","))) && !out.exists(), "{said}");
+            // A shard killed part-way leaves a temporary file and, at worst, data without their
+            // JSON: the part counts as missing and the rerun makes it whole.
+            let parts = dir.join(format!("{what}-{shards}.parts"));
+            std::fs::write(parts.join(".shard-000000.f32.tmp-999999"), b"half").unwrap();
+            std::fs::write(parts.join("shard-000000.f32"), b"half a shard").unwrap();
+            assert!(run(&["shard", plan_s, "0"]).contains("wrote its rows"));
+            assert!(run(&["shard", plan_s, "0"]).contains("there already"));
+            let merged = run(&["shards", "run", plan_s, "--jobs", "2"]);
+            assert!(merged.contains("wrote") && merged.contains("320 pixels"), "{merged}");
+            let sharded = read_f32(&out);
+            assert_eq!(sharded.len(), one.len());
+            let differing = one.iter().zip(&sharded).filter(|(a, b)| a.to_bits() != b.to_bits()).count();
+            assert_eq!(differing, 0, "{what}, {shards} shards: {differing} pixels differ");
+            assert!(one.iter().filter(|v| !v.is_nan()).count() > 50_000, "{what}");
+            if shards == 3 {
+                let info = run_tool("gdalinfo", &[out_s], "");
+                assert!(info.contains("LAYOUT=COG") && info.contains("TERRAFUSE_LEVEL=8"), "{info}");
+            }
+        }
+    }
+    // Damaged data (same size, one byte changed) are refused by the part's SHA-256, the output
+    // left as it was; a part of another plan is refused by name; so is a changed project.
+    let (plan, out) = (dir.join("heights-3.json"), dir.join("heights-3.tif"));
+    let before = std::fs::read(&out).unwrap();
+    let data = dir.join("heights-3.parts/shard-000001.f32");
+    let mut bytes = std::fs::read(&data).unwrap();
+    bytes[1000] ^= 0x40;
+    std::fs::write(&data, &bytes).unwrap();
+    let refused = terrafuse(&["merge", plan.to_str().unwrap()], "");
+    let said = String::from_utf8_lossy(&refused.stderr).into_owned();
+    assert!(!refused.status.success() && said.contains("shard-000001.f32") && said.contains("SHA-256"), "{said}");
+    assert_eq!(std::fs::read(&out).unwrap(), before, "the output is untouched");
+    std::fs::copy(dir.join("slope-3.parts/shard-000002.json"), dir.join("heights-3.parts/shard-000002.json")).unwrap();
+    let refused = terrafuse(&["merge", plan.to_str().unwrap()], "");
+    let said = String::from_utf8_lossy(&refused.stderr).into_owned();
+    assert!(said.contains("shard-000002.json") && said.contains("another plan"), "{said}");
+    let text = std::fs::read_to_string(&project).unwrap();
+    std::fs::write(&project, text + " ").unwrap();
+    let refused = terrafuse(&["shard", dir.join("heights-7.json").to_str().unwrap(), "1"], "");
+    let said = String::from_utf8_lossy(&refused.stderr).into_owned();
+    assert!(said.contains("erzurum-compare.json") && said.contains("changed since the plan"), "{said}");
 }

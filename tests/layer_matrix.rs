@@ -187,6 +187,7 @@ fn export_on(project: &Path, level: Option<u8>, on: ComposeOn) -> (u8, Vec<f32>)
         difference: None,
         attribute: None,
         layer: None,
+        cog: false,
     })
     .unwrap_or_else(|e| panic!("{}: {e}", project.display()));
     let raw = out.with_extension("raw");
@@ -495,6 +496,7 @@ fn profile_samples_what_export_samples_on_the_same_line() {
             difference: None,
             attribute: None,
             layer: None,
+            cog: false,
         })
         .unwrap();
         let raw = out.with_extension("raw");

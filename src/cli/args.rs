@@ -532,4 +532,19 @@ pub struct ExportArgs {
     /// Compose this layer alone (as compare takes it) instead of the visible stack.
     #[arg(long, conflicts_with = "difference")]
     pub layer: Option<String>,
+    /// Write a Cloud-Optimized GeoTIFF (GDAL's COG driver: tiled, with overviews, the header
+    /// first) instead of a plain tiled GeoTIFF.
+    #[arg(long)]
+    pub cog: bool,
+    /// Export nothing: check the project and arguments, cut the output's rows into --shards
+    /// runs and write this plan (then `terrafuse shard PLAN I` for each shard and `terrafuse
+    /// merge PLAN`, which writes OUT; or `terrafuse shards run PLAN`, `terrafuse slurm submit PLAN`).
+    #[arg(long, value_name = "PLAN.json", requires = "shards")]
+    pub plan: Option<PathBuf>,
+    /// With --plan: the number of shards.
+    #[arg(long, requires = "plan", allow_negative_numbers = true)]
+    pub shards: Option<usize>,
+    /// With --plan: the folder of the shards' parts (default: PLAN.parts beside the plan).
+    #[arg(long, requires = "plan")]
+    pub parts: Option<PathBuf>,
 }

@@ -96,18 +96,13 @@ pub fn compare_command(request: &CompareRequest, fb: &mut Feedback) -> Result<St
         .within(request.project.display())?;
         let quads: usize = made.shards.iter().map(Vec::len).sum();
         return Ok(format!(
-            "planned {} − {} at level {}: {quads} quads in {shards} shards along a Hilbert curve → {} (parts in {})\n\
-             run each shard: terrafuse shard {} I   (I = 0 … {}, or env in a job array)\n\
-             then:           terrafuse merge {}   (or all on this machine: terrafuse shards run {})\n",
+            "planned {} − {} at level {}: {quads} quads in {shards} shards along a Hilbert curve → {} (parts in {})\n{}",
             made.a,
             made.b,
             made.level,
             plan.display(),
             made.parts.display(),
-            plan.display(),
-            shards - 1,
-            plan.display(),
-            plan.display()
+            super::sharded::next_steps(plan, shards)
         ));
     }
     let project = Project::load(&request.project)?;

@@ -200,7 +200,8 @@ fn run_render(args: RenderArgs, c: &mut Console) -> Result<(), CliError> {
 /// `terrafuse export`: the composed stack, a difference, a layer alone or a terrain attribute
 /// written as a GeoTIFF on the asked grid.
 fn run_export(args: ExportArgs, c: &mut Console) -> Result<(), CliError> {
-    let ExportArgs { project, out, raster, level, compose, difference, attribute, layer } = args;
+    let ExportArgs { project, out, raster, level, compose, difference, attribute, layer, cog, plan, shards, parts } =
+        args;
     let (crs, bounds, resolution) = raster.parse()?;
     let difference = match difference.as_deref().map(|d| d.split(',').map(str::trim).collect::<Vec<_>>()) {
         None => None,
@@ -227,12 +228,36 @@ fn run_export(args: ExportArgs, c: &mut Console) -> Result<(), CliError> {
         difference,
         attribute,
         layer,
+        cog,
     };
+    if let (Some(plan), Some(shards)) = (plan, shards) {
+        let made = crate::export::sharded::plan(&opts, shards, &plan, parts.as_deref())?;
+        return c.print(format!(
+            "planned {} ({}×{} pixels, level {}): its rows in {shards} shards → {} (parts in {})\n{}",
+            made.out.display(),
+            made.size[0],
+            made.size[1],
+            made.level,
+            plan.display(),
+            made.parts.display(),
+            super::sharded::next_steps(&plan, shards)
+        ));
+    }
     let started = std::time::Instant::now();
     let report = watched(c, true, |fb| crate::export::export_composed_watched(&opts, fb.watch))?;
-    c.print(format_args!(
+    c.print(export_line(&opts.out, attribute, &report, started.elapsed()))
+}
+
+/// What `export` (and a sharded export's merge) prints.
+pub(super) fn export_line(
+    out: &std::path::Path,
+    attribute: Option<crate::attributes::Attribute>,
+    report: &crate::export::ComposedReport,
+    took: std::time::Duration,
+) -> String {
+    format!(
         "wrote {}{} ({}×{} pixels, level {}, {} quads composed on the {}, {} pixels with data) in {:.1} s\n",
-        opts.out.display(),
+        out.display(),
         attribute.map(|a| format!(": {} in {}", a.name(), a.unit())).unwrap_or_default(),
         report.size.0,
         report.size.1,
@@ -240,9 +265,8 @@ fn run_export(args: ExportArgs, c: &mut Console) -> Result<(), CliError> {
         report.quads,
         report.composer,
         report.valid,
-        started.elapsed().as_secs_f64()
-    ))?;
-    Ok(())
+        took.as_secs_f64()
+    )
 }
 
 /// `terrafuse store …`: merge parts, describe, sample or export a store; 1 when a sampled line

@@ -1,6 +1,7 @@
 //! `terrafuse shard`, `terrafuse merge` and `terrafuse shards run`: the shards of a comparison
-//! planned with `compare … --plan PLAN --shards N` (`compare::sharded`), run one at a time by a
-//! scheduler's array task, or all on this machine.
+//! or an export planned with `compare … --plan PLAN --shards N` (`compare::sharded`) or `export
+//! … --plan PLAN --shards N` (`export::sharded`), run one at a time by a scheduler's array task,
+//! or all on this machine. The plan's `format` says which command planned it.
 
 use std::path::Path;
 use std::process::Command;
@@ -9,13 +10,73 @@ use super::console::Console;
 use super::error::Context;
 use super::{CliError, Within};
 use crate::compare::sharded::{self, Merged, Sharded};
+use crate::export::sharded as export_sharded;
 
 /// The exit status of a merge that waits for shards.
 pub const PENDING: u8 = 3;
 
+/// Which command planned a plan.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Planned {
+    /// `compare … --plan`.
+    Compare,
+    /// `export … --plan`.
+    Export,
+}
+
+/// Reads the plan's `format`.
+pub fn planned(plan: &Path) -> Result<Planned, CliError> {
+    let format = crate::plan::format_of(plan)?;
+    match format.as_str() {
+        sharded::PLAN_FORMAT => Ok(Planned::Compare),
+        export_sharded::PLAN_FORMAT => Ok(Planned::Export),
+        other => Err(format!(
+            "{}: format {other}: not a plan of compare or export (an import's manifest goes to `terrafuse import --manifest … --shard`)",
+            plan.display()
+        )
+        .into()),
+    }
+}
+
+/// What a plan's maker prints after it: the commands that run it.
+pub fn next_steps(plan: &Path, shards: usize) -> String {
+    let p = plan.display();
+    format!(
+        "run each shard: terrafuse shard {p} I   (I = 0 … {}, or env in a job array)\n\
+         then:           terrafuse merge {p}\n\
+         or all here:    terrafuse shards run {p}   on Slurm: terrafuse slurm submit {p}\n",
+        shards - 1
+    )
+}
+
+/// The round a plan waits on and its shards still to run; None when every part is in (the
+/// merge then finishes).
+pub fn pending(plan: &Path) -> Result<Option<(u32, Vec<usize>)>, CliError> {
+    Ok(match planned(plan)? {
+        Planned::Compare => match sharded::merge(plan).within(plan.display())? {
+            Merged::Done(_) => None,
+            Merged::Pending { round, shards } => Some((round, shards)),
+        },
+        Planned::Export => {
+            let loaded = export_sharded::ExportPlan::load(plan)?;
+            let missing = export_sharded::missing(&loaded)?;
+            (!missing.is_empty()).then_some((0, missing))
+        }
+    })
+}
+
 /// Computes shard `shard` (a number, or `env`) of the plan's pending round.
 pub fn shard_command(plan: &Path, shard: &str, c: &mut Console) -> Result<u8, CliError> {
     let index = super::shard::shard_index(shard, c.var)?;
+    if planned(plan)? == Planned::Export {
+        let outcome = super::feedback::watched(c, true, |fb| export_sharded::shard(plan, index, fb.watch))?;
+        return c
+            .print(match outcome {
+                export_sharded::Sharded::Wrote => format!("shard {index}: wrote its rows\n"),
+                export_sharded::Sharded::Already => format!("shard {index}: its rows are there already\n"),
+            })
+            .map(|()| 0);
+    }
     let scratch = Some(std::env::temp_dir());
     let outcome = super::feedback::watched(c, true, |fb| sharded::shard(plan, index, scratch, Some(fb.watch.clone())))
         .within(plan.display())?;
@@ -31,6 +92,27 @@ pub fn shard_command(plan: &Path, shard: &str, c: &mut Console) -> Result<u8, Cl
 
 /// Joins the parts: prints the comparison (exit 0), or names what to run (exit [`PENDING`]).
 pub fn merge_command(plan: &Path, c: &mut Console) -> Result<u8, CliError> {
+    if planned(plan)? == Planned::Export {
+        let started = std::time::Instant::now();
+        let merged = super::feedback::watched(c, true, |fb| export_sharded::merge(plan, fb.watch))?;
+        return match merged {
+            export_sharded::Merged::Done(report) => {
+                let loaded = export_sharded::ExportPlan::load(plan)?;
+                let attribute = loaded.attribute.and_then(|a| crate::attributes::Attribute::parse(&a));
+                c.print(super::dispatch::export_line(&loaded.out, attribute, &report, started.elapsed()))?;
+                Ok(0)
+            }
+            export_sharded::Merged::Pending(shards) => {
+                let listed: Vec<String> = shards.iter().map(ToString::to_string).collect();
+                c.note(format!(
+                    "terrafuse: the export waits for shards {}: run terrafuse shard {} I for each, then merge again",
+                    listed.join(","),
+                    plan.display()
+                ));
+                Ok(PENDING)
+            }
+        };
+    }
     let json = sharded::ComparePlan::load(plan)?.json;
     match sharded::merge(plan).within(plan.display())? {
         Merged::Done(comparison) => {
@@ -60,11 +142,9 @@ pub fn shards_run(plan: &Path, jobs: usize, c: &mut Console) -> Result<u8, CliEr
     }
     let exe = std::env::current_exe().context("this program's path")?;
     loop {
-        let pending = match sharded::merge(plan).within(plan.display())? {
-            Merged::Done(_) => return merge_command(plan, c),
-            Merged::Pending { round, shards } => (round, shards),
+        let Some((round, shards)) = pending(plan)? else {
+            return merge_command(plan, c);
         };
-        let (round, shards) = pending;
         c.note(format!("terrafuse: round {round}: {} shards", shards.len()));
         for batch in shards.chunks(jobs) {
             let children: Vec<_> = batch

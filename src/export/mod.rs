@@ -8,6 +8,7 @@
 
 use crate::attributes::Attribute;
 use std::collections::{BTreeSet, HashMap, HashSet};
+use std::ops::Range;
 use std::path::PathBuf;
 
 use crate::ecm::grid::{intervals_per_face_edge, level_for_resolution};
@@ -19,6 +20,8 @@ use crate::scene::Scene;
 use crate::store::export::RasterSpec;
 
 pub use crate::gpu::compose::ComposeOn;
+
+pub mod sharded;
 
 /// Why an export was not written (nothing was: the output is moved into place only when whole).
 #[derive(Debug, thiserror::Error)]
@@ -54,6 +57,9 @@ pub enum ExportError {
     /// A level past the finest.
     #[error("--level {0}: levels run 0–{max}", max = crate::ecm::MAX_LEVEL)]
     Level(u8),
+    /// A shard plan, or a file it names.
+    #[error(transparent)]
+    Plan(#[from] crate::plan::PlanError),
     /// Cancelled.
     #[error("the export was cancelled; nothing was written")]
     Cancelled,
@@ -90,6 +96,8 @@ pub struct ComposedExport {
     pub attribute: Option<Attribute>,
     /// Compose this layer alone instead of the visible stack.
     pub layer: Option<String>,
+    /// Write a Cloud-Optimized GeoTIFF (GDAL's COG driver) instead of a plain tiled one.
+    pub cog: bool,
 }
 
 /// What was written.
@@ -136,41 +144,32 @@ pub fn export_composed_in_bands(
     watch: &Watch,
     band_pixels: usize,
 ) -> Result<ComposedReport, ExportError> {
-    let project = Project::load(&opts.project)?;
-    let raster = RasterSpec::new(&opts.crs, opts.bounds, opts.resolution, &opts.out)?;
-    if let Some(l) = opts.level
-        && l > crate::ecm::MAX_LEVEL
-    {
-        return Err(ExportError::Level(l));
-    }
-    let scene_error = |source| ExportError::Scene { project: opts.project.clone(), source: Box::new(source) };
-    let (scene, _) = Scene::open(&project).map_err(scene_error)?;
-    let body = scene.ellipsoid;
-    let level = match opts.level {
-        Some(l) => l,
-        None => {
-            let r = raster.pixel_ground_m(&opts.crs, &body, &opts.out)?;
-            crate::layers::default_level(level_for_resolution(&body, r), scene.detail_level())
-        }
-    };
-    let alone = |name: &str| {
-        let operand = crate::layers::Operand::Layer(name.into());
-        crate::compare::sample::operand_scene(&scene, &project, &operand)
-            .map_err(|source| ExportError::Layer { project: opts.project.clone(), source: Box::new(source) })
-    };
-    // One composer, and a second whose heights are taken away for a difference.
-    let (mut main, mut minus) = match (&opts.difference, &opts.layer) {
-        (Some((a, b)), _) => {
-            (Composer::new(alone(a)?, opts.compose_on)?, Some(Composer::new(alone(b)?, opts.compose_on)?))
-        }
-        (None, Some(name)) => (Composer::new(alone(name)?, opts.compose_on)?, None),
-        (None, None) => (Composer::new(scene, opts.compose_on)?, None),
-    };
-    let composer = main.name.clone();
-    let attribute_gpu = match (opts.attribute, opts.compose_on) {
-        (Some(_), ComposeOn::Gpu) => Some(GpuContext::headless()?),
-        _ => None,
-    };
+    let mut exporter = Exporter::new(opts)?;
+    let h = exporter.raster.size.1;
+    let mut writer = exporter.raster.create_as(&opts.out, &exporter.metadata, opts.cog)?;
+    let made = exporter.rows(0..h, band_pixels, watch, &mut |row, band| Ok(writer.write_rows(row, band)?))?;
+    watch.check().map_err(cancelled)?;
+    writer.finish()?;
+    Ok(exporter.report(made))
+}
+
+/// An export's grid, level and composers, ready to make any run of its rows.
+pub(crate) struct Exporter {
+    pub(crate) raster: RasterSpec,
+    pub(crate) level: u8,
+    /// The output's metadata items (the project, the layers, the level, the composer).
+    pub(crate) metadata: Vec<(&'static str, String)>,
+    crs: String,
+    out: PathBuf,
+    attribute: Option<Attribute>,
+    body: crate::geodesy::Ellipsoid,
+    main: Composer,
+    minus: Option<Composer>,
+    attribute_gpu: Option<GpuContext>,
+}
+
+/// The output's metadata items: the project, the layers written, the level and the composer.
+fn metadata(opts: &ComposedExport, project: &Project, level: u8, composer: &str) -> Vec<(&'static str, String)> {
     let layers: Vec<String> = match (&opts.difference, &opts.layer) {
         (Some((a, b)), _) => vec![format!("{a} - {b} (difference)")],
         (None, Some(name)) => vec![format!("{name} (alone)")],
@@ -180,65 +179,147 @@ pub fn export_composed_in_bands(
         ("TERRAFUSE_PROJECT", opts.project.to_string_lossy().into_owned()),
         ("TERRAFUSE_LAYERS", layers.join(",")),
         ("TERRAFUSE_LEVEL", level.to_string()),
-        ("TERRAFUSE_COMPOSED_ON", composer.clone()),
+        ("TERRAFUSE_COMPOSED_ON", composer.to_owned()),
     ];
     if let Some(a) = opts.attribute {
         metadata.push(("TERRAFUSE_ATTRIBUTE", format!("{} ({})", a.name(), a.unit())));
     }
+    metadata
+}
 
-    let (w, h) = raster.size;
-    let band_rows = (band_pixels / w.max(1)).clamp(1, h.max(1));
-    let halo = usize::from(opts.attribute.is_some());
-    let mut writer = raster.create(&opts.out, &metadata)?;
-    let (mut valid, mut quads) = (0u64, HashSet::new());
-    watch.start_phase("rows", h as u64);
-    for first in (0..h).step_by(band_rows) {
-        watch.check().map_err(cancelled)?;
-        let rows = first..(first + band_rows).min(h);
-        // The band's rows with the halo an attribute's window reads.
-        let read = first.saturating_sub(halo)..(rows.end + halo).min(h);
-        let points = raster.pixel_lat_lon_rows(&opts.crs, &body, &opts.out, read.clone())?;
-        let cells = pixel_cells(&body, level, &points);
-        let band_quads: Vec<QuadId> =
-            cells.iter().flatten().map(|c| c.0).collect::<BTreeSet<_>>().into_iter().collect();
-        quads.extend(band_quads.iter().copied());
-        main.compose(&band_quads, watch)?;
-        let mut data = match minus.as_mut() {
-            None => sampled(&cells, &main.grids),
-            Some(minus) => {
-                minus.compose(&band_quads, watch)?;
-                let (a, b) = (&main.grids, &minus.grids);
-                let difference: HashMap<QuadId, Vec<f32>> = band_quads
-                    .iter()
-                    .map(|q| (*q, a[q].iter().zip(&b[q]).map(|(x, y)| x - y).collect())) // NaN where either has none
-                    .collect();
-                sampled(&cells, &difference)
+/// What a run of rows made: the pixels with data and the quads composed.
+pub(crate) struct Made {
+    pub(crate) valid: u64,
+    pub(crate) quads: BTreeSet<QuadId>,
+}
+
+impl Exporter {
+    /// Loads the project, checks the grid and the level, and opens the composers.
+    pub(crate) fn new(opts: &ComposedExport) -> Result<Exporter, ExportError> {
+        let project = Project::load(&opts.project)?;
+        let raster = RasterSpec::new(&opts.crs, opts.bounds, opts.resolution, &opts.out)?;
+        if let Some(l) = opts.level
+            && l > crate::ecm::MAX_LEVEL
+        {
+            return Err(ExportError::Level(l));
+        }
+        let scene_error = |source| ExportError::Scene { project: opts.project.clone(), source: Box::new(source) };
+        let (scene, _) = Scene::open(&project).map_err(scene_error)?;
+        let body = scene.ellipsoid;
+        let level = match opts.level {
+            Some(l) => l,
+            None => {
+                let r = raster.pixel_ground_m(&opts.crs, &body, &opts.out)?;
+                crate::layers::default_level(level_for_resolution(&body, r), scene.detail_level())
             }
         };
-        // A terrain attribute of the heights, with each pixel's steps measured on the body.
-        if let Some(a) = opts.attribute {
-            let axes = crate::attributes::pixel_axes(&body, w, read.len(), &points);
-            data = match &attribute_gpu {
-                None => crate::attributes::attribute_raster(a, w, read.len(), &data, &axes),
-                Some(ctx) => crate::gpu::attributes::attribute_raster(ctx, a, w, read.len(), &data, &axes)?,
-            };
-        }
-        let band: Vec<f32> = data[(rows.start - read.start) * w..(rows.end - read.start) * w].to_vec();
-        valid += band.iter().filter(|v| !v.is_nan()).count() as u64;
-        writer.write_rows(rows.start, band)?;
-        watch.advance_by(rows.len() as u64);
+        let alone = |name: &str| {
+            let operand = crate::layers::Operand::Layer(name.into());
+            crate::compare::sample::operand_scene(&scene, &project, &operand)
+                .map_err(|source| ExportError::Layer { project: opts.project.clone(), source: Box::new(source) })
+        };
+        // One composer, and a second whose heights are taken away for a difference.
+        let (main, minus) = match (&opts.difference, &opts.layer) {
+            (Some((a, b)), _) => {
+                (Composer::new(alone(a)?, opts.compose_on)?, Some(Composer::new(alone(b)?, opts.compose_on)?))
+            }
+            (None, Some(name)) => (Composer::new(alone(name)?, opts.compose_on)?, None),
+            (None, None) => (Composer::new(scene, opts.compose_on)?, None),
+        };
+        let attribute_gpu = match (opts.attribute, opts.compose_on) {
+            (Some(_), ComposeOn::Gpu) => Some(GpuContext::headless()?),
+            _ => None,
+        };
+        let metadata = metadata(opts, &project, level, &main.name);
+        Ok(Exporter {
+            raster,
+            level,
+            metadata,
+            crs: opts.crs.clone(),
+            out: opts.out.clone(),
+            attribute: opts.attribute,
+            body,
+            main,
+            minus,
+            attribute_gpu,
+        })
     }
-    watch.check().map_err(cancelled)?;
-    writer.finish()?;
-    Ok(ComposedReport { size: raster.size, level, quads: quads.len(), valid, composer })
+
+    /// What composed the quads.
+    pub(crate) fn composer(&self) -> &str {
+        &self.main.name
+    }
+
+    fn report(&self, made: Made) -> ComposedReport {
+        ComposedReport {
+            size: self.raster.size,
+            level: self.level,
+            quads: made.quads.len(),
+            valid: made.valid,
+            composer: self.main.name.clone(),
+        }
+    }
+
+    /// Makes rows `rows` band by band (at most `band_pixels` pixels a band), each band handed to
+    /// `sink` with its first row. A row's pixels do not depend on the bands it was made in.
+    pub(crate) fn rows(
+        &mut self,
+        rows: Range<usize>,
+        band_pixels: usize,
+        watch: &Watch,
+        sink: &mut dyn FnMut(usize, Vec<f32>) -> Result<(), ExportError>,
+    ) -> Result<Made, ExportError> {
+        let (w, h) = self.raster.size;
+        let band_rows = (band_pixels / w.max(1)).clamp(1, h.max(1));
+        let halo = usize::from(self.attribute.is_some());
+        let mut made = Made { valid: 0, quads: BTreeSet::new() };
+        watch.start_phase("rows", rows.len() as u64);
+        for first in rows.clone().step_by(band_rows) {
+            watch.check().map_err(cancelled)?;
+            let band = first..(first + band_rows).min(rows.end);
+            // The band's rows with the halo an attribute's window reads.
+            let read = first.saturating_sub(halo)..(band.end + halo).min(h);
+            let points = self.raster.pixel_lat_lon_rows(&self.crs, &self.body, &self.out, read.clone())?;
+            let cells = pixel_cells(&self.body, self.level, &points);
+            let band_quads: Vec<QuadId> =
+                cells.iter().flatten().map(|c| c.0).collect::<BTreeSet<_>>().into_iter().collect();
+            made.quads.extend(band_quads.iter().copied());
+            self.main.compose(&band_quads, watch)?;
+            let mut data = match self.minus.as_mut() {
+                None => sampled(&cells, &self.main.grids),
+                Some(minus) => {
+                    minus.compose(&band_quads, watch)?;
+                    let (a, b) = (&self.main.grids, &minus.grids);
+                    let difference: HashMap<QuadId, Vec<f32>> = band_quads
+                        .iter()
+                        .map(|q| (*q, a[q].iter().zip(&b[q]).map(|(x, y)| x - y).collect())) // NaN where either has none
+                        .collect();
+                    sampled(&cells, &difference)
+                }
+            };
+            // A terrain attribute of the heights, with each pixel's steps measured on the body.
+            if let Some(a) = self.attribute {
+                let axes = crate::attributes::pixel_axes(&self.body, w, read.len(), &points);
+                data = match &self.attribute_gpu {
+                    None => crate::attributes::attribute_raster(a, w, read.len(), &data, &axes),
+                    Some(ctx) => crate::gpu::attributes::attribute_raster(ctx, a, w, read.len(), &data, &axes)?,
+                };
+            }
+            let kept: Vec<f32> = data[(band.start - read.start) * w..(band.end - read.start) * w].to_vec();
+            made.valid += kept.iter().filter(|v| !v.is_nan()).count() as u64;
+            sink(band.start, kept)?;
+            watch.advance_by(band.len() as u64);
+        }
+        Ok(made)
+    }
 }
 
 /// Most pixels of one band of an export (4·10⁶: with their positions, cells and heights about
 /// 150 MB, and the grids of the quads they read).
-const BAND_PIXELS: usize = 1 << 22;
+pub(crate) const BAND_PIXELS: usize = 1 << 22;
 
 /// An export cancelled: nothing written.
-fn cancelled(_: crate::progress::Cancelled) -> ExportError {
+pub(crate) fn cancelled(_: crate::progress::Cancelled) -> ExportError {
     ExportError::Cancelled
 }
 

@@ -163,6 +163,12 @@ impl RasterSpec {
     /// ([`RasterWriter::write_rows`]) and moved into place by [`RasterWriter::finish`]; dropped
     /// unfinished (an error, a cancel), the temporary file is removed and `out` never touched.
     pub fn create(&self, out: &Path, metadata: &[(&str, String)]) -> Result<RasterWriter, StoreError> {
+        self.create_as(out, metadata, false)
+    }
+
+    /// [`RasterSpec::create`], finished as a Cloud-Optimized GeoTIFF (GDAL's COG driver: tiled,
+    /// overviews, the header first) where `cog`.
+    pub fn create_as(&self, out: &Path, metadata: &[(&str, String)], cog: bool) -> Result<RasterWriter, StoreError> {
         let out_err = |m: String| StoreError::new(out, m);
         let (w, h) = self.size;
         let dir = out.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
@@ -171,7 +177,7 @@ impl RasterSpec {
         }
         let name = out.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
         let tmp = dir.join(format!(".{name}.tmp-{}.tif", std::process::id()));
-        let mut writer = RasterWriter { dataset: None, tmp, out: out.to_path_buf(), size: self.size };
+        let mut writer = RasterWriter { dataset: None, tmp, out: out.to_path_buf(), size: self.size, cog };
         let cannot = |e| StoreError::caused(out, "cannot write the GeoTIFF", e);
         let driver = DriverManager::get_driver_by_name("GTiff").map_err(cannot)?;
         let options = RasterCreationOptions::from_iter(["COMPRESS=DEFLATE", "TILED=YES", "BIGTIFF=IF_SAFER"]);
@@ -196,6 +202,7 @@ pub struct RasterWriter {
     tmp: PathBuf,
     out: PathBuf,
     size: (usize, usize),
+    cog: bool,
 }
 
 impl RasterWriter {
@@ -223,6 +230,23 @@ impl RasterWriter {
         let out = self.out.clone();
         if let Some(mut ds) = self.dataset.take() {
             ds.flush_cache().map_err(|e| StoreError::caused(&out, "cannot write the GeoTIFF", e))?;
+            if self.cog {
+                // The tiled GeoTIFF copied through the COG driver beside it, which then replaces it.
+                let cog = self.tmp.with_extension("cog.tif");
+                let copied = (|| {
+                    let driver = DriverManager::get_driver_by_name("COG")?;
+                    let options =
+                        RasterCreationOptions::from_iter(["COMPRESS=DEFLATE", "BIGTIFF=IF_SAFER", "PREDICTOR=YES"]);
+                    ds.create_copy(&driver, &cog, &options).map(drop)
+                })();
+                drop(ds);
+                if let Err(e) = copied {
+                    let _ = std::fs::remove_file(&cog);
+                    return Err(StoreError::caused(&out, "cannot write the Cloud-Optimized GeoTIFF", e));
+                }
+                std::fs::rename(&cog, &self.tmp)
+                    .map_err(|e| StoreError::caused(&out, "cannot write the Cloud-Optimized GeoTIFF", e))?;
+            }
         }
         std::fs::File::open(&self.tmp)
             .and_then(|f| f.sync_all())
