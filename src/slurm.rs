@@ -1,6 +1,7 @@
-//! A sharded import as Slurm batch scripts: a job array with one shard per task, built on the
-//! node's local disk and copied to shared storage when complete, and a merge job that runs
-//! after every task succeeded (`--dependency=afterok`).
+//! A sharded import, comparison or export as Slurm batch scripts: a job array with one shard per
+//! task and a merge job that runs after every task succeeded (`--dependency=afterok`). An
+//! import's shard is built on the node's local disk and copied to shared storage when complete;
+//! a comparison's merge that needs another round (exit 3) submits that round itself.
 //!
 //! The scripts only call `terrafuse`; the contract a task fulfils is "import shard I of the
 //! manifest into `PARTS/part-I.gpkg`", with I from `SLURM_ARRAY_TASK_ID`. Any array scheduler
@@ -105,6 +106,83 @@ exec {exe} store merge {store} \\
             exe = q(&self.terrafuse),
             store = q(&self.store),
             parts = parts.join(" \\\n  "),
+        )
+    }
+}
+
+/// The scripts of a comparison's or an export's plan (`terrafuse … --plan`).
+#[derive(Clone, Debug)]
+pub struct PlanJob {
+    /// The `terrafuse` executable, as the compute nodes see it.
+    pub terrafuse: PathBuf,
+    /// The plan (absolute).
+    pub plan: PathBuf,
+    /// The folder of the scripts, logs and result, on shared storage (absolute).
+    pub dir: PathBuf,
+    /// The job name (`tf-` and the plan's short hash).
+    pub name: String,
+    /// CPUs per task.
+    pub threads: usize,
+    /// Where the merge job writes what `terrafuse merge` prints.
+    pub result: PathBuf,
+    /// The arguments of `terrafuse slurm submit PLAN` the merge runs to submit the next round.
+    pub resubmit: Vec<String>,
+}
+
+impl PlanJob {
+    /// The job array's script: `terrafuse shard PLAN env`, one shard per task.
+    pub fn shard_script(&self) -> String {
+        format!(
+            "#!/bin/bash
+# A shard of terrafuse plan {name}: written by `terrafuse slurm submit`.
+#SBATCH --job-name={name}
+#SBATCH --cpus-per-task={threads}
+#SBATCH --output={log}
+#SBATCH --open-mode=append
+set -euo pipefail
+exec {exe} shard {plan} env
+",
+            name = self.name,
+            threads = self.threads,
+            log = self.dir.join("shard-%a.log").to_string_lossy(),
+            exe = q(&self.terrafuse),
+            plan = q(&self.plan),
+        )
+    }
+
+    /// The merge job's script: the result into its file once every round is in; where another
+    /// round is needed (exit 3), that round submitted, its own merge after it.
+    pub fn merge_script(&self) -> String {
+        let resubmit: Vec<String> = self.resubmit.iter().map(|a| shell_quote(a)).collect();
+        format!(
+            "#!/bin/bash
+# The merge of terrafuse plan {name}: written by `terrafuse slurm submit`, run after every
+# shard of the round succeeded (--dependency=afterok).
+#SBATCH --job-name={name}-merge
+#SBATCH --cpus-per-task=1
+#SBATCH --output={log}
+#SBATCH --open-mode=append
+set -uo pipefail
+result={result}
+{exe} merge {plan} >\"$result.tmp\"
+rc=$?
+if [ $rc -eq 0 ]; then
+  mv -f \"$result.tmp\" \"$result\"
+  echo \"terrafuse: complete: the result is in $result\"
+  exit 0
+fi
+rm -f \"$result.tmp\"
+if [ $rc -eq 3 ]; then
+  exec {exe} slurm submit {plan} {resubmit}
+fi
+exit $rc
+",
+            name = self.name,
+            log = self.dir.join("merge.log").to_string_lossy(),
+            result = q(&self.result),
+            exe = q(&self.terrafuse),
+            plan = q(&self.plan),
+            resubmit = resubmit.join(" "),
         )
     }
 }

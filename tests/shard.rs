@@ -402,3 +402,59 @@ exec {bin} "$@"
     // Once complete, there is nothing to submit.
     assert!(submit(&cluster).contains("nothing to submit"));
 }
+
+#[test]
+fn a_comparison_and_an_export_planned_in_shards_run_on_slurm_round_after_round_as_one_process() {
+    let dir = common::scratch("shard/slurm-plans");
+    let cluster = Cluster::start(&dir.join("cluster"));
+    let project = common::sample_project("erzurum-compare", &dir);
+    let p = s(&project);
+    let args = ["blurred", "srtm", "--json", "--level", "9"];
+    let o = terrafuse(&[&["compare", p][..], &args[..]].concat(), "");
+    assert!(o.status.success(), "{}", text(&o));
+    let one: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let plan = dir.join("compare.json");
+    ok(&[&["compare", p][..], &args[..], &["--plan", s(&plan), "--shards", "3"]].concat());
+    let dry = cluster.terrafuse(&["slurm", "submit", s(&plan), "--dry-run"]);
+    assert!(dry.contains("round 0: 3 shards to run (0-2)") && dry.contains("--array=0-2"), "{dry}");
+    let out = cluster.terrafuse(&["slurm", "submit", s(&plan), "--threads", "1"]);
+    assert!(out.contains("submitted job array") && out.contains("submitted merge job"), "{out}");
+    let m: serde_json::Value = serde_json::from_slice(&std::fs::read(&plan).unwrap()).unwrap();
+    let name = format!("tf-{}", &m["hash"].as_str().unwrap()[..12]);
+    // Each round's merge (exit 3) submits the next round and its merge before it ends, so the
+    // queue is empty only once the last merge wrote the result.
+    cluster.wait_empty(&format!("{name},{name}-merge"));
+    let parts = dir.join("compare.parts");
+    let log = std::fs::read_to_string(parts.join("slurm/merge.log")).unwrap_or_default();
+    let result = std::fs::read_to_string(parts.join("slurm/result.json"))
+        .unwrap_or_else(|e| panic!("no result ({e}); merge log:\n{log}"));
+    let merged: serde_json::Value = serde_json::from_str(&result).unwrap();
+    for field in ["count", "nodata_count", "median_m", "nmad_m", "le90_m", "p90_abs_m", "min_m", "max_m", "level"] {
+        assert_eq!(merged[field], one[field], "{field}");
+    }
+    let rounds = std::fs::read_dir(&parts)
+        .unwrap()
+        .filter(|e| e.as_ref().unwrap().file_name().to_string_lossy().starts_with("round-"))
+        .count();
+    assert!(rounds > 2 && log.matches("round").count() >= rounds - 1, "{rounds} rounds; merge log:\n{log}");
+    assert!(cluster.terrafuse(&["slurm", "submit", s(&plan)]).contains("nothing to submit"));
+
+    // An export in 2 shards: the merge job writes the GeoTIFF, pixel for pixel the single one's.
+    let grid = ["--crs", "EPSG:32637", "--bounds", "585000,4340000,650000,4420000", "--resolution", "500"];
+    let (single, sharded, eplan) = (dir.join("single.tif"), dir.join("sharded.tif"), dir.join("export.json"));
+    ok(&[&["export", p, s(&single)][..], &grid[..], &["--compose", "cpu"]].concat());
+    ok(&[&["export", p, s(&sharded)][..], &grid[..], &["--compose", "cpu", "--plan", s(&eplan), "--shards", "2"]]
+        .concat());
+    cluster.terrafuse(&["slurm", "submit", s(&eplan), "--threads", "1"]);
+    let m: serde_json::Value = serde_json::from_slice(&std::fs::read(&eplan).unwrap()).unwrap();
+    let name = format!("tf-{}", &m["hash"].as_str().unwrap()[..12]);
+    cluster.wait_empty(&format!("{name},{name}-merge"));
+    let said = std::fs::read_to_string(dir.join("export.parts/slurm/result.txt")).unwrap_or_default();
+    assert!(said.contains("wrote") && sharded.exists(), "{said}");
+    let raw = |tif: &Path| {
+        let out = tif.with_extension("raw");
+        common::run_tool("gdal_translate", &["-q", "-of", "ENVI", s(tif), s(&out)], "");
+        std::fs::read(out).unwrap()
+    };
+    assert_eq!(raw(&single), raw(&sharded), "the Slurm export equals the single one byte for byte");
+}

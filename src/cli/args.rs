@@ -265,25 +265,30 @@ pub enum ShardsCommand {
 /// `terrafuse slurm …`.
 #[derive(Subcommand)]
 pub enum SlurmCommand {
-    /// Submit a plan's missing shards as a job array (one shard per task, built on node-local
-    /// disk, copied to --parts when complete) and a merge job that runs after it
-    /// (--dependency=afterok). After failures, run it again: only missing shards are submitted.
+    /// Submit a plan's missing shards as a job array and a merge job that runs after it
+    /// (--dependency=afterok): a comparison's or an export's PLAN (`compare`/`export … --plan`),
+    /// whose merge submits the next round itself and writes the result to PARTS/slurm/result.*;
+    /// or an import's --manifest (each shard built on node-local disk, copied to --parts when
+    /// complete). After failures, run it again: only missing shards are submitted.
     Submit(SubmitArgs),
 }
 
 /// `terrafuse slurm submit`.
 #[derive(clap::Args, Clone)]
 pub struct SubmitArgs {
-    /// The manifest (`terrafuse import … --plan MANIFEST --shards N`).
-    #[arg(long)]
-    pub manifest: PathBuf,
-    /// Folder for the partial stores, on storage every node sees (also the scripts and logs, in
-    /// PARTS/slurm).
-    #[arg(long)]
-    pub parts: PathBuf,
-    /// The merged store.
-    #[arg(long)]
-    pub store: PathBuf,
+    /// A comparison's or an export's plan (`terrafuse compare|export … --plan PLAN --shards N`).
+    #[arg(value_name = "PLAN.json", conflicts_with_all = ["manifest", "parts", "store"])]
+    pub plan: Option<PathBuf>,
+    /// An import's manifest (`terrafuse import … --plan MANIFEST --shards N`).
+    #[arg(long, required_unless_present = "plan")]
+    pub manifest: Option<PathBuf>,
+    /// With --manifest: folder for the partial stores, on storage every node sees (also the
+    /// scripts and logs, in PARTS/slurm).
+    #[arg(long, required_unless_present = "plan")]
+    pub parts: Option<PathBuf>,
+    /// With --manifest: the merged store.
+    #[arg(long, required_unless_present = "plan")]
+    pub store: Option<PathBuf>,
     /// CPUs per task, and the import's threads.
     #[arg(long, default_value_t = 2, allow_negative_numbers = true)]
     pub threads: usize,

@@ -91,10 +91,23 @@ pub fn run(command: Command, c: &mut Console) -> Result<u8, CliError> {
             return super::sharded::shards_run(&plan, jobs, c);
         }
         Command::Slurm { command: SlurmCommand::Submit(a) } => {
+            let (Some(manifest), Some(parts), Some(store)) = (a.manifest, a.parts, a.store) else {
+                let plan = a.plan.ok_or_else(|| CliError::Usage("give PLAN.json or --manifest".into()))?;
+                let own_job = (c.var)("SLURM_JOB_ID");
+                c.print(super::slurm::submit_plan(&super::slurm::PlanSubmit {
+                    plan,
+                    threads: a.threads,
+                    sbatch_args: a.sbatch_arg,
+                    terrafuse: a.terrafuse,
+                    dry_run: a.dry_run,
+                    own_job,
+                })?)?;
+                return Ok(0);
+            };
             c.print(super::slurm_submit(&super::SubmitRequest {
-                manifest: a.manifest,
-                parts: a.parts,
-                store: a.store,
+                manifest,
+                parts,
+                store,
                 threads: a.threads,
                 memory_budget: a.memory_budget,
                 work_dir: a.work_dir,

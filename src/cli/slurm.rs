@@ -1,4 +1,5 @@
-//! `terrafuse slurm submit`: a plan's missing shards as a Slurm job array, and the merge after it.
+//! `terrafuse slurm submit`: a plan's missing shards as a Slurm job array, and the merge after it
+//! (an import's manifest, or a comparison's or an export's plan).
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -17,7 +18,7 @@ macro_rules! bail {
 }
 
 use super::shard::array_ranges;
-use crate::slurm::{SlurmJob, part_path};
+use crate::slurm::{PlanJob, SlurmJob, part_path};
 use crate::store::merge::merged_shards;
 use crate::store::shard::{Manifest, part_is_done};
 
@@ -97,16 +98,7 @@ pub fn slurm_submit(req: &SubmitRequest) -> Result<String> {
         return Ok(out);
     }
     if !req.dry_run {
-        let queued =
-            run(Command::new("squeue").args(["-h", "-o", "%i %j %T", "-n"]).arg(format!("{0},{0}-merge", job.name)))?;
-        if !queued.is_empty() {
-            bail!(
-                "jobs of plan {} are still queued or running:\n{queued}\nwait for them to end (squeue -n {}) or cancel them (scancel -n {}), then submit again",
-                m.short_hash(),
-                job.name,
-                job.name
-            );
-        }
+        refuse_queued(&job.name, None)?;
     }
     let merged = merged_shards(&store, &m.import.dataset, &m.hash)?.map(|(s, _)| s).unwrap_or_default();
     let missing: Vec<usize> =
@@ -159,6 +151,134 @@ pub fn slurm_submit(req: &SubmitRequest) -> Result<String> {
     let _ = writeln!(
         out,
         "watch: squeue -n {0},{0}-merge; after a failure run the same command again: only missing shards are submitted",
+        job.name
+    );
+    Ok(out)
+}
+
+/// Refuses to submit while jobs named `name` or `name-merge` are queued or running (but the
+/// running merge job `own_job`, which submits the next round).
+fn refuse_queued(name: &str, own_job: Option<&str>) -> Result<()> {
+    let queued = run(Command::new("squeue").args(["-h", "-o", "%i %j %T", "-n"]).arg(format!("{name},{name}-merge")))?;
+    let queued: Vec<&str> =
+        queued.lines().filter(|l| own_job.is_none_or(|own| l.split(' ').next() != Some(own))).collect();
+    if !queued.is_empty() {
+        bail!(
+            "jobs of plan {name} are still queued or running:\n{}\nwait for them to end (squeue -n {name}) or cancel them (scancel -n {name}), then submit again",
+            queued.join("\n")
+        );
+    }
+    Ok(())
+}
+
+/// What `terrafuse slurm submit PLAN` is given.
+#[derive(Clone, Debug)]
+pub struct PlanSubmit {
+    /// A comparison's or an export's plan.
+    pub plan: PathBuf,
+    /// CPUs per task.
+    pub threads: usize,
+    /// Extra `sbatch` arguments, for both jobs.
+    pub sbatch_args: Vec<String>,
+    /// The terrafuse the nodes run (default: this one).
+    pub terrafuse: Option<PathBuf>,
+    /// Print the commands instead of running them.
+    pub dry_run: bool,
+    /// The Slurm job this runs in (`SLURM_JOB_ID`): a merge job submitting the next round.
+    pub own_job: Option<String>,
+}
+
+/// Submits the pending round's missing shards of a comparison's or an export's plan as one job
+/// array, and a merge job after it whose exit 3 (another round) submits that round the same way;
+/// with every part in, only the merge; with the result written, nothing.
+pub fn submit_plan(req: &PlanSubmit) -> Result<String> {
+    use super::sharded::{Planned, pending, planned};
+    let plan = absolute(&req.plan)?;
+    let kind = planned(&plan)?;
+    let (hash, parts, json) = match kind {
+        Planned::Compare => {
+            let p = crate::compare::sharded::ComparePlan::load(&plan)?;
+            (p.hash, p.parts, p.json)
+        }
+        Planned::Export => {
+            let p = crate::export::sharded::ExportPlan::load(&plan)?;
+            (p.hash, p.parts, false)
+        }
+    };
+    let terrafuse = match &req.terrafuse {
+        Some(p) => absolute(p)?,
+        None => std::env::current_exe().context("cannot find this terrafuse executable")?,
+    };
+    let dir = parts.join("slurm");
+    let mut resubmit = vec!["--threads".to_owned(), req.threads.max(1).to_string()];
+    resubmit.extend(req.sbatch_args.iter().map(|a| format!("--sbatch-arg={a}")));
+    resubmit.extend(["--terrafuse".to_owned(), terrafuse.to_string_lossy().into_owned()]);
+    let job = PlanJob {
+        terrafuse,
+        plan: plan.clone(),
+        dir: dir.clone(),
+        name: format!("tf-{}", &hash[..12.min(hash.len())]),
+        threads: req.threads.max(1),
+        result: dir.join(if json { "result.json" } else { "result.txt" }),
+        resubmit,
+    };
+    let mut out = String::new();
+    let pending = pending(&plan)?;
+    if pending.is_none() && job.result.exists() {
+        let _ =
+            writeln!(out, "plan {}: complete, the result is in {}: nothing to submit", job.name, job.result.display());
+        return Ok(out);
+    }
+    if !req.dry_run {
+        refuse_queued(&job.name, req.own_job.as_deref())?;
+    }
+    std::fs::create_dir_all(&dir).with_context(|| format!("{}: cannot make the folder", dir.display()))?;
+    let shard_script = dir.join("shard.sbatch");
+    let merge_script = dir.join("merge.sbatch");
+    for (path, text) in [(&shard_script, job.shard_script()), (&merge_script, job.merge_script())] {
+        crate::files::write_atomic(path, text.as_bytes())
+            .with_context(|| format!("{}: cannot write", path.display()))?;
+    }
+    let (round, missing) = pending.unwrap_or((0, Vec::new()));
+    let _ = writeln!(
+        out,
+        "plan {}: round {round}: {} shards to run ({}), parts in {}",
+        job.name,
+        missing.len(),
+        if missing.is_empty() { "none".into() } else { array_ranges(&missing) },
+        parts.display()
+    );
+    let mut array = Command::new("sbatch");
+    array
+        .arg("--parsable")
+        .arg(format!("--array={}", array_ranges(&missing)))
+        .args(&req.sbatch_args)
+        .arg(&shard_script);
+    let mut merge = Command::new("sbatch");
+    merge.arg("--parsable").args(&req.sbatch_args);
+    if req.dry_run {
+        if !missing.is_empty() {
+            let _ = writeln!(out, "{}", show(&array));
+            merge.arg("--dependency=afterok:ARRAY_JOB_ID").arg("--kill-on-invalid-dep=yes");
+        }
+        let _ = writeln!(out, "{}", show(merge.arg(&merge_script)));
+        if !missing.is_empty() {
+            let _ = writeln!(out, "(ARRAY_JOB_ID: the job id the first sbatch prints)");
+        }
+        return Ok(out);
+    }
+    if !missing.is_empty() {
+        let id = run(&mut array)?;
+        let id = id.split(';').next().unwrap_or(&id).to_owned();
+        let _ = writeln!(out, "submitted job array {id} ({}), logs {}/shard-*.log", job.name, dir.display());
+        merge.arg(format!("--dependency=afterok:{id}")).arg("--kill-on-invalid-dep=yes");
+    }
+    let id = run(merge.arg(&merge_script))?;
+    let _ = writeln!(out, "submitted merge job {id} ({}-merge), log {}/merge.log", job.name, dir.display());
+    let _ = writeln!(
+        out,
+        "the result goes to {}; watch: squeue -n {1},{1}-merge; after a failure run the same command again",
+        job.result.display(),
         job.name
     );
     Ok(out)
