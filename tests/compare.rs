@@ -1245,3 +1245,32 @@ fn a_comparison_cut_into_shards_merges_to_what_one_process_prints() {
     );
     assert!(!dir.join("plan-changed.parts/round-000").exists(), "a refused shard wrote nothing");
 }
+
+#[test]
+fn sharded_comparisons_across_the_antimeridian_and_over_a_cube_corner_merge_to_one_process() {
+    let dir = common::out_path("compare-shards-regions");
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let project = common::sample_project("moon-brushing", &dir);
+    let p = project.to_str().unwrap();
+    // A box from 170° E to 170° W, and one about the corner of three cube faces (45° E,
+    // 35.26° N: the QSC cube's corner).
+    for (what, region, faces) in [("antimeridian", "170,-10,-170,10", 1), ("corner", "40,30,50,40", 3)] {
+        let args = ["sculpt", "lola_global", "--json", "--level", "5", "--region", region];
+        let one: serde_json::Value = serde_json::from_str(&run(&[&["compare", p][..], &args[..]].concat())).unwrap();
+        assert!(one["count"].as_u64().unwrap() > 100_000, "{what}: {one}");
+        let plan = dir.join(format!("{what}.json"));
+        let plan_s = plan.to_str().unwrap();
+        run(&[&["compare", p][..], &args[..], &["--plan", plan_s, "--shards", "3"]].concat());
+        let planned: serde_json::Value = serde_json::from_slice(&std::fs::read(&plan).unwrap()).unwrap();
+        let on: std::collections::BTreeSet<u64> = planned["shards"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .flat_map(|s| s.as_array().unwrap().iter().map(|q| q[0].as_u64().unwrap()))
+            .collect();
+        assert_eq!(on.len(), faces, "{what}: the quads lie on faces {on:?}");
+        let merged: serde_json::Value = serde_json::from_str(&run(&["shards", "run", plan_s, "--jobs", "2"])).unwrap();
+        same_statistics(&merged, &one, what);
+    }
+}

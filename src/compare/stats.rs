@@ -11,6 +11,7 @@
 //! with W_k the weights up to and including k, and p is interpolated linearly between the two
 //! samples around it. With equal weights this is numpy's `quantile(x, p)` exactly.
 
+use crate::maths::CompensatedSum;
 use serde::Serialize;
 
 /// The factor that makes the median absolute deviation a standard deviation for normal data.
@@ -270,17 +271,19 @@ fn pair_stats(pairs: Vec<(f64, f64)>, nodata_count: u64) -> Stats {
         return Stats::empty(nodata_count);
     }
     let mut s = Stats { count: pairs.len() as u64, nodata_count, ..Stats::default() };
-    let (mut w, mut wx, mut wxx) = (0.0, 0.0, 0.0);
+    // Compensated sums, as the streamed statistics make them (shards joined agree with these).
+    let (mut w, mut wx, mut wxx) = (CompensatedSum::default(), CompensatedSum::default(), CompensatedSum::default());
     let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
     for &(dh, weight) in &pairs {
-        w += weight;
-        wx += weight * dh;
-        wxx += weight * dh * dh;
+        w.add(weight);
+        wx.add(weight * dh);
+        wxx.add(weight * dh * dh);
         lo = lo.min(dh);
         hi = hi.max(dh);
     }
+    let (w, wx, wxx) = (w.value(), wx.value(), wxx.value());
     let mean = wx / w;
-    let var = pairs.iter().map(|&(dh, weight)| weight * (dh - mean).powi(2)).sum::<f64>() / w;
+    let var = pairs.iter().map(|&(dh, weight)| weight * (dh - mean).powi(2)).sum::<CompensatedSum>().value() / w;
     let sorted = sorted_by_value(pairs);
     let [q05, median, q95] = weighted_quantiles(&sorted, [0.05, 0.5, 0.95]);
     // The two foldings are independent, each walked in order on one thread: the same result on

@@ -3,9 +3,11 @@
 //! Rust here and once in WGSL, `shaders/shared/hash.wgsl`), the median, the smoothstep and the
 //! distance to a segment; a sum of f64 that does not depend on its terms' order (`exact_sum`).
 
+pub mod compensated_sum;
 pub mod exact_sum;
 pub mod noise;
 
+pub use compensated_sum::CompensatedSum;
 pub use exact_sum::ExactSum;
 
 use glam::DVec3;

@@ -22,34 +22,37 @@ use serde::{Deserialize, Serialize};
 
 use super::spill::{NO_CLASS, Record, Records};
 use super::stats::{Histogram, NMAD_FACTOR, SlopeClass, Stats};
+use crate::maths::CompensatedSum;
 
 mod search;
 
 use search::{COLLECT, Gathered, GatheredFile, Job, PART, Quantiles, Reading, Search, gather};
 
-/// Sums over one population in record order, as `stats` sums them.
+/// Sums over one population, compensated (as `stats` sums them): parts joined give the sums
+/// made in order to within an ulp or two.
 #[derive(Clone, Copy, Debug)]
 pub struct Moments {
     count: u64,
-    w: f64,
-    wx: f64,
-    wxx: f64,
+    w: CompensatedSum,
+    wx: CompensatedSum,
+    wxx: CompensatedSum,
     lo: f64,
     hi: f64,
 }
 
 impl Default for Moments {
     fn default() -> Moments {
-        Moments { count: 0, w: 0.0, wx: 0.0, wxx: 0.0, lo: f64::INFINITY, hi: f64::NEG_INFINITY }
+        let zero = CompensatedSum::default();
+        Moments { count: 0, w: zero, wx: zero, wxx: zero, lo: f64::INFINITY, hi: f64::NEG_INFINITY }
     }
 }
 
 impl Moments {
     fn add(&mut self, r: &Record) {
         self.count += 1;
-        self.w += r.weight;
-        self.wx += r.weight * r.dh_m;
-        self.wxx += r.weight * r.dh_m * r.dh_m;
+        self.w.add(r.weight);
+        self.wx.add(r.weight * r.dh_m);
+        self.wxx.add(r.weight * r.dh_m * r.dh_m);
         self.lo = self.lo.min(r.dh_m);
         self.hi = self.hi.max(r.dh_m);
     }
@@ -57,11 +60,15 @@ impl Moments {
     /// The sums of the records after these, added.
     fn join(&mut self, next: &Moments) {
         self.count += next.count;
-        self.w += next.w;
-        self.wx += next.wx;
-        self.wxx += next.wxx;
+        self.w.join(next.w);
+        self.wx.join(next.wx);
+        self.wxx.join(next.wxx);
         self.lo = self.lo.min(next.lo);
         self.hi = self.hi.max(next.hi);
+    }
+
+    fn mean(&self) -> f64 {
+        self.wx.value() / self.w.value()
     }
 }
 
@@ -90,7 +97,7 @@ pub struct Pass {
 /// What a pass gave over some consecutive records; [`Gave::join`] puts the next records' after.
 pub struct Gave {
     moments: Vec<Moments>,
-    spread: Vec<f64>,
+    spread: Vec<CompensatedSum>,
     histogram: Option<Histogram>,
     gathered: Vec<Gathered>,
 }
@@ -99,7 +106,7 @@ impl Gave {
     /// What the pass gave over the records after these, put after it.
     pub fn join(&mut self, next: Gave) {
         self.moments.iter_mut().zip(&next.moments).for_each(|(m, n)| m.join(n));
-        self.spread.iter_mut().zip(&next.spread).for_each(|(s, n)| *s += n);
+        self.spread.iter_mut().zip(&next.spread).for_each(|(s, n)| s.join(*n));
         if let (Some(h), Some(n)) = (self.histogram.as_mut(), next.histogram.as_ref()) {
             h.join(n);
         }
@@ -108,10 +115,13 @@ impl Gave {
 
     /// As a part file holds it: every f64 as its bits, nothing rounded.
     pub fn to_file(&self) -> GaveFile {
-        let bits = |m: &Moments| (m.count, [m.w, m.wx, m.wxx, m.lo, m.hi].map(f64::to_bits));
+        let bits = |m: &Moments| {
+            let [w, wx, wxx] = [m.w, m.wx, m.wxx].map(CompensatedSum::parts);
+            (m.count, [w[0], w[1], wx[0], wx[1], wxx[0], wxx[1], m.lo, m.hi].map(f64::to_bits))
+        };
         GaveFile {
             moments: self.moments.iter().map(bits).collect(),
-            spread: self.spread.iter().map(|s| s.to_bits()).collect(),
+            spread: self.spread.iter().map(|s| s.parts().map(f64::to_bits)).collect(),
             histogram: self
                 .histogram
                 .as_ref()
@@ -134,9 +144,10 @@ impl Gave {
         let moments = file
             .moments
             .iter()
-            .map(|&(count, [w, wx, wxx, lo, hi])| {
+            .map(|&(count, [w0, w1, wx0, wx1, wxx0, wxx1, lo, hi])| {
                 let f = f64::from_bits;
-                Moments { count, w: f(w), wx: f(wx), wxx: f(wxx), lo: f(lo), hi: f(hi) }
+                let sum = |hi, lo| CompensatedSum::from_parts([f(hi), f(lo)]);
+                Moments { count, w: sum(w0, w1), wx: sum(wx0, wx1), wxx: sum(wxx0, wxx1), lo: f(lo), hi: f(hi) }
             })
             .collect();
         let histogram = match (pass.spread.as_ref().and_then(|(_, h)| h.clone()), &file.histogram) {
@@ -150,7 +161,7 @@ impl Gave {
         };
         Ok(Gave {
             moments,
-            spread: file.spread.iter().map(|&s| f64::from_bits(s)).collect(),
+            spread: file.spread.iter().map(|s| CompensatedSum::from_parts(s.map(f64::from_bits))).collect(),
             histogram,
             gathered: file.gathered.iter().map(Gathered::from_file).collect::<Result<_, _>>()?,
         })
@@ -166,10 +177,11 @@ pub struct BadPart(pub String);
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct GaveFile {
-    /// Each population's count and sums (w, wx, wxx, least, largest).
-    moments: Vec<(u64, [u64; 5])>,
-    /// Each population's spread about its mean.
-    spread: Vec<u64>,
+    /// Each population's count, compensated sums (w, wx, wxx as their two parts), least and
+    /// largest.
+    moments: Vec<(u64, [u64; 8])>,
+    /// Each population's spread about its mean (its two parts).
+    spread: Vec<[u64; 2]>,
     /// The histogram's counts and weights.
     histogram: Option<(Vec<u64>, Vec<u64>)>,
     /// Each search's candidates.
@@ -220,7 +232,7 @@ pub struct Statistics {
     bins: usize,
     collect: u64,
     moments: Vec<Moments>,
-    spread: Vec<f64>,
+    spread: Vec<CompensatedSum>,
     histogram: Option<Histogram>,
     stage: Stage,
 }
@@ -240,7 +252,7 @@ impl Statistics {
             bins,
             collect,
             moments: vec![Moments::default(); populations.len()],
-            spread: vec![0.0; populations.len()],
+            spread: vec![CompensatedSum::default(); populations.len()],
             histogram: None,
             stage: Stage::Moments,
         }
@@ -264,7 +276,7 @@ impl Statistics {
             Stage::Moments => Some(Pass { moments: true, spread: None, jobs: Vec::new(), searches: Vec::new() }),
             Stage::Values(q) | Stage::Deviations(_, q) => Some(searching(q)),
             Stage::Spread(values) => {
-                let means = self.moments.iter().map(|m| m.wx / m.w).collect();
+                let means = self.moments.iter().map(Moments::mean).collect();
                 let histogram = (self.moments[0].count > 0 && self.bins > 0)
                     .then(|| Histogram::over(values[0][3], values[0][4], self.bins));
                 Some(Pass { moments: false, spread: Some((means, histogram)), jobs: Vec::new(), searches: Vec::new() })
@@ -334,11 +346,11 @@ impl Statistics {
             Stats {
                 count: m.count,
                 nodata_count,
-                weight_sum: m.w,
-                mean_m: m.wx / m.w,
+                weight_sum: m.w.value(),
+                mean_m: m.mean(),
                 median_m: q[0],
-                std_m: (self.spread[p] / m.w).sqrt(),
-                rmse_m: (m.wxx / m.w).sqrt(),
+                std_m: (self.spread[p].value() / m.w.value()).sqrt(),
+                rmse_m: (m.wxx.value() / m.w.value()).sqrt(),
                 nmad_m: NMAD_FACTOR * deviations[p][0],
                 min_m: m.lo,
                 max_m: m.hi,
@@ -372,7 +384,7 @@ impl Stage {
 fn run_pass(records: &dyn Records, pass: &Pass, populations: Populations, reading: Reading) -> io::Result<Gave> {
     let mut gave = Gave {
         moments: vec![Moments::default(); populations.len()],
-        spread: vec![0.0; populations.len()],
+        spread: vec![CompensatedSum::default(); populations.len()],
         histogram: pass.spread.as_ref().and_then(|(_, h)| h.clone()),
         gathered: Vec::new(),
     };
@@ -388,9 +400,9 @@ fn run_pass(records: &dyn Records, pass: &Pass, populations: Populations, readin
                     }
                 }
                 if !means.is_empty() {
-                    gave.spread[0] += r.weight * (r.dh_m - means[0]).powi(2);
+                    gave.spread[0].add(r.weight * (r.dh_m - means[0]).powi(2));
                     if let Some(p) = member {
-                        gave.spread[p] += r.weight * (r.dh_m - means[p]).powi(2);
+                        gave.spread[p].add(r.weight * (r.dh_m - means[p]).powi(2));
                     }
                     if let Some(h) = gave.histogram.as_mut() {
                         h.add(r.dh_m, r.weight);
