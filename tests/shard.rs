@@ -171,6 +171,25 @@ fn shards_run_as_plain_processes_merge_into_the_single_process_store() {
 }
 
 #[test]
+fn an_import_plan_runs_under_the_contract_every_command_shares() {
+    // `terrafuse shard PLAN I`, `merge PLAN` and `shards run PLAN`, as for a comparison or an
+    // export: the parts in PLAN.parts, the store PLAN.gpkg.
+    let dir = common::scratch("shard/contract");
+    let single = single_import(&dir);
+    let manifest = plan(&dir, "srtm.json", SRTM, "wgs84", "11", 3);
+    let waiting = terrafuse(&["merge", s(&manifest)], "");
+    assert_eq!(waiting.status.code(), Some(3), "{}", text(&waiting));
+    assert!(text(&waiting).contains("waits for shards 0,1,2"), "{}", text(&waiting));
+    assert!(ok(&["shard", s(&manifest), "1"]).contains("srtm.parts/part-0001.gpkg"));
+    assert!(ok(&["shard", s(&manifest), "1"]).contains("already complete: nothing to do"));
+    let out = ok(&["shards", "run", s(&manifest), "--jobs", "2"]);
+    assert!(out.contains("complete: all 3 shards in"), "{out}");
+    assert_same_store(&dir.join("srtm.gpkg"), &single);
+    let dry = ok(&["slurm", "submit", s(&manifest), "--dry-run"]);
+    assert!(dry.contains("is complete: nothing to submit"), "{dry}");
+}
+
+#[test]
 fn bad_plans_parts_and_stores_are_refused_by_name() {
     let dir = common::scratch("shard/bad");
     let a = plan(&dir, "a.json", SRTM, "wgs84", "9", 2);

@@ -67,8 +67,9 @@ pub enum Command {
     /// their overlap at one level, weighted by each sample's cell area on the ellipsoid, by slope
     /// class of B, with a histogram.
     Compare(CompareRequest),
-    /// Compute one shard's part of a sharded comparison's pending round (`compare … --plan`):
-    /// refuses a project or store changed since the plan; does nothing where the part is there.
+    /// Compute one shard's part of a plan's pending round (`compare|export|import … --plan`):
+    /// refuses a project, store or source changed since the plan; does nothing where the part
+    /// is there. An import's part is PLAN.parts/part-IIII.gpkg.
     Shard {
         /// The plan.
         plan: PathBuf,
@@ -76,11 +77,15 @@ pub enum Command {
         /// Kubernetes (JOB_COMPLETION_INDEX) or AWS Batch (AWS_BATCH_JOB_ARRAY_INDEX).
         shard: String,
     },
-    /// Join a sharded comparison's parts: print what `compare` prints once every round is
-    /// complete; else exit 3 naming the round and the shards to run (again).
+    /// Join a plan's parts: print what `compare` prints, write the export's GeoTIFF, or merge an
+    /// import's parts into its store, once every round is complete; else exit 3 naming the round
+    /// and the shards to run (again).
     Merge {
         /// The plan.
         plan: PathBuf,
+        /// An import's store (default: the plan's name with .gpkg).
+        #[arg(long)]
+        store: Option<PathBuf>,
     },
     /// Sharded comparisons on this machine.
     Shards {
@@ -256,6 +261,9 @@ pub enum ShardsCommand {
     Run {
         /// The plan.
         plan: PathBuf,
+        /// An import's store (default: the plan's name with .gpkg).
+        #[arg(long)]
+        store: Option<PathBuf>,
         /// Shard processes at once.
         #[arg(long, default_value_t = 2, allow_negative_numbers = true)]
         jobs: usize,

@@ -86,9 +86,9 @@ pub fn run(command: Command, c: &mut Console) -> Result<u8, CliError> {
         Command::Import { import } => run_import(&import, c)?,
         Command::Store { command } => return run_store(command, c),
         Command::Shard { plan, shard } => return super::sharded::shard_command(&plan, &shard, c),
-        Command::Merge { plan } => return super::sharded::merge_command(&plan, c),
-        Command::Shards { command: ShardsCommand::Run { plan, jobs } } => {
-            return super::sharded::shards_run(&plan, jobs, c);
+        Command::Merge { plan, store } => return super::sharded::merge_command(&plan, store.as_deref(), c),
+        Command::Shards { command: ShardsCommand::Run { plan, store, jobs } } => {
+            return super::sharded::shards_run(&plan, store.as_deref(), jobs, c);
         }
         Command::Slurm { command: SlurmCommand::Submit(a) } => {
             let (Some(manifest), Some(parts), Some(store)) = (a.manifest, a.parts, a.store) else {
@@ -97,6 +97,8 @@ pub fn run(command: Command, c: &mut Console) -> Result<u8, CliError> {
                 c.print(super::slurm::submit_plan(&super::slurm::PlanSubmit {
                     plan,
                     threads: a.threads,
+                    memory_budget: a.memory_budget,
+                    work_dir: a.work_dir,
                     sbatch_args: a.sbatch_arg,
                     terrafuse: a.terrafuse,
                     dry_run: a.dry_run,

@@ -27,13 +27,14 @@ pub fn plan_summary(path: &Path, r: &PlanReport) -> String {
         sizes.iter().max().unwrap_or(&0),
         r.seconds
     );
+    out.push_str(&super::sharded::next_steps(path, m.shards.len()));
     let _ = writeln!(
         out,
-        "run each shard I in 0..{}: terrafuse import --manifest {} --shard I --store PART-I.gpkg",
-        m.shards.len(),
+        "(parts in {}, the store {} unless merge --store; or by hand: terrafuse import --manifest {} --shard I --store PART-I.gpkg, then terrafuse store merge STORE PART-*.gpkg)",
+        super::sharded::import_parts(path).display(),
+        super::sharded::import_store(path, None).display(),
         path.display()
     );
-    let _ = writeln!(out, "then: terrafuse store merge STORE PART-*.gpkg   (or: terrafuse slurm submit --manifest …)");
     out
 }
 

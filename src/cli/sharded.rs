@@ -11,6 +11,24 @@ use super::error::Context;
 use super::{CliError, Within};
 use crate::compare::sharded::{self, Merged, Sharded};
 use crate::export::sharded as export_sharded;
+use crate::store::shard::{MANIFEST_FORMAT, Manifest, part_is_done};
+
+/// An import plan's parts: `PLAN.parts` beside it.
+pub fn import_parts(plan: &Path) -> std::path::PathBuf {
+    plan.with_extension("parts")
+}
+
+/// An import plan's store: `store`, or the plan's name with `.gpkg`.
+pub fn import_store(plan: &Path, store: Option<&Path>) -> std::path::PathBuf {
+    store.map_or_else(|| plan.with_extension("gpkg"), Path::to_path_buf)
+}
+
+/// An import plan's shards without a complete part.
+fn import_missing(plan: &Path) -> Result<Vec<usize>, CliError> {
+    let m = Manifest::load(plan)?;
+    let parts = import_parts(plan);
+    Ok((0..m.shards.len()).filter(|&i| !part_is_done(&crate::slurm::part_path(&parts, i), &m, i)).collect())
+}
 
 /// The exit status of a merge that waits for shards.
 pub const PENDING: u8 = 3;
@@ -22,6 +40,8 @@ pub enum Planned {
     Compare,
     /// `export … --plan`.
     Export,
+    /// `import … --plan` (the manifest).
+    Import,
 }
 
 /// Reads the plan's `format`.
@@ -30,11 +50,8 @@ pub fn planned(plan: &Path) -> Result<Planned, CliError> {
     match format.as_str() {
         sharded::PLAN_FORMAT => Ok(Planned::Compare),
         export_sharded::PLAN_FORMAT => Ok(Planned::Export),
-        other => Err(format!(
-            "{}: format {other}: not a plan of compare or export (an import's manifest goes to `terrafuse import --manifest … --shard`)",
-            plan.display()
-        )
-        .into()),
+        MANIFEST_FORMAT => Ok(Planned::Import),
+        other => Err(format!("{}: format {other}: not a plan of compare, export or import", plan.display()).into()),
     }
 }
 
@@ -62,12 +79,33 @@ pub fn pending(plan: &Path) -> Result<Option<(u32, Vec<usize>)>, CliError> {
             let missing = export_sharded::missing(&loaded)?;
             (!missing.is_empty()).then_some((0, missing))
         }
+        Planned::Import => {
+            let missing = import_missing(plan)?;
+            (!missing.is_empty()).then_some((0, missing))
+        }
     })
 }
 
 /// Computes shard `shard` (a number, or `env`) of the plan's pending round.
 pub fn shard_command(plan: &Path, shard: &str, c: &mut Console) -> Result<u8, CliError> {
     let index = super::shard::shard_index(shard, c.var)?;
+    if planned(plan)? == Planned::Import {
+        let part = crate::slurm::part_path(&import_parts(plan), index);
+        std::fs::create_dir_all(import_parts(plan))
+            .with_context(|| format!("{}: cannot make the folder", import_parts(plan).display()))?;
+        let opts = crate::store::shard::ShardOptions {
+            manifest: plan.to_path_buf(),
+            shard: index,
+            store: part.clone(),
+            work_dir: None,
+            threads: None,
+            memory_budget: super::parse_bytes("2GiB")?,
+            progress: false,
+            watch: None,
+        };
+        let report = crate::store::shard::import_shard(&opts)?;
+        return c.print(super::shard_summary(&part, index, &report)).map(|()| 0);
+    }
     if planned(plan)? == Planned::Export {
         let outcome = super::feedback::watched(c, true, |fb| export_sharded::shard(plan, index, fb.watch))?;
         return c
@@ -91,7 +129,31 @@ pub fn shard_command(plan: &Path, shard: &str, c: &mut Console) -> Result<u8, Cl
 }
 
 /// Joins the parts: prints the comparison (exit 0), or names what to run (exit [`PENDING`]).
-pub fn merge_command(plan: &Path, c: &mut Console) -> Result<u8, CliError> {
+pub fn merge_command(plan: &Path, store: Option<&Path>, c: &mut Console) -> Result<u8, CliError> {
+    if planned(plan)? == Planned::Import {
+        let missing = import_missing(plan)?;
+        if !missing.is_empty() {
+            let listed: Vec<String> = missing.iter().map(ToString::to_string).collect();
+            c.note(format!(
+                "terrafuse: the import waits for shards {}: run terrafuse shard {} I for each, then merge again",
+                listed.join(","),
+                plan.display()
+            ));
+            return Ok(PENDING);
+        }
+        let m = Manifest::load(plan)?;
+        let store = import_store(plan, store);
+        let opts = crate::store::merge::MergeOptions {
+            store: store.clone(),
+            parts: (0..m.shards.len()).map(|i| crate::slurm::part_path(&import_parts(plan), i)).collect(),
+            threads: None,
+            progress: false,
+            watch: None,
+        };
+        let report = crate::store::merge::merge(&opts)?;
+        c.print(super::merge_summary(&store, &report))?;
+        return Ok(if report.complete { 0 } else { PENDING });
+    }
     if planned(plan)? == Planned::Export {
         let started = std::time::Instant::now();
         let merged = super::feedback::watched(c, true, |fb| export_sharded::merge(plan, fb.watch))?;
@@ -136,14 +198,14 @@ pub fn merge_command(plan: &Path, c: &mut Console) -> Result<u8, CliError> {
 }
 
 /// Runs the pending shards as local processes, `jobs` at a time, round after round, then merges.
-pub fn shards_run(plan: &Path, jobs: usize, c: &mut Console) -> Result<u8, CliError> {
+pub fn shards_run(plan: &Path, store: Option<&Path>, jobs: usize, c: &mut Console) -> Result<u8, CliError> {
     if jobs == 0 {
         return Err("--jobs 0: give at least 1".into());
     }
     let exe = std::env::current_exe().context("this program's path")?;
     loop {
         let Some((round, shards)) = pending(plan)? else {
-            return merge_command(plan, c);
+            return merge_command(plan, store, c);
         };
         c.note(format!("terrafuse: round {round}: {} shards", shards.len()));
         for batch in shards.chunks(jobs) {

@@ -178,6 +178,10 @@ pub struct PlanSubmit {
     pub plan: PathBuf,
     /// CPUs per task.
     pub threads: usize,
+    /// An import's memory budget per task.
+    pub memory_budget: String,
+    /// An import's node-local work folder (a shell word, expanded on the node).
+    pub work_dir: String,
     /// Extra `sbatch` arguments, for both jobs.
     pub sbatch_args: Vec<String>,
     /// The terrafuse the nodes run (default: this one).
@@ -203,6 +207,20 @@ pub fn submit_plan(req: &PlanSubmit) -> Result<String> {
         Planned::Export => {
             let p = crate::export::sharded::ExportPlan::load(&plan)?;
             (p.hash, p.parts, false)
+        }
+        // An import's plan, its parts and store beside it as `terrafuse shard` and `merge` keep them.
+        Planned::Import => {
+            return slurm_submit(&SubmitRequest {
+                manifest: plan.clone(),
+                parts: super::sharded::import_parts(&plan),
+                store: super::sharded::import_store(&plan, None),
+                threads: req.threads,
+                memory_budget: req.memory_budget.clone(),
+                work_dir: req.work_dir.clone(),
+                sbatch_args: req.sbatch_args.clone(),
+                terrafuse: req.terrafuse.clone(),
+                dry_run: req.dry_run,
+            });
         }
     };
     let terrafuse = match &req.terrafuse {
