@@ -1167,3 +1167,58 @@ fn a_flight_is_recorded_while_flying_and_replayed_along_its_path() {
     let e = h.state_mut().play_flight().unwrap_err().to_string();
     assert!(e.contains("waypoint 1"), "{e}");
 }
+
+#[test]
+fn a_comparison_too_large_for_the_window_is_planned_followed_round_by_round_and_merged_in_the_panel() {
+    let dir = common::out_path("workstation-cluster-compare");
+    let _ = std::fs::remove_dir_all(dir.join("plans"));
+    let project = sample_project("erzurum-compare", &dir);
+    let mut h = harness_of_size(&project, "30km", egui::vec2(900.0, 1700.0));
+    settle(&mut h);
+    h.get_by_label("Compare").click_accesskit();
+    h.run_steps(2);
+    h.get_by_label("on a cluster (too large for the window)").click_accesskit();
+    h.run_steps(2);
+    let wait = |h: &mut Harness<'static, App>| step_while(h, 6000, "the plan or merge", |a| a.cluster_compare().busy());
+    // Bad input is refused by field, nothing written.
+    let plan = dir.join("plans/cmp.json");
+    type_into(&mut h, "shards", "three");
+    type_into(&mut h, "level", "9");
+    type_into(&mut h, "plan file", plan.to_str().unwrap());
+    h.get_by_label("write plan").click_accesskit();
+    h.run_steps(2);
+    assert!(h.state().cluster_compare().message.contains("shards: 'three'"), "{}", h.state().cluster_compare().message);
+    assert!(!plan.exists());
+    // The plan, written in the background: blurred − srtm in 3 shards, none done.
+    type_into(&mut h, "shards", "3");
+    h.get_by_label("write plan").click_accesskit();
+    wait(&mut h);
+    let c = h.state().cluster_compare();
+    assert!(c.message.starts_with("wrote plan "), "{}", c.message);
+    assert_eq!(
+        c.plan().map(|p| (p.a.as_str(), p.b.as_str(), p.level, p.shards.len())),
+        Some(("blurred", "srtm", 9, 3))
+    );
+    h.get_by_label_contains("0 of 3 shards done");
+    h.get_by_label_contains("terrafuse slurm submit");
+    // One shard on the "cluster"; the merge names the round and the two still to run.
+    let p = plan.to_str().unwrap();
+    assert!(common::terrafuse(&["shard", p, "1"], "").status.success());
+    h.get_by_label("merge").click_accesskit();
+    wait(&mut h);
+    assert_eq!(h.state().cluster_compare().round().cloned(), Some((0, vec![false, true, false])));
+    h.get_by_label_contains("1 of 3 shards done");
+    // Every round run; the merge shows the statistics one `compare` prints.
+    let o = common::terrafuse(&["shards", "run", p, "--jobs", "2"], "");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    h.get_by_label("merge").click_accesskit();
+    wait(&mut h);
+    let merged = h.state().cluster_compare().merged().expect("the merged comparison").clone();
+    let one =
+        common::terrafuse(&["compare", project.to_str().unwrap(), "blurred", "srtm", "--level", "9", "--json"], "");
+    let one: serde_json::Value = serde_json::from_slice(&one.stdout).unwrap();
+    assert_eq!(merged.stats.count, one["count"].as_u64().unwrap());
+    assert_eq!(merged.stats.median_m, one["median_m"].as_f64().unwrap());
+    assert_eq!(merged.stats.nmad_m, one["nmad_m"].as_f64().unwrap());
+    h.render().unwrap().save(dir.join("cluster-compare.png")).unwrap(); // for people, not compared
+}

@@ -352,7 +352,7 @@ impl ClusterImport {
 }
 
 /// One small square per shard: green when its part is done, grey when not.
-fn shard_squares(ui: &mut egui::Ui, done: &[bool]) {
+pub(crate) fn shard_squares(ui: &mut egui::Ui, done: &[bool]) {
     const SIDE: f32 = 7.0;
     let per_row = ((ui.available_width() / (SIDE + 1.0)) as usize).max(1);
     let rows = done.len().div_ceil(per_row).min(40);

@@ -270,7 +270,7 @@ impl ComparePanel {
 }
 
 /// The statistics, the histogram and the slope classes of a comparison.
-fn comparison_ui(ui: &mut egui::Ui, c: &Comparison) {
+pub(crate) fn comparison_ui(ui: &mut egui::Ui, c: &Comparison) {
     let s = &c.stats;
     ui.label(format!("{} - {} at level {} ({:.0} m), by cell area", c.a, c.b, c.level, c.spacing_m));
     egui::Grid::new("compare stats").num_columns(4).show(ui, |ui| {

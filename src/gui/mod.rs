@@ -4,6 +4,7 @@
 pub mod add_dataset;
 pub mod app;
 pub mod background;
+pub mod cluster_compare;
 pub mod cluster_import;
 pub mod compare_panel;
 pub mod difference_ui;

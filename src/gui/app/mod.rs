@@ -93,6 +93,7 @@ pub struct App {
     /// The "add a dataset" form and its import in flight.
     add_dataset: crate::gui::add_dataset::AddDataset,
     cluster: crate::gui::cluster_import::ClusterImport,
+    cluster_compare: crate::gui::cluster_compare::ClusterCompare,
     /// The *Compare* section.
     compare: crate::gui::compare_panel::ComparePanel,
     /// A swipe in progress (a second renderer).
@@ -170,6 +171,7 @@ impl App {
             closing: false,
             add_dataset: Default::default(),
             cluster: Default::default(),
+            cluster_compare: Default::default(),
             compare: Default::default(),
             difference_range: Default::default(),
             brush: Default::default(),
@@ -266,6 +268,11 @@ impl App {
     /// Whether a dataset is being imported or opened in the background.
     pub fn adding_dataset(&self) -> bool {
         self.add_dataset.busy()
+    }
+
+    /// The cluster-comparison section (tests read its plan, rounds and result).
+    pub fn cluster_compare(&self) -> &crate::gui::cluster_compare::ClusterCompare {
+        &self.cluster_compare
     }
 
     /// The cluster-import panel (tests read its plan and shards).

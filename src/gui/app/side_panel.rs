@@ -294,9 +294,12 @@ impl App {
             crate::gui::compare_panel::CompareAction::ShowDifference { a, b } => self.show_difference(&a, &b),
             crate::gui::compare_panel::CompareAction::None => {}
         }
-        self.profile_ui(ui);
         let (a, b) = self.compare.selection();
         let (a, b) = (a.to_string(), b.to_string());
+        if !a.is_empty() && a != b {
+            self.cluster_compare.ui(ui, &self.project_path, &a, &b);
+        }
+        self.profile_ui(ui);
         if !a.is_empty() && a != b {
             let mut on = self.swipe.is_some();
             if ui
