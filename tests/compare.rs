@@ -1210,6 +1210,16 @@ fn a_comparison_cut_into_shards_merges_to_what_one_process_prints() {
         let again = run(&["shard", plan_s, "0"]);
         let expected = if shards == 1 { "wrote its part of round 1" } else { "its part of round 0 is there already" };
         assert!(again.contains(expected), "{again}");
+        if shards > 1 {
+            // A shard killed while writing leaves at most its temporary file: it counts as nothing.
+            let round = dir.join(format!("plan-{shards}.parts/round-000"));
+            std::fs::write(round.join(".shard-000001.json.tmp-4000000-0"), b"{\"format\": \"half").unwrap();
+            let waiting = terrafuse(&["merge", plan_s], "");
+            let said = String::from_utf8_lossy(&waiting.stderr).into_owned();
+            let rest: Vec<String> = (1..shards).map(|i| i.to_string()).collect();
+            assert_eq!(waiting.status.code(), Some(3), "{said}");
+            assert!(said.contains(&format!("round 0 waits for shards {}", rest.join(","))), "{said}");
+        }
         let merged: serde_json::Value = serde_json::from_str(&run(&["shards", "run", plan_s, "--jobs", "2"])).unwrap();
         let what = format!("{shards} shards");
         same_statistics(&merged, &one, &what);

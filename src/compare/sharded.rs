@@ -79,6 +79,30 @@ pub struct ComparePlan {
     /// Each shard's quads of `level`, as `[face, x, y]` (face in `Face::ALL` order), contiguous
     /// along the curve.
     pub shards: Vec<Vec<[u32; 3]>>,
+    /// A quantile's last candidates are gathered once at most this many are left, over every
+    /// shard (smaller parts, a round more; the same quantiles). Plans written before the field
+    /// gather 2¹⁸, as one `compare` does.
+    #[serde(default = "one_process_collect")]
+    pub collect: u64,
+    /// The width of a quantile search's digits after the first, bits (8: at most 256 buckets a
+    /// search in a part; 16 before the field, as one `compare`).
+    #[serde(default = "one_process_refine_bits")]
+    pub refine_bits: u32,
+}
+
+/// What a plan's shards gather at most per quantile: with about 30 searches (seven populations'
+/// quantiles and deviations), at most ≈ 4.6 MB of candidates in a part, whatever its samples.
+pub const PLAN_COLLECT: u64 = 2048;
+/// A plan's digits after the first: 8 bits, at most 256 buckets a search (≈ 0.8 MB a part for
+/// 30 searches), where 16 bits gave parts of 40–84 MB (BENCHMARKS.md).
+pub const PLAN_REFINE_BITS: u32 = 8;
+
+fn one_process_refine_bits() -> u32 {
+    super::streamed::Gathering::default().refine_bits
+}
+
+fn one_process_collect() -> u64 {
+    super::streamed::COLLECT
 }
 
 /// One shard's part of one round.
@@ -148,6 +172,12 @@ impl ComparePlan {
         if plan.digest() != plan.hash {
             return Err(file_error(path, "its hash does not match its contents: the plan was edited or damaged"));
         }
+        if !(1..=16).contains(&plan.refine_bits) || plan.collect == 0 {
+            return Err(file_error(
+                path,
+                format!("refine_bits {} and collect {}: give 1–16 and at least 1", plan.refine_bits, plan.collect),
+            ));
+        }
         Ok(plan)
     }
 
@@ -171,6 +201,11 @@ impl ComparePlan {
             slope_classes_deg: self.slope_classes_deg.clone(),
             ..CompareOptions::default()
         })
+    }
+
+    /// How the plan's quantile searches narrow.
+    fn gathering(&self) -> super::streamed::Gathering {
+        super::streamed::Gathering { collect: self.collect, refine_bits: self.refine_bits }
     }
 
     fn part_path(&self, round: u32, shard: usize) -> PathBuf {
@@ -201,7 +236,8 @@ impl ComparePlan {
     /// The statistics with every complete round taken, the round pending (None once done), the
     /// shards missing from it, and the samples' counts from round 0.
     fn replay(&self) -> Result<Standing, CompareError> {
-        let mut statistics = Statistics::new(&self.slope_classes_deg, super::stats::HISTOGRAM_BINS);
+        let mut statistics =
+            Statistics::reading(&self.slope_classes_deg, super::stats::HISTOGRAM_BINS, self.gathering());
         let mut replayed = Replayed { nodata: 0, area: (f64::INFINITY, 0.0), round: 0, missing: Vec::new() };
         while let Some(pass) = statistics.pass() {
             if replayed.round >= MAX_ROUNDS {
@@ -325,6 +361,8 @@ pub fn plan(
         json,
         parts,
         shards: cut,
+        collect: PLAN_COLLECT,
+        refine_bits: PLAN_REFINE_BITS,
     };
     plan.hash = plan.digest();
     crate::plan::write(&plan_path, &plan.parts, &plan)?;

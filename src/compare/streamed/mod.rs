@@ -26,7 +26,9 @@ use crate::maths::CompensatedSum;
 
 mod search;
 
-use search::{COLLECT, Gathered, GatheredFile, Job, PART, Quantiles, Reading, Search, gather};
+pub(crate) use search::COLLECT;
+pub use search::Gathering;
+use search::{Gathered, GatheredFile, Job, PART, Quantiles, Reading, Search, gather};
 
 /// Sums over one population, compensated (as `stats` sums them): parts joined give the sums
 /// made in order to within an ulp or two.
@@ -230,7 +232,7 @@ pub struct Statistics {
     populations: Populations,
     bounds_deg: Vec<f64>,
     bins: usize,
-    collect: u64,
+    gathering: Gathering,
     moments: Vec<Moments>,
     spread: Vec<CompensatedSum>,
     histogram: Option<Histogram>,
@@ -241,16 +243,18 @@ impl Statistics {
     /// The statistics of differences in the slope classes `bounds_deg`, with a histogram of
     /// `bins` bins (0: none).
     pub fn new(bounds_deg: &[f64], bins: usize) -> Statistics {
-        Statistics::reading(bounds_deg, bins, COLLECT)
+        Statistics::reading(bounds_deg, bins, Gathering::default())
     }
 
-    fn reading(bounds_deg: &[f64], bins: usize, collect: u64) -> Statistics {
+    /// [`Statistics::new`], the quantiles' searches narrowing as `gathering` says (a sharded
+    /// comparison's plan: smaller parts, more passes; the same quantiles).
+    pub fn reading(bounds_deg: &[f64], bins: usize, gathering: Gathering) -> Statistics {
         let populations = Populations::new(bounds_deg);
         Statistics {
             populations,
             bounds_deg: bounds_deg.to_vec(),
             bins,
-            collect,
+            gathering,
             moments: vec![Moments::default(); populations.len()],
             spread: vec![CompensatedSum::default(); populations.len()],
             histogram: None,
@@ -261,7 +265,7 @@ impl Statistics {
     /// Runs `pass` over `records` (all of them, or a part whose result is joined with the
     /// others' in order).
     pub fn run(&self, records: &dyn Records, pass: &Pass) -> io::Result<Gave> {
-        run_pass(records, pass, self.populations, Reading { collect: self.collect, part: PART })
+        run_pass(records, pass, self.populations, Reading { collect: self.gathering.collect, part: PART })
     }
 
     /// The next pass, None once the statistics are found.
@@ -291,7 +295,7 @@ impl Statistics {
         self.stage = match stage {
             Stage::Moments => {
                 self.moments = gave.moments;
-                Stage::Values(Quantiles::new(self.value_jobs(), self.moments[0].count, self.collect)).settled()
+                Stage::Values(Quantiles::new(self.value_jobs(), self.moments[0].count, self.gathering)).settled()
             }
             Stage::Values(mut q) => {
                 q.take(gave.gathered);
@@ -306,7 +310,7 @@ impl Statistics {
                     .enumerate()
                     .map(|(p, class)| Job { class, centre: Some(values[2 * p][0]), quantiles: vec![0.5] })
                     .collect();
-                Stage::Deviations(values, Quantiles::new(jobs, self.moments[0].count, self.collect)).settled()
+                Stage::Deviations(values, Quantiles::new(jobs, self.moments[0].count, self.gathering)).settled()
             }
             Stage::Deviations(values, mut q) => {
                 q.take(gave.gathered);
@@ -444,7 +448,8 @@ fn streamed_stats_with(
     bins: usize,
     reading: Reading,
 ) -> io::Result<Streamed> {
-    let mut statistics = Statistics::reading(bounds_deg, bins, reading.collect);
+    let gathering = Gathering { collect: reading.collect, ..Gathering::default() };
+    let mut statistics = Statistics::reading(bounds_deg, bins, gathering);
     while let Some(pass) = statistics.pass() {
         let gave = run_pass(records, &pass, statistics.populations, reading)?;
         statistics.take(gave);
@@ -563,11 +568,14 @@ mod tests {
             }
             let reading = Reading { collect, part: PART };
             let one = streamed_stats_with(&Scanned(all.clone()), 3, &SLOPE_CLASSES_DEG, 50, reading).unwrap();
-            for shards in [1, 3, 7] {
+            // In parts, also narrowing by 8-bit digits after the first (as a sharded plan does):
+            // the cumulative weights are exact, so the quantiles do not depend on the digits.
+            for (shards, refine_bits) in [(1, 16), (3, 16), (7, 16), (3, 8), (7, 8)] {
                 let size = all.len().div_ceil(shards).max(1);
                 let parts: Vec<Scanned> =
                     (0..shards).map(|k| Scanned(all.iter().skip(k * size).take(size).copied().collect())).collect();
-                let mut statistics = Statistics::reading(&SLOPE_CLASSES_DEG, 50, collect);
+                let gathering = Gathering { collect, refine_bits };
+                let mut statistics = Statistics::reading(&SLOPE_CLASSES_DEG, 50, gathering);
                 let mut passes = 0;
                 while let Some(pass) = statistics.pass() {
                     let mut gave: Option<Gave> = None;
@@ -582,7 +590,7 @@ mod tests {
                     passes += 1;
                 }
                 let sharded = statistics.finish(3).unwrap();
-                let what = format!("n {n}, collect {collect}, {shards} parts, {passes} passes");
+                let what = format!("n {n}, collect {collect}, {refine_bits}-bit digits, {shards} parts, {passes} passes");
                 let pairs = std::iter::once((&sharded.stats, &one.stats))
                     .chain(sharded.by_slope.iter().map(|c| &c.stats).zip(one.by_slope.iter().map(|c| &c.stats)));
                 for (a, b) in pairs {

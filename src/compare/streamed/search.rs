@@ -19,7 +19,7 @@ use crate::maths::ExactSum;
 /// Bits of the ordering key one pass tells apart.
 const DIGIT_BITS: u32 = 16;
 /// Most candidates of one quantile read into memory (24 bytes each).
-pub(super) const COLLECT: u64 = 1 << 18;
+pub(crate) const COLLECT: u64 = 1 << 18;
 /// Most parts a pass reads held records in, and the fewest records in a part.
 const PARTS: usize = 4;
 pub(super) const PART: usize = 1 << 20;
@@ -143,7 +143,7 @@ impl Buckets {
 }
 
 /// Where one quantile's search stands: its candidates share the top `depth` bits of their key,
-/// `prefix`; `below` is the weight of every element before them in order (cumulative, the
+/// `prefix`; `below` is the weight of every element before them in order (exact, cumulative, the
 /// first element's included), `before` the value just before them; `goal` the cumulative weight
 /// the quantile sits at.
 #[derive(Clone, Debug)]
@@ -151,10 +151,12 @@ pub(super) struct Search {
     job: usize,
     quantile: usize,
     goal: f64,
-    below: f64,
+    below: ExactSum,
     before: Option<f64>,
     depth: u32,
     prefix: u64,
+    /// The width of the next digit, bits: [`DIGIT_BITS`] for the first, then the refinement's.
+    bits: u32,
     /// Read the candidates rather than count them by their next digit.
     collect: bool,
 }
@@ -162,7 +164,17 @@ pub(super) struct Search {
 impl Search {
     /// Every element of a job.
     fn whole(job: usize) -> Search {
-        Search { job, quantile: 0, goal: 0.0, below: 0.0, before: None, depth: 0, prefix: 0, collect: false }
+        Search {
+            job,
+            quantile: 0,
+            goal: 0.0,
+            below: ExactSum::default(),
+            before: None,
+            depth: 0,
+            prefix: 0,
+            bits: DIGIT_BITS,
+            collect: false,
+        }
     }
 
     fn holds(&self, key: u64) -> bool {
@@ -170,7 +182,7 @@ impl Search {
     }
 
     fn digit(&self, key: u64) -> usize {
-        ((key >> (64 - self.depth - DIGIT_BITS)) & ((1 << DIGIT_BITS) - 1)) as usize
+        ((key >> (64 - self.depth - self.bits)) & ((1 << self.bits) - 1)) as usize
     }
 }
 
@@ -322,15 +334,15 @@ fn walk(search: &Search, mut candidates: Vec<(Place, f64)>) -> f64 {
     walk_sorted(search, &candidates)
 }
 
-/// [`walk`] of candidates already sorted. The weights past `below` are summed exactly (as the
-/// buckets' are).
+/// [`walk`] of candidates already sorted. The cumulative weight is summed exactly from `below`
+/// on and rounded once where it is read, so it does not depend on how the search narrowed.
 fn walk_sorted(search: &Search, candidates: &[(Place, f64)]) -> f64 {
-    let (mut below, mut before) = (search.below, search.before);
-    let mut past = ExactSum::default();
+    let (mut below, mut before) = (search.below.value(), search.before);
+    let mut past = search.below;
     for &(place, weight) in candidates {
         let x = order_value(place.key);
         past.add(weight);
-        let at = search.below + past.value();
+        let at = past.value();
         if at >= search.goal {
             return match before {
                 Some(v) => {
@@ -348,21 +360,24 @@ fn walk_sorted(search: &Search, candidates: &[(Place, f64)]) -> f64 {
 
 /// The bucket of `buckets` (the candidates of `search` counted by their next digit) where the
 /// goal is reached: the quantile where that settles it, else the search narrowed to the bucket.
-fn narrow(search: Search, buckets: &Buckets, collect: u64) -> Result<f64, Search> {
+fn narrow(search: Search, buckets: &Buckets, gathering: Gathering) -> Result<f64, Search> {
     let (mut below, mut before) = (search.below, search.before);
     for (digit, bucket) in buckets.filled() {
-        let weight = bucket.weight.value();
-        if below + weight >= search.goal {
-            let depth = search.depth + DIGIT_BITS;
-            let prefix = (search.prefix << DIGIT_BITS) | digit as u64;
-            let narrowed = Search { below, before, depth, prefix, collect: bucket.count <= collect, ..search };
+        let mut after = below;
+        after.join(bucket.weight);
+        if after.value() >= search.goal {
+            let depth = search.depth + search.bits;
+            let prefix = (search.prefix << search.bits) | digit as u64;
+            let collect = bucket.count <= gathering.collect;
+            let bits = gathering.refine_bits.min(64 - depth);
+            let narrowed = Search { below, before, depth, prefix, bits, collect, ..search };
             if depth == 64 {
                 // One key, one value: only the first candidate's weight can matter.
                 return Ok(walk(&narrowed, vec![bucket.first]));
             }
             return Err(narrowed);
         }
-        below += weight;
+        below = after;
         before = Some(order_value(bucket.max));
     }
     Ok(before.unwrap_or(f64::NAN))
@@ -379,17 +394,35 @@ pub(super) struct Quantiles {
     started: bool,
     /// Every element is read in the first pass (there are at most `collect`).
     few: bool,
-    collect: u64,
+    gathering: Gathering,
+}
+
+/// How a quantile's search narrows: its candidates read once at most `collect` are left, else
+/// counted by their next digit, [`DIGIT_BITS`] wide the first time and `refine_bits` (16 or 8,
+/// dividing what is left of the 64) after it. Smaller values: fewer buckets and candidates in a
+/// pass's result, more passes; the same quantiles.
+#[derive(Clone, Copy, Debug)]
+pub struct Gathering {
+    /// Candidates read at once, at most.
+    pub collect: u64,
+    /// The width of a digit after the first, bits: 16 or 8.
+    pub refine_bits: u32,
+}
+
+impl Default for Gathering {
+    fn default() -> Gathering {
+        Gathering { collect: COLLECT, refine_bits: DIGIT_BITS }
+    }
 }
 
 impl Quantiles {
     /// The search for `jobs`' quantiles over `count` elements, at most `collect` candidates of a
     /// quantile read at once (all of them in the first pass where there are no more).
-    pub(super) fn new(jobs: Vec<Job>, count: u64, collect: u64) -> Quantiles {
-        let few = count <= collect;
+    pub(super) fn new(jobs: Vec<Job>, count: u64, gathering: Gathering) -> Quantiles {
+        let few = count <= gathering.collect;
         let open = (0..jobs.len()).map(|j| Search { collect: few, ..Search::whole(j) }).collect();
         let answers = jobs.iter().map(|j| vec![f64::NAN; j.quantiles.len()]).collect();
-        Quantiles { jobs, answers, open, started: false, few, collect }
+        Quantiles { jobs, answers, open, started: false, few, gathering }
     }
 
     /// The searches the next pass gathers for; none once every quantile is found.
@@ -412,8 +445,11 @@ impl Quantiles {
         }
         for (search, g) in open.into_iter().zip(gathered) {
             let (j, q) = (search.job, search.quantile);
-            let found =
-                if search.collect { Ok(walk(&search, g.candidates)) } else { narrow(search, &g.buckets, self.collect) };
+            let found = if search.collect {
+                Ok(walk(&search, g.candidates))
+            } else {
+                narrow(search, &g.buckets, self.gathering)
+            };
             match found {
                 Ok(v) => self.answers[j][q] = v,
                 Err(s) => self.open.push(s),
@@ -454,7 +490,7 @@ impl Quantiles {
                     self.answers[j][q] = walk_sorted(&search, &top.candidates);
                     continue;
                 }
-                match narrow(search, &top.buckets, self.collect) {
+                match narrow(search, &top.buckets, self.gathering) {
                     Ok(v) => self.answers[j][q] = v,
                     Err(s) => self.open.push(s),
                 }
