@@ -79,9 +79,42 @@ pub fn check_inputs(project_path: &Path, project_sha256: &str, stores: &[Stamp])
     Ok(project)
 }
 
-/// The SHA-256 of a plan's JSON (the caller empties the plan's own `hash` field first).
-pub fn digest<T: Serialize>(plan: &T) -> String {
-    sha256_hex(serde_json::to_string(plan).unwrap_or_default().as_bytes())
+/// A command's shard plan: its format, version and hash, as [`load`] checks them.
+pub trait Plan: Serialize + serde::de::DeserializeOwned + Clone {
+    /// The `format` this build writes.
+    const FORMAT: &'static str;
+    /// The `version` this build writes and reads.
+    const VERSION: u32;
+    /// What the file is, for a message ("a comparison plan").
+    const WHAT: &'static str;
+    /// The plan's `format`, `version` and `hash` fields.
+    fn header(&self) -> (&str, u32, &str);
+    /// Its `hash` field.
+    fn hash_mut(&mut self) -> &mut String;
+}
+
+/// The SHA-256 of a plan's JSON with its `hash` field empty.
+pub fn digest<T: Plan>(plan: &T) -> String {
+    let mut bare = plan.clone();
+    bare.hash_mut().clear();
+    sha256_hex(serde_json::to_string(&bare).unwrap_or_default().as_bytes())
+}
+
+/// Reads a plan and checks its format, version and hash, naming the file.
+pub fn load<T: Plan>(path: &Path) -> Result<T, PlanError> {
+    let text = std::fs::read_to_string(path).map_err(|e| file_error(path, format!("cannot read the plan: {e}")))?;
+    let plan: T = serde_json::from_str(&text).map_err(|e| file_error(path, format!("not {}: {e}", T::WHAT)))?;
+    let (format, version, hash) = plan.header();
+    if format != T::FORMAT || version != T::VERSION {
+        return Err(file_error(
+            path,
+            format!("format {format} version {version}: this build reads {} version {}", T::FORMAT, T::VERSION),
+        ));
+    }
+    if digest(&plan) != hash {
+        return Err(file_error(path, "its hash does not match its contents: the plan was edited or damaged"));
+    }
+    Ok(plan)
 }
 
 /// `n` items cut into `shards` runs of equal size ±1 (the longer first), as `(start, end)`.

@@ -120,34 +120,10 @@ pub fn slurm_submit(req: &SubmitRequest) -> Result<String> {
         if missing.is_empty() { "none".into() } else { array_ranges(&missing) },
         parts.display()
     );
-    let mut array = Command::new("sbatch");
-    array
-        .arg("--parsable")
-        .arg(format!("--array={}", array_ranges(&missing)))
-        .args(&req.sbatch_args)
-        .arg(&shard_script);
-    let mut merge = Command::new("sbatch");
-    merge.arg("--parsable").args(&req.sbatch_args);
-    if req.dry_run {
-        if !missing.is_empty() {
-            let _ = writeln!(out, "{}", show(&array));
-            merge.arg("--dependency=afterok:ARRAY_JOB_ID").arg("--kill-on-invalid-dep=yes");
-        }
-        let _ = writeln!(out, "{}", show(merge.arg(&merge_script)));
-        if !missing.is_empty() {
-            let _ = writeln!(out, "(ARRAY_JOB_ID: the job id the first sbatch prints)");
-        }
+    let scripts = Scripts { shard: &shard_script, merge: &merge_script, dir: &job.slurm_dir(), name: &job.name };
+    if !submit_jobs(&mut out, &scripts, &missing, &req.sbatch_args, req.dry_run)? {
         return Ok(out);
     }
-    if !missing.is_empty() {
-        let id = run(&mut array)?;
-        let id = id.split(';').next().unwrap_or(&id).to_owned();
-        let _ =
-            writeln!(out, "submitted job array {id} ({}), logs {}/shard-*.log", job.name, job.slurm_dir().display());
-        merge.arg(format!("--dependency=afterok:{id}")).arg("--kill-on-invalid-dep=yes");
-    }
-    let id = run(merge.arg(&merge_script))?;
-    let _ = writeln!(out, "submitted merge job {id} ({}-merge), log {}/merge.log", job.name, job.slurm_dir().display());
     let _ = writeln!(
         out,
         "watch: squeue -n {0},{0}-merge; after a failure run the same command again: only missing shards are submitted",
@@ -266,33 +242,10 @@ pub fn submit_plan(req: &PlanSubmit) -> Result<String> {
         if missing.is_empty() { "none".into() } else { array_ranges(&missing) },
         parts.display()
     );
-    let mut array = Command::new("sbatch");
-    array
-        .arg("--parsable")
-        .arg(format!("--array={}", array_ranges(&missing)))
-        .args(&req.sbatch_args)
-        .arg(&shard_script);
-    let mut merge = Command::new("sbatch");
-    merge.arg("--parsable").args(&req.sbatch_args);
-    if req.dry_run {
-        if !missing.is_empty() {
-            let _ = writeln!(out, "{}", show(&array));
-            merge.arg("--dependency=afterok:ARRAY_JOB_ID").arg("--kill-on-invalid-dep=yes");
-        }
-        let _ = writeln!(out, "{}", show(merge.arg(&merge_script)));
-        if !missing.is_empty() {
-            let _ = writeln!(out, "(ARRAY_JOB_ID: the job id the first sbatch prints)");
-        }
+    let scripts = Scripts { shard: &shard_script, merge: &merge_script, dir: &dir, name: &job.name };
+    if !submit_jobs(&mut out, &scripts, &missing, &req.sbatch_args, req.dry_run)? {
         return Ok(out);
     }
-    if !missing.is_empty() {
-        let id = run(&mut array)?;
-        let id = id.split(';').next().unwrap_or(&id).to_owned();
-        let _ = writeln!(out, "submitted job array {id} ({}), logs {}/shard-*.log", job.name, dir.display());
-        merge.arg(format!("--dependency=afterok:{id}")).arg("--kill-on-invalid-dep=yes");
-    }
-    let id = run(merge.arg(&merge_script))?;
-    let _ = writeln!(out, "submitted merge job {id} ({}-merge), log {}/merge.log", job.name, dir.display());
     let _ = writeln!(
         out,
         "the result goes to {}; watch: squeue -n {1},{1}-merge; after a failure run the same command again",
@@ -300,4 +253,49 @@ pub fn submit_plan(req: &PlanSubmit) -> Result<String> {
         job.name
     );
     Ok(out)
+}
+
+/// A plan's two batch scripts, their folder (the logs) and the jobs' name.
+struct Scripts<'a> {
+    shard: &'a Path,
+    merge: &'a Path,
+    dir: &'a Path,
+    name: &'a str,
+}
+
+/// Submits the `missing` shards as one job array (none: no array) and the merge after it
+/// (`afterok`, killed with an invalid dependency), saying so in `out`; with `dry_run` prints the
+/// `sbatch` lines instead and returns false.
+fn submit_jobs(
+    out: &mut String,
+    scripts: &Scripts,
+    missing: &[usize],
+    sbatch_args: &[String],
+    dry_run: bool,
+) -> Result<bool> {
+    let mut array = Command::new("sbatch");
+    array.arg("--parsable").arg(format!("--array={}", array_ranges(missing))).args(sbatch_args).arg(scripts.shard);
+    let mut merge = Command::new("sbatch");
+    merge.arg("--parsable").args(sbatch_args);
+    if dry_run {
+        if !missing.is_empty() {
+            let _ = writeln!(out, "{}", show(&array));
+            merge.arg("--dependency=afterok:ARRAY_JOB_ID").arg("--kill-on-invalid-dep=yes");
+        }
+        let _ = writeln!(out, "{}", show(merge.arg(scripts.merge)));
+        if !missing.is_empty() {
+            let _ = writeln!(out, "(ARRAY_JOB_ID: the job id the first sbatch prints)");
+        }
+        return Ok(false);
+    }
+    if !missing.is_empty() {
+        let id = run(&mut array)?;
+        let id = id.split(';').next().unwrap_or(&id).to_owned();
+        let _ =
+            writeln!(out, "submitted job array {id} ({}), logs {}/shard-*.log", scripts.name, scripts.dir.display());
+        merge.arg(format!("--dependency=afterok:{id}")).arg("--kill-on-invalid-dep=yes");
+    }
+    let id = run(merge.arg(scripts.merge))?;
+    let _ = writeln!(out, "submitted merge job {id} ({}-merge), log {}/merge.log", scripts.name, scripts.dir.display());
+    Ok(true)
 }

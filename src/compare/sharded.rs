@@ -147,31 +147,26 @@ fn file_error(path: &Path, problem: impl std::fmt::Display) -> CompareError {
     CompareError::File { path: path.to_path_buf(), problem: problem.to_string() }
 }
 
+impl crate::plan::Plan for ComparePlan {
+    const FORMAT: &'static str = PLAN_FORMAT;
+    const VERSION: u32 = PLAN_VERSION;
+    const WHAT: &'static str = "a comparison plan";
+    fn header(&self) -> (&str, u32, &str) {
+        (&self.format, self.version, &self.hash)
+    }
+    fn hash_mut(&mut self) -> &mut String {
+        &mut self.hash
+    }
+}
+
 impl ComparePlan {
-    /// The SHA-256 of the plan with its hash field empty.
     fn digest(&self) -> String {
-        let mut bare = self.clone();
-        bare.hash.clear();
-        crate::plan::digest(&bare)
+        crate::plan::digest(self)
     }
 
     /// Reads a plan and checks its format, version and hash.
     pub fn load(path: &Path) -> Result<ComparePlan, CompareError> {
-        let text = std::fs::read_to_string(path).map_err(|e| file_error(path, format!("cannot read the plan: {e}")))?;
-        let plan: ComparePlan =
-            serde_json::from_str(&text).map_err(|e| file_error(path, format!("not a comparison plan: {e}")))?;
-        if plan.format != PLAN_FORMAT || plan.version != PLAN_VERSION {
-            return Err(file_error(
-                path,
-                format!(
-                    "format {} version {}: this build reads {PLAN_FORMAT} version {PLAN_VERSION}",
-                    plan.format, plan.version
-                ),
-            ));
-        }
-        if plan.digest() != plan.hash {
-            return Err(file_error(path, "its hash does not match its contents: the plan was edited or damaged"));
-        }
+        let plan: ComparePlan = crate::plan::load(path)?;
         if !(1..=16).contains(&plan.refine_bits) || plan.collect == 0 {
             return Err(file_error(
                 path,

@@ -107,31 +107,26 @@ pub enum Merged {
     Pending(Vec<usize>),
 }
 
+impl crate::plan::Plan for ExportPlan {
+    const FORMAT: &'static str = PLAN_FORMAT;
+    const VERSION: u32 = PLAN_VERSION;
+    const WHAT: &'static str = "an export plan";
+    fn header(&self) -> (&str, u32, &str) {
+        (&self.format, self.version, &self.hash)
+    }
+    fn hash_mut(&mut self) -> &mut String {
+        &mut self.hash
+    }
+}
+
 impl ExportPlan {
     fn digest(&self) -> String {
-        let mut bare = self.clone();
-        bare.hash.clear();
-        crate::plan::digest(&bare)
+        crate::plan::digest(self)
     }
 
     /// Reads a plan and checks its format, version and hash.
     pub fn load(path: &Path) -> Result<ExportPlan, PlanError> {
-        let text = std::fs::read_to_string(path).map_err(|e| file_error(path, format!("cannot read the plan: {e}")))?;
-        let plan: ExportPlan =
-            serde_json::from_str(&text).map_err(|e| file_error(path, format!("not an export plan: {e}")))?;
-        if plan.format != PLAN_FORMAT || plan.version != PLAN_VERSION {
-            return Err(file_error(
-                path,
-                format!(
-                    "format {} version {}: this build reads {PLAN_FORMAT} version {PLAN_VERSION}",
-                    plan.format, plan.version
-                ),
-            ));
-        }
-        if plan.digest() != plan.hash {
-            return Err(file_error(path, "its hash does not match its contents: the plan was edited or damaged"));
-        }
-        Ok(plan)
+        crate::plan::load(path)
     }
 
     /// The export the plan fixes, composed on the planned side.

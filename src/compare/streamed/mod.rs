@@ -590,7 +590,8 @@ mod tests {
                     passes += 1;
                 }
                 let sharded = statistics.finish(3).unwrap();
-                let what = format!("n {n}, collect {collect}, {refine_bits}-bit digits, {shards} parts, {passes} passes");
+                let what =
+                    format!("n {n}, collect {collect}, {refine_bits}-bit digits, {shards} parts, {passes} passes");
                 let pairs = std::iter::once((&sharded.stats, &one.stats))
                     .chain(sharded.by_slope.iter().map(|c| &c.stats).zip(one.by_slope.iter().map(|c| &c.stats)));
                 for (a, b) in pairs {
