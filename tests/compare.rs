@@ -1284,3 +1284,54 @@ fn sharded_comparisons_across_the_antimeridian_and_over_a_cube_corner_merge_to_o
         same_statistics(&merged, &one, what);
     }
 }
+
+#[test]
+fn a_procedural_pair_compares_and_exports_in_shards_as_in_one_process() {
+    // The pair of `bench compare-size --procedural`: fBm terrain, and an fBm error added on it.
+    let dir = common::out_path("compare-shards-procedural");
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let layer = |name: &str, blend: &str, seed: u32, amplitude_m: f64, wavelength_m: f64, octaves: u32| {
+        serde_json::json!({
+            "name": name, "visible": true, "blend": blend, "opacity": 1.0, "weight": 1.0, "scale": 1.0,
+            "offset_m": 0.0, "kind": "procedural",
+            "noise": { "type": "fbm", "seed": seed, "amplitude_m": amplitude_m, "wavelength_m": wavelength_m,
+                       "octaves": octaves, "lacunarity": 2.0, "gain": 0.5, "where": "everywhere" }
+        })
+    };
+    let mut project = terrafuse::project::Project::new("moon");
+    for l in [layer("terrain", "over", 11, 2000.0, 300_000.0, 2), layer("error", "add", 12, 5.0, 20_000.0, 1)] {
+        project.layers.push(serde_json::from_value(l).unwrap());
+    }
+    let path = dir.join("noise-pair.json");
+    project.save(&path).unwrap();
+    let p = path.to_str().unwrap();
+    let args = ["terrain+error", "terrain", "--json", "--level", "4", "--region", "10,10,22,22"];
+    let one: serde_json::Value = serde_json::from_str(&run(&[&["compare", p][..], &args[..]].concat())).unwrap();
+    // The error field: 5 m of fBm, so an NMAD of metres, and 10⁵ samples or more.
+    assert!(one["count"].as_u64().unwrap() > 100_000 && one["nmad_m"].as_f64().unwrap() > 0.5, "{one}");
+    for shards in [1, 3, 7] {
+        let plan = dir.join(format!("plan-{shards}.json"));
+        let plan_s = plan.to_str().unwrap();
+        run(&[&["compare", p][..], &args[..], &["--plan", plan_s, "--shards", &shards.to_string()]].concat());
+        let merged: serde_json::Value = serde_json::from_str(&run(&["shards", "run", plan_s, "--jobs", "2"])).unwrap();
+        same_statistics(&merged, &one, &format!("procedural, {shards} shards"));
+    }
+    // The stack exported in 3 shards: the single export's pixels, bit for bit.
+    let grid = ["--crs", "+proj=longlat +R=1737400 +no_defs", "--bounds", "10,10,22,22", "--resolution", "0.05"];
+    let (single, sharded, plan) = (dir.join("single.tif"), dir.join("sharded.tif"), dir.join("export.json"));
+    run(&[&["export", p, single.to_str().unwrap()][..], &grid[..], &["--compose", "cpu", "--level", "4"]].concat());
+    run(&[
+        &["export", p, sharded.to_str().unwrap()][..],
+        &grid[..],
+        &["--compose", "cpu", "--level", "4", "--plan", plan.to_str().unwrap(), "--shards", "3"],
+    ]
+    .concat());
+    run(&["shards", "run", plan.to_str().unwrap(), "--jobs", "2"]);
+    let raw = |tif: &Path| {
+        let out = tif.with_extension("raw");
+        common::run_tool("gdal_translate", &["-q", "-of", "ENVI", tif.to_str().unwrap(), out.to_str().unwrap()], "");
+        std::fs::read(out).unwrap()
+    };
+    assert_eq!(raw(&single), raw(&sharded), "the sharded export equals the single one byte for byte");
+}
