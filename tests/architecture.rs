@@ -138,6 +138,7 @@ const ALLOWED: &[(&str, &[&str])] = &[
             "compare",
             "replay",
             "slurm",
+            "export",
         ],
     ),
     (

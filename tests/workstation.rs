@@ -1222,3 +1222,66 @@ fn a_comparison_too_large_for_the_window_is_planned_followed_round_by_round_and_
     assert_eq!(merged.stats.nmad_m, one["nmad_m"].as_f64().unwrap());
     h.render().unwrap().save(dir.join("cluster-compare.png")).unwrap(); // for people, not compared
 }
+
+#[test]
+fn the_project_tab_exports_a_geotiff_and_plans_merges_one_for_a_cluster() {
+    let dir = common::out_path("workstation-export");
+    let _ = std::fs::remove_dir_all(dir.join("exports"));
+    let project = sample_project("erzurum", &dir);
+    let mut h = harness_of_size(&project, "30km", egui::vec2(900.0, 1700.0));
+    settle(&mut h);
+    h.get_by_label("Project").click_accesskit();
+    h.run_steps(2);
+    h.get_by_label("export GeoTIFF").click_accesskit();
+    h.run_steps(2);
+    let wait = |h: &mut Harness<'static, App>| step_while(h, 6000, "the export", |a| a.export_panel().busy());
+    let out = dir.join("exports/window.tif");
+    type_into(&mut h, "output", out.to_str().unwrap());
+    type_into(&mut h, "bounds", "40.2,39.3,40.8");
+    h.get_by_label("export").click_accesskit();
+    h.run_steps(2);
+    assert!(
+        h.state().export_panel().message.contains("bounds: '40.2,39.3,40.8'"),
+        "{}",
+        h.state().export_panel().message
+    );
+    type_into(&mut h, "bounds", "40.2,39.3,40.8,39.9");
+    type_into(&mut h, "pixel size", "0.005");
+    h.get_by_label("export").click_accesskit();
+    wait(&mut h);
+    assert!(h.state().export_panel().message.starts_with("wrote"), "{}", h.state().export_panel().message);
+    // The command line's export of the same grid: the same pixels.
+    let cli = dir.join("exports/cli.tif");
+    let crs = "+proj=longlat +a=6378137 +b=6356752.314245179 +no_defs";
+    let args = ["--crs", crs, "--bounds", "40.2,39.3,40.8,39.9", "--resolution", "0.005", "--compose", "cpu"];
+    let o =
+        common::terrafuse(&[&["export", project.to_str().unwrap(), cli.to_str().unwrap()][..], &args[..]].concat(), "");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let raw = |tif: &std::path::Path| {
+        let r = tif.with_extension("raw");
+        common::run_tool("gdal_translate", &["-q", "-of", "ENVI", tif.to_str().unwrap(), r.to_str().unwrap()], "");
+        std::fs::read(r).unwrap()
+    };
+    let window = raw(&out);
+    assert_eq!(window, raw(&cli), "the window's export is the command line's");
+    // Too large for the window: a plan in 3 shards, run on the "cluster", merged here.
+    std::fs::remove_file(&out).unwrap();
+    type_into(&mut h, "shards", "3");
+    h.get_by_label("write plan").click_accesskit();
+    wait(&mut h);
+    assert_eq!(h.state().export_panel().plan().map(|(p, d)| (p.shards.len(), d.to_vec())), Some((3, vec![false; 3])));
+    h.get_by_label_contains("0 of 3 shards done");
+    let plan = out.with_extension("plan.json");
+    for i in 0..3 {
+        let o = common::terrafuse(&["shard", plan.to_str().unwrap(), &i.to_string()], "");
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    }
+    h.get_by_label("refresh").click_accesskit();
+    h.run_steps(2);
+    h.get_by_label_contains("3 of 3 shards done");
+    h.get_by_label("merge").click_accesskit();
+    wait(&mut h);
+    assert!(h.state().export_panel().message.starts_with("merged"), "{}", h.state().export_panel().message);
+    assert_eq!(raw(&out), window, "the merged export is the single one, pixel for pixel");
+    h.render().unwrap().save(dir.join("export-panel.png")).unwrap(); // for people, not compared
+}

@@ -9,6 +9,7 @@ pub mod cluster_import;
 pub mod compare_panel;
 pub mod difference_ui;
 mod error;
+pub mod export_panel;
 pub mod file_pick;
 pub mod layers_panel;
 pub mod navigate;

@@ -94,6 +94,7 @@ pub struct App {
     add_dataset: crate::gui::add_dataset::AddDataset,
     cluster: crate::gui::cluster_import::ClusterImport,
     cluster_compare: crate::gui::cluster_compare::ClusterCompare,
+    export_panel: crate::gui::export_panel::ExportPanel,
     /// The *Compare* section.
     compare: crate::gui::compare_panel::ComparePanel,
     /// A swipe in progress (a second renderer).
@@ -172,6 +173,7 @@ impl App {
             add_dataset: Default::default(),
             cluster: Default::default(),
             cluster_compare: Default::default(),
+            export_panel: Default::default(),
             compare: Default::default(),
             difference_range: Default::default(),
             brush: Default::default(),
@@ -268,6 +270,11 @@ impl App {
     /// Whether a dataset is being imported or opened in the background.
     pub fn adding_dataset(&self) -> bool {
         self.add_dataset.busy()
+    }
+
+    /// The export section (tests read its plan and outcome).
+    pub fn export_panel(&self) -> &crate::gui::export_panel::ExportPanel {
+        &self.export_panel
     }
 
     /// The cluster-comparison section (tests read its plan, rounds and result).

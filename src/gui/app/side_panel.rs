@@ -114,7 +114,11 @@ impl App {
             Tab::Compare => self.compare_tab(ui),
             Tab::Brush => self.brush_ui(ui),
             Tab::Erosion => self.erosion_ui(ui),
-            Tab::Project => self.project_facts(ui),
+            Tab::Project => {
+                self.project_facts(ui);
+                let (camera, body) = (self.camera(), self.renderer.scene().ellipsoid);
+                self.export_panel.ui(ui, &self.project_path, &body, (camera.lon, camera.lat));
+            }
         });
     }
 
