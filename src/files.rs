@@ -93,6 +93,11 @@ fn process_runs(pid: i32) -> bool {
     r == 0 || std::io::Error::last_os_error().raw_os_error() == Some(libc::EPERM)
 }
 
+/// The SHA-256 of `bytes`, as lower-case hex (how plans, manifests and parts name a digest).
+pub fn sha256_hex(bytes: &[u8]) -> String {
+    Sha256::digest(bytes).iter().map(|b| format!("{b:02x}")).collect()
+}
+
 #[cfg(test)]
 mod tests {
     #[test]
@@ -126,9 +131,4 @@ mod tests {
         assert!(!dead.exists() && alive.exists() && other.exists());
         std::fs::remove_dir_all(&dir).unwrap();
     }
-}
-
-/// The SHA-256 of `bytes`, as lower-case hex (how plans, manifests and parts name a digest).
-pub fn sha256_hex(bytes: &[u8]) -> String {
-    Sha256::digest(bytes).iter().map(|b| format!("{b:02x}")).collect()
 }
