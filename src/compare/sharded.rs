@@ -82,11 +82,11 @@ pub struct ComparePlan {
     /// A quantile's last candidates are gathered once at most this many are left, over every
     /// shard (smaller parts, a round more; the same quantiles). Plans written before the field
     /// gather 2¹⁸, as one `compare` does.
-    #[serde(default = "one_process_collect")]
+    #[serde(default = "one_process_collect", skip_serializing_if = "is_one_process_collect")]
     pub collect: u64,
     /// The width of a quantile search's digits after the first, bits (8: at most 256 buckets a
     /// search in a part; 16 before the field, as one `compare`).
-    #[serde(default = "one_process_refine_bits")]
+    #[serde(default = "one_process_refine_bits", skip_serializing_if = "is_one_process_refine_bits")]
     pub refine_bits: u32,
 }
 
@@ -99,6 +99,15 @@ pub const PLAN_REFINE_BITS: u32 = 8;
 
 fn one_process_refine_bits() -> u32 {
     super::streamed::Gathering::default().refine_bits
+}
+
+// Left out of the JSON (and so of the hash) where a plan written before the fields had them.
+fn is_one_process_collect(collect: &u64) -> bool {
+    *collect == one_process_collect()
+}
+
+fn is_one_process_refine_bits(bits: &u32) -> bool {
+    *bits == one_process_refine_bits()
 }
 
 fn one_process_collect() -> u64 {
