@@ -102,7 +102,7 @@ pub fn compare_command(request: &CompareRequest, fb: &mut Feedback) -> Result<St
             made.level,
             plan.display(),
             made.parts.display(),
-            super::sharded::next_steps(plan, shards)
+            super::plans::next_steps(plan, shards)
         ));
     }
     let project = Project::load(&request.project)?;

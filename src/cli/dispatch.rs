@@ -255,33 +255,12 @@ fn run_export(args: ExportArgs, c: &mut Console) -> Result<(), CliError> {
             made.level,
             plan.display(),
             made.parts.display(),
-            super::sharded::next_steps(&plan, shards)
+            super::plans::next_steps(&plan, shards)
         ));
     }
     let started = std::time::Instant::now();
     let report = watched(c, true, |fb| crate::export::export_composed_watched(&opts, fb.watch))?;
-    c.print(export_line(&opts.out, attribute, &report, started.elapsed()))
-}
-
-/// What `export` (and a sharded export's merge) prints.
-pub(super) fn export_line(
-    out: &std::path::Path,
-    attribute: Option<crate::attributes::Attribute>,
-    report: &crate::export::ComposedReport,
-    took: std::time::Duration,
-) -> String {
-    format!(
-        "wrote {}{} ({}×{} pixels, level {}, {} quads composed on the {}, {} pixels with data) in {:.1} s\n",
-        out.display(),
-        attribute.map(|a| format!(": {} in {}", a.name(), a.unit())).unwrap_or_default(),
-        report.size.0,
-        report.size.1,
-        report.level,
-        report.quads,
-        report.composer,
-        report.valid,
-        took.as_secs_f64()
-    )
+    c.print(super::report::export_line(&opts.out, attribute, &report, started.elapsed()))
 }
 
 /// `terrafuse store …`: merge parts, describe, sample or export a store; 1 when a sampled line

@@ -18,6 +18,7 @@ mod feedback;
 mod flight;
 mod geo;
 mod geometry;
+mod plans;
 mod profile;
 mod project;
 mod render;

@@ -124,3 +124,24 @@ pub fn overview(landmarks: &str) -> String {
     );
     out
 }
+
+/// What `export` (and a sharded export's merge) prints.
+pub(super) fn export_line(
+    out: &std::path::Path,
+    attribute: Option<crate::attributes::Attribute>,
+    report: &crate::export::ComposedReport,
+    took: std::time::Duration,
+) -> String {
+    format!(
+        "wrote {}{} ({}×{} pixels, level {}, {} quads composed on the {}, {} pixels with data) in {:.1} s\n",
+        out.display(),
+        attribute.map(|a| format!(": {} in {}", a.name(), a.unit())).unwrap_or_default(),
+        report.size.0,
+        report.size.1,
+        report.level,
+        report.quads,
+        report.composer,
+        report.valid,
+        took.as_secs_f64()
+    )
+}

@@ -27,12 +27,12 @@ pub fn plan_summary(path: &Path, r: &PlanReport) -> String {
         sizes.iter().max().unwrap_or(&0),
         r.seconds
     );
-    out.push_str(&super::sharded::next_steps(path, m.shards.len()));
+    out.push_str(&super::plans::next_steps(path, m.shards.len()));
     let _ = writeln!(
         out,
         "(parts in {}, the store {} unless merge --store; or by hand: terrafuse import --manifest {} --shard I --store PART-I.gpkg, then terrafuse store merge STORE PART-*.gpkg)",
-        super::sharded::import_parts(path).display(),
-        super::sharded::import_store(path, None).display(),
+        super::plans::import_parts(path).display(),
+        super::plans::import_store(path, None).display(),
         path.display()
     );
     out

@@ -8,83 +8,14 @@ use std::process::Command;
 
 use super::console::Console;
 use super::error::Context;
+use super::plans::{Planned, import_missing, import_parts, import_store, pending, planned};
 use super::{CliError, Within};
 use crate::compare::sharded::{self, Merged, Sharded};
 use crate::export::sharded as export_sharded;
-use crate::store::shard::{MANIFEST_FORMAT, Manifest, part_is_done};
-
-/// An import plan's parts: `PLAN.parts` beside it.
-pub fn import_parts(plan: &Path) -> std::path::PathBuf {
-    plan.with_extension("parts")
-}
-
-/// An import plan's store: `store`, or the plan's name with `.gpkg`.
-pub fn import_store(plan: &Path, store: Option<&Path>) -> std::path::PathBuf {
-    store.map_or_else(|| plan.with_extension("gpkg"), Path::to_path_buf)
-}
-
-/// An import plan's shards without a complete part.
-fn import_missing(plan: &Path) -> Result<Vec<usize>, CliError> {
-    let m = Manifest::load(plan)?;
-    let parts = import_parts(plan);
-    Ok((0..m.shards.len()).filter(|&i| !part_is_done(&crate::slurm::part_path(&parts, i), &m, i)).collect())
-}
+use crate::store::shard::Manifest;
 
 /// The exit status of a merge that waits for shards.
 pub const PENDING: u8 = 3;
-
-/// Which command planned a plan.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Planned {
-    /// `compare … --plan`.
-    Compare,
-    /// `export … --plan`.
-    Export,
-    /// `import … --plan` (the manifest).
-    Import,
-}
-
-/// Reads the plan's `format`.
-pub fn planned(plan: &Path) -> Result<Planned, CliError> {
-    let format = crate::plan::format_of(plan)?;
-    match format.as_str() {
-        sharded::PLAN_FORMAT => Ok(Planned::Compare),
-        export_sharded::PLAN_FORMAT => Ok(Planned::Export),
-        MANIFEST_FORMAT => Ok(Planned::Import),
-        other => Err(format!("{}: format {other}: not a plan of compare, export or import", plan.display()).into()),
-    }
-}
-
-/// What a plan's maker prints after it: the commands that run it.
-pub fn next_steps(plan: &Path, shards: usize) -> String {
-    let p = plan.display();
-    format!(
-        "run each shard: terrafuse shard {p} I   (I = 0 … {}, or env in a job array)\n\
-         then:           terrafuse merge {p}\n\
-         or all here:    terrafuse shards run {p}   on Slurm: terrafuse slurm submit {p}\n",
-        shards - 1
-    )
-}
-
-/// The round a plan waits on and its shards still to run; None when every part is in (the
-/// merge then finishes).
-pub fn pending(plan: &Path) -> Result<Option<(u32, Vec<usize>)>, CliError> {
-    Ok(match planned(plan)? {
-        Planned::Compare => match sharded::merge(plan).within(plan.display())? {
-            Merged::Done(_) => None,
-            Merged::Pending { round, shards } => Some((round, shards)),
-        },
-        Planned::Export => {
-            let loaded = export_sharded::ExportPlan::load(plan)?;
-            let missing = export_sharded::missing(&loaded)?;
-            (!missing.is_empty()).then_some((0, missing))
-        }
-        Planned::Import => {
-            let missing = import_missing(plan)?;
-            (!missing.is_empty()).then_some((0, missing))
-        }
-    })
-}
 
 /// Computes shard `shard` (a number, or `env`) of the plan's pending round.
 pub fn shard_command(plan: &Path, shard: &str, c: &mut Console) -> Result<u8, CliError> {
@@ -161,7 +92,7 @@ pub fn merge_command(plan: &Path, store: Option<&Path>, c: &mut Console) -> Resu
             export_sharded::Merged::Done(report) => {
                 let loaded = export_sharded::ExportPlan::load(plan)?;
                 let attribute = loaded.attribute.and_then(|a| crate::attributes::Attribute::parse(&a));
-                c.print(super::dispatch::export_line(&loaded.out, attribute, &report, started.elapsed()))?;
+                c.print(super::report::export_line(&loaded.out, attribute, &report, started.elapsed()))?;
                 Ok(0)
             }
             export_sharded::Merged::Pending(shards) => {

@@ -172,7 +172,7 @@ pub struct PlanSubmit {
 /// array, and a merge job after it whose exit 3 (another round) submits that round the same way;
 /// with every part in, only the merge; with the result written, nothing.
 pub fn submit_plan(req: &PlanSubmit) -> Result<String> {
-    use super::sharded::{Planned, pending, planned};
+    use super::plans::{Planned, pending, planned};
     let plan = absolute(&req.plan)?;
     let kind = planned(&plan)?;
     let (hash, parts, json) = match kind {
@@ -188,8 +188,8 @@ pub fn submit_plan(req: &PlanSubmit) -> Result<String> {
         Planned::Import => {
             return slurm_submit(&SubmitRequest {
                 manifest: plan.clone(),
-                parts: super::sharded::import_parts(&plan),
-                store: super::sharded::import_store(&plan, None),
+                parts: super::plans::import_parts(&plan),
+                store: super::plans::import_store(&plan, None),
                 threads: req.threads,
                 memory_budget: req.memory_budget.clone(),
                 work_dir: req.work_dir.clone(),
