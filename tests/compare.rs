@@ -1335,3 +1335,35 @@ fn a_procedural_pair_compares_and_exports_in_shards_as_in_one_process() {
     };
     assert_eq!(raw(&single), raw(&sharded), "the sharded export equals the single one byte for byte");
 }
+
+#[test]
+fn by_slope_sets_the_slope_classes_in_one_process_and_in_shards() {
+    let p = project();
+    let ps = p.to_str().unwrap();
+    let dir = common::out_path("compare-by-slope");
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let args = ["blurred", "srtm", "--json", "--level", "8", "--by-slope", "0,10,30,90"];
+    let one: serde_json::Value = serde_json::from_str(&run(&[&["compare", ps][..], &args[..]].concat())).unwrap();
+    let classes = |v: &serde_json::Value| -> Vec<(f64, f64)> {
+        v["by_slope"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|c| (c["min_deg"].as_f64().unwrap(), c["max_deg"].as_f64().unwrap()))
+            .collect()
+    };
+    assert_eq!(classes(&one), [(0.0, 10.0), (10.0, 30.0), (30.0, 90.0)]);
+    let plan = dir.join("plan.json");
+    run(&[&["compare", ps][..], &args[..], &["--plan", plan.to_str().unwrap(), "--shards", "3"]].concat());
+    let merged: serde_json::Value =
+        serde_json::from_str(&run(&["shards", "run", plan.to_str().unwrap(), "--jobs", "2"])).unwrap();
+    for (m, o) in merged["by_slope"].as_array().unwrap().iter().zip(one["by_slope"].as_array().unwrap()) {
+        same_statistics(m, o, &format!("slope class {}", o["min_deg"]));
+    }
+    for bad in ["10,5", "0,x", "0,95"] {
+        let o = terrafuse(&["compare", ps, "blurred", "srtm", "--by-slope", bad], "");
+        let said = String::from_utf8_lossy(&o.stderr).into_owned();
+        assert!(o.status.code() == Some(1) && said.contains(&format!("--by-slope {bad}")), "{said}");
+    }
+}

@@ -37,6 +37,10 @@ pub struct CompareRequest {
     /// nmad_m, min_m, max_m, le90_m, p90_abs_m, histogram, by_slope).
     #[arg(long)]
     pub json: bool,
+    /// The slope classes of B (always reported, `by_slope` in the JSON): their edges in degrees,
+    /// increasing within 0–90 (default 0,5,10,20,30,45,90); `--by-slope` alone keeps the default.
+    #[arg(long, value_name = "EDGES", num_args = 0..=1, default_missing_value = "")]
+    pub by_slope: Option<String>,
     /// Also write every sample (lon_deg, lat_deg, dh_m, area_m2, slope_deg) as CSV.
     #[arg(long)]
     pub samples: Option<PathBuf>,
@@ -69,6 +73,23 @@ pub struct CompareRequest {
     pub parts: Option<PathBuf>,
 }
 
+/// Parses `--by-slope EDGES`: the slope classes' edges, degrees (none or empty: the default).
+fn parse_slope_classes(edges: Option<&str>) -> Result<Vec<f64>, CliError> {
+    let text = edges.unwrap_or("").trim();
+    if text.is_empty() {
+        return Ok(crate::compare::stats::SLOPE_CLASSES_DEG.to_vec());
+    }
+    let bad = |problem: &str| CliError::Usage(format!("--by-slope {text}: {problem}"));
+    let edges: Vec<f64> = text
+        .split(',')
+        .map(|v| v.trim().parse::<f64>().map_err(|_| bad(&format!("'{}' is not a slope in degrees", v.trim()))))
+        .collect::<Result<_, _>>()?;
+    if edges.len() < 2 || edges.windows(2).any(|w| w[0] >= w[1]) || edges[0] < 0.0 || edges[edges.len() - 1] > 90.0 {
+        return Err(bad("give two or more increasing edges within 0–90 degrees, e.g. 0,10,30,90"));
+    }
+    Ok(edges)
+}
+
 /// Parses `--region WEST,SOUTH,EAST,NORTH`.
 fn parse_region(region: Option<&str>) -> Result<Option<GeoBox>, CliError> {
     region.map(super::geo::parse_box).transpose()
@@ -77,11 +98,13 @@ fn parse_region(region: Option<&str>) -> Result<Option<GeoBox>, CliError> {
 /// Runs the comparison; returns what to print.
 pub fn compare_command(request: &CompareRequest, fb: &mut Feedback) -> Result<String, CliError> {
     let region = parse_region(request.region.as_deref())?;
+    let slope_classes_deg = parse_slope_classes(request.by_slope.as_deref())?;
     if let (Some(plan), Some(shards)) = (&request.plan, request.shards) {
         let opts = CompareOptions {
             level: request.level,
             region,
             weighting: if request.unweighted { Weighting::Samples } else { Weighting::Area },
+            slope_classes_deg,
             ..CompareOptions::default()
         };
         let made = crate::compare::sharded::plan(
@@ -130,6 +153,7 @@ pub fn compare_command(request: &CompareRequest, fb: &mut Feedback) -> Result<St
         memory_samples: request.memory_samples,
         scratch: Some(std::env::temp_dir()),
         watch: Some(fb.watch.clone()),
+        slope_classes_deg,
         ..CompareOptions::default()
     };
     let started = std::time::Instant::now();
