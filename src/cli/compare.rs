@@ -154,7 +154,6 @@ pub fn compare_command(request: &CompareRequest, fb: &mut Feedback) -> Result<St
         scratch: Some(std::env::temp_dir()),
         watch: Some(fb.watch.clone()),
         slope_classes_deg,
-        ..CompareOptions::default()
     };
     let started = std::time::Instant::now();
     let c = compare(&project, &request.a, &request.b, &opts).within(request.project.display())?;
