@@ -164,12 +164,7 @@ impl ClusterCompare {
             if self.shards.is_empty() {
                 self.shards = "16".into();
             }
-            let field = |ui: &mut egui::Ui, label: &str, text: &mut String, hint: &str| {
-                ui.horizontal(|ui| {
-                    let l = ui.label(label);
-                    ui.add(egui::TextEdit::singleline(text).hint_text(hint)).labelled_by(l.id);
-                });
-            };
+            use super::widgets::field;
             field(ui, "shards", &mut self.shards, "e.g. 64");
             field(ui, "level", &mut self.level, "default: the datasets' finest");
             field(ui, "plan file", &mut self.plan_file, "default: plans/compare-A-B.json");
@@ -203,7 +198,7 @@ impl ClusterCompare {
                         "round {round} of the statistics (6–12 in all): {n} of {} shards done",
                         done.len()
                     ));
-                    super::cluster_import::shard_squares(ui, done);
+                    super::widgets::shard_squares(ui, done);
                 }
                 let command = self.submit_command();
                 ui.horizontal(|ui| {

@@ -283,12 +283,7 @@ impl ClusterImport {
                 let _ = self.poll();
                 return;
             }
-            let field = |ui: &mut egui::Ui, label: &str, text: &mut String, hint: &str| {
-                ui.horizontal(|ui| {
-                    let l = ui.label(label);
-                    ui.add(egui::TextEdit::singleline(text).hint_text(hint)).labelled_by(l.id);
-                });
-            };
+            use super::widgets::field;
             field(ui, "source", &mut self.source, "raster to import (.tif, …)");
             field(ui, "shards", &mut self.shards, "e.g. 64");
             field(ui, "plan file", &mut self.manifest, "default: plans/<source>.json");
@@ -315,7 +310,7 @@ impl ClusterImport {
                     m.import.level,
                     m.shards.len()
                 ));
-                shard_squares(ui, &self.done);
+                super::widgets::shard_squares(ui, &self.done);
                 let command = self.submit_command();
                 ui.horizontal(|ui| {
                     ui.label("on the cluster:");
@@ -348,25 +343,5 @@ impl ClusterImport {
             }
         });
         action
-    }
-}
-
-/// One small square per shard: green when its part is done, grey when not.
-pub(crate) fn shard_squares(ui: &mut egui::Ui, done: &[bool]) {
-    const SIDE: f32 = 7.0;
-    let per_row = ((ui.available_width() / (SIDE + 1.0)) as usize).max(1);
-    let rows = done.len().div_ceil(per_row).min(40);
-    let (rect, response) =
-        ui.allocate_exact_size(egui::vec2(ui.available_width(), rows as f32 * (SIDE + 1.0)), egui::Sense::hover());
-    let painter = ui.painter_at(rect);
-    for (i, d) in done.iter().enumerate().take(rows * per_row) {
-        let min = rect.min + egui::vec2((i % per_row) as f32 * (SIDE + 1.0), (i / per_row) as f32 * (SIDE + 1.0));
-        let colour = if *d { egui::Color32::from_rgb(80, 170, 90) } else { egui::Color32::from_gray(90) };
-        painter.rect_filled(egui::Rect::from_min_size(min, egui::vec2(SIDE, SIDE)), 1.0, colour);
-    }
-    let missing: Vec<String> =
-        done.iter().enumerate().filter(|(_, d)| !**d).map(|(i, _)| i.to_string()).take(20).collect();
-    if !missing.is_empty() {
-        response.on_hover_text(format!("missing shards: {}", missing.join(", ")));
     }
 }

@@ -208,12 +208,7 @@ impl ExportPanel {
                 return;
             }
             self.defaults(project_path, centre);
-            let field = |ui: &mut egui::Ui, label: &str, text: &mut String, hint: &str| {
-                ui.horizontal(|ui| {
-                    let l = ui.label(label);
-                    ui.add(egui::TextEdit::singleline(text).hint_text(hint)).labelled_by(l.id);
-                });
-            };
+            use super::widgets::field;
             field(ui, "output", &mut self.out, "GeoTIFF to write");
             field(ui, "bounds", &mut self.bounds, "WEST,SOUTH,EAST,NORTH degrees");
             field(ui, "pixel size", &mut self.resolution, "degrees");
@@ -248,7 +243,7 @@ impl ExportPanel {
             if let Some((path, p)) = &self.plan {
                 let n = self.done.iter().filter(|d| **d).count();
                 ui.label(format!("plan {}: {n} of {} shards done", &p.hash[..12], p.shards.len()));
-                super::cluster_import::shard_squares(ui, &self.done);
+                super::widgets::shard_squares(ui, &self.done);
                 let command = format!("terrafuse slurm submit {}", crate::slurm::shell_quote(&path.to_string_lossy()));
                 ui.horizontal(|ui| {
                     ui.label("on the cluster:");

@@ -16,6 +16,7 @@ pub mod navigate;
 pub mod recent;
 pub mod uncertainty_ui;
 pub mod viewport;
+mod widgets;
 
 pub use error::{GuiError, Within};
 use std::path::{Path, PathBuf};
